@@ -1,0 +1,166 @@
+//! Rays, camera intrinsics and pose conventions shared by every module.
+//!
+//! Conventions: world is right-handed, z up, metres. Camera frame is OpenCV
+//! (x right, y down, z forward). Transforms are named by frames:
+//! `world_from_camera * p_camera` gives a point in the world frame. Pixel
+//! centres are at `(u + 0.5, v + 0.5)`.
+
+use nalgebra::{Isometry3, Point3, Vector3};
+
+/// A rigid transform, named by the frames it maps between
+/// (`world_from_camera` maps camera coordinates to world coordinates).
+pub type Pose = Isometry3<f64>;
+
+/// A ray in a map's grid frame (world minus the map origin), single precision
+/// as the ray casters use it. `dir` need not be unit length; distances `t` are
+/// in units of `|dir|`, so a unit `dir` gives metres.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
+pub struct Ray {
+    pub origin: [f32; 3],
+    pub dir: [f32; 3],
+    /// Smallest accepted distance (0 for a camera ray).
+    pub t_min: f32,
+    /// Largest accepted distance (`f32::INFINITY` for no range limit).
+    pub t_max: f32,
+}
+
+impl Ray {
+    /// A ray from `origin` along `dir` with no range limit.
+    pub fn new(origin: [f32; 3], dir: [f32; 3]) -> Self {
+        Ray {
+            origin,
+            dir,
+            t_min: 0.0,
+            t_max: f32::INFINITY,
+        }
+    }
+
+    /// The point at distance `t`.
+    pub fn at(&self, t: f32) -> [f32; 3] {
+        [
+            self.origin[0] + t * self.dir[0],
+            self.origin[1] + t * self.dir[1],
+            self.origin[2] + t * self.dir[2],
+        ]
+    }
+}
+
+/// Pinhole intrinsics: focal lengths and principal point in pixels, image
+/// size in pixels (file form: `fx fy cx cy width height`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Intrinsics {
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Intrinsics {
+    /// Intrinsics of a square-pixel camera with horizontal field of view
+    /// `hfov_deg` and the principal point at the image centre.
+    pub fn from_hfov(width: u32, height: u32, hfov_deg: f64) -> Self {
+        let f = 0.5 * width as f64 / (0.5 * hfov_deg.to_radians()).tan();
+        Intrinsics {
+            fx: f,
+            fy: f,
+            cx: 0.5 * width as f64,
+            cy: 0.5 * height as f64,
+            width,
+            height,
+        }
+    }
+
+    /// Unit direction, in the camera frame, of the ray through the centre of
+    /// pixel `(u, v)`.
+    pub fn pixel_dir(&self, u: u32, v: u32) -> Vector3<f64> {
+        Vector3::new(
+            (u as f64 + 0.5 - self.cx) / self.fx,
+            (v as f64 + 0.5 - self.cy) / self.fy,
+            1.0,
+        )
+        .normalize()
+    }
+
+    /// Number of pixels.
+    pub fn pixel_count(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
+
+    /// Projects a camera-frame point to continuous pixel coordinates (pixel
+    /// `(u, v)` spans `[u, u+1) x [v, v+1)`); `None` behind the camera.
+    pub fn project(&self, p_camera: &Point3<f64>) -> Option<(f64, f64)> {
+        if p_camera.z <= 0.0 {
+            return None;
+        }
+        Some((
+            self.fx * p_camera.x / p_camera.z + self.cx,
+            self.fy * p_camera.y / p_camera.z + self.cy,
+        ))
+    }
+}
+
+/// The camera ray through pixel `(u, v)` of a camera at `world_from_camera`,
+/// expressed in the grid frame of a map whose origin is `map_origin`
+/// (world coordinates of grid-frame zero).
+pub fn camera_ray(
+    intrinsics: &Intrinsics,
+    world_from_camera: &Pose,
+    map_origin: &Vector3<f64>,
+    u: u32,
+    v: u32,
+) -> Ray {
+    let d = world_from_camera.rotation * intrinsics.pixel_dir(u, v);
+    let o = world_from_camera.translation.vector - map_origin;
+    Ray::new(
+        [o.x as f32, o.y as f32, o.z as f32],
+        [d.x as f32, d.y as f32, d.z as f32],
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Translation3, UnitQuaternion};
+
+    #[test]
+    fn principal_pixel_looks_along_optical_axis() {
+        let k = Intrinsics {
+            fx: 100.0,
+            fy: 100.0,
+            cx: 50.0,
+            cy: 40.0,
+            width: 100,
+            height: 80,
+        };
+        // Pixel (49, 39) has its centre at (49.5, 39.5): half a pixel off axis.
+        let d = k.pixel_dir(49, 39);
+        assert!((d.x + 0.005).abs() < 1e-4 && (d.y + 0.005).abs() < 1e-4);
+        let (u, v) = k.project(&Point3::new(0.0, 0.0, 2.0)).unwrap();
+        assert_eq!((u, v), (50.0, 40.0));
+        assert!(k.project(&Point3::new(0.0, 0.0, -1.0)).is_none());
+    }
+
+    #[test]
+    fn hfov_gives_the_expected_focal_length() {
+        let k = Intrinsics::from_hfov(540, 540, 90.0);
+        assert!((k.fx - 270.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn camera_ray_is_in_grid_frame() {
+        let k = Intrinsics::from_hfov(2, 2, 90.0);
+        // Camera at (10, 0, 1) looking along world +x (z_cam -> x_world).
+        let rot = UnitQuaternion::from_basis_unchecked(&[
+            Vector3::new(0.0, -1.0, 0.0),
+            Vector3::new(0.0, 0.0, -1.0),
+            Vector3::new(1.0, 0.0, 0.0),
+        ]);
+        let pose = Pose::from_parts(Translation3::new(10.0, 0.0, 1.0), rot);
+        let r = camera_ray(&k, &pose, &Vector3::new(9.0, 0.0, 0.0), 1, 1);
+        assert_eq!(r.origin, [1.0, 0.0, 1.0]);
+        assert!(r.dir[0] > 0.5 && r.dir[1] < 0.0 && r.dir[2] < 0.0);
+    }
+}

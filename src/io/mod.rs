@@ -1,0 +1,2 @@
+//! Reading and writing files: parsing only, no math beyond it.
+pub mod npy;

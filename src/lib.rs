@@ -1,0 +1,4 @@
+//! omcl: Open-vocabulary Monte Carlo Localization.
+pub mod geometry;
+pub mod io;
+pub mod raycast;
