@@ -229,7 +229,7 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, CloudError> {
         break;
     }
     cloud.validate(&path.display().to_string())?;
-    Ok(cloud)
+    cloud.non_empty(&path.display().to_string(), "the file holds no vertices")
 }
 
 /// An element whose every property is ignored.
