@@ -14,9 +14,9 @@ fn check_against_laspy(file: &str, with_rgb: bool) {
     assert_eq!(c.len(), rows.len());
     let labels = c.labels.as_ref().unwrap();
     for (i, r) in rows.iter().enumerate() {
-        for k in 0..3 {
+        for (k, (got, want)) in c.points[i].iter().zip(r).enumerate() {
             // Both apply scale and offset to the same integers.
-            assert!((c.points[i][k] - r[k]).abs() < 1e-9, "point {i} axis {k}");
+            assert!((got - want).abs() < 1e-9, "point {i} axis {k}");
         }
         assert_eq!(labels[i], r[3] as u32, "class {i}");
         if with_rgb {

@@ -46,18 +46,12 @@ fn plyfile_little_endian_double_class_features_and_faces() {
     assert_eq!(*dim, 4);
     assert!(c.colors.is_none());
     for (i, r) in rows.iter().enumerate() {
-        for k in 0..3 {
-            assert!(
-                (c.points[i][k] - r[k]).abs() <= 1e-12 * r[k].abs(),
-                "point {i}"
-            );
+        for (got, want) in c.points[i].iter().zip(r) {
+            assert!((got - want).abs() <= 1e-12 * want.abs(), "point {i}");
         }
         assert_eq!(c.labels.as_ref().unwrap()[i], r[3] as u32);
-        for k in 0..4 {
-            assert!(
-                (f[i * 4 + k] as f64 - r[4 + k]).abs() < 1e-6,
-                "feature {i},{k}"
-            );
+        for (k, (got, want)) in f[i * 4..i * 4 + 4].iter().zip(&r[4..8]).enumerate() {
+            assert!((*got as f64 - want).abs() < 1e-6, "feature {i},{k}");
         }
     }
 }

@@ -307,9 +307,10 @@ mod tests {
             assert_eq!((u.floor() as u32, v.floor() as u32), (i % 4, i / 4));
             assert!((u.fract() - 0.5).abs() < 1e-9 && (v.fract() - 0.5).abs() < 1e-9);
         }
-        // Pixel (1, 1) centre (1.5, 1.5): x = (1.5 - 2) / 500 * 2.
-        let j = px.iter().position(|&i| i == 4 + 1).unwrap();
-        assert!((pts[j][0] + 0.002).abs() < 1e-12 && pts[j][1].abs() < 1e-12);
+        // Pixel (1, 2), centre (1.5, 2.5): x = (1.5 - 2) / 500 * 2,
+        // y = (2.5 - 1.5) / 400 * 2.
+        let j = px.iter().position(|&i| i == 2 * 4 + 1).unwrap();
+        assert!((pts[j][0] + 0.002).abs() < 1e-12 && (pts[j][1] - 0.005).abs() < 1e-12);
     }
 
     #[test]
