@@ -194,3 +194,71 @@ fn features_attach_from_npy_with_dimension_checks() {
     omcl::io::npy::write_npy(&nan, &[n, 3], &v).unwrap();
     assert_err_names(c.attach_features_npy(&nan).unwrap_err(), &nan, "point 2");
 }
+
+#[test]
+fn format_dispatch_by_extension() {
+    use omcl::io::cloud::{CloudFormat, read_point_cloud};
+    let ply = read_point_cloud(&local("plyfile_ascii_rgb_label.ply"), None).unwrap();
+    assert_eq!(ply.len(), 37);
+    let laz = read_point_cloud(&local("laspy_pf3_rgb.laz"), None).unwrap();
+    assert_eq!(laz.len(), 53);
+    let bin = local("scan.bin");
+    assert_err_names(
+        read_point_cloud(&bin, None).unwrap_err(),
+        &bin,
+        "kitti or scannet",
+    );
+    // An explicit format wins over the extension.
+    let e = read_point_cloud(&local("laspy_pf3_rgb.las"), Some(CloudFormat::Ply)).unwrap_err();
+    assert_err_names(e, &local("laspy_pf3_rgb.las"), "header");
+}
+
+#[test]
+fn windows_line_endings_in_ascii() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("crlf.ply");
+    std::fs::write(
+        &p,
+        b"ply\r\nformat ascii 1.0\r\nelement vertex 2\r\nproperty float x\r\nproperty float y\r\n\
+          property float z\r\nproperty uchar class\r\nend_header\r\n1 2 3 4\r\n5 6 7 8\r\n",
+    )
+    .unwrap();
+    let c = read_ply(&p).unwrap();
+    assert_eq!(c.points, vec![[1.0, 2.0, 3.0], [5.0, 6.0, 7.0]]);
+    assert_eq!(c.labels, Some(vec![4, 8]));
+}
+
+mod roundtrip {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn cloud_strategy() -> impl Strategy<Value = PointCloud> {
+        (1usize..40, 0usize..4, any::<bool>(), any::<bool>()).prop_flat_map(
+            |(n, dim, has_rgb, has_label)| {
+                (
+                    proptest::collection::vec(prop::array::uniform3(-1e7f64..1e7), n),
+                    proptest::collection::vec(prop::array::uniform3(any::<u8>()), n),
+                    proptest::collection::vec(any::<u32>(), n),
+                    proptest::collection::vec(-1e3f32..1e3, n * dim),
+                )
+                    .prop_map(move |(points, rgb, labels, feats)| PointCloud {
+                        points,
+                        labels: has_label.then_some(labels),
+                        colors: has_rgb.then_some(rgb),
+                        features: (dim > 0).then_some((dim, feats)),
+                    })
+            },
+        )
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        #[test]
+        fn binary_write_read_is_lossless(cloud in cloud_strategy()) {
+            let d = tempfile::tempdir().unwrap();
+            let p = d.path().join("r.ply");
+            write_ply(&p, &cloud).unwrap();
+            prop_assert_eq!(read_ply(&p).unwrap(), cloud);
+        }
+    }
+}

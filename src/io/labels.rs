@@ -240,6 +240,12 @@ impl EmbeddingTable {
             .map_err(|r| CloudError::format(classes_path, r))
     }
 
+    /// Row index of class `id` (for feature databases built from this
+    /// table in the same row order).
+    pub fn row_index(&self, id: u32) -> Option<usize> {
+        self.row_of.get(&id).copied()
+    }
+
     /// The embedding of class `id`.
     pub fn row(&self, id: u32) -> Option<&[f32]> {
         self.row_of
@@ -302,6 +308,7 @@ mod tests {
         crate::io::npy::write_npy(&n, &[2, 2], &[1.0, 0.0, 0.0, 1.0]).unwrap();
         let t = EmbeddingTable::read(&c, &n).unwrap();
         assert_eq!(t.names[1], "tall building");
+        assert_eq!((t.row_index(50), t.row_index(41)), (Some(1), None));
         assert_eq!(
             t.features_for(&[50, 40], "s").unwrap(),
             vec![0.0, 1.0, 1.0, 0.0]

@@ -14,7 +14,7 @@
 //! Other properties are ignored.
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, BufWriter, Write};
+use std::io::{BufRead, BufReader, BufWriter, Read, Write};
 use std::path::Path;
 
 use ply_rs_bw::parser::{Parser, Reader};
@@ -225,7 +225,19 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, CloudError> {
             continue;
         }
         let layout = check_vertex_layout(path, def)?;
-        cloud = read_vertices(path, &parser, &mut reader, def, header.encoding, &layout)?;
+        let big_endian = match header.encoding {
+            Encoding::Ascii => None,
+            Encoding::BinaryLittleEndian => Some(false),
+            Encoding::BinaryBigEndian => Some(true),
+        };
+        cloud = match (big_endian, FixedRecord::new(def)) {
+            // Scalar-only binary vertices have a fixed record size: decode
+            // them in bulk instead of one property call at a time.
+            (Some(big), Some(rec)) => {
+                read_fixed_vertices(path, reader.get_mut(), def, &layout, &rec, big)?
+            }
+            _ => read_vertices(path, &parser, &mut reader, def, header.encoding, &layout)?,
+        };
         break;
     }
     cloud.validate(&path.display().to_string())?;
@@ -322,6 +334,171 @@ fn read_vertices<R: BufRead>(
         if let Some(f) = &mut feats {
             f.extend_from_slice(&v.feat);
         }
+    }
+    Ok(PointCloud {
+        points,
+        labels,
+        colors,
+        features: feats.map(|f| (dim, f)),
+    })
+}
+
+/// Byte offsets of the used properties in a fixed-size binary record.
+struct FixedRecord {
+    len: usize,
+    xyz: [(usize, ScalarType); 3],
+    rgb: [usize; 3],
+    label: Option<(usize, ScalarType)>,
+    features: Vec<(usize, ScalarType)>,
+}
+
+fn scalar_size(t: &ScalarType) -> usize {
+    match t {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    }
+}
+
+impl FixedRecord {
+    /// `None` when the element has a list property (variable record size).
+    fn new(def: &ElementDef) -> Option<Self> {
+        let mut rec = FixedRecord {
+            len: 0,
+            xyz: [
+                (0, ScalarType::Float),
+                (0, ScalarType::Float),
+                (0, ScalarType::Float),
+            ],
+            rgb: [0; 3],
+            label: None,
+            features: Vec::new(),
+        };
+        for (name, p) in &def.properties {
+            let t = scalar(&p.data_type)?.clone();
+            let at = rec.len;
+            rec.len += scalar_size(&t);
+            match name.as_str() {
+                "x" => rec.xyz[0] = (at, t),
+                "y" => rec.xyz[1] = (at, t),
+                "z" => rec.xyz[2] = (at, t),
+                "red" => rec.rgb[0] = at,
+                "green" => rec.rgb[1] = at,
+                "blue" => rec.rgb[2] = at,
+                n if LABEL_NAMES.contains(&n) => rec.label = Some((at, t)),
+                n if feature_index(n).is_some() => rec.features.push((at, t)),
+                _ => {}
+            }
+        }
+        Some(rec)
+    }
+}
+
+fn bytes_at<const N: usize>(r: &[u8], at: usize) -> [u8; N] {
+    let mut b = [0u8; N];
+    b.copy_from_slice(&r[at..at + N]);
+    b
+}
+
+/// A scalar of type `t` at `at` in record `r`, as `f64` (exact for every
+/// PLY type).
+fn decode(r: &[u8], at: usize, t: &ScalarType, big: bool) -> f64 {
+    macro_rules! num {
+        ($ty:ty, $n:literal) => {{
+            let b = bytes_at::<$n>(r, at);
+            (if big {
+                <$ty>::from_be_bytes(b)
+            } else {
+                <$ty>::from_le_bytes(b)
+            }) as f64
+        }};
+    }
+    match t {
+        ScalarType::Char => r[at] as i8 as f64,
+        ScalarType::UChar => r[at] as f64,
+        ScalarType::Short => num!(i16, 2),
+        ScalarType::UShort => num!(u16, 2),
+        ScalarType::Int => num!(i32, 4),
+        ScalarType::UInt => num!(u32, 4),
+        ScalarType::Float => num!(f32, 4),
+        ScalarType::Double => num!(f64, 8),
+    }
+}
+
+/// Reads until `buf` is full or the input ends; returns the bytes read.
+fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut got = 0;
+    while got < buf.len() {
+        match r.read(&mut buf[got..]) {
+            Ok(0) => break,
+            Ok(n) => got += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(got)
+}
+
+fn read_fixed_vertices(
+    path: &Path,
+    r: &mut impl Read,
+    def: &ElementDef,
+    layout: &Layout,
+    rec: &FixedRecord,
+    big: bool,
+) -> Result<PointCloud, CloudError> {
+    let n = def.count;
+    let cap = n.min(1 << 24);
+    let mut points = Vec::with_capacity(cap);
+    let mut labels = layout.label.then(|| Vec::with_capacity(cap));
+    let mut colors = layout.colors.then(|| Vec::with_capacity(cap));
+    let dim = layout.feature_dim;
+    let mut feats = (dim > 0).then(|| Vec::with_capacity(cap.saturating_mul(dim)));
+    let chunk = (1usize << 20) / rec.len.max(1) + 1;
+    let mut buf = vec![0u8; chunk * rec.len];
+    let mut done = 0;
+    while done < n {
+        let k = chunk.min(n - done);
+        let want = k * rec.len;
+        let got = read_full(r, &mut buf[..want]).map_err(|e| CloudError::io(path, e))?;
+        if got < want {
+            return Err(CloudError::format(
+                path,
+                format!(
+                    "truncated: file ends in vertex {} (header declares {n})",
+                    done + got / rec.len
+                ),
+            ));
+        }
+        for (j, v) in buf[..want].chunks_exact(rec.len).enumerate() {
+            let [x, y, z] = rec.xyz.each_ref().map(|(at, t)| decode(v, *at, t, big));
+            points.push([x, y, z]);
+            if let (Some(l), Some((at, t))) = (&mut labels, &rec.label) {
+                let raw = decode(v, *at, t, big);
+                if raw < 0.0 {
+                    return Err(CloudError::format(
+                        path,
+                        format!(
+                            "vertex {}: label {raw} is not a non-negative 32-bit id",
+                            done + j
+                        ),
+                    ));
+                }
+                l.push(raw as u32);
+            }
+            if let Some(c) = &mut colors {
+                c.push(rec.rgb.map(|at| v[at]));
+            }
+            if let Some(f) = &mut feats {
+                f.extend(
+                    rec.features
+                        .iter()
+                        .map(|(at, t)| decode(v, *at, t, big) as f32),
+                );
+            }
+        }
+        done += k;
     }
     Ok(PointCloud {
         points,
@@ -448,6 +625,81 @@ mod tests {
         assert_eq!(read_ply(&p).unwrap(), cloud);
         let bytes = std::fs::read(&p).unwrap();
         assert!(bytes.starts_with(b"ply\nformat binary_little_endian 1.0\n"));
+    }
+
+    /// The same vertices with and without a list property: the first goes
+    /// through ply-rs-bw element by element, the second through the
+    /// fixed-record decoder; both must agree, in both byte orders.
+    #[test]
+    fn generic_and_fixed_record_binary_paths_agree() {
+        let d = tempfile::tempdir().unwrap();
+        for (enc, big) in [("binary_little_endian", false), ("binary_big_endian", true)] {
+            let mut files = Vec::new();
+            for with_list in [true, false] {
+                let mut b = format!(
+                    "ply\nformat {enc} 1.0\nelement vertex 3\nproperty double x\n\
+                     property float y\nproperty float z\nproperty short label\n{}\
+                     property uchar red\nproperty uchar green\nproperty uchar blue\n\
+                     property double feat_0\nproperty float feat_1\nend_header\n",
+                    if with_list {
+                        "property list uchar int extra\n"
+                    } else {
+                        ""
+                    }
+                )
+                .into_bytes();
+                for i in 0..3u8 {
+                    let f = i as f32;
+                    let put4 = |b: &mut Vec<u8>, v: f32| {
+                        b.extend(if big {
+                            v.to_be_bytes()
+                        } else {
+                            v.to_le_bytes()
+                        })
+                    };
+                    let x = 1e6 + i as f64 * 0.125;
+                    b.extend(if big {
+                        x.to_be_bytes()
+                    } else {
+                        x.to_le_bytes()
+                    });
+                    put4(&mut b, -f);
+                    put4(&mut b, 2.5 * f);
+                    let l = 300i16 * i as i16;
+                    b.extend(if big {
+                        l.to_be_bytes()
+                    } else {
+                        l.to_le_bytes()
+                    });
+                    if with_list {
+                        b.push(i);
+                        for k in 0..i as i32 {
+                            b.extend(if big {
+                                k.to_be_bytes()
+                            } else {
+                                k.to_le_bytes()
+                            });
+                        }
+                    }
+                    b.extend([i, 2 * i, 200 + i]);
+                    let f0 = 0.1 * i as f64;
+                    b.extend(if big {
+                        f0.to_be_bytes()
+                    } else {
+                        f0.to_le_bytes()
+                    });
+                    put4(&mut b, 7.0 - f);
+                }
+                let p = write(d.path(), &format!("{enc}_{with_list}.ply"), &b);
+                files.push(read_ply(&p).unwrap());
+            }
+            assert_eq!(files[0], files[1], "{enc}");
+            let c = &files[0];
+            assert_eq!(c.points[2], [1e6 + 0.25, -2.0, 5.0]);
+            assert_eq!(c.labels, Some(vec![0, 300, 600]));
+            assert_eq!(c.colors.as_ref().unwrap()[1], [1, 2, 201]);
+            assert_eq!(c.features, Some((2, vec![0.0, 7.0, 0.1, 6.0, 0.2, 5.0])));
+        }
     }
 
     #[test]
