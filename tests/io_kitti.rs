@@ -75,6 +75,7 @@ fn aggregation_filters_and_downsamples() {
         voxel_size: Some(0.2),
         drop_unlabeled_outlier_moving: true,
         max_range: Some(40.0),
+        features_dir: None,
     };
     let map = seq.aggregate(&[], &opts).unwrap();
     map.validate("map").unwrap();
@@ -239,4 +240,85 @@ fn everything_filtered_is_an_empty_error() {
         .aggregate(&[], &AggregateOptions::default())
         .unwrap_err();
     assert_err_names(e, &seq_dir, "empty result");
+}
+
+#[test]
+fn real_labels_use_known_classes_and_instances() {
+    use omcl::io::labels::{instance_id, semantic_id, semantic_kitti_name};
+    let Some(dir) = shared("semantickitti/sequences/00") else {
+        return;
+    };
+    let n = read_velodyne_bin(&dir.join("velodyne/000000.bin"))
+        .unwrap()
+        .len();
+    let raw = read_label_file(&dir.join("labels/000000.label"), n).unwrap();
+    let unknown: HashSet<u32> = raw
+        .iter()
+        .map(|&r| semantic_id(r))
+        .filter(|&s| semantic_kitti_name(s).is_none())
+        .collect();
+    assert!(unknown.is_empty(), "unknown classes {unknown:?}");
+    let count = |id: u32| raw.iter().filter(|&&r| semantic_id(r) == id).count();
+    // An urban street: road, building, vegetation and cars all present.
+    for id in [40, 50, 70, 10] {
+        assert!(count(id) > 500, "class {id}: {}", count(id));
+    }
+    // Cars carry instance ids; road does not.
+    assert!(
+        raw.iter()
+            .any(|&r| semantic_id(r) == 10 && instance_id(r) > 0)
+    );
+    assert!(
+        raw.iter()
+            .filter(|&&r| semantic_id(r) == 40)
+            .all(|&r| instance_id(r) == 0)
+    );
+}
+
+#[test]
+fn per_scan_features_stay_with_their_points() {
+    let Some(dir) = shared("semantickitti/sequences/00") else {
+        return;
+    };
+    let seq = KittiSequence::open(&dir).unwrap();
+    let d = tempfile::tempdir().unwrap();
+    // Feature row = (semantic label, frame): after filtering and down-sampling
+    // every point's feature must still name its own label.
+    for &frame in &seq.frames {
+        let scan = seq.load_scan(frame).unwrap();
+        let data: Vec<f32> = scan
+            .labels
+            .as_ref()
+            .unwrap()
+            .iter()
+            .flat_map(|&l| [l as f32, frame as f32])
+            .collect();
+        omcl::io::npy::write_npy(
+            &d.path().join(format!("{frame:06}.npy")),
+            &[scan.len(), 2],
+            &data,
+        )
+        .unwrap();
+    }
+    let opts = AggregateOptions {
+        voxel_size: Some(0.5),
+        features_dir: Some(d.path().to_path_buf()),
+        ..AggregateOptions::default()
+    };
+    let map = seq.aggregate(&[], &opts).unwrap();
+    let (dim, f) = map.features.as_ref().unwrap();
+    assert_eq!(*dim, 2);
+    for (i, &l) in map.labels.as_ref().unwrap().iter().enumerate() {
+        assert_eq!(f[2 * i], l as f32, "point {i}");
+    }
+    let frames: HashSet<u32> = f.chunks(2).map(|r| r[1] as u32).collect();
+    assert_eq!(frames, HashSet::from([0, 1, 2]));
+    // A feature file for another scan (wrong row count) is named.
+    std::fs::copy(d.path().join("000002.npy"), d.path().join("000000.npy")).unwrap();
+    let e = seq.aggregate(&[], &opts).unwrap_err();
+    assert_err_names(
+        e,
+        &d.path().join("000000.npy"),
+        "feature rows for a cloud of 124668",
+    );
 }

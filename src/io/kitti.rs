@@ -213,6 +213,10 @@ pub struct AggregateOptions {
     /// Ignore points farther than this from the sensor (metres); `None` keeps
     /// all.
     pub max_range: Option<f64>,
+    /// Directory of per-scan feature files `NNNNNN.npy` (`N x F`, one row a
+    /// point of the scan, e.g. OpenScene features computed elsewhere);
+    /// attached before filtering so rows stay with their points.
+    pub features_dir: Option<PathBuf>,
 }
 
 impl Default for AggregateOptions {
@@ -221,6 +225,7 @@ impl Default for AggregateOptions {
             voxel_size: Some(0.1),
             drop_unlabeled_outlier_moving: true,
             max_range: None,
+            features_dir: None,
         }
     }
 }
@@ -337,6 +342,9 @@ impl KittiSequence {
         let mut map = PointCloud::default();
         for &frame in frames {
             let (mut scan, range) = self.load_scan_with_range(frame)?;
+            if let Some(dir) = &opts.features_dir {
+                scan.attach_features_npy(&dir.join(format!("{frame:06}.npy")))?;
+            }
             if opts.drop_unlabeled_outlier_moving {
                 let Some(labels) = scan.labels.as_ref() else {
                     return Err(CloudError::mismatch(
