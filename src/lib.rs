@@ -1,4 +1,5 @@
 //! omcl: Open-vocabulary Monte Carlo Localization.
 pub mod geometry;
 pub mod io;
+pub mod map;
 pub mod raycast;
