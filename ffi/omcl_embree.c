@@ -3,6 +3,8 @@
 #include "omcl_embree.h"
 
 #include <math.h>
+#include <stdbool.h>
+#include <sys/types.h>
 #include <string.h>
 #include <xmmintrin.h>
 #include <pmmintrin.h>
@@ -136,6 +138,16 @@ int omcl_take_error(char *buf, size_t len) {
   last_code = RTC_ERROR_NONE;
   last_msg[0] = '\0';
   return code;
+}
+
+static bool count_memory(void *user, ssize_t bytes, bool post) {
+  (void)post;
+  __atomic_fetch_add((int64_t *)user, (int64_t)bytes, __ATOMIC_RELAXED);
+  return true;
+}
+
+void omcl_install_memory_monitor(RTCDevice device, int64_t *counter) {
+  rtcSetDeviceMemoryMonitorFunction(device, count_memory, counter);
 }
 
 void omcl_set_ftz_daz(void) {

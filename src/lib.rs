@@ -3,3 +3,4 @@ pub mod geometry;
 pub mod io;
 pub mod map;
 pub mod raycast;
+pub mod scene;

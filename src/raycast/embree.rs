@@ -11,6 +11,7 @@
 //!   the FFI boundary (the callbacks are C).
 
 use std::ffi::CStr;
+use std::sync::atomic::{AtomicI64, Ordering};
 
 use rayon::prelude::*;
 
@@ -148,6 +149,9 @@ pub struct EmbreeCaster {
     len: usize,
     packet: Packet,
     device: Device,
+    // Bytes Embree allocated, updated by the device's memory monitor; boxed
+    // so its address is fixed, and dropped after the device.
+    embree_bytes: Box<AtomicI64>,
 }
 
 // SAFETY: the scene is committed in `new` and never modified afterwards
@@ -193,8 +197,15 @@ impl EmbreeCaster {
             });
         }
         let device = Device(raw);
-        // SAFETY: valid device; the handler only writes thread-local storage.
-        unsafe { sys::omcl_install_error_handler(device.0) };
+        let embree_bytes = Box::new(AtomicI64::new(0));
+        // SAFETY: valid device; the error handler only writes thread-local
+        // storage. The memory monitor adds atomically into `embree_bytes`,
+        // an AtomicI64 (same layout as int64_t) at a fixed heap address that
+        // the caster drops after the device.
+        unsafe {
+            sys::omcl_install_error_handler(device.0);
+            sys::omcl_install_memory_monitor(device.0, embree_bytes.as_ptr());
+        }
         let boxes = Box::new(sys::OmclBoxes {
             lower: lower.as_ptr(),
             count: cells.len() as u32,
@@ -210,6 +221,7 @@ impl EmbreeCaster {
             len: cells.len(),
             packet: Packet::default(),
             device,
+            embree_bytes,
         };
         let d = caster.device.0;
         // SAFETY: `scene` is a fresh scene of `d`. The geometry's user data
@@ -247,6 +259,12 @@ impl EmbreeCaster {
     /// and not counted here).
     pub fn box_bytes(&self) -> usize {
         self.lower.len() * std::mem::size_of::<f32>()
+    }
+
+    /// Bytes Embree holds for this caster's scene (BVH and bookkeeping), as
+    /// reported by its memory monitor.
+    pub fn embree_bytes(&self) -> usize {
+        self.embree_bytes.load(Ordering::Relaxed).max(0) as usize
     }
 
     /// Traces one chunk on the calling thread.
