@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use omcl::eval::align::{Alignment, align_trajectory};
 use omcl::eval::ape::{PoseRelation, ape};
 use omcl::eval::associate::associate;
-use omcl::eval::kitti_metric::kitti_metric;
+use omcl::eval::kitti_metric::{KITTI_LENGTHS, KITTI_STEP, kitti_metric, segment_errors};
 use omcl::eval::rpe::{RpeOptions, rpe};
 use omcl::io::poses::read_poses;
 use serde_json::Value;
@@ -168,6 +168,9 @@ fn kitti_metric_matches_the_devkit_port() {
         let reference = load(&data, &k["reference"]);
         let estimate = load(&data, &k["estimate"]);
         let m = kitti_metric(&reference, &estimate).unwrap();
+        let segs = segment_errors(&reference, &estimate, &KITTI_LENGTHS, KITTI_STEP).unwrap();
+        let last_sum: usize = segs.iter().map(|s| s.last_frame).sum();
+        assert_eq!(last_sum as u64, k["last_frame_sum"].as_u64().unwrap());
         assert_eq!(m.segments as u64, k["segments"].as_u64().unwrap());
         close(
             "kitti",

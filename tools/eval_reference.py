@@ -15,7 +15,8 @@ evo.core.sync.associate_trajectories); evo is GPL-3.0 and is only run here,
 never shipped. evo has no KITTI odometry metric, so that one comes from
 kitti_devkit_metric() below, a line-by-line port of the KITTI devkit's
 evaluate_odometry.cpp (calcSequenceErrors), written independently of the Rust
-code: it inverts the raw 4x4 matrices with np.linalg.inv as the devkit does.
+code: it inverts the raw 4x4 matrices with np.linalg.inv as the devkit does
+and accumulates path lengths in float32 as the devkit does; errors are float64.
 
 Usage (evo from PyPI; the test suite does not need it):
     python3 -m venv /tmp/evo-venv && /tmp/evo-venv/bin/pip install evo
@@ -128,15 +129,19 @@ def kitti_devkit_metric(gt_path, est_path, lengths=range(100, 900, 100), step=10
         return out
 
     gt, est = poses(gt_path), poses(est_path)
-    dist = [0.0]
+    # trajectoryDistances: vector<float>; dx is a double difference stored
+    # in a float, sqrt and the sum are float. Segment ends depend on it.
+    f32 = np.float32
+    dist = [f32(0.0)]
     for i in range(1, len(gt)):
-        dist.append(dist[-1] + float(np.linalg.norm(gt[i - 1][:3, 3] - gt[i][:3, 3])))
+        dx, dy, dz = (f32(gt[i - 1][k, 3] - gt[i][k, 3]) for k in range(3))
+        dist.append(f32(dist[-1] + np.sqrt(f32(f32(f32(dx * dx) + f32(dy * dy)) + f32(dz * dz)))))
     errs = []
     for first in range(0, len(gt), step):
         for length in lengths:
             last = -1
             for i in range(first, len(dist)):
-                if dist[i] > dist[first] + length:
+                if dist[i] > f32(dist[first] + f32(length)):
                     last = i
                     break
             if last == -1:
@@ -166,6 +171,8 @@ def kitti_devkit_metric(gt_path, est_path, lengths=range(100, 900, 100), step=10
         "segments": len(errs),
         "per_length": per_length,
         "first_segment": {"first_frame": errs[0][0], "last_frame": errs[0][1]},
+        # Catches a single segment ending at another frame.
+        "last_frame_sum": int(sum(e[1] for e in errs)),
     }
 
 
