@@ -17,18 +17,21 @@
 //!   (a database has many rows a given view never shows). For a present
 //!   class, a ratio whose denominator is zero (precision of a class never
 //!   predicted, recall of a class never in the reference) counts as 0.
-//! - Averaging over poses and sequences ([`ConsistencyMetrics::mean`]): each
-//!   pose's metrics are computed from that pose's pixels, averaged over the
-//!   poses of a sequence (each pose weighs the same), and the sequence means
-//!   are averaged over sequences (each sequence weighs the same). Pooling all
-//!   pixels first is also available ([`ClassCounts::merge`]) and weighs
-//!   poses by their pixel count.
+//! - Averaging over poses and sequences (paper: "averaged over all poses and
+//!   sequences"; [`mean_over_sequences`]): each pose's metrics are computed
+//!   from that pose's pixels, averaged over the poses of a sequence (each pose
+//!   weighs the same), and the sequence means are averaged over sequences
+//!   (each sequence weighs the same). [`ConsistencyMetrics::mean`] over all
+//!   poses of all sequences weighs long sequences more; pooling all pixels
+//!   first ([`ClassCounts::merge`]) weighs poses by their pixel count.
 
 /// Errors of the consistency counters.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ConsistencyError {
     #[error("class {class} is out of range for {classes} classes")]
     ClassOutOfRange { class: usize, classes: usize },
+    #[error("{map} map rows but {measured} measured rows: one of each per pixel")]
+    PixelCountMismatch { map: usize, measured: usize },
     #[error("cannot merge counts of {left} and {right} classes")]
     ClassCountMismatch { left: usize, right: usize },
 }
@@ -65,6 +68,47 @@ impl ConsistencyMetrics {
             pixels: items.iter().map(|m| m.pixels).sum(),
         })
     }
+}
+
+/// The paper's Table II averaging: per-pose metrics averaged within each
+/// sequence, then the sequence means averaged. Sequences with no scored pose
+/// are left out; `None` when none is left.
+pub fn mean_over_sequences(per_pose: &[Vec<ConsistencyMetrics>]) -> Option<ConsistencyMetrics> {
+    let per_sequence: Vec<ConsistencyMetrics> = per_pose
+        .iter()
+        .filter_map(|poses| ConsistencyMetrics::mean(poses))
+        .collect();
+    ConsistencyMetrics::mean(&per_sequence)
+}
+
+/// Marks a pixel whose ray hit no map voxel in [`count_frame`].
+pub const NO_HIT: u32 = u32::MAX;
+
+/// Counts one frame: `map_rows[j]` is the database row of the voxel hit by
+/// pixel `j`'s ray from the true pose ([`NO_HIT`] for a miss) and
+/// `measured_rows[j]` the row most similar to pixel `j`'s feature. Misses are
+/// not scored; their number is returned with the counts.
+pub fn count_frame(
+    classes: usize,
+    map_rows: &[u32],
+    measured_rows: &[u32],
+) -> Result<(ClassCounts, usize), ConsistencyError> {
+    if map_rows.len() != measured_rows.len() {
+        return Err(ConsistencyError::PixelCountMismatch {
+            map: map_rows.len(),
+            measured: measured_rows.len(),
+        });
+    }
+    let mut counts = ClassCounts::new(classes);
+    let mut misses = 0;
+    for (&m, &f) in map_rows.iter().zip(measured_rows) {
+        if m == NO_HIT {
+            misses += 1;
+        } else {
+            counts.add(m as usize, f as usize)?;
+        }
+    }
+    Ok((counts, misses))
 }
 
 /// Per-class true positives, false positives and false negatives: all the
@@ -323,5 +367,22 @@ mod tests {
             })
         );
         assert!(pooled.merge(&ClassCounts::new(3)).is_err());
+        // Two sequences: [a, b] and [b]: sequence means 5/6 and 1 -> 11/12,
+        // while the flat mean over the three poses is (2/3 + 1 + 1) / 3.
+        let two = mean_over_sequences(&[vec![ma, mb], vec![mb], vec![]]).unwrap();
+        assert!((two.accuracy - 11.0 / 12.0).abs() < 1e-15);
+        let flat = ConsistencyMetrics::mean(&[ma, mb, mb]).unwrap();
+        assert!((flat.accuracy - 8.0 / 9.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn frame_counting_skips_misses() {
+        let (c, misses) = count_frame(3, &[0, NO_HIT, 2, 2], &[0, 1, 1, 2]).unwrap();
+        assert_eq!(misses, 1);
+        assert_eq!(c.class(2), Some((1, 0, 1)));
+        assert_eq!(c.class(1), Some((0, 1, 0)));
+        assert!((c.metrics().unwrap().accuracy - 2.0 / 3.0).abs() < 1e-15);
+        assert!(count_frame(3, &[0], &[0, 1]).is_err());
+        assert!(count_frame(3, &[3], &[0]).is_err());
     }
 }

@@ -15,7 +15,9 @@ pub mod stats;
 pub use align::{Alignment, AlignmentResult, Similarity, align_trajectory, umeyama};
 pub use ape::{PoseErrors, PoseRelation, ape};
 pub use associate::{associate, matching_time_indices};
-pub use consistency::{ClassCounts, ConfusionMatrix, ConsistencyMetrics};
+pub use consistency::{
+    ClassCounts, ConfusionMatrix, ConsistencyMetrics, count_frame, mean_over_sequences,
+};
 pub use kitti_metric::{KittiMetric, kitti_metric};
 pub use rpe::{RpeOptions, rpe};
 pub use stats::ErrorStats;

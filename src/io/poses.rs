@@ -186,6 +186,17 @@ pub fn parse_poses(
         }
         let pose = match fmt {
             PoseFormat::Tum => {
+                if let Some(&prev) = stamps.last()
+                    && values[0] < prev
+                {
+                    return Err(parse_err(
+                        line_no,
+                        format!(
+                            "time stamp {} s is before the previous one, {prev} s (stamps must not decrease)",
+                            values[0]
+                        ),
+                    ));
+                }
                 stamps.push(values[0]);
                 tum_pose(&values[1..]).map_err(|r| parse_err(line_no, r))?
             }
@@ -416,7 +427,10 @@ mod tests {
         let e = parse("1 0 0 0 0 0 0 1\n0 0 0 0 0 0 0 1\n")
             .unwrap_err()
             .to_string();
-        assert!(e.contains("before the previous stamp"), "{e}");
+        assert!(
+            e.starts_with("mem.txt:2:") && e.contains("before the previous one"),
+            "{e}"
+        );
         assert!(matches!(parse("# only\n"), Err(PosesError::Empty { .. })));
         let e = parse_poses(
             "0 1 2 3 0 0 0 1\n",
