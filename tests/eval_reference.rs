@@ -8,7 +8,7 @@ use omcl::eval::align::{Alignment, align_trajectory};
 use omcl::eval::ape::{PoseRelation, ape};
 use omcl::eval::associate::associate;
 use omcl::eval::kitti_metric::{KITTI_LENGTHS, KITTI_STEP, kitti_metric, segment_errors};
-use omcl::eval::rpe::{RpeOptions, rpe};
+use omcl::eval::rpe::{Delta, RpeOptions, rpe};
 use omcl::io::poses::read_poses;
 use serde_json::Value;
 
@@ -129,8 +129,13 @@ fn ape_rpe_alignment_and_association_match_evo() {
                 &aligned,
                 &RpeOptions {
                     relation,
-                    delta: case["delta"].as_u64().unwrap() as usize,
+                    delta: match case["delta_unit"].as_str() {
+                        Some("f") => Delta::Frames(f(&case["delta"]) as usize),
+                        Some("m") => Delta::Meters(f(&case["delta"])),
+                        other => panic!("{name}: delta unit {other:?}"),
+                    },
                     all_pairs: case["all_pairs"].as_bool().unwrap(),
+                    pairs_from_reference: false,
                 },
             ),
             other => panic!("{name}: metric {other:?}"),

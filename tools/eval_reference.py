@@ -101,7 +101,7 @@ def run_case(case):
         metric = metrics.RPE(
             relation,
             delta=case["delta"],
-            delta_unit=Unit.frames,
+            delta_unit={"f": Unit.frames, "m": Unit.meters}[case["delta_unit"]],
             all_pairs=case["all_pairs"],
         )
     metric.process_data((ref, est))
@@ -188,7 +188,8 @@ def cases():
         "estimate": "trajectories/fr2_desk_ORB.txt",
         "associate": {"max_diff": 0.01, "offset": 0.0},
     }
-    base = {"n_to_align": None, "delta": 1, "all_pairs": False, "relation": "translation"}
+    base = {"n_to_align": None, "delta": 1, "delta_unit": "f", "all_pairs": False,
+            "relation": "translation"}
     out = []
 
     def add(name, src, **kw):
@@ -206,6 +207,9 @@ def cases():
     add("kitti00_rpe_rot_d1", kitti, metric="rpe", align="none", relation="rotation_angle_deg")
     add("kitti00_rpe_d10_all", kitti, metric="rpe", align="none", delta=10, all_pairs=True)
     add("kitti00_rpe_d7", kitti, metric="rpe", align="none", delta=7)
+    add("kitti00_rpe_100m", kitti, metric="rpe", align="none", delta=100.0, delta_unit="m")
+    add("kitti00_rpe_rot_50m_all", kitti, metric="rpe", align="none", delta=50.0,
+        delta_unit="m", all_pairs=True, relation="rotation_angle_deg")
     for align in ("none", "se3", "sim3", "origin"):
         add(f"fr1xyz_ape_{align}", fr1, metric="ape", align=align)
     add("fr1xyz_rpe_d1", fr1, metric="rpe", align="none")
@@ -215,6 +219,8 @@ def cases():
     for align in ("se3", "sim3"):
         add(f"fr2desk_ape_{align}", fr2, metric="ape", align=align)
     add("fr2desk_rpe_d1_sim3", fr2, metric="rpe", align="sim3")
+    add("fr2desk_rpe_0.2m_sim3_all", fr2, metric="rpe", align="sim3", delta=0.2,
+        delta_unit="m", all_pairs=True)
     add("fr2desk_ape_rot_origin", fr2, metric="ape", align="origin", relation="rotation_angle_deg")
     return out
 

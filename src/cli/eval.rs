@@ -10,9 +10,17 @@ use omcl::eval::align::{Alignment, AlignmentResult, align_trajectory};
 use omcl::eval::ape::{PoseErrors, PoseRelation, ape};
 use omcl::eval::associate::{DEFAULT_MAX_DIFF, associate};
 use omcl::eval::kitti_metric::{KITTI_LENGTHS, KITTI_STEP, KittiMetric, kitti_metric_with};
-use omcl::eval::rpe::{RpeOptions, rpe};
+use omcl::eval::rpe::{Delta, RpeOptions, rpe};
 use omcl::io::poses::{PoseFile, PoseFormat, read_poses, read_times, write_poses};
 use omcl::trajectory::Trajectory;
+
+/// Appends a formatted line to a `String` (writing to a `String` cannot fail).
+macro_rules! outln {
+    ($out:expr, $($arg:tt)*) => {{
+        use std::fmt::Write as _;
+        let _ = writeln!($out, $($arg)*);
+    }};
+}
 
 /// `omcl eval` subcommands.
 #[derive(Debug, Subcommand)]
@@ -40,12 +48,18 @@ pub enum EvalCommand {
     Rpe {
         #[command(flatten)]
         pair: PairArgs,
-        /// Frames between the two poses of a pair.
-        #[arg(long, default_value_t = 1)]
-        delta: usize,
+        /// Spacing of the two poses of a pair, in --delta-unit.
+        #[arg(long, default_value_t = 1.0)]
+        delta: f64,
+        /// Unit of --delta: frames or metres of travelled path.
+        #[arg(long, value_enum, default_value_t = DeltaUnitArg::F)]
+        delta_unit: DeltaUnitArg,
         /// Use all pairs (i, i + delta) instead of consecutive ones.
         #[arg(long)]
         all_pairs: bool,
+        /// Measure metric deltas on the reference path (default: estimate, as evo).
+        #[arg(long)]
+        pairs_from_reference: bool,
         /// Alignment before the metric (only Sim(3)'s scale changes RPE).
         #[arg(long, value_enum, default_value_t = AlignArg::None)]
         align: AlignArg,
@@ -117,6 +131,14 @@ impl From<AlignArg> for Alignment {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DeltaUnitArg {
+    /// Frames.
+    F,
+    /// Metres of travelled path.
+    M,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum RelationArg {
     /// Translation part, metres.
     Trans,
@@ -155,7 +177,7 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
             print_errors("APE", &pair, &paired, &alignment, &errors, None);
             if let Some(path) = save_aligned {
                 write_poses(&path, &aligned, paired.estimate_format)?;
-                println!("aligned estimate written to {}", path.display());
+                emit(&format!("aligned estimate written to {}\n", path.display()));
             }
             write_json(out.json.as_deref(), || {
                 errors_json("ape", &pair, &paired, &alignment, &errors, None)
@@ -164,11 +186,23 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
         EvalCommand::Rpe {
             pair,
             delta,
+            delta_unit,
             all_pairs,
+            pairs_from_reference,
             align,
             relation,
             out,
         } => {
+            let delta = match delta_unit {
+                DeltaUnitArg::F if delta >= 1.0 && delta.fract() == 0.0 => {
+                    Delta::Frames(delta as usize)
+                }
+                DeltaUnitArg::F => {
+                    bail!("--delta {delta}: a frame delta must be a whole number >= 1")
+                }
+                DeltaUnitArg::M if delta > 0.0 && delta.is_finite() => Delta::Meters(delta),
+                DeltaUnitArg::M => bail!("--delta {delta}: a metric delta must be positive"),
+            };
             let paired = load_pair(&pair)?;
             let (aligned, alignment) =
                 align_trajectory(&paired.estimate, &paired.reference, align.into(), None)?;
@@ -176,6 +210,7 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
                 relation: relation.into(),
                 delta,
                 all_pairs,
+                pairs_from_reference,
             };
             let errors = rpe(&paired.reference, &aligned, &options)?;
             print_errors("RPE", &pair, &paired, &alignment, &errors, Some(&options));
@@ -293,22 +328,24 @@ fn print_errors(
     errors: &PoseErrors,
     rpe: Option<&RpeOptions>,
 ) {
+    let mut out = String::new();
     let what = match errors.relation {
         PoseRelation::Translation => "translation",
         PoseRelation::RotationAngleDeg => "rotation angle",
     };
-    println!("{metric} w.r.t. {what} ({})", errors.relation.unit());
+    outln!(out, "{metric} w.r.t. {what} ({})", errors.relation.unit());
     if let Some(o) = rpe {
         let kind = if o.all_pairs { "all" } else { "consecutive" };
-        println!("  delta      {} frames, {kind} pairs", o.delta);
+        outln!(out, "  delta      {}, {kind} pairs", o.delta);
     }
-    println!("  reference  {}", args.reference.display());
-    println!("  estimate   {}", args.estimate.display());
-    println!("  pairing    {}", pairing_line(args, p));
+    outln!(out, "  reference  {}", args.reference.display());
+    outln!(out, "  estimate   {}", args.estimate.display());
+    outln!(out, "  pairing    {}", pairing_line(args, p));
     let sim = &alignment.reference_from_estimate;
     match alignment.alignment {
-        Alignment::None => println!("  alignment  none"),
-        a => println!(
+        Alignment::None => outln!(out, "  alignment  none"),
+        a => outln!(
+            out,
             "  alignment  {a:?} on {} poses: scale {:.6}, translation [{:.4}, {:.4}, {:.4}] m, rotation {:.4} deg",
             alignment.poses_used,
             sim.scale,
@@ -319,7 +356,7 @@ fn print_errors(
         ),
     }
     let s = &errors.stats;
-    println!();
+    outln!(out, "");
     for (name, v) in [
         ("rmse", s.rmse),
         ("mean", s.mean),
@@ -329,9 +366,10 @@ fn print_errors(
         ("max", s.max),
         ("sse", s.sse),
     ] {
-        println!("  {name:>8}  {v:>14.6}");
+        outln!(out, "  {name:>8}  {v:>14.6}");
     }
-    println!("  {:>8}  {:>14}", "count", s.count);
+    outln!(out, "  {:>8}  {:>14}", "count", s.count);
+    emit(&out);
 }
 
 fn errors_json(
@@ -360,25 +398,47 @@ fn errors_json(
 }
 
 fn print_kitti(args: &PairArgs, p: &Paired, m: &KittiMetric) {
-    println!("KITTI odometry metric");
-    println!("  reference  {}", args.reference.display());
-    println!("  estimate   {}", args.estimate.display());
-    println!("  pairing    {}", pairing_line(args, p));
-    println!();
-    println!(
+    let mut out = String::new();
+    outln!(out, "KITTI odometry metric");
+    outln!(out, "  reference  {}", args.reference.display());
+    outln!(out, "  estimate   {}", args.estimate.display());
+    outln!(out, "  pairing    {}", pairing_line(args, p));
+    outln!(out, "");
+    outln!(
+        out,
         "  {:>8}  {:>8}  {:>14}  {:>14}",
-        "length", "segments", "trans (%)", "rot (deg/m)"
+        "length",
+        "segments",
+        "trans (%)",
+        "rot (deg/m)"
     );
     for l in &m.per_length {
-        println!(
+        outln!(
+            out,
             "  {:>6} m  {:>8}  {:>14.6}  {:>14.6}",
-            l.length, l.segments, l.translation_percent, l.rotation_deg_per_m
+            l.length,
+            l.segments,
+            l.translation_percent,
+            l.rotation_deg_per_m
         );
     }
-    println!(
+    outln!(
+        out,
         "  {:>8}  {:>8}  {:>14.6}  {:>14.6}",
-        "all", m.segments, m.translation_percent, m.rotation_deg_per_m
+        "all",
+        m.segments,
+        m.translation_percent,
+        m.rotation_deg_per_m
     );
+    emit(&out);
+}
+
+/// Prints a report; a closed stdout (`omcl eval ... | head`) is not an error.
+fn emit(text: &str) {
+    let mut stdout = std::io::stdout().lock();
+    let _ = stdout
+        .write_all(text.as_bytes())
+        .and_then(|_| stdout.flush());
 }
 
 /// Writes JSON through a temporary file renamed into place.
@@ -399,6 +459,6 @@ fn write_json(
         .with_context(|| format!("writing {}", path.display()))?;
     tmp.persist(path)
         .with_context(|| format!("writing {}", path.display()))?;
-    println!("JSON written to {}", path.display());
+    emit(&format!("JSON written to {}\n", path.display()));
     Ok(())
 }

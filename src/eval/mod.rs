@@ -19,7 +19,7 @@ pub use consistency::{
     ClassCounts, ConfusionMatrix, ConsistencyMetrics, count_frame, mean_over_sequences,
 };
 pub use kitti_metric::{KittiMetric, kitti_metric};
-pub use rpe::{RpeOptions, rpe};
+pub use rpe::{Delta, RpeOptions, rpe};
 pub use stats::ErrorStats;
 
 /// Errors of the trajectory metrics.
@@ -38,8 +38,8 @@ pub enum EvalError {
         "Umeyama alignment is not possible: the positions are degenerate (collinear or fewer than 2 distinct points)"
     )]
     DegenerateAlignment,
-    #[error("delta {delta} frames gives no pose pairs for {poses} poses")]
-    NoPairs { delta: usize, poses: usize },
+    #[error("delta {delta} gives no pose pairs for {poses} poses")]
+    NoPairs { delta: String, poses: usize },
     #[error(
         "the reference path is shorter than the shortest KITTI segment (100 m); no segments to evaluate"
     )]
