@@ -2,5 +2,7 @@
 pub mod eval;
 pub mod geometry;
 pub mod io;
+pub mod map;
 pub mod raycast;
+pub mod scene;
 pub mod trajectory;

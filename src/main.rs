@@ -1,28 +1,18 @@
-//! The `omcl` command.
+//! The `omcl` command-line tool.
+
 mod cli;
 
-use clap::{Parser, Subcommand};
+use std::process::ExitCode;
 
-#[derive(Parser)]
-#[command(
-    name = "omcl",
-    version,
-    about = "Open-vocabulary Monte Carlo Localization"
-)]
-struct Cli {
-    #[command(subcommand)]
-    command: Command,
-}
+use clap::Parser;
 
-#[derive(Subcommand)]
-enum Command {
-    /// Trajectory metrics (APE, RPE, KITTI odometry metric).
-    #[command(subcommand)]
-    Eval(cli::eval::EvalCommand),
-}
-
-fn main() -> anyhow::Result<()> {
-    match Cli::parse().command {
-        Command::Eval(cmd) => cli::eval::run(cmd),
+fn main() -> ExitCode {
+    let args = cli::Cli::parse();
+    match cli::run(args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
     }
 }
