@@ -17,6 +17,7 @@ const REFERENCE: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/tests/data/eval/evo_reference.json"
 );
+/// Relative tolerance (with a 1e-12 absolute floor for zero errors).
 const TOL: f64 = 1e-6;
 
 /// The shared data directory, or `None` (with a message) outside CI when it
@@ -45,8 +46,14 @@ fn f(v: &Value) -> f64 {
     v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
 }
 
+thread_local! {
+    /// Largest scaled difference seen, printed so the margin is visible.
+    static WORST: std::cell::Cell<f64> = const { std::cell::Cell::new(0.0) };
+}
+
 fn close(name: &str, what: &str, ours: f64, theirs: f64) {
-    let tol = TOL * theirs.abs().max(1.0);
+    let tol = TOL * theirs.abs() + 1e-12;
+    WORST.with(|w| w.set(w.get().max((ours - theirs).abs() / theirs.abs().max(1e-6))));
     assert!(
         (ours - theirs).abs() <= tol,
         "{name}: {what}: omcl {ours} vs reference {theirs} (diff {:.3e})",
@@ -163,6 +170,10 @@ fn ape_rpe_alignment_and_association_match_evo() {
             close(name, what, ours, f(&s[what]));
         }
     }
+    eprintln!(
+        "largest relative difference from evo: {:.2e}",
+        WORST.with(|w| w.get())
+    );
 }
 
 #[test]
@@ -207,5 +218,15 @@ fn kitti_metric_matches_the_devkit_port() {
                 f(&theirs["rotation_deg_per_m"]),
             );
         }
+        // The devkit itself uses the printed, not quite orthonormal,
+        // matrices; its rotation metric differs by ~3e-5 relative (see
+        // tools/eval_reference.py), which this bound documents.
+        let raw = &k["devkit_raw_matrices"];
+        let rel = |a: f64, b: f64| (a - b).abs() / b.abs();
+        assert!(rel(m.translation_percent, f(&raw["translation_percent"])) < 1e-5);
+        assert!(rel(m.rotation_deg_per_m, f(&raw["rotation_deg_per_m"])) < 1e-4);
+        assert_eq!(m.segments as u64, raw["segments"].as_u64().unwrap());
     }
+    let worst = WORST.with(|w| w.get());
+    eprintln!("largest relative difference from the devkit port: {worst:.2e}");
 }
