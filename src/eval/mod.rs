@@ -9,6 +9,7 @@ pub mod ape;
 pub mod associate;
 pub mod consistency;
 pub mod kitti_metric;
+pub mod localization;
 pub mod rpe;
 pub mod stats;
 
@@ -19,6 +20,7 @@ pub use consistency::{
     ClassCounts, ConfusionMatrix, ConsistencyMetrics, count_frame, mean_over_sequences,
 };
 pub use kitti_metric::{KittiMetric, kitti_metric};
+pub use localization::{CompletionRule, SequenceSummary, steps_to_reach, summarize_sequences};
 pub use rpe::{Delta, RpeOptions, rpe};
 pub use stats::ErrorStats;
 
