@@ -44,7 +44,7 @@ pub enum EvalCommand {
         #[command(flatten)]
         out: OutArgs,
     },
-    /// Relative pose error (as evo_rpe with --delta_unit f).
+    /// Relative pose error (as evo_rpe), delta in frames or metres of path.
     Rpe {
         #[command(flatten)]
         pair: PairArgs,
