@@ -2,6 +2,7 @@
 //! the library. Errors are `anyhow` here, `thiserror` in the library.
 
 pub mod demo;
+pub mod eval;
 pub mod map;
 pub mod progress;
 
@@ -23,6 +24,9 @@ pub enum Command {
     Map(map::MapCommand),
     /// Run the pipeline end to end on the built-in synthetic world.
     Demo(demo::DemoArgs),
+    /// Trajectory metrics: APE, RPE (as evo) and the KITTI odometry metric.
+    #[command(subcommand)]
+    Eval(eval::EvalCommand),
 }
 
 /// Runs a parsed command line.
@@ -30,5 +34,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Map(cmd) => map::run(cmd),
         Command::Demo(args) => demo::run(args),
+        Command::Eval(cmd) => eval::run(cmd),
     }
 }
