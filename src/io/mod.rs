@@ -1,5 +1,6 @@
 //! Reading and writing files: parsing only, no math beyond it.
 pub mod npy;
+pub mod poses;
 
 // Point clouds and RGB-D (helper `cloud`).
 pub mod cloud;
