@@ -35,6 +35,8 @@ pub enum CloudError {
     Empty { source_name: String, reason: String },
     #[error(transparent)]
     Npy(#[from] NpyError),
+    #[error(transparent)]
+    Poses(#[from] crate::io::poses::PosesError),
 }
 
 impl CloudError {

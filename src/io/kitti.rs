@@ -15,10 +15,11 @@ use nalgebra::{Matrix3, Matrix3x4, Translation3, UnitQuaternion, Vector3};
 use crate::geometry::Pose;
 use crate::io::cloud::{CloudError, PointCloud, voxel_downsample};
 use crate::io::labels::{is_dropped_semantic_kitti, semantic_id};
+use crate::io::poses::{PoseFormat, read_poses_in};
 
-/// Largest accepted deviation of `R^T R` from identity in a pose file; the
-/// files print 6 to 12 significant digits, so real poses are within 1e-5.
-const RIGID_TOLERANCE: f64 = 1e-3;
+/// Largest accepted deviation of `R^T R` from identity in `Tr`; the same
+/// bound as the pose files ([`crate::io::poses::ROTATION_TOLERANCE`]).
+const RIGID_TOLERANCE: f64 = crate::io::poses::ROTATION_TOLERANCE;
 
 /// Reads a velodyne `.bin` scan (float32 x, y, z, reflectance per point, in
 /// metres, LiDAR frame). Reflectance is not kept. Errors when the size is not
@@ -165,28 +166,12 @@ pub fn read_calib(path: &Path) -> Result<KittiCalib, CloudError> {
     })
 }
 
-/// Reads a KITTI pose file: one row-major 3x4 `world_from_camera` a line.
-/// Every pose must be finite and rigid.
+/// Reads a KITTI pose file (one row-major 3x4 `world_from_camera` a line)
+/// through [`crate::io::poses`], which rejects non-finite and non-rigid
+/// poses with the file and line.
 pub fn read_kitti_poses(path: &Path) -> Result<Vec<Pose>, CloudError> {
-    let text = std::fs::read_to_string(path).map_err(|e| CloudError::io(path, e))?;
-    let mut poses = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let fields: Vec<&str> = line.split_whitespace().collect();
-        if fields.is_empty() {
-            continue;
-        }
-        let m = parse_12(path, i + 1, &fields)?;
-        let pose = pose_from_3x4(&m)
-            .map_err(|r| CloudError::format(path, format!("line {}: {r}", i + 1)))?;
-        poses.push(pose);
-    }
-    if poses.is_empty() {
-        return Err(CloudError::Empty {
-            source_name: path.display().to_string(),
-            reason: "no poses".into(),
-        });
-    }
-    Ok(poses)
+    let file = read_poses_in(path, PoseFormat::Kitti)?;
+    Ok(file.trajectory.poses().to_vec())
 }
 
 /// One SemanticKITTI sequence directory (`velodyne/`, optional `labels/`,
