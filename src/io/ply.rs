@@ -6,7 +6,9 @@
 //! - `x y z`: `float` or `double` (required), metres;
 //! - `red green blue`: `uchar` (optional, all three or none);
 //! - one label property named `label`, `class`, `scalar_label` or
-//!   `classification`: any integer type, non-negative (optional);
+//!   `classification` (any letter case; CloudCompare writes `scalar_Label`):
+//!   any integer type, or a float type holding whole numbers (CloudCompare
+//!   stores scalar fields as float); non-negative (optional);
 //! - features `f0 f1 ...` or `feat_0 feat_1 ...` (also `feature_0 ...`):
 //!   `float` or `double`, numbered consecutively from 0 in header order
 //!   (optional).
@@ -25,6 +27,15 @@ use ply_rs_bw::ply::{
 use crate::io::cloud::{CloudError, PointCloud};
 
 const LABEL_NAMES: [&str; 4] = ["label", "class", "scalar_label", "classification"];
+
+fn is_label_name(name: &str) -> bool {
+    LABEL_NAMES.iter().any(|n| n.eq_ignore_ascii_case(name))
+}
+
+/// A label value as a class id: a whole number in `0..=u32::MAX`.
+fn label_id(raw: f64) -> Option<u32> {
+    (raw >= 0.0 && raw <= u32::MAX as f64 && raw.fract() == 0.0).then_some(raw as u32)
+}
 const FEATURE_PREFIXES: [&str; 3] = ["feat_", "feature_", "f"];
 
 /// One vertex as the parser fills it. Features go to a `Vec` only when the
@@ -34,7 +45,8 @@ const FEATURE_PREFIXES: [&str; 3] = ["feat_", "feature_", "f"];
 struct Vertex {
     xyz: [f64; 3],
     rgb: [u8; 3],
-    label: i64,
+    /// Any PLY scalar is exact in `f64`.
+    label: f64,
     feat: Vec<f32>,
 }
 
@@ -52,6 +64,7 @@ impl Vertex {
             "x" => self.xyz[0] = v,
             "y" => self.xyz[1] = v,
             "z" => self.xyz[2] = v,
+            _ if is_label_name(name) => self.label = v,
             // The header check guarantees features arrive in index order.
             _ if feature_index(name).is_some() => self.feat.push(v as f32),
             _ => return PropertyAccessResult::Ignored,
@@ -60,8 +73,8 @@ impl Vertex {
     }
 
     fn set_int(&mut self, name: &str, v: i64) -> PropertyAccessResult {
-        if LABEL_NAMES.contains(&name) {
-            self.label = v;
+        if is_label_name(name) {
+            self.label = v as f64;
             PropertyAccessResult::Set
         } else {
             PropertyAccessResult::Ignored
@@ -154,10 +167,11 @@ fn check_vertex_layout(path: &Path, def: &ElementDef) -> Result<Layout, CloudErr
             }
         }
     }
-    let labels: Vec<&str> = LABEL_NAMES
-        .iter()
-        .copied()
-        .filter(|n| find(n).is_some())
+    let labels: Vec<&str> = def
+        .properties
+        .keys()
+        .map(String::as_str)
+        .filter(|n| is_label_name(n))
         .collect();
     if labels.len() > 1 {
         return Err(fmt(format!(
@@ -165,13 +179,10 @@ fn check_vertex_layout(path: &Path, def: &ElementDef) -> Result<Layout, CloudErr
         )));
     }
     if let Some(n) = labels.first() {
-        match find(n).and_then(scalar) {
-            Some(ScalarType::Float | ScalarType::Double) | None => {
-                return Err(fmt(format!(
-                    "label property '{n}' must be a scalar integer type"
-                )));
-            }
-            Some(_) => {}
+        if find(n).and_then(scalar).is_none() {
+            return Err(fmt(format!(
+                "label property '{n}' must be a scalar, not a list"
+            )));
         }
     }
     let mut feature_dim = 0;
@@ -317,11 +328,11 @@ fn read_vertices<R: BufRead>(
         })?;
         points.push(v.xyz);
         if let Some(l) = &mut labels {
-            let lab = u32::try_from(v.label).map_err(|_| {
+            let lab = label_id(v.label).ok_or_else(|| {
                 CloudError::format(
                     path,
                     format!(
-                        "vertex {i}: label {} is not a non-negative 32-bit id",
+                        "vertex {i}: label {} is not a whole number in 0..=4294967295",
                         v.label
                     ),
                 )
@@ -386,7 +397,7 @@ impl FixedRecord {
                 "red" => rec.rgb[0] = at,
                 "green" => rec.rgb[1] = at,
                 "blue" => rec.rgb[2] = at,
-                n if LABEL_NAMES.contains(&n) => rec.label = Some((at, t)),
+                n if is_label_name(n) => rec.label = Some((at, t)),
                 n if feature_index(n).is_some() => rec.features.push((at, t)),
                 _ => {}
             }
@@ -476,16 +487,16 @@ fn read_fixed_vertices(
             points.push([x, y, z]);
             if let (Some(l), Some((at, t))) = (&mut labels, &rec.label) {
                 let raw = decode(v, *at, t, big);
-                if raw < 0.0 {
-                    return Err(CloudError::format(
+                let id = label_id(raw).ok_or_else(|| {
+                    CloudError::format(
                         path,
                         format!(
-                            "vertex {}: label {raw} is not a non-negative 32-bit id",
+                            "vertex {}: label {raw} is not a whole number in 0..=4294967295",
                             done + j
                         ),
-                    ));
-                }
-                l.push(raw as u32);
+                    )
+                })?;
+                l.push(id);
             }
             if let Some(c) = &mut colors {
                 c.push(rec.rgb.map(|at| v[at]));
@@ -700,6 +711,42 @@ mod tests {
             assert_eq!(c.colors.as_ref().unwrap()[1], [1, 2, 201]);
             assert_eq!(c.features, Some((2, vec![0.0, 7.0, 0.1, 6.0, 0.2, 5.0])));
         }
+    }
+
+    #[test]
+    fn float_labels_in_any_case_are_accepted_when_whole() {
+        let d = tempfile::tempdir().unwrap();
+        let head = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+                    property float z\nproperty float scalar_Label\nend_header\n";
+        let p = write(
+            d.path(),
+            "cc.ply",
+            format!("{head}0 0 0 3\n1 1 1 7.0\n").as_bytes(),
+        );
+        assert_eq!(read_ply(&p).unwrap().labels, Some(vec![3, 7]));
+        let p = write(
+            d.path(),
+            "half.ply",
+            format!("{head}0 0 0 3\n1 1 1 2.5\n").as_bytes(),
+        );
+        let e = read_ply(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("half.ply") && e.contains("vertex 1") && e.contains("2.5"),
+            "{e}"
+        );
+        // Binary float label through the fixed-record path.
+        let mut b = b"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n\
+                      property float y\nproperty float z\nproperty float class\nend_header\n"
+            .to_vec();
+        for v in [1.0f32, 2.0, 3.0, -4.0] {
+            b.extend(v.to_le_bytes());
+        }
+        let p = write(d.path(), "neg_bin.ply", &b);
+        let e = read_ply(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("neg_bin.ply") && e.contains("vertex 0") && e.contains("-4"),
+            "{e}"
+        );
     }
 
     #[test]
