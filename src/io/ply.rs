@@ -178,12 +178,12 @@ fn check_vertex_layout(path: &Path, def: &ElementDef) -> Result<Layout, CloudErr
             "vertex has several label properties {labels:?}; keep one"
         )));
     }
-    if let Some(n) = labels.first() {
-        if find(n).and_then(scalar).is_none() {
-            return Err(fmt(format!(
-                "label property '{n}' must be a scalar, not a list"
-            )));
-        }
+    if let Some(n) = labels.first()
+        && find(n).and_then(scalar).is_none()
+    {
+        return Err(fmt(format!(
+            "label property '{n}' must be a scalar, not a list"
+        )));
     }
     let mut feature_dim = 0;
     for (name, p) in &def.properties {
