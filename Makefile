@@ -16,7 +16,7 @@ lint: deps
 	$(CARGO) clippy --all-targets -- -D warnings
 
 test: deps lint
-	$(CARGO) test --all-targets
+	$(CARGO) test --lib --bins --tests
 
 bench: deps
 	$(CARGO) bench

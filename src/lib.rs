@@ -3,6 +3,7 @@ pub mod eval;
 pub mod geometry;
 pub mod io;
 pub mod map;
+pub mod mapping;
 pub mod raycast;
 pub mod scene;
 pub mod trajectory;

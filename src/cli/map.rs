@@ -1,4 +1,4 @@
-//! `omcl map ...`: inspect maps.
+//! `omcl map ...`: build, inspect, ground, query and export maps.
 
 use std::path::PathBuf;
 
@@ -7,10 +7,24 @@ use clap::{Args, Subcommand};
 
 use omcl::map::{LanguageMap, file};
 
+pub use super::map_build::{CloudArgs, ExportArgs, GroundArgs, QueryArgs, RgbdArgs};
+
 #[derive(Debug, Subcommand)]
 pub enum MapCommand {
     /// Print a map file's header and statistics.
     Info(InfoArgs),
+    /// Build a map from posed RGB-D frames (input option 1).
+    Rgbd(RgbdArgs),
+    /// Build a map from a point cloud: PLY, LAS/LAZ, a KITTI/SemanticKITTI
+    /// sequence folder or scan, or a ScanNet .bin (input option 2).
+    Cloud(CloudArgs),
+    /// Ground a map on prompt words: rows become the words' features, voxels
+    /// whose best similarity is below a threshold are dropped.
+    Ground(GroundArgs),
+    /// Write a PLY of the voxels coloured by similarity to words (heat map).
+    Query(QueryArgs),
+    /// Write a PLY of the voxels coloured by feature row.
+    Export(ExportArgs),
 }
 
 #[derive(Debug, Args)]
@@ -28,6 +42,11 @@ pub struct InfoArgs {
 pub fn run(cmd: MapCommand) -> anyhow::Result<()> {
     match cmd {
         MapCommand::Info(a) => info(&a),
+        MapCommand::Rgbd(a) => super::map_build::rgbd(&a),
+        MapCommand::Cloud(a) => super::map_build::cloud(&a),
+        MapCommand::Ground(a) => super::map_build::ground(&a),
+        MapCommand::Query(a) => super::map_build::query(&a),
+        MapCommand::Export(a) => super::map_build::export(&a),
     }
 }
 

@@ -4,6 +4,7 @@
 pub mod demo;
 pub mod eval;
 pub mod map;
+pub mod map_build;
 pub mod progress;
 
 use clap::{Parser, Subcommand};

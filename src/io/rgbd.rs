@@ -61,6 +61,41 @@ fn open_png(
     Ok((info, buf))
 }
 
+/// Reads a 16-bit (or 8-bit) single-channel label PNG: one class id per
+/// pixel, row-major.
+pub fn read_label_png(path: &Path) -> Result<(u32, u32, Vec<u32>), CloudError> {
+    let (info, buf) = open_png(path, Transformations::IDENTITY)?;
+    if info.color_type != png::ColorType::Grayscale {
+        return Err(CloudError::format(
+            path,
+            format!(
+                "label image must be single-channel, got {:?}",
+                info.color_type
+            ),
+        ));
+    }
+    let labels: Vec<u32> = match info.bit_depth {
+        png::BitDepth::Sixteen => buf
+            .chunks_exact(2)
+            .map(|c| u16::from_be_bytes([c[0], c[1]]) as u32)
+            .collect(),
+        png::BitDepth::Eight => buf.iter().map(|&b| b as u32).collect(),
+        d => {
+            return Err(CloudError::format(
+                path,
+                format!("label image must have 8 or 16 bits, got {d:?}"),
+            ));
+        }
+    };
+    if labels.len() != info.width as usize * info.height as usize {
+        return Err(CloudError::format(
+            path,
+            "label image size does not match its header",
+        ));
+    }
+    Ok((info.width, info.height, labels))
+}
+
 /// Reads a 16-bit single-channel depth PNG; `units_per_metre` converts the
 /// stored integers to metres (see the constants above). Zero stays zero
 /// (invalid).

@@ -1,0 +1,545 @@
+//! The map-building commands: file handling around `omcl::mapping`.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail, ensure};
+use clap::{Args, ValueEnum};
+use nalgebra::Vector3;
+
+use omcl::io::cloud::{CloudFormat, PointCloud, read_point_cloud};
+use omcl::io::kitti::{AggregateOptions, KittiSequence};
+use omcl::io::labels::EmbeddingTable;
+use omcl::io::{npy, ply, poses, rgbd as rgbd_io};
+use omcl::map::{self, FeatureDb, GridSpec, Integrator, LanguageMap};
+use omcl::mapping::{self, Feature, FeatureMap, IntegrationStats, LabelImage, colors};
+
+/// Options shared by the commands that build a map.
+#[derive(Debug, Args)]
+pub struct BuildOptions {
+    /// Where to write the map (`.omcl`); written atomically, never half.
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// Voxel edge length, metres (paper: 0.02 indoors, 0.05 outdoors).
+    #[arg(long, default_value_t = 0.05)]
+    pub resolution: f64,
+    /// Cosine-distance threshold of the feature database (paper: 0.02; the
+    /// authors' code uses 0.1 for LSeg, 0.05 for OpenScene).
+    #[arg(long, default_value_t = 0.02)]
+    pub tau: f32,
+    /// Cap on observation rows for raw features (memory and time bound).
+    #[arg(long, default_value_t = 4096)]
+    pub max_rows: usize,
+    /// Class list (`<id> <name>` lines) of the embedding table that turns
+    /// labels into features (ground-truth mode).
+    #[arg(long)]
+    pub classes: Option<PathBuf>,
+    /// The embedding table (`.npy`, one row per class of --classes).
+    #[arg(long)]
+    pub embeddings: Option<PathBuf>,
+    /// Name of the feature space, stored in the map (e.g. clip-vit-b32).
+    #[arg(long, default_value = "clip-vit-b32")]
+    pub encoder: String,
+}
+
+impl BuildOptions {
+    fn table(&self) -> anyhow::Result<Option<EmbeddingTable>> {
+        match (&self.classes, &self.embeddings) {
+            (Some(c), Some(e)) => Ok(Some(EmbeddingTable::read(c, e)?)),
+            (None, None) => Ok(None),
+            _ => bail!("--classes and --embeddings go together"),
+        }
+    }
+
+    fn check(&self) -> anyhow::Result<()> {
+        ensure!(
+            self.resolution.is_finite() && self.resolution > 0.0,
+            "--resolution must be a positive number of metres, got {}",
+            self.resolution
+        );
+        ensure!(
+            (0.0..=2.0).contains(&self.tau),
+            "--tau must be in [0, 2], got {}",
+            self.tau
+        );
+        Ok(())
+    }
+}
+
+fn table_db(t: &EmbeddingTable, tau: f32) -> anyhow::Result<FeatureDb> {
+    FeatureDb::from_rows(t.dim, tau, t.data.clone()).context("embedding table")
+}
+
+fn finish(integ: Integrator, b: &BuildOptions, stats: IntegrationStats) -> anyhow::Result<()> {
+    ensure!(
+        integ.voxel_count() > 0,
+        "empty result: none of {} points/pixels could be integrated ({} skipped without feature or \
+         outside the crop, {} rejected as non-finite or out of range); no map written",
+        stats.offered,
+        stats.skipped,
+        stats.rejected
+    );
+    let m = integ.finish(b.encoder.clone(), b.tau)?;
+    map::save(&m, &b.out)?;
+    println!(
+        "wrote {}: {} voxels at {} m, {} feature rows x {} dims ({} of {} inputs integrated, {} skipped, {} rejected)",
+        b.out.display(),
+        m.len(),
+        b.resolution,
+        m.db().len(),
+        m.db().dim(),
+        stats.integrated,
+        stats.offered,
+        stats.skipped,
+        stats.rejected
+    );
+    Ok(())
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum FormatArg {
+    Ply,
+    Las,
+    Kitti,
+    Scannet,
+}
+
+#[derive(Debug, Args)]
+pub struct CloudArgs {
+    /// A point-cloud file (.ply, .las, .laz, KITTI .bin with --format kitti,
+    /// ScanNet .bin with --format scannet) or a SemanticKITTI sequence
+    /// folder (velodyne/, labels/, calib.txt, poses.txt).
+    pub input: PathBuf,
+    #[command(flatten)]
+    pub build: BuildOptions,
+    /// Format of a file whose extension does not tell.
+    #[arg(long, value_enum)]
+    pub format: Option<FormatArg>,
+    /// Per-point features (`N x F` .npy, e.g. OpenScene run elsewhere).
+    #[arg(long)]
+    pub features: Option<PathBuf>,
+    /// Sequence folders: use at most this many scans from the start.
+    #[arg(long)]
+    pub frames: Option<usize>,
+    /// Sequence folders: per-scan feature files NNNNNN.npy in this folder.
+    #[arg(long)]
+    pub features_dir: Option<PathBuf>,
+    /// Sequence folders: keep unlabeled, outlier and moving points.
+    #[arg(long)]
+    pub keep_all: bool,
+    /// Sequence folders: ignore points farther than this from the sensor (m).
+    #[arg(long)]
+    pub max_range: Option<f64>,
+}
+
+fn load_cloud(a: &CloudArgs) -> anyhow::Result<PointCloud> {
+    if a.input.is_dir() {
+        let seq = KittiSequence::open(&a.input)?;
+        let frames: Vec<usize> = seq
+            .frames
+            .iter()
+            .copied()
+            .take(a.frames.unwrap_or(usize::MAX))
+            .collect();
+        let opts = AggregateOptions {
+            voxel_size: None,
+            drop_unlabeled_outlier_moving: !a.keep_all,
+            max_range: a.max_range,
+            features_dir: a.features_dir.clone(),
+        };
+        let pb = super::progress::spinner(&format!("aggregating {} scans", frames.len()));
+        let c = seq.aggregate(&frames, &opts)?;
+        pb.finish_and_clear();
+        return Ok(c);
+    }
+    let format = a.format.map(|f| match f {
+        FormatArg::Ply => CloudFormat::Ply,
+        FormatArg::Las => CloudFormat::Las,
+        FormatArg::Kitti => CloudFormat::KittiBin,
+        FormatArg::Scannet => CloudFormat::ScannetBin,
+    });
+    let mut c = read_point_cloud(&a.input, format)?;
+    if let Some(f) = &a.features {
+        c.attach_features_npy(f)?;
+    }
+    c.validate(&a.input.display().to_string())?;
+    Ok(c)
+}
+
+/// A grid whose origin is the cloud's lower corner snapped to the
+/// resolution, so that georeferenced coordinates (UTM) keep float precision.
+fn grid_for(points: &[[f64; 3]], resolution: f64) -> GridSpec {
+    let mut lo = [f64::INFINITY; 3];
+    for p in points {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+        }
+    }
+    let snap = |v: f64| {
+        if v.is_finite() {
+            (v / resolution).floor() * resolution
+        } else {
+            0.0
+        }
+    };
+    GridSpec {
+        resolution,
+        origin: Vector3::new(snap(lo[0]), snap(lo[1]), snap(lo[2])),
+    }
+}
+
+pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
+    a.build.check()?;
+    let c = load_cloud(a)?;
+    let source = a.input.display().to_string();
+    ensure!(
+        !c.is_empty(),
+        "{source}: empty result: no points left to map; no map written"
+    );
+    let grid = grid_for(&c.points, a.build.resolution);
+    let table = a.build.table()?;
+    let (integ, stats) = if let Some((dim, feats)) = &c.features {
+        let db = FeatureDb::new(*dim, a.build.tau)?.with_max_rows(a.build.max_rows);
+        let mut integ = Integrator::new(grid, db)?;
+        let s = mapping::cloud::integrate_points(&mut integ, &c.points, |i| {
+            Feature::Vector(&feats[i * dim..(i + 1) * dim])
+        })
+        .with_context(|| format!("{source}: per-point features"))?;
+        (integ, s)
+    } else if let (Some(labels), Some(t)) = (&c.labels, &table) {
+        let mut integ = Integrator::new(grid, table_db(t, a.build.tau)?)?;
+        let s = mapping::cloud::integrate_points(&mut integ, &c.points, |i| {
+            match t.row_index(labels[i]) {
+                Some(r) => Feature::Row(r as u32),
+                None => Feature::Unknown,
+            }
+        })?;
+        (integ, s)
+    } else if c.labels.is_some() {
+        bail!(
+            "{source}: points carry labels but no embedding table was given: pass --classes and \
+             --embeddings (a class list and its .npy of class features)"
+        );
+    } else {
+        bail!(
+            "{source}: points carry neither features nor labels: pass --features (N x F .npy) or \
+             use a labelled cloud with --classes/--embeddings"
+        );
+    };
+    finish(integ, &a.build, stats)
+}
+
+#[derive(Debug, Args)]
+pub struct RgbdArgs {
+    /// An RGB-D sequence folder: intrinsics.txt (`fx fy cx cy width
+    /// height`), poses.txt (TUM, world_from_camera), depth/NNNNNN.png
+    /// (16-bit), and labels/NNNNNN.png with classes.txt + embeddings.npy,
+    /// or features/NNNNNN.npy (`h x w x F`, any h x w).
+    pub dir: PathBuf,
+    #[command(flatten)]
+    pub build: BuildOptions,
+    /// Depth PNG units per metre (TUM: 5000; Replica: 6553.5).
+    #[arg(long, default_value_t = 5000.0)]
+    pub depth_scale: f64,
+    /// Ignore depths beyond this many metres.
+    #[arg(long, default_value_t = 10.0)]
+    pub max_depth: f32,
+    /// Ignore points above this world height (crop the ceiling), metres.
+    #[arg(long)]
+    pub max_height: Option<f64>,
+    /// Use every n-th pixel in each direction.
+    #[arg(long, default_value_t = 2)]
+    pub stride: u32,
+    /// Use per-frame feature files from features/ even if labels exist.
+    #[arg(long)]
+    pub use_features: bool,
+    /// Use at most this many frames.
+    #[arg(long)]
+    pub frames: Option<usize>,
+}
+
+pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
+    a.build.check()?;
+    let d = &a.dir;
+    let k = rgbd_io::read_intrinsics(&d.join("intrinsics.txt"))?;
+    let traj = poses::read_poses(&d.join("poses.txt"))?.trajectory;
+    let n = traj.poses().len().min(a.frames.unwrap_or(usize::MAX));
+    let use_labels = !a.use_features && d.join("labels").is_dir();
+    let table = if use_labels {
+        let mut b = a.build.table()?;
+        if b.is_none() {
+            b = Some(EmbeddingTable::read(
+                &d.join("classes.txt"),
+                &d.join("embeddings.npy"),
+            )?);
+        }
+        b
+    } else {
+        None
+    };
+    let grid = GridSpec {
+        resolution: a.build.resolution,
+        // Any origin works; the first camera, snapped, keeps coordinates small.
+        origin: traj.poses()[0]
+            .translation
+            .vector
+            .map(|v| (v / a.build.resolution).floor())
+            * a.build.resolution,
+    };
+    let db = match &table {
+        Some(t) => table_db(t, a.build.tau)?,
+        None => {
+            let f0 = d.join("features").join(format!("{:06}.npy", 0));
+            let arr = npy::read_npy(&f0).with_context(|| {
+                format!(
+                    "no labels/ folder, so features/ is needed: {}",
+                    f0.display()
+                )
+            })?;
+            FeatureDb::new(arr.as_matrix_dims().1, a.build.tau)?.with_max_rows(a.build.max_rows)
+        }
+    };
+    let mut integ = Integrator::new(grid, db)?;
+    let opt = mapping::rgbd::FrameOptions {
+        min_depth: 0.05,
+        max_depth: a.max_depth,
+        max_height: a.max_height,
+        stride: a.stride,
+    };
+    let mut stats = IntegrationStats::default();
+    let pb = super::progress::bar(n as u64, "frames");
+    for (i, pose) in traj.poses().iter().take(n).enumerate() {
+        let depth_path = d.join("depth").join(format!("{i:06}.png"));
+        let depth = rgbd_io::read_depth_png(&depth_path, a.depth_scale)?;
+        ensure!(
+            (depth.width, depth.height) == (k.width, k.height),
+            "{}: {}x{} pixels, intrinsics say {}x{}",
+            depth_path.display(),
+            depth.width,
+            depth.height,
+            k.width,
+            k.height
+        );
+        let s = if let Some(t) = &table {
+            let p = d.join("labels").join(format!("{i:06}.png"));
+            let (w, h, labels) = rgbd_io::read_label_png(&p)?;
+            ensure!(
+                (w, h) == (k.width, k.height),
+                "{}: {w}x{h} pixels, expected {}x{}",
+                p.display(),
+                k.width,
+                k.height
+            );
+            let rows = |l: u32| t.row_index(l).map(|r| r as u32);
+            let img = LabelImage {
+                width: k.width,
+                labels: &labels,
+                row_of_label: &rows,
+            };
+            mapping::rgbd::integrate_frame(&mut integ, &k, &depth.depth, pose, &img, &opt)?
+        } else {
+            let p = d.join("features").join(format!("{i:06}.npy"));
+            let arr = npy::read_npy(&p)?;
+            ensure!(
+                arr.shape.len() == 3,
+                "{}: expected h x w x F, got shape {:?}",
+                p.display(),
+                arr.shape
+            );
+            let dim = arr.shape[2];
+            ensure!(
+                dim == integ.observation_db().dim(),
+                "{}: features have dimension {dim}, earlier frames {}",
+                p.display(),
+                integ.observation_db().dim()
+            );
+            let fm = FeatureMap {
+                h: arr.shape[0] as u32,
+                w: arr.shape[1] as u32,
+                dim,
+                data: &arr.data,
+                width: k.width,
+                height: k.height,
+            };
+            mapping::rgbd::integrate_frame(&mut integ, &k, &depth.depth, pose, &fm, &opt)
+                .with_context(|| p.display().to_string())?
+        };
+        stats += s;
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    finish(integ, &a.build, stats)
+}
+
+/// Where prompt words get their features.
+#[derive(Debug, Args)]
+pub struct WordSource {
+    /// Class list (`<id> <name>` lines) whose names the words are looked up in.
+    #[arg(long)]
+    pub classes: PathBuf,
+    /// Text features, one row per class of --classes (`.npy`).
+    #[arg(long)]
+    pub embeddings: PathBuf,
+}
+
+impl WordSource {
+    /// Unit features of `words`, in order; an unknown word is an error that
+    /// lists a few known names.
+    fn features(&self, words: &[String], dim: usize) -> anyhow::Result<FeatureDb> {
+        let t = EmbeddingTable::read(&self.classes, &self.embeddings)?;
+        ensure!(
+            t.dim == dim,
+            "{}: text features have dimension {}, the map {dim}",
+            self.embeddings.display(),
+            t.dim
+        );
+        let mut rows = Vec::with_capacity(words.len() * dim);
+        for w in words {
+            let i = t
+                .names
+                .iter()
+                .position(|n| n.eq_ignore_ascii_case(w.trim()))
+                .with_context(|| {
+                    let some: Vec<&str> = t.names.iter().take(12).map(String::as_str).collect();
+                    format!(
+                        "word {w:?} is not in {} (known: {}, ...)",
+                        self.classes.display(),
+                        some.join(", ")
+                    )
+                })?;
+            rows.extend_from_slice(&t.data[i * dim..(i + 1) * dim]);
+        }
+        Ok(FeatureDb::from_rows(dim, 0.0, rows)?)
+    }
+}
+
+fn parse_words(words: &[String], file: Option<&Path>) -> anyhow::Result<Vec<String>> {
+    let mut out: Vec<String> = words
+        .iter()
+        .flat_map(|w| w.split(','))
+        .map(|w| w.trim().to_string())
+        .filter(|w| !w.is_empty())
+        .collect();
+    if let Some(f) = file {
+        let text =
+            std::fs::read_to_string(f).with_context(|| format!("reading {}", f.display()))?;
+        out.extend(
+            text.lines()
+                .flat_map(|l| l.split(','))
+                .map(|w| w.trim().to_string())
+                .filter(|w| !w.is_empty() && !w.starts_with('#')),
+        );
+    }
+    ensure!(!out.is_empty(), "no prompt words given");
+    Ok(out)
+}
+
+#[derive(Debug, Args)]
+pub struct GroundArgs {
+    /// The map to ground.
+    pub map: PathBuf,
+    /// Prompt words, separated by commas or spaces as separate arguments.
+    pub words: Vec<String>,
+    /// A file of prompt words (one per line or comma-separated).
+    #[arg(long)]
+    pub prompt_file: Option<PathBuf>,
+    #[command(flatten)]
+    pub source: WordSource,
+    /// Drop voxels whose best similarity to any word is below this.
+    #[arg(long, default_value_t = 0.5)]
+    pub min_similarity: f32,
+    /// Where to write the grounded map.
+    #[arg(long, short)]
+    pub out: PathBuf,
+}
+
+pub fn ground(a: &GroundArgs) -> anyhow::Result<()> {
+    let mut m = map::load(&a.map)?;
+    let words = parse_words(&a.words, a.prompt_file.as_deref())?;
+    let prompts = a.source.features(&words, m.db().dim())?;
+    let rep = map::ground(&mut m, &prompts, a.min_similarity)?;
+    ensure!(
+        !m.is_empty(),
+        "grounding on {words:?} at --min-similarity {} dropped every voxel; no map written",
+        a.min_similarity
+    );
+    map::save(&m, &a.out)?;
+    println!(
+        "wrote {}: {} rows -> {} words, kept {} voxels, dropped {}",
+        a.out.display(),
+        rep.old_rows,
+        rep.new_rows,
+        rep.kept,
+        rep.dropped
+    );
+    Ok(())
+}
+
+#[derive(Debug, Args)]
+pub struct QueryArgs {
+    /// The map to query.
+    pub map: PathBuf,
+    /// Words; a voxel's heat is its best similarity to any of them.
+    pub words: Vec<String>,
+    #[command(flatten)]
+    pub source: WordSource,
+    /// The PLY to write (voxel centres, coloured blue to red).
+    #[arg(long, short)]
+    pub out: PathBuf,
+}
+
+fn voxel_cloud(m: &LanguageMap, colors: Vec<[u8; 3]>) -> PointCloud {
+    let g = m.grid();
+    let points = m.cells().iter().map(|&c| g.center(c).into()).collect();
+    let mut cloud = PointCloud::from_points(points);
+    cloud.colors = Some(colors);
+    cloud.labels = Some(m.rows().to_vec());
+    cloud
+}
+
+pub fn query(a: &QueryArgs) -> anyhow::Result<()> {
+    let m = map::load(&a.map)?;
+    let words = parse_words(&a.words, None)?;
+    let prompts = a.source.features(&words, m.db().dim())?;
+    let mut best = vec![f32::NEG_INFINITY; m.len()];
+    for w in 0..prompts.len() {
+        for (b, s) in best.iter_mut().zip(m.similarity(prompts.row(w))?) {
+            *b = b.max(s);
+        }
+    }
+    let heat = colors::normalize_range(&best);
+    let cols = heat.iter().map(|&t| colors::heat_color(t)).collect();
+    ply::write_ply(&a.out, &voxel_cloud(&m, cols))?;
+    let hot = best
+        .iter()
+        .filter(|&&s| s > 0.9 * best.iter().copied().fold(f32::MIN, f32::max))
+        .count();
+    println!(
+        "wrote {}: {} voxels coloured by similarity to {words:?} ({hot} within 10 % of the best)",
+        a.out.display(),
+        m.len()
+    );
+    Ok(())
+}
+
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// The map to export.
+    pub map: PathBuf,
+    /// The PLY to write (voxel centres, coloured by feature row; the row is
+    /// also written as the `label` property).
+    #[arg(long, short)]
+    pub out: PathBuf,
+}
+
+pub fn export(a: &ExportArgs) -> anyhow::Result<()> {
+    let m = map::load(&a.map)?;
+    let cols = m.rows().iter().map(|&r| colors::row_color(r)).collect();
+    ply::write_ply(&a.out, &voxel_cloud(&m, cols))?;
+    println!(
+        "wrote {}: {} voxels, {} rows",
+        a.out.display(),
+        m.len(),
+        m.db().len()
+    );
+    Ok(())
+}

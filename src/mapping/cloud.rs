@@ -1,0 +1,75 @@
+//! Input option 2: points with features into voxels.
+
+use nalgebra::Vector3;
+
+use super::{Feature, IntegrationStats};
+use crate::map::{FeatureDbError, Integrator};
+
+/// Adds `points` (world frame, metres) with `feature(i)` for point `i`.
+pub fn integrate_points<'a>(
+    integ: &mut Integrator,
+    points: &[[f64; 3]],
+    feature: impl Fn(usize) -> Feature<'a>,
+) -> Result<IntegrationStats, FeatureDbError> {
+    let mut s = IntegrationStats {
+        offered: points.len(),
+        ..Default::default()
+    };
+    for (i, p) in points.iter().enumerate() {
+        let p = Vector3::from(*p);
+        let ok = match feature(i) {
+            Feature::Row(r) => integ.add_row(&p, r),
+            Feature::Vector(f) => integ.add_feature(&p, f)?,
+            Feature::Unknown => {
+                s.skipped += 1;
+                continue;
+            }
+        };
+        if ok {
+            s.integrated += 1;
+        } else {
+            s.rejected += 1;
+        }
+    }
+    Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::map::{FeatureDb, GridSpec};
+
+    #[test]
+    fn points_land_in_their_voxels_with_their_rows() {
+        let table = FeatureDb::from_rows(2, 0.02, vec![1.0, 0.0, 0.0, 1.0]).unwrap();
+        let grid = GridSpec {
+            resolution: 0.5,
+            origin: Vector3::new(-1.0, -1.0, 0.0),
+        };
+        let mut it = Integrator::new(grid, table).unwrap();
+        let pts = [
+            [0.1, 0.1, 0.1],
+            [0.2, 0.4, 0.3],
+            [2.0, 0.0, 0.0],
+            [f64::NAN, 0.0, 0.0],
+            [0.0; 3],
+        ];
+        let labels = [0u32, 0, 1, 1, 9];
+        let s = integrate_points(&mut it, &pts, |i| match labels[i] {
+            9 => Feature::Unknown,
+            l => Feature::Row(l),
+        })
+        .unwrap();
+        assert_eq!(
+            (s.offered, s.integrated, s.skipped, s.rejected),
+            (5, 3, 1, 1)
+        );
+        let m = it.finish("t", 0.02).unwrap();
+        assert_eq!(m.len(), 2);
+        // (0.1, 0.1, 0.1) - origin = (1.1, 1.1, 0.1) -> cell (2, 2, 0).
+        let a = m.find([2, 2, 0]).unwrap();
+        let b = m.find([6, 2, 0]).unwrap();
+        assert_eq!(m.db().row(m.rows()[a] as usize), &[1.0, 0.0]);
+        assert_eq!(m.db().row(m.rows()[b] as usize), &[0.0, 1.0]);
+    }
+}

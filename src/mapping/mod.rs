@@ -1,0 +1,100 @@
+//! Building maps: the paper's two input options, fed into
+//! [`crate::map::Integrator`], and the colours used to look at the result.
+//!
+//! - Option 1, posed RGB-D ([`rgbd`]): depth back-projected with the
+//!   intrinsics and `world_from_camera`, each valid pixel's feature added to
+//!   the voxel it falls in.
+//! - Option 2, point clouds ([`cloud`]): each point's feature (or label row)
+//!   added to its voxel.
+//!
+//! Both take features through [`FrameFeatures`]/[`PointFeatures`]: a row of
+//! a fixed table (labels with an embedding table: the ground-truth mode) or
+//! a feature vector (feature files, encoders). No I/O here.
+
+pub mod cloud;
+pub mod colors;
+pub mod rgbd;
+
+/// The feature of one pixel or point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Feature<'a> {
+    /// A row of the integrator's observation database (label mode).
+    Row(u32),
+    /// A feature vector, quantized by the integrator's admission rule.
+    Vector(&'a [f32]),
+    /// Nothing known here (unlabelled, unknown class): skipped.
+    Unknown,
+}
+
+/// Per-pixel features of one frame, at any resolution: `at(u, v)` is asked
+/// for pixel `(u, v)` of the depth image (`width x height`).
+pub trait FrameFeatures {
+    /// Feature at depth-image pixel `(u, v)`.
+    fn at(&self, u: u32, v: u32) -> Feature<'_>;
+}
+
+/// A label image whose labels index rows through `row_of_label`.
+pub struct LabelImage<'a> {
+    pub width: u32,
+    pub labels: &'a [u32],
+    /// Row of each label, `None` for labels without a row.
+    pub row_of_label: &'a dyn Fn(u32) -> Option<u32>,
+}
+
+impl FrameFeatures for LabelImage<'_> {
+    fn at(&self, u: u32, v: u32) -> Feature<'_> {
+        let i = v as usize * self.width as usize + u as usize;
+        match self.labels.get(i).and_then(|&l| (self.row_of_label)(l)) {
+            Some(r) => Feature::Row(r),
+            None => Feature::Unknown,
+        }
+    }
+}
+
+/// A dense `h x w x dim` feature map, possibly smaller than the depth image
+/// (encoders often work at reduced resolution): pixel `(u, v)` of a
+/// `width x height` image reads the feature-map cell covering its centre.
+pub struct FeatureMap<'a> {
+    pub h: u32,
+    pub w: u32,
+    pub dim: usize,
+    pub data: &'a [f32],
+    /// Size of the image the features describe.
+    pub width: u32,
+    pub height: u32,
+}
+
+impl FrameFeatures for FeatureMap<'_> {
+    fn at(&self, u: u32, v: u32) -> Feature<'_> {
+        let fu = ((u as u64 * 2 + 1) * self.w as u64 / (2 * self.width as u64)) as usize;
+        let fv = ((v as u64 * 2 + 1) * self.h as u64 / (2 * self.height as u64)) as usize;
+        let i = (fv.min(self.h as usize - 1) * self.w as usize + fu.min(self.w as usize - 1))
+            * self.dim;
+        match self.data.get(i..i + self.dim) {
+            Some(f) => Feature::Vector(f),
+            None => Feature::Unknown,
+        }
+    }
+}
+
+/// What an integration pass did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct IntegrationStats {
+    /// Points or pixels offered.
+    pub offered: usize,
+    /// Added to a voxel.
+    pub integrated: usize,
+    /// Skipped: no feature, invalid depth, outside the depth or height crop.
+    pub skipped: usize,
+    /// Rejected by the integrator: non-finite or out of the grid's range.
+    pub rejected: usize,
+}
+
+impl std::ops::AddAssign for IntegrationStats {
+    fn add_assign(&mut self, o: Self) {
+        self.offered += o.offered;
+        self.integrated += o.integrated;
+        self.skipped += o.skipped;
+        self.rejected += o.rejected;
+    }
+}

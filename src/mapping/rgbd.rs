@@ -1,0 +1,242 @@
+//! Input option 1: posed depth frames with per-pixel features into voxels.
+
+use nalgebra::{Point3, Vector3};
+
+use super::{Feature, FrameFeatures, IntegrationStats};
+use crate::geometry::{Intrinsics, Pose};
+use crate::map::{FeatureDbError, Integrator};
+
+/// Which pixels of a frame are used.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameOptions {
+    /// Depths outside `[min_depth, max_depth]` metres are skipped.
+    pub min_depth: f32,
+    pub max_depth: f32,
+    /// Points above this world height (z, metres) are skipped: the authors
+    /// crop the ceiling so that prompts and floor plans see the room.
+    pub max_height: Option<f64>,
+    /// Use every `stride`-th pixel in u and v (1 = all).
+    pub stride: u32,
+}
+
+impl Default for FrameOptions {
+    fn default() -> Self {
+        FrameOptions {
+            min_depth: 0.1,
+            max_depth: 10.0,
+            max_height: None,
+            stride: 1,
+        }
+    }
+}
+
+/// Back-projects a z-depth image (`k.width x k.height`, metres, 0 invalid)
+/// seen from `world_from_camera` and adds each used pixel's feature.
+pub fn integrate_frame(
+    integ: &mut Integrator,
+    k: &Intrinsics,
+    depth: &[f32],
+    world_from_camera: &Pose,
+    features: &dyn FrameFeatures,
+    opt: &FrameOptions,
+) -> Result<IntegrationStats, FeatureDbError> {
+    let mut s = IntegrationStats::default();
+    let stride = opt.stride.max(1);
+    for v in (0..k.height).step_by(stride as usize) {
+        for u in (0..k.width).step_by(stride as usize) {
+            s.offered += 1;
+            let z = depth[v as usize * k.width as usize + u as usize];
+            if !(z >= opt.min_depth && z <= opt.max_depth) {
+                s.skipped += 1;
+                continue;
+            }
+            let z = z as f64;
+            let p_camera = Point3::new(
+                (u as f64 + 0.5 - k.cx) / k.fx * z,
+                (v as f64 + 0.5 - k.cy) / k.fy * z,
+                z,
+            );
+            let p: Vector3<f64> = (world_from_camera * p_camera).coords;
+            if opt.max_height.is_some_and(|h| p.z > h) {
+                s.skipped += 1;
+                continue;
+            }
+            let ok = match features.at(u, v) {
+                Feature::Row(r) => integ.add_row(&p, r),
+                Feature::Vector(f) => integ.add_feature(&p, f)?,
+                Feature::Unknown => {
+                    s.skipped += 1;
+                    continue;
+                }
+            };
+            if ok {
+                s.integrated += 1;
+            } else {
+                s.rejected += 1;
+            }
+        }
+    }
+    Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{camera_ray, level_camera};
+    use crate::map::{FeatureDb, GridSpec};
+    use crate::mapping::LabelImage;
+    use crate::raycast::{EmbreeCaster, RayCaster};
+    use crate::scene::{RoomsConfig, rooms};
+
+    /// Renders depth and labels of `scene` with the ray caster, maps the
+    /// frames back, and checks the voxels are where the surfaces are with
+    /// the right rows.
+    #[test]
+    fn mapping_rendered_frames_recovers_the_scene() {
+        let cfg = RoomsConfig {
+            size_x: 8.0,
+            size_y: 4.0,
+            room_x: 4.0,
+            room_y: 4.0,
+            resolution: 0.1,
+            ..RoomsConfig::default()
+        };
+        let scene = rooms(&cfg);
+        let caster = EmbreeCaster::new(0.1, &scene.cells).unwrap();
+        let k = Intrinsics::from_hfov(160, 120, 90.0);
+        let nlabels = 3 + crate::scene::FURNITURE_KINDS as usize;
+        let table: Vec<f32> = (0..nlabels)
+            .flat_map(|i| (0..nlabels).map(move |j| if i == j { 1.0 } else { 0.0 }))
+            .collect();
+        let db = FeatureDb::from_rows(nlabels, 0.02, table).unwrap();
+        let grid = GridSpec {
+            resolution: 0.1,
+            origin: Vector3::zeros(),
+        };
+        let mut integ = Integrator::new(grid, db).unwrap();
+        let mut seen = rustc_hash::FxHashSet::default();
+        let mut total = IntegrationStats::default();
+        for (n, spot) in scene.free_spots.iter().enumerate() {
+            for yaw in 0..8 {
+                let pose = level_camera(
+                    Vector3::new(spot[0], spot[1], 1.2),
+                    yaw as f64 * std::f64::consts::FRAC_PI_4 + n as f64,
+                );
+                let rays: Vec<_> = (0..k.height)
+                    .flat_map(|v| (0..k.width).map(move |u| (u, v)))
+                    .map(|(u, v)| camera_ray(&k, &pose, &grid.origin, u, v))
+                    .collect();
+                let hits = caster.cast_vec(&rays);
+                seen.extend(hits.iter().filter(|h| h.is_hit()).map(|h| h.leaf));
+                // z-depth = t * (camera-frame z of the unit ray direction).
+                let depth: Vec<f32> = hits
+                    .iter()
+                    .enumerate()
+                    .map(|(i, h)| {
+                        let (u, v) = (i as u32 % k.width, i as u32 / k.width);
+                        if h.is_hit() {
+                            h.t * k.pixel_dir(u, v).z as f32
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect();
+                let labels: Vec<u32> = hits
+                    .iter()
+                    .map(|h| {
+                        if h.is_hit() {
+                            scene.labels[h.leaf as usize]
+                        } else {
+                            u32::MAX
+                        }
+                    })
+                    .collect();
+                let rows = |l: u32| (l != u32::MAX).then_some(l);
+                let img = LabelImage {
+                    width: k.width,
+                    labels: &labels,
+                    row_of_label: &rows,
+                };
+                total += integrate_frame(
+                    &mut integ,
+                    &k,
+                    &depth,
+                    &pose,
+                    &img,
+                    &FrameOptions::default(),
+                )
+                .unwrap();
+            }
+        }
+        assert!(total.integrated > 100_000, "{total:?}");
+        let m = integ.finish("t", 0.02).unwrap();
+        // Points on a voxel face may fall into the empty voxel in front of
+        // it, so "where the surfaces are" means within one cell of a surface
+        // voxel, and "the right row" means the class of such a voxel.
+        let truth: rustc_hash::FxHashMap<[i32; 3], u32> = scene
+            .cells
+            .iter()
+            .copied()
+            .zip(scene.labels.iter().copied())
+            .collect();
+        let around = |c: [i32; 3]| {
+            (-1..=1).flat_map(move |dx| {
+                (-1..=1)
+                    .flat_map(move |dy| (-1..=1).map(move |dz| [c[0] + dx, c[1] + dy, c[2] + dz]))
+            })
+        };
+        let mut right_row = 0;
+        for (c, &r) in m.cells().iter().zip(m.rows()) {
+            let f = m.db().row(r as usize);
+            let labels: Vec<u32> = around(*c).filter_map(|n| truth.get(&n).copied()).collect();
+            assert!(!labels.is_empty(), "voxel {c:?} is far from every surface");
+            right_row += labels.iter().any(|&l| f[l as usize] > 0.7) as usize;
+        }
+        let n = m.len();
+        assert!(
+            right_row * 100 >= n * 99,
+            "{right_row} of {n} voxels with a neighbouring class"
+        );
+        // Nearly every surface voxel the camera saw is mapped at or next to it.
+        let covered = seen
+            .iter()
+            .filter(|&&leaf| around(scene.cells[leaf as usize]).any(|c| m.find(c).is_some()))
+            .count();
+        assert!(
+            covered * 100 >= seen.len() * 95,
+            "{covered} of {} seen voxels mapped",
+            seen.len()
+        );
+        // And the map is not bloated: at most about twice the seen voxels.
+        assert!(n <= 2 * seen.len(), "{n} voxels for {} seen", seen.len());
+    }
+
+    #[test]
+    fn crop_and_range_skip_pixels() {
+        let k = Intrinsics::from_hfov(4, 2, 90.0);
+        let db = FeatureDb::from_rows(1, 0.02, vec![1.0]).unwrap();
+        let grid = GridSpec {
+            resolution: 0.1,
+            origin: Vector3::zeros(),
+        };
+        let mut integ = Integrator::new(grid, db).unwrap();
+        let pose = level_camera(Vector3::new(0.0, 0.0, 1.0), 0.0);
+        // Row 0 looks up (above the camera), row 1 down; one pixel too far.
+        let depth = [1.0, 1.0, 1.0, 50.0, 1.0, 1.0, 0.0, 1.0];
+        let labels = [0u32; 8];
+        let rows = |l: u32| Some(l);
+        let img = LabelImage {
+            width: 4,
+            labels: &labels,
+            row_of_label: &rows,
+        };
+        let opt = FrameOptions {
+            max_height: Some(1.0),
+            ..FrameOptions::default()
+        };
+        let s = integrate_frame(&mut integ, &k, &depth, &pose, &img, &opt).unwrap();
+        assert_eq!(s.offered, 8);
+        // 3 valid pixels of row 0 are above 1 m, 1 is too far; row 1 has a hole.
+        assert_eq!((s.integrated, s.skipped), (3, 5));
+    }
+}

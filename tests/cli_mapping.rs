@@ -1,0 +1,265 @@
+//! `omcl map cloud|ground|query|export` end to end on real data recorded by
+//! others (SemanticKITTI scans, aerial LAS) and on bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use omcl::io::{labels, npy, ply};
+use omcl::map;
+
+fn shared(rel: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(rel);
+    if p.exists() {
+        return Some(p);
+    }
+    assert!(
+        std::env::var_os("CI").is_none(),
+        "{} is missing: CI must have ../shared/data",
+        p.display()
+    );
+    eprintln!("skipping: {} not found (CI has it)", p.display());
+    None
+}
+
+fn omcl(args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(args)
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), text)
+}
+
+/// A class table of `ids` with orthogonal one-hot features (dimension = count).
+fn one_hot_table(dir: &Path, ids: &[(u32, &str)]) -> (PathBuf, PathBuf) {
+    let classes = dir.join("classes.txt");
+    let text: String = ids.iter().map(|(i, n)| format!("{i} {n}\n")).collect();
+    std::fs::write(&classes, text).unwrap();
+    let k = ids.len();
+    let data: Vec<f32> = (0..k * k)
+        .map(|i| if i / k == i % k { 1.0 } else { 0.0 })
+        .collect();
+    let emb = dir.join("embeddings.npy");
+    npy::write_npy(&emb, &[k, k], &data).unwrap();
+    (classes, emb)
+}
+
+#[test]
+fn semantickitti_scans_map_into_one_consistent_world_frame() {
+    let Some(seq) = shared("semantickitti/sequences/00") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let ids: Vec<(u32, &str)> = labels::SEMANTIC_KITTI_CLASSES
+        .iter()
+        .map(|&(id, name)| (id, name))
+        .collect();
+    let (classes, emb) = one_hot_table(dir.path(), &ids);
+    let out = dir.path().join("kitti.omcl");
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        seq.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--resolution",
+        "0.2",
+        "--classes",
+        classes.to_str().unwrap(),
+        "--embeddings",
+        emb.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let m = map::load(&out).unwrap();
+    assert!(m.len() > 50_000, "{} voxels", m.len());
+    // A building point of scan 2, taken to the world frame with the scan's
+    // own pose, lands in a mapped voxel whose row is "building".
+    let s = omcl::io::kitti::KittiSequence::open(&seq).unwrap();
+    let scan = s.load_scan(2).unwrap();
+    let labels = scan.labels.as_ref().unwrap();
+    let building = ids.iter().position(|&(i, _)| i == 50).unwrap();
+    let (mut found, mut right, mut total) = (0, 0, 0);
+    for (p, &l) in scan.points.iter().zip(labels) {
+        if l != 50 {
+            continue;
+        }
+        total += 1;
+        if let Some(leaf) = m.find_point(&nalgebra::Vector3::from(*p)) {
+            found += 1;
+            let row = m.db().row(m.rows()[leaf] as usize);
+            right += (row[building] > 0.5) as usize;
+        }
+    }
+    assert!(total > 1000);
+    assert!(
+        found * 100 >= total * 99,
+        "{found} of {total} building points in mapped voxels"
+    );
+    assert!(
+        right * 100 >= found * 80,
+        "{right} of {found} in building voxels"
+    );
+}
+
+#[test]
+fn aerial_las_converts_and_grounds_queries_and_exports() {
+    let Some(las) = shared("las/autzen_trim.laz") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (classes, emb) = one_hot_table(dir.path(), &[(1, "unclassified"), (2, "ground")]);
+    let (c, e) = (classes.to_str().unwrap(), emb.to_str().unwrap());
+    let out = dir.path().join("autzen.omcl");
+    let o = out.to_str().unwrap();
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        las.to_str().unwrap(),
+        "-o",
+        o,
+        "--resolution",
+        "1.0",
+        "--classes",
+        c,
+        "--embeddings",
+        e,
+    ]);
+    assert!(ok, "{text}");
+    let m = map::load(&out).unwrap();
+    // Two classes, plus means of voxels that hold both.
+    assert!(m.db().len() >= 2, "{}", m.db().len());
+    // UTM coordinates: the origin is snapped near the data, not at zero.
+    assert!(m.grid().origin.x.abs() > 1e5, "{}", m.grid().origin);
+
+    let grounded = dir.path().join("ground.omcl");
+    let (ok, text) = omcl(&[
+        "map",
+        "ground",
+        o,
+        "ground",
+        "--classes",
+        c,
+        "--embeddings",
+        e,
+        "--min-similarity",
+        "0.9",
+        "-o",
+        grounded.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let g = map::load(&grounded).unwrap();
+    assert_eq!(g.db().len(), 1);
+    // Kept: exactly the voxels at least 0.9 similar to "ground" (one-hot [0, 1]).
+    let sim = m.similarity(&[0.0, 1.0]).unwrap();
+    assert_eq!(g.len(), sim.iter().filter(|&&s| s >= 0.9).count());
+    assert!(g.len() < m.len() && !g.is_empty());
+
+    let heat = dir.path().join("heat.ply");
+    let (ok, text) = omcl(&[
+        "map",
+        "query",
+        o,
+        "ground",
+        "--classes",
+        c,
+        "--embeddings",
+        e,
+        "-o",
+        heat.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let h = ply::read_ply(&heat).unwrap();
+    assert_eq!(h.len(), m.len());
+    // Pure ground voxels are hot (red), pure unclassified ones cold (blue).
+    let cols = h.colors.unwrap();
+    for (c, s) in cols.iter().zip(&sim) {
+        if *s > 0.999 {
+            assert!(c[0] > 200 && c[2] < 60, "{c:?}");
+        } else if *s < 0.001 {
+            assert!(c[2] > c[0], "{c:?}");
+        }
+    }
+
+    let export = dir.path().join("rows.ply");
+    let (ok, text) = omcl(&["map", "export", o, "-o", export.to_str().unwrap()]);
+    assert!(ok, "{text}");
+    assert_eq!(ply::read_ply(&export).unwrap().len(), m.len());
+
+    let (ok, text) = omcl(&[
+        "map",
+        "ground",
+        o,
+        "river",
+        "--classes",
+        c,
+        "--embeddings",
+        e,
+        "-o",
+        grounded.to_str().unwrap(),
+    ]);
+    assert!(
+        !ok && text.contains("\"river\"") && text.contains("classes.txt"),
+        "{text}"
+    );
+}
+
+#[test]
+fn bad_input_fails_clearly_and_writes_nothing() {
+    let Some(las) = shared("las/simple.las") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.omcl");
+    let o = out.to_str().unwrap();
+    // Labels but no table.
+    let (ok, text) = omcl(&["map", "cloud", las.to_str().unwrap(), "-o", o]);
+    assert!(!ok && text.contains("--classes"), "{text}");
+    // A table none of whose classes occur: empty result.
+    let (c, e) = one_hot_table(dir.path(), &[(77, "nothing")]);
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        las.to_str().unwrap(),
+        "-o",
+        o,
+        "--classes",
+        c.to_str().unwrap(),
+        "--embeddings",
+        e.to_str().unwrap(),
+    ]);
+    assert!(!ok && text.contains("empty result"), "{text}");
+    // A truncated PLY.
+    let bad = dir.path().join("bad.ply");
+    std::fs::write(&bad, "ply\nformat binary_little_endian 1.0\nelement vertex 10\nproperty float x\nproperty float y\nproperty float z\nend_header\n\x00\x00").unwrap();
+    let (ok, text) = omcl(&["map", "cloud", bad.to_str().unwrap(), "-o", o]);
+    assert!(!ok && text.contains("bad.ply"), "{text}");
+    // A feature file of the wrong length.
+    let feats = dir.path().join("f.npy");
+    npy::write_npy(&feats, &[3, 4], &[0.5; 12]).unwrap();
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        las.to_str().unwrap(),
+        "-o",
+        o,
+        "--features",
+        feats.to_str().unwrap(),
+    ]);
+    assert!(!ok && text.contains("f.npy"), "{text}");
+    assert!(!out.exists(), "no map may be written on failure");
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        las.to_str().unwrap(),
+        "-o",
+        o,
+        "--resolution=-1",
+    ]);
+    assert!(!ok && text.contains("--resolution"), "{text}");
+}
