@@ -207,12 +207,11 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         (integ, s)
     } else if let (Some(labels), Some(t)) = (&c.labels, &table) {
         let mut integ = Integrator::new(grid, table_db(t, a.build.tau)?)?;
-        let s = mapping::cloud::integrate_points(&mut integ, &c.points, |i| {
-            match t.row_index(labels[i]) {
-                Some(r) => Feature::Row(r as u32),
-                None => Feature::Unknown,
-            }
-        })?;
+        let rows: Vec<Option<u32>> = labels
+            .iter()
+            .map(|&l| t.row_index(l).map(|r| r as u32))
+            .collect();
+        let s = mapping::cloud::integrate_point_rows(&mut integ, &c.points, &rows);
         (integ, s)
     } else if c.labels.is_some() {
         bail!(

@@ -121,6 +121,46 @@ impl Integrator {
         }
     }
 
+    /// Adds many observations of known rows at once: `rows[i]` observed at
+    /// `points[i]` (world frame), `None` to skip a point. Equivalent to
+    /// calling [`Integrator::add_row`] for each point, but parallel: voxel
+    /// codes are computed and sorted with rayon and the voxel table is
+    /// touched once per voxel. Returns how many points were integrated.
+    pub fn add_rows_batch(&mut self, points: &[[f64; 3]], rows: &[Option<u32>]) -> usize {
+        use rayon::prelude::*;
+        let k = self.obs.len();
+        let grid = self.grid;
+        let mut keyed: Vec<(u64, u32)> = points
+            .par_iter()
+            .zip(rows.par_iter())
+            .filter_map(|(p, r)| {
+                let r = (*r).filter(|&r| (r as usize) < k)?;
+                let cell = grid.cell_of(&Vector3::from(*p))?;
+                Some((key::encode(cell), r))
+            })
+            .collect();
+        let offered = points.len().min(rows.len());
+        let skipped = rows.iter().take(offered).filter(|r| r.is_none()).count();
+        self.rejected += offered - skipped - keyed.len();
+        keyed.par_sort_unstable();
+        self.voxels.reserve(keyed.len() / 4);
+        let n = keyed.len();
+        let mut i = 0;
+        while i < n {
+            let code = keyed[i].0;
+            let slots = self.voxels.entry(code).or_insert(Slots::NEW);
+            while i < n && keyed[i].0 == code {
+                let row = keyed[i].1;
+                let start = i;
+                while i < n && keyed[i] == (code, row) {
+                    i += 1;
+                }
+                slots.add(row, (i - start) as f32);
+            }
+        }
+        n
+    }
+
     /// Occupied voxels so far.
     pub fn voxel_count(&self) -> usize {
         self.voxels.len()
@@ -238,6 +278,41 @@ mod tests {
         assert_eq!(m.len(), 10);
         assert_eq!(m.db().len(), 2);
         assert_eq!(m.row_counts(), vec![5, 5]);
+    }
+
+    #[test]
+    fn batch_equals_one_by_one() {
+        let table =
+            FeatureDb::from_rows(3, 0.02, vec![1.0, 0., 0., 0., 1., 0., 0., 0., 1.]).unwrap();
+        let pts: Vec<[f64; 3]> = (0..5000)
+            .map(|i| {
+                let f = i as f64;
+                [
+                    (f * 0.37).sin() * 3.0,
+                    (f * 0.11).cos() * 3.0,
+                    (f * 0.05).sin(),
+                ]
+            })
+            .collect();
+        let rows: Vec<Option<u32>> = (0..5000)
+            .map(|i| match i % 7 {
+                0 => None,
+                6 => Some(9),
+                r => Some(r as u32 % 3),
+            })
+            .collect();
+        let mut a = Integrator::new(grid(), table.clone()).unwrap();
+        let mut b = Integrator::new(grid(), table).unwrap();
+        let n = a.add_rows_batch(&pts, &rows);
+        let mut m = 0;
+        for (p, r) in pts.iter().zip(&rows) {
+            if let Some(r) = r {
+                m += b.add_row(&Vector3::from(*p), *r) as usize;
+            }
+        }
+        assert_eq!(n, m);
+        assert_eq!(a.rejected(), b.rejected());
+        assert_eq!(a.finish("t", 0.02).unwrap(), b.finish("t", 0.02).unwrap());
     }
 
     #[test]

@@ -5,6 +5,24 @@ use nalgebra::Vector3;
 use super::{Feature, IntegrationStats};
 use crate::map::{FeatureDbError, Integrator};
 
+/// Adds `points` (world frame, metres) with known rows (`None`: no
+/// feature), in parallel.
+pub fn integrate_point_rows(
+    integ: &mut Integrator,
+    points: &[[f64; 3]],
+    rows: &[Option<u32>],
+) -> IntegrationStats {
+    let before = integ.rejected();
+    let integrated = integ.add_rows_batch(points, rows);
+    let skipped = rows.iter().filter(|r| r.is_none()).count();
+    IntegrationStats {
+        offered: points.len(),
+        integrated,
+        skipped,
+        rejected: integ.rejected() - before,
+    }
+}
+
 /// Adds `points` (world frame, metres) with `feature(i)` for point `i`.
 pub fn integrate_points<'a>(
     integ: &mut Integrator,
@@ -38,6 +56,30 @@ pub fn integrate_points<'a>(
 mod tests {
     use super::*;
     use crate::map::{FeatureDb, GridSpec};
+
+    #[test]
+    fn row_batches_count_like_single_points() {
+        let table = FeatureDb::from_rows(2, 0.02, vec![1.0, 0.0, 0.0, 1.0]).unwrap();
+        let grid = GridSpec {
+            resolution: 0.5,
+            origin: Vector3::zeros(),
+        };
+        let mut it = Integrator::new(grid, table).unwrap();
+        let pts = [
+            [0.1, 0.1, 0.1],
+            [0.2, 0.4, 0.3],
+            [f64::NAN, 0.0, 0.0],
+            [0.0; 3],
+            [1.0; 3],
+        ];
+        let rows = [Some(0), Some(1), Some(1), None, Some(5)];
+        let s = integrate_point_rows(&mut it, &pts, &rows);
+        assert_eq!(
+            (s.offered, s.integrated, s.skipped, s.rejected),
+            (5, 2, 1, 2)
+        );
+        assert_eq!(it.voxel_count(), 1);
+    }
 
     #[test]
     fn points_land_in_their_voxels_with_their_rows() {
