@@ -2,5 +2,6 @@
 pub mod geometry;
 pub mod io;
 pub mod map;
+pub mod mcl;
 pub mod raycast;
 pub mod scene;
