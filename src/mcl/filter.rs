@@ -70,6 +70,8 @@ pub struct StepTimings {
     pub features: Duration,
     /// Ray generation, casting and scoring.
     pub weigh: Duration,
+    /// The ray cast alone (part of `weigh`).
+    pub cast: Duration,
     /// Estimate, resampling, injection.
     pub update: Duration,
 }
@@ -268,6 +270,7 @@ impl Filter {
                 features: t1 - t0,
                 predict: t2 - t1,
                 weigh: t3 - t2,
+                cast: self.sensor.last_cast(),
                 update: t4 - t3,
             },
         })

@@ -103,6 +103,7 @@ pub struct SensorModel {
     rays: Vec<Ray>,
     hits: Vec<Hit>,
     scores: Vec<f32>,
+    last_cast: std::time::Duration,
 }
 
 /// Particles per accumulation block: one block's scores stay in L1 while
@@ -129,7 +130,14 @@ impl SensorModel {
             rays: Vec::new(),
             hits: Vec::new(),
             scores: Vec::new(),
+            last_cast: std::time::Duration::ZERO,
         }
+    }
+
+    /// Wall-clock time of the ray cast in the last call of
+    /// [`SensorModel::likelihoods`].
+    pub fn last_cast(&self) -> std::time::Duration {
+        self.last_cast
     }
 
     /// The camera intrinsics.
@@ -186,7 +194,9 @@ impl SensorModel {
                     };
                 }
             });
+        let t0 = std::time::Instant::now();
         self.caster.cast(&self.rays, &mut self.hits);
+        self.last_cast = t0.elapsed();
         let (hits, rows, miss) = (&self.hits, &*self.leaf_rows, self.params.miss_score);
         let k = table.rows;
         let cos = &table.cos;
