@@ -490,3 +490,62 @@ fn bad_input_gives_clear_errors() {
         Err(MclError::PromptDim { .. })
     ));
 }
+
+#[test]
+fn misses_score_the_miss_parameter() {
+    let w = world();
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    let truth = start_pose(&w);
+    let frame = render(&w, &truth, 0.0, &mut rng);
+    let pixels = vec![(10, 10), (50, 40), (90, 70)];
+    let table = SimilarityTable::new(&frame, &pixels, w.map.db()).unwrap();
+    // A camera outside the building looking away from it: every ray misses.
+    let outside = Particle::new(
+        level_camera(Vector3::new(-5.0, 4.0, 1.5), std::f64::consts::PI),
+        1.0,
+    );
+    for miss in [0.0, -0.5, 0.25] {
+        let mut sensor = SensorModel::new(
+            w.caster.clone(),
+            w.map.rows().into(),
+            w.map.grid().origin,
+            intrinsics(),
+            SensorParams {
+                miss_score: miss,
+                ..Default::default()
+            },
+        );
+        let l = sensor
+            .likelihoods(&[outside, Particle::new(truth, 1.0)], &pixels, &table)
+            .to_vec();
+        assert!((l[0] - miss).abs() < 1e-6, "{l:?}");
+        // Noise-free features at the truth: cosine 1 on every ray.
+        assert!((l[1] - 1.0).abs() < 1e-5, "{l:?}");
+    }
+}
+
+#[test]
+fn full_motion_noise_has_the_stated_spread() {
+    let m = MotionModel {
+        mode: MotionMode::Full,
+        ..Default::default()
+    };
+    let start = level_camera(Vector3::new(1.0, 1.0, 1.0), 0.7);
+    let mut rng = ChaCha8Rng::seed_from_u64(13);
+    let n = 20000;
+    let (mut st, mut sr) = (Vector3::zeros(), 0.0);
+    for _ in 0..n {
+        let p = m.sample(&start, &Pose::identity(), &mut rng);
+        let local = start.inverse() * p;
+        st += local
+            .translation
+            .vector
+            .component_mul(&local.translation.vector);
+        sr += local.rotation.angle().powi(2);
+    }
+    let st = (st / n as f64).map(f64::sqrt);
+    assert!(st.iter().all(|s| (s - 0.10).abs() < 0.004), "{st}");
+    // Rotation angle of a 3-D Gaussian rotation vector: E[angle^2] = 3 sigma^2.
+    let sr = (sr / n as f64 / 3.0).sqrt();
+    assert!((sr - 6f64.to_radians()).abs() < 0.004, "{sr}");
+}
