@@ -153,6 +153,30 @@ fn bench(c: &mut Criterion) {
         rays_cast as f64 / cpu.max(1e-9) / 1e6,
     );
 
+    // The same step with other packet widths, for the record.
+    for packet in [Packet::Stream, Packet::Sixteen] {
+        let other: Arc<dyn RayCaster> = Arc::new(
+            EmbreeCaster::new(s.resolution as f32, &map.cells())
+                .expect("embree")
+                .with_packet(packet),
+        );
+        let init = local_init(&truth, 1024, 0.3, 17f64.to_radians(), &mut rng);
+        let mut f = Filter::new(&map, other, k, config, init).expect("filter");
+        let cpu0 = cpu_seconds();
+        let mut cast = std::time::Duration::ZERO;
+        let mut n = 0usize;
+        for _ in 0..5 {
+            let r = f.step(&inc, &frame).expect("step");
+            cast += r.timings.cast;
+            n += r.n_rays * r.n_particles;
+        }
+        println!(
+            "{packet:?}: cast {:.1} ms/step, {:.2} M rays per CPU-second (whole step)",
+            1e3 * cast.as_secs_f64() / 5.0,
+            n as f64 / (cpu_seconds() - cpu0).max(1e-9) / 1e6
+        );
+    }
+
     let mut g = c.benchmark_group("mcl_1M");
     g.sample_size(10);
     g.bench_function("step_1024x2048", |b| {
