@@ -549,3 +549,58 @@ fn full_motion_noise_has_the_stated_spread() {
     let sr = (sr / n as f64 / 3.0).sqrt();
     assert!((sr - 6f64.to_radians()).abs() < 0.004, "{sr}");
 }
+
+#[test]
+fn two_words_narrow_the_prompt_and_reinitialize_replaces_the_set() {
+    let w = world();
+    let floor = w.map.db().row(scene::FLOOR as usize).to_vec();
+    let params = PromptParams {
+        radius: 1.0,
+        ..Default::default()
+    };
+    let word = |k: u32| {
+        w.map
+            .db()
+            .row((scene::FURNITURE_BASE + k) as usize)
+            .to_vec()
+    };
+    let present: Vec<u32> = (0..scene::FURNITURE_KINDS)
+        .filter(|&k| !rooms_with(&w, scene::FURNITURE_BASE + k).is_empty())
+        .collect();
+    let (a, b) = (present[0], present[1]);
+    let one = init::prompt_floor_voxels(&w.map, &floor, &[word(a)], 0.9, &params).unwrap();
+    // Every voxel matching both words matches the first alone (or none
+    // matches both: a clear error).
+    match init::prompt_floor_voxels(&w.map, &floor, &[word(a), word(b)], 0.9, &params) {
+        Ok(two) => {
+            assert!(two.len() <= one.len());
+            assert!(two.iter().all(|l| one.binary_search(l).is_ok()));
+        }
+        Err(e) => assert!(matches!(e, MclError::NoPromptMatch { .. }), "{e}"),
+    }
+    assert_eq!(
+        init::prompt_floor_voxels(&w.map, &floor, &[], 0.9, &params),
+        Err(MclError::EmptyPrompt)
+    );
+
+    let mut rng = ChaCha8Rng::seed_from_u64(14);
+    let truth = start_pose(&w);
+    let init = local_init(&truth, 64, 0.3, 0.3, &mut rng);
+    let mut f = Filter::new(
+        &w.map,
+        w.caster.clone(),
+        intrinsics(),
+        FilterConfig::default(),
+        init,
+    )
+    .unwrap();
+    let fresh = global_init(&w.map, &floor, &FloorParams::default(), 100, &mut rng).unwrap();
+    assert_eq!(f.reinitialize(Vec::new()), Err(MclError::NoParticles));
+    f.reinitialize(fresh.clone()).unwrap();
+    assert_eq!(f.particles().len(), 100);
+    assert!(
+        f.particles()
+            .iter()
+            .all(|p| (p.weight - 0.01).abs() < 1e-12)
+    );
+}
