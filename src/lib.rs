@@ -4,6 +4,7 @@ pub mod geometry;
 pub mod io;
 pub mod map;
 pub mod mapping;
+pub mod mcl;
 pub mod raycast;
 pub mod scene;
 pub mod trajectory;

@@ -1,0 +1,221 @@
+//! One full filter step (predict, sample pixels, weigh, estimate, resample)
+//! with 1024 particles and 2048 rays on a ~1 M-voxel map, and prompt
+//! initialization on the same map (issue 5 speed targets: >= 10 steps/s,
+//! prompt init < 1 s). Features come from a label image rendered at the
+//! true pose with 512-d label embeddings (encoder time excluded).
+//!
+//! Run: `cargo bench --bench mcl`. Also prints the per-stage times and rays
+//! per CPU-second (user + system time of the process, from /proc), which
+//! stays meaningful on a shared machine.
+
+use std::hint::black_box;
+use std::sync::Arc;
+use std::time::Instant;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use nalgebra::{Translation3, UnitQuaternion, Vector3};
+use omcl::geometry::{Intrinsics, Pose, camera_ray, level_camera};
+use omcl::map::{FeatureDb, GridSpec, LanguageMap};
+use omcl::mcl::{
+    Filter, FilterConfig, FloorParams, FrameFeatures, PromptParams, local_init, prompt_init,
+};
+use omcl::raycast::{EmbreeCaster, Packet, RayCaster};
+use omcl::scene::{self, RoomsConfig, rooms};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+
+const DIM: usize = 512;
+
+/// A label image and a label-to-feature table.
+struct LabelFrame {
+    width: u32,
+    height: u32,
+    labels: Vec<u32>,
+    table: Vec<f32>,
+}
+
+impl FrameFeatures for LabelFrame {
+    fn width(&self) -> u32 {
+        self.width
+    }
+    fn height(&self) -> u32 {
+        self.height
+    }
+    fn dim(&self) -> usize {
+        DIM
+    }
+    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
+        let l = self.labels[(v * self.width + u) as usize] as usize;
+        match self.table.get(l * DIM..(l + 1) * DIM) {
+            Some(f) => out.copy_from_slice(f),
+            None => out.fill(0.0),
+        }
+    }
+}
+
+/// Process CPU time (user + system), seconds.
+fn cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let after = stat.rsplit(')').next().unwrap_or("");
+    let f: Vec<f64> = after
+        .split_whitespace()
+        .map(|s| s.parse().unwrap_or(0.0))
+        .collect();
+    // Fields 14 and 15 of stat (utime, stime) are 11 and 12 after ')'.
+    (f.get(11).copied().unwrap_or(0.0) + f.get(12).copied().unwrap_or(0.0)) / 100.0
+}
+
+fn bench(c: &mut Criterion) {
+    let s = rooms(&RoomsConfig::million());
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let n_labels = (scene::FURNITURE_BASE + scene::FURNITURE_KINDS) as usize;
+    let rows: Vec<f32> = (0..n_labels * DIM)
+        .map(|_| rng.sample::<f32, _>(StandardNormal))
+        .collect();
+    let db = FeatureDb::from_rows(DIM, 0.02, rows).expect("rows");
+    let grid = GridSpec {
+        resolution: s.resolution,
+        origin: Vector3::zeros(),
+    };
+    let map = LanguageMap::from_cells(
+        grid,
+        db,
+        "bench",
+        s.cells.iter().copied().zip(s.labels.iter().copied()),
+    )
+    .expect("map");
+    let caster: Arc<dyn RayCaster> = Arc::new(
+        EmbreeCaster::new(s.resolution as f32, &map.cells())
+            .expect("embree")
+            .with_packet(Packet::Single),
+    );
+    println!("map: {} voxels at {} m", map.len(), s.resolution);
+
+    let k = Intrinsics::from_hfov(540, 540, 90.0);
+    let [x, y] = s.free_spots[s.free_spots.len() / 2];
+    let truth = level_camera(Vector3::new(x, y, 1.5), 0.3);
+    let rays: Vec<_> = (0..k.height)
+        .flat_map(|v| (0..k.width).map(move |u| (u, v)))
+        .map(|(u, v)| camera_ray(&k, &truth, &Vector3::zeros(), u, v))
+        .collect();
+    let labels = caster
+        .cast_vec(&rays)
+        .iter()
+        .map(|h| map.rows().get(h.leaf as usize).copied().unwrap_or(u32::MAX))
+        .collect();
+    let frame = LabelFrame {
+        width: k.width,
+        height: k.height,
+        labels,
+        table: map.db().rows().to_vec(),
+    };
+
+    let config = FilterConfig {
+        resample: omcl::mcl::ResamplePolicy {
+            ess_fraction: 1.1,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let init = local_init(&truth, 1024, 0.3, 17f64.to_radians(), &mut rng);
+    let mut filter = Filter::new(&map, caster.clone(), k, config, init).expect("filter");
+    let inc = Pose::from_parts(Translation3::new(0.0, 0.0, 0.0), UnitQuaternion::identity());
+
+    // Stage times and rays per CPU-second over a fixed number of steps.
+    let steps = 20;
+    let (cpu0, t0) = (cpu_seconds(), Instant::now());
+    let mut sum = omcl::mcl::StepTimings::default();
+    let mut rays_cast = 0usize;
+    for _ in 0..steps {
+        let r = filter.step(&inc, &frame).expect("step");
+        rays_cast += r.n_rays * r.n_particles;
+        sum.features += r.timings.features;
+        sum.predict += r.timings.predict;
+        sum.weigh += r.timings.weigh;
+        sum.cast += r.timings.cast;
+        sum.update += r.timings.update;
+    }
+    let (cpu, wall) = (cpu_seconds() - cpu0, t0.elapsed().as_secs_f64());
+    let ms = |d: std::time::Duration| 1e3 * d.as_secs_f64() / steps as f64;
+    println!(
+        "step: {:.1} ms wall ({:.1} steps/s), {:.2} CPU-s/step; features {:.1} ms, predict {:.1} ms, \
+         weigh {:.1} ms (cast {:.1} ms), update {:.1} ms; {:.0} rays/step; {:.2} M rays per CPU-second",
+        1e3 * wall / steps as f64,
+        steps as f64 / wall,
+        cpu / steps as f64,
+        ms(sum.features),
+        ms(sum.predict),
+        ms(sum.weigh),
+        ms(sum.cast),
+        ms(sum.update),
+        rays_cast as f64 / steps as f64,
+        rays_cast as f64 / cpu.max(1e-9) / 1e6,
+    );
+
+    // The same step with other packet widths, for the record.
+    for packet in [Packet::Stream, Packet::Sixteen] {
+        let other: Arc<dyn RayCaster> = Arc::new(
+            EmbreeCaster::new(s.resolution as f32, &map.cells())
+                .expect("embree")
+                .with_packet(packet),
+        );
+        let init = local_init(&truth, 1024, 0.3, 17f64.to_radians(), &mut rng);
+        let mut f = Filter::new(&map, other, k, config, init).expect("filter");
+        let cpu0 = cpu_seconds();
+        let mut cast = std::time::Duration::ZERO;
+        let mut n = 0usize;
+        for _ in 0..5 {
+            let r = f.step(&inc, &frame).expect("step");
+            cast += r.timings.cast;
+            n += r.n_rays * r.n_particles;
+        }
+        println!(
+            "{packet:?}: cast {:.1} ms/step, {:.2} M rays per CPU-second (whole step)",
+            1e3 * cast.as_secs_f64() / 5.0,
+            n as f64 / (cpu_seconds() - cpu0).max(1e-9) / 1e6
+        );
+    }
+
+    let mut g = c.benchmark_group("mcl_1M");
+    g.sample_size(10);
+    g.bench_function("step_1024x2048", |b| {
+        b.iter(|| black_box(filter.step(&inc, &frame).expect("step")))
+    });
+    let floor = map.db().row(scene::FLOOR as usize).to_vec();
+    let word = map.db().row(scene::FURNITURE_BASE as usize).to_vec();
+    let t0 = Instant::now();
+    let ps = prompt_init(
+        &map,
+        &floor,
+        std::slice::from_ref(&word),
+        &FloorParams::default(),
+        &PromptParams::default(),
+        1024,
+        &mut rng,
+    )
+    .expect("prompt");
+    println!(
+        "prompt init: {} particles in {:.3} s",
+        ps.len(),
+        t0.elapsed().as_secs_f64()
+    );
+    g.bench_function("prompt_init_1_word", |b| {
+        b.iter(|| {
+            prompt_init(
+                &map,
+                &floor,
+                std::slice::from_ref(&word),
+                &FloorParams::default(),
+                &PromptParams::default(),
+                1024,
+                &mut rng,
+            )
+            .expect("prompt")
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

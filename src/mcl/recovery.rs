@@ -1,0 +1,75 @@
+//! Recovery from track loss, augmented MCL (Thrun, Burgard, Fox,
+//! "Probabilistic Robotics", table 8.3): short- and long-term averages of
+//! the mean measurement likelihood; when the short-term average drops below
+//! the long-term one, a fraction `max(0, 1 - w_fast / w_slow)` of the
+//! particles is replaced by fresh ones from an injection distribution
+//! (global floor initialization in the filter).
+
+/// Smoothing rates of the averages (`0 < alpha_slow << alpha_fast < 1`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RecoveryParams {
+    pub alpha_slow: f64,
+    pub alpha_fast: f64,
+    /// Largest fraction of particles replaced in one step.
+    pub max_fraction: f64,
+}
+
+impl Default for RecoveryParams {
+    fn default() -> Self {
+        RecoveryParams {
+            alpha_slow: 0.001,
+            alpha_fast: 0.1,
+            max_fraction: 0.2,
+        }
+    }
+}
+
+/// The running averages.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Recovery {
+    pub w_slow: f64,
+    pub w_fast: f64,
+}
+
+impl Recovery {
+    /// Updates the averages with this step's mean likelihood and returns
+    /// the fraction of particles to replace.
+    pub fn update(&mut self, mean_likelihood: f64, p: &RecoveryParams) -> f64 {
+        if !mean_likelihood.is_finite() {
+            return 0.0;
+        }
+        if self.w_slow == 0.0 {
+            self.w_slow = mean_likelihood;
+            self.w_fast = mean_likelihood;
+        } else {
+            self.w_slow += p.alpha_slow * (mean_likelihood - self.w_slow);
+            self.w_fast += p.alpha_fast * (mean_likelihood - self.w_fast);
+        }
+        if self.w_slow > 0.0 {
+            (1.0 - self.w_fast / self.w_slow).clamp(0.0, p.max_fraction)
+        } else {
+            0.0
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn injects_only_after_a_drop() {
+        let p = RecoveryParams::default();
+        let mut r = Recovery::default();
+        for _ in 0..50 {
+            assert_eq!(r.update(0.6, &p), 0.0);
+        }
+        // A sudden drop in likelihood: w_fast falls faster than w_slow.
+        let mut f = 0.0;
+        for _ in 0..10 {
+            f = r.update(0.1, &p);
+        }
+        assert!(f > 0.1, "{f}");
+        assert!(f <= p.max_fraction);
+    }
+}

@@ -1,0 +1,286 @@
+//! Which pixels to cast: stratified sampling over feature clusters (paper,
+//! "Stratified Ray Sampling"), plus uniform and "equal, with duplicates"
+//! sampling for the ablation.
+//!
+//! Clusters are formed by assigning pixels to their most similar database
+//! row. Only the pixels of a strided grid are clustered (stride `s`: one
+//! pixel in `s * s`), and samples are drawn among those grid pixels, so the
+//! per-frame cost is `(W H / s^2) K F` multiply-adds and features are needed
+//! only at the grid and the sampled pixels.
+
+use rand::Rng;
+use rand::seq::SliceRandom;
+
+use super::MclError;
+use crate::map::FeatureDb;
+use crate::map::features::dot;
+
+/// Per-pixel features of one image, in the map's feature space.
+pub trait FrameFeatures: Sync {
+    /// Image width, pixels.
+    fn width(&self) -> u32;
+    /// Image height, pixels.
+    fn height(&self) -> u32;
+    /// Feature dimension F.
+    fn dim(&self) -> usize;
+    /// Writes the feature of pixel `(u, v)` (any norm) into `out` (length F).
+    fn feature(&self, u: u32, v: u32, out: &mut [f32]);
+    /// The most similar database row of pixel `(u, v)`, when the source
+    /// knows it without computing (a label image in ground-truth mode);
+    /// `None` lets the sampler compute it from [`FrameFeatures::feature`].
+    fn nearest_row(&self, _u: u32, _v: u32) -> Option<u32> {
+        None
+    }
+}
+
+/// A dense `height x width x F` feature image, row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DenseFeatures {
+    pub width: u32,
+    pub height: u32,
+    pub dim: usize,
+    pub data: Vec<f32>,
+}
+
+impl FrameFeatures for DenseFeatures {
+    fn width(&self) -> u32 {
+        self.width
+    }
+    fn height(&self) -> u32 {
+        self.height
+    }
+    fn dim(&self) -> usize {
+        self.dim
+    }
+    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
+        let i = (v as usize * self.width as usize + u as usize) * self.dim;
+        match self.data.get(i..i + self.dim) {
+            Some(f) => out.copy_from_slice(f),
+            None => out.fill(0.0),
+        }
+    }
+}
+
+/// How pixels are chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum SamplingStrategy {
+    /// Equal number per cluster, with replacement, duplicates dropped
+    /// (the paper's method).
+    #[default]
+    Stratified,
+    /// Distinct pixels uniformly over the image.
+    Uniform,
+    /// Equal number per cluster, duplicates kept (small clusters then count
+    /// several times in the mean).
+    EqualWithDuplicates,
+}
+
+/// Parameters of pixel sampling.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SamplingParams {
+    pub strategy: SamplingStrategy,
+    /// Draws in total: for the per-cluster strategies `rays / clusters`
+    /// draws per cluster (so after dropping duplicates there may be fewer).
+    pub rays: usize,
+    /// Grid stride in pixels for clustering and candidate pixels.
+    pub stride: u32,
+}
+
+impl Default for SamplingParams {
+    fn default() -> Self {
+        SamplingParams {
+            strategy: SamplingStrategy::Stratified,
+            rays: 2048,
+            stride: 4,
+        }
+    }
+}
+
+/// Candidate pixels (centres of the stride cells) and their nearest rows.
+fn cluster_grid(
+    frame: &dyn FrameFeatures,
+    db: &FeatureDb,
+    stride: u32,
+) -> (Vec<(u32, u32)>, Vec<u32>) {
+    use rayon::prelude::*;
+    let s = stride.max(1);
+    let (w, h) = (frame.width(), frame.height());
+    let px: Vec<(u32, u32)> = (0..h.div_ceil(s))
+        .flat_map(|gy| (0..w.div_ceil(s)).map(move |gx| (gx, gy)))
+        .map(|(gx, gy)| ((gx * s + s / 2).min(w - 1), (gy * s + s / 2).min(h - 1)))
+        .collect();
+    let dim = db.dim();
+    let rows: Vec<u32> = px
+        .par_iter()
+        .map_init(
+            || vec![0f32; dim],
+            |buf, &(u, v)| {
+                if let Some(r) = frame.nearest_row(u, v) {
+                    return r;
+                }
+                frame.feature(u, v, buf);
+                let mut best = (0u32, f32::NEG_INFINITY);
+                for (k, row) in db.rows().chunks_exact(dim).enumerate() {
+                    let s = dot(buf, row);
+                    if s > best.1 {
+                        best = (k as u32, s);
+                    }
+                }
+                best.0
+            },
+        )
+        .collect();
+    (px, rows)
+}
+
+/// Chooses the frame's pixels (the same for every particle). Fails when the
+/// frame's dimension differs from the database's or the image is empty.
+pub fn sample_pixels<R: Rng>(
+    frame: &dyn FrameFeatures,
+    db: &FeatureDb,
+    params: &SamplingParams,
+    rng: &mut R,
+) -> Result<Vec<(u32, u32)>, MclError> {
+    if frame.dim() != db.dim() {
+        return Err(MclError::DimMismatch {
+            expected: db.dim(),
+            got: frame.dim(),
+        });
+    }
+    if frame.width() == 0 || frame.height() == 0 || params.rays == 0 {
+        return Err(MclError::NoPixels);
+    }
+    if db.is_empty() {
+        return Err(MclError::EmptyDb);
+    }
+    let mut out = match params.strategy {
+        SamplingStrategy::Uniform => {
+            let s = params.stride.max(1);
+            let (w, h) = (frame.width(), frame.height());
+            let mut px: Vec<(u32, u32)> = (0..h.div_ceil(s))
+                .flat_map(|gy| (0..w.div_ceil(s)).map(move |gx| (gx, gy)))
+                .map(|(gx, gy)| ((gx * s + s / 2).min(w - 1), (gy * s + s / 2).min(h - 1)))
+                .collect();
+            let n = params.rays.min(px.len());
+            px.partial_shuffle(rng, n);
+            px.truncate(n);
+            px
+        }
+        SamplingStrategy::Stratified | SamplingStrategy::EqualWithDuplicates => {
+            let (px, rows) = cluster_grid(frame, db, params.stride);
+            let mut clusters: Vec<Vec<usize>> = vec![Vec::new(); db.len()];
+            for (i, &r) in rows.iter().enumerate() {
+                if let Some(c) = clusters.get_mut(r as usize) {
+                    c.push(i);
+                }
+            }
+            clusters.retain(|c| !c.is_empty());
+            let per = params.rays.div_ceil(clusters.len().max(1));
+            let mut picks: Vec<usize> = Vec::with_capacity(per * clusters.len());
+            for c in &clusters {
+                for _ in 0..per {
+                    picks.push(c[rng.random_range(0..c.len())]);
+                }
+            }
+            if params.strategy == SamplingStrategy::Stratified {
+                picks.sort_unstable();
+                picks.dedup();
+            }
+            picks.into_iter().map(|i| px[i]).collect()
+        }
+    };
+    if out.is_empty() {
+        return Err(MclError::NoPixels);
+    }
+    // Nearby pixels consecutive: their rays from one particle stay coherent.
+    out.sort_unstable_by_key(|&(u, v)| (v / 16, u / 16, v, u));
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    /// A 64 x 64 image whose left 60 columns are row 0 and right 4 row 1.
+    fn frame() -> (DenseFeatures, FeatureDb) {
+        let db = FeatureDb::from_rows(2, 0.02, vec![1.0, 0.0, 0.0, 1.0]).unwrap();
+        let mut data = Vec::new();
+        for _v in 0..64 {
+            for u in 0..64 {
+                data.extend(if u < 60 { [1.0, 0.1] } else { [0.1, 1.0] });
+            }
+        }
+        (
+            DenseFeatures {
+                width: 64,
+                height: 64,
+                dim: 2,
+                data,
+            },
+            db,
+        )
+    }
+
+    #[test]
+    fn stratified_gives_small_clusters_an_equal_share() {
+        let (f, db) = frame();
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let p = SamplingParams {
+            strategy: SamplingStrategy::Stratified,
+            rays: 40,
+            stride: 1,
+        };
+        let px = sample_pixels(&f, &db, &p, &mut rng).unwrap();
+        let small = px.iter().filter(|(u, _)| *u >= 60).count();
+        // 20 draws among 256 small-cluster pixels: about 20 distinct.
+        assert!((15..=20).contains(&small), "{small}");
+        let mut d = px.clone();
+        d.sort();
+        d.dedup();
+        assert_eq!(d.len(), px.len(), "duplicates dropped");
+
+        let p = SamplingParams {
+            strategy: SamplingStrategy::Uniform,
+            ..p
+        };
+        let px = sample_pixels(&f, &db, &p, &mut rng).unwrap();
+        assert_eq!(px.len(), 40);
+        let small = px.iter().filter(|(u, _)| *u >= 60).count();
+        assert!(small <= 8, "uniform rarely hits a 6 % cluster: {small}");
+    }
+
+    #[test]
+    fn equal_with_duplicates_keeps_every_draw() {
+        let (f, db) = frame();
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        let p = SamplingParams {
+            strategy: SamplingStrategy::EqualWithDuplicates,
+            rays: 600,
+            stride: 2,
+        };
+        let px = sample_pixels(&f, &db, &p, &mut rng).unwrap();
+        assert_eq!(px.len(), 600);
+        // Cluster 1 has 2 x 32 grid pixels: 300 draws must repeat some.
+        let mut d: Vec<_> = px.iter().filter(|(u, _)| *u >= 60).collect();
+        assert_eq!(d.len(), 300);
+        d.sort();
+        d.dedup();
+        assert!(d.len() <= 64);
+    }
+
+    #[test]
+    fn wrong_dimension_is_an_error() {
+        let (mut f, db) = frame();
+        f.dim = 3;
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        assert_eq!(
+            sample_pixels(&f, &db, &SamplingParams::default(), &mut rng),
+            Err(MclError::DimMismatch {
+                expected: 2,
+                got: 3
+            })
+        );
+    }
+}

@@ -1,0 +1,606 @@
+//! The filter on known scenes: procedural rooms whose labels get random
+//! unit features; "observed" features are rendered from the true pose.
+
+use std::sync::Arc;
+
+use nalgebra::{Translation3, UnitQuaternion, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+
+use super::*;
+use crate::geometry::{Intrinsics, Pose, camera_ray, level_camera};
+use crate::map::{FeatureDb, GridSpec, LanguageMap};
+use crate::raycast::{EmbreeCaster, Packet, RayCaster};
+use crate::scene::{self, RoomsConfig, Scene};
+
+const DIM: usize = 32;
+
+struct World {
+    scene: Scene,
+    map: LanguageMap,
+    caster: Arc<dyn RayCaster>,
+}
+
+fn world() -> World {
+    let scene = scene::rooms(&RoomsConfig::default());
+    let mut rng = ChaCha8Rng::seed_from_u64(42);
+    let labels = scene::FURNITURE_BASE + scene::FURNITURE_KINDS;
+    let rows: Vec<f32> = (0..labels as usize * DIM)
+        .map(|_| rng.sample::<f32, _>(StandardNormal))
+        .collect();
+    let db = FeatureDb::from_rows(DIM, 0.02, rows).expect("random rows");
+    let grid = GridSpec {
+        resolution: scene.resolution,
+        origin: Vector3::zeros(),
+    };
+    let map = LanguageMap::from_cells(
+        grid,
+        db,
+        "test",
+        scene
+            .cells
+            .iter()
+            .copied()
+            .zip(scene.labels.iter().copied()),
+    )
+    .expect("map");
+    let caster = EmbreeCaster::new(scene.resolution as f32, &map.cells())
+        .expect("embree")
+        .with_packet(Packet::Single);
+    World {
+        scene,
+        map,
+        caster: Arc::new(caster),
+    }
+}
+
+fn intrinsics() -> Intrinsics {
+    Intrinsics::from_hfov(96, 72, 90.0)
+}
+
+/// Features seen from `pose`: the hit voxel's row plus Gaussian noise of
+/// `noise` per unit vector (zero for a miss).
+fn render(w: &World, pose: &Pose, noise: f32, rng: &mut ChaCha8Rng) -> sampling::DenseFeatures {
+    let k = intrinsics();
+    let rays: Vec<_> = (0..k.height)
+        .flat_map(|v| (0..k.width).map(move |u| (u, v)))
+        .map(|(u, v)| camera_ray(&k, pose, &w.map.grid().origin, u, v))
+        .collect();
+    let hits = w.caster.cast_vec(&rays);
+    let mut data = Vec::with_capacity(rays.len() * DIM);
+    let scale = noise / (DIM as f32).sqrt();
+    for h in hits {
+        match w.map.rows().get(h.leaf as usize) {
+            Some(&r) => data.extend(
+                w.map
+                    .db()
+                    .row(r as usize)
+                    .iter()
+                    .map(|x| x + scale * rng.sample::<f32, _>(StandardNormal)),
+            ),
+            None => data.extend(std::iter::repeat_n(0.0, DIM)),
+        }
+    }
+    sampling::DenseFeatures {
+        width: k.width,
+        height: k.height,
+        dim: DIM,
+        data,
+    }
+}
+
+fn start_pose(w: &World) -> Pose {
+    let [x, y] = w.scene.free_spots[0];
+    level_camera(Vector3::new(x, y, 1.5), 0.4)
+}
+
+#[test]
+fn the_true_pose_scores_highest() {
+    let w = world();
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let truth = start_pose(&w);
+    let frame = render(&w, &truth, 0.5, &mut rng);
+    let pixels = sampling::sample_pixels(
+        &frame,
+        w.map.db(),
+        &SamplingParams {
+            rays: 512,
+            ..Default::default()
+        },
+        &mut rng,
+    )
+    .unwrap();
+    let table = SimilarityTable::new(&frame, &pixels, w.map.db()).unwrap();
+    let mut sensor = SensorModel::new(
+        w.caster.clone(),
+        w.map.rows().into(),
+        w.map.grid().origin,
+        intrinsics(),
+        SensorParams::default(),
+    );
+    let shift = |dx: f64, dy: f64, dyaw: f64| {
+        let t = truth.translation.vector + Vector3::new(dx, dy, 0.0);
+        Particle::new(level_camera(t, 0.4 + dyaw), 1.0)
+    };
+    let ps = vec![
+        shift(0.0, 0.0, 0.0),
+        shift(0.3, 0.0, 0.0),
+        shift(0.0, -0.3, 0.0),
+        shift(0.1, 0.1, 0.0),
+        shift(0.0, 0.0, 0.15),
+        shift(0.0, 0.0, -0.3),
+        shift(1.0, 0.5, 1.0),
+    ];
+    let l = sensor.likelihoods(&ps, &pixels, &table).to_vec();
+    // Noise 0.5 over the unit row: the expected cosine at the truth is
+    // about 1 / sqrt(1.25) = 0.89.
+    assert!(l[0] > 0.8, "{l:?}");
+    for (i, li) in l.iter().enumerate().skip(1) {
+        assert!(l[0] > li + 0.01, "particle {i}: {li} vs truth {}", l[0]);
+    }
+}
+
+/// A 60-frame path in the first room (0.13 m and 8 degrees a frame) and its
+/// odometry with 0.10 m / 6 degree noise.
+fn path(w: &World, rng: &mut ChaCha8Rng) -> (Vec<Pose>, Vec<Pose>) {
+    let [x, y] = w.scene.free_spots[0];
+    let r = 0.13 / 8f64.to_radians();
+    let gt: Vec<Pose> = (0..60)
+        .map(|i| {
+            let a = i as f64 * 8f64.to_radians();
+            let p = Vector3::new(x + r * a.sin() - 0.2, y - r * a.cos() + r - 0.3, 1.5);
+            level_camera(p, a)
+        })
+        .collect();
+    let odom = gt
+        .windows(2)
+        .map(|g| {
+            let inc = g[0].inverse() * g[1];
+            // Noise in the camera frame: x right and z forward are
+            // horizontal, yaw is about camera -y.
+            let mut n = || rng.sample::<f64, _>(StandardNormal);
+            let t = Vector3::new(n() * 0.1, 0.0, n() * 0.1);
+            let q = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), n() * 6f64.to_radians());
+            inc * Pose::from_parts(Translation3::from(t), q)
+        })
+        .collect();
+    (gt, odom)
+}
+
+fn run(w: &World, config: FilterConfig, n: usize, seed: u64) -> (Vec<f64>, Vec<StepReport>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let (gt, odom) = path(w, &mut rng);
+    let init = local_init(&gt[0], n, 0.3, 17f64.to_radians(), &mut rng);
+    let mut f = Filter::new(&w.map, w.caster.clone(), intrinsics(), config, init).unwrap();
+    let mut errs = Vec::new();
+    let mut reports = Vec::new();
+    for (g, inc) in gt[1..].iter().zip(&odom) {
+        let frame = render(w, g, 0.5, &mut rng);
+        let rep = f.step(inc, &frame).unwrap();
+        errs.push((rep.estimate.translation.vector - g.translation.vector).norm());
+        reports.push(rep);
+    }
+    (errs, reports)
+}
+
+fn rmse(e: &[f64]) -> f64 {
+    (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt()
+}
+
+#[test]
+fn converges_from_a_local_initialization() {
+    let w = world();
+    let config = FilterConfig {
+        sampling: SamplingParams {
+            rays: 256,
+            ..Default::default()
+        },
+        seed: 3,
+        ..Default::default()
+    };
+    let (errs, reports) = run(&w, config, 256, 3);
+    let tail = rmse(&errs[10..]);
+    println!("APE RMSE after 10 frames: {tail:.3} m; errors {errs:.2?}");
+    assert!(tail < 0.15, "APE RMSE {tail}");
+    assert!(
+        reports
+            .iter()
+            .all(|r| r.n_particles == 256 && r.n_rays > 80)
+    );
+    // Same seed, same run.
+    let (again, _) = run(&w, config, 256, 3);
+    assert_eq!(errs, again);
+}
+
+#[test]
+fn kld_shrinks_the_set_once_converged_and_recovery_injects_when_lost() {
+    let w = world();
+    let config = FilterConfig {
+        sampling: SamplingParams {
+            rays: 256,
+            ..Default::default()
+        },
+        kld: Some(kld::KldParams {
+            min_particles: 64,
+            max_particles: 512,
+            ..Default::default()
+        }),
+        seed: 4,
+        ..Default::default()
+    };
+    let (errs, reports) = run(&w, config, 512, 4);
+    assert!(rmse(&errs[10..]) < 0.2);
+    let counts: Vec<usize> = reports.iter().map(|r| r.n_particles).collect();
+    let mean = counts.iter().sum::<usize>() as f64 / counts.len() as f64;
+    assert!(mean < 400.0, "{counts:?}");
+    assert!(counts.iter().all(|&n| (64..=512).contains(&n)));
+
+    // Recovery: a filter tracking the truth whose frames suddenly come from
+    // another room sees the likelihood fall and injects particles.
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let truth = start_pose(&w);
+    let config = FilterConfig {
+        recovery: Some(recovery::RecoveryParams::default()),
+        sampling: SamplingParams {
+            rays: 256,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let floor = init::floor_voxels(&w.map, w.map.db().row(0), 0.9).unwrap();
+    let sampler = FloorSampler::new(&w.map, &floor, FloorParams::default());
+    let init = local_init(&truth, 256, 0.1, 0.05, &mut rng);
+    let mut f = Filter::new(&w.map, w.caster.clone(), intrinsics(), config, init)
+        .unwrap()
+        .with_injection(sampler);
+    let mut tracking = 0;
+    for _ in 0..5 {
+        let frame = render(&w, &truth, 0.5, &mut rng);
+        tracking += f.step(&Pose::identity(), &frame).unwrap().injected;
+    }
+    // Frame-to-frame noise in the likelihood injects a few at most.
+    assert!(tracking <= 12, "{tracking}");
+    let [x, y] = w.scene.free_spots[4];
+    let elsewhere = level_camera(Vector3::new(x, y, 1.5), 2.0);
+    let mut injected = 0;
+    for _ in 0..3 {
+        let frame = render(&w, &elsewhere, 0.5, &mut rng);
+        injected += f.step(&Pose::identity(), &frame).unwrap().injected;
+    }
+    assert!(injected > 4 * tracking.max(10), "{injected} vs {tracking}");
+}
+
+/// Rooms (index by 4 m x 4 m cell) holding furniture of each kind.
+fn rooms_with(w: &World, label: u32) -> Vec<(i32, i32)> {
+    let mut v: Vec<(i32, i32)> = w
+        .scene
+        .cells
+        .iter()
+        .zip(&w.scene.labels)
+        .filter(|(_, l)| **l == label)
+        .map(|(c, _)| room_of(c[0] as f64 * 0.05, c[1] as f64 * 0.05))
+        .collect();
+    v.sort();
+    v.dedup();
+    v
+}
+
+fn room_of(x: f64, y: f64) -> (i32, i32) {
+    ((x / 4.0).floor() as i32, (y / 4.0).floor() as i32)
+}
+
+#[test]
+fn prompt_initialization_lands_in_the_rooms_the_words_describe() {
+    let w = world();
+    let floor = w.map.db().row(scene::FLOOR as usize).to_vec();
+    let n_rooms = w.scene.free_spots.len();
+    // The kind present in the fewest (but at least one) rooms.
+    let (kind, rooms) = (0..scene::FURNITURE_KINDS)
+        .map(|k| (k, rooms_with(&w, scene::FURNITURE_BASE + k)))
+        .filter(|(_, r)| !r.is_empty())
+        .min_by_key(|(_, r)| r.len())
+        .unwrap();
+    assert!(rooms.len() < n_rooms, "kind {kind} is everywhere");
+    let words = vec![
+        w.map
+            .db()
+            .row((scene::FURNITURE_BASE + kind) as usize)
+            .to_vec(),
+    ];
+    let params = PromptParams {
+        radius: 1.0,
+        ..Default::default()
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    let ps = prompt_init(
+        &w.map,
+        &floor,
+        &words,
+        &FloorParams::default(),
+        &params,
+        500,
+        &mut rng,
+    )
+    .unwrap();
+    assert_eq!(ps.len(), 500);
+    // The paper's count ignores walls, so floor just behind a wall from the
+    // objects may match too: every particle must be near the objects, and
+    // most in the rooms that hold them.
+    let objects: Vec<[f64; 2]> = w
+        .scene
+        .cells
+        .iter()
+        .zip(&w.scene.labels)
+        .filter(|(_, l)| **l == scene::FURNITURE_BASE + kind)
+        .map(|(c, _)| [(c[0] as f64 + 0.5) * 0.05, (c[1] as f64 + 0.5) * 0.05])
+        .collect();
+    let mut inside = 0;
+    for p in &ps {
+        let t = p.pose.translation.vector;
+        let near = objects
+            .iter()
+            .any(|o| (o[0] - t.x).hypot(o[1] - t.y) <= params.radius + 0.1);
+        assert!(near, "particle at {t} far from every object of kind {kind}");
+        inside += rooms.contains(&room_of(t.x, t.y)) as usize;
+        assert!((t.z - (0.05 + 1.5)).abs() < 1e-9, "camera height: {}", t.z);
+    }
+    assert!(inside >= 400, "{inside} of 500 in {rooms:?}");
+    // A word no voxel matches: a clear error, not an empty set.
+    let mut odd = vec![0f32; DIM];
+    odd[0] = 1.0;
+    assert!(matches!(
+        prompt_init(
+            &w.map,
+            &floor,
+            &[odd],
+            &FloorParams::default(),
+            &params,
+            10,
+            &mut rng
+        ),
+        Err(MclError::NoPromptMatch { .. })
+    ));
+    // Global initialization covers every room.
+    let all = global_init(&w.map, &floor, &FloorParams::default(), 2000, &mut rng).unwrap();
+    let mut seen: Vec<_> = all
+        .iter()
+        .map(|p| room_of(p.pose.translation.x, p.pose.translation.y))
+        .collect();
+    seen.sort();
+    seen.dedup();
+    assert!(seen.len() >= n_rooms, "{seen:?}");
+}
+
+#[test]
+fn prompt_counts_match_a_brute_force_count() {
+    let w = world();
+    let floor = w.map.db().row(scene::FLOOR as usize).to_vec();
+    let word = w.map.db().row(scene::FURNITURE_BASE as usize + 2).to_vec();
+    let params = PromptParams {
+        radius: 0.8,
+        rho: 0.9,
+        k: 60.0,
+        k_resolution: 0.05,
+    };
+    let got = init::prompt_floor_voxels(&w.map, &floor, &[word], 0.9, &params).unwrap();
+    // Brute force on a subsample of floor voxels: horizontal distance
+    // between voxel centres (the plan cell equals the voxel here).
+    let cells = w.map.cells();
+    let objects: Vec<_> = cells
+        .iter()
+        .zip(w.map.rows())
+        .filter(|(_, r)| **r == scene::FURNITURE_BASE + 2)
+        .map(|(c, _)| *c)
+        .collect();
+    let mut checked = 0;
+    for (leaf, c) in cells.iter().enumerate().step_by(97) {
+        if w.map.rows()[leaf] != scene::FLOOR {
+            continue;
+        }
+        let n = objects
+            .iter()
+            .filter(|o| {
+                let (dx, dy) = ((o[0] - c[0]) as f64 * 0.05, (o[1] - c[1]) as f64 * 0.05);
+                dx * dx + dy * dy <= 0.8 * 0.8 + 1e-9
+            })
+            .count();
+        assert_eq!(
+            got.binary_search(&leaf).is_ok(),
+            n >= 60,
+            "leaf {leaf}: {n}"
+        );
+        checked += 1;
+    }
+    assert!(checked > 100);
+}
+
+#[test]
+fn bad_input_gives_clear_errors() {
+    let w = world();
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let truth = start_pose(&w);
+    let init = local_init(&truth, 32, 0.3, 0.3, &mut rng);
+    let mut f = Filter::new(
+        &w.map,
+        w.caster.clone(),
+        intrinsics(),
+        FilterConfig::default(),
+        init,
+    )
+    .unwrap();
+    let before = f.particles().to_vec();
+    let frame = render(&w, &truth, 0.5, &mut rng);
+    let nan = Pose::from_parts(
+        Translation3::new(0.0, f64::NAN, 0.0),
+        UnitQuaternion::identity(),
+    );
+    assert!(matches!(
+        f.step(&nan, &frame),
+        Err(MclError::BadOdometry(_))
+    ));
+    let wrong = sampling::DenseFeatures {
+        width: frame.width,
+        height: frame.height,
+        dim: 16,
+        data: vec![0.5; frame.data.len() / 2],
+    };
+    assert_eq!(
+        f.step(&Pose::identity(), &wrong).unwrap_err(),
+        MclError::DimMismatch {
+            expected: DIM,
+            got: 16
+        }
+    );
+    let small = sampling::DenseFeatures {
+        width: 10,
+        ..frame.clone()
+    };
+    assert!(matches!(
+        f.step(&Pose::identity(), &small),
+        Err(MclError::ImageSize { .. })
+    ));
+    assert_eq!(
+        f.particles(),
+        &before[..],
+        "errors leave the particles alone"
+    );
+    // A frame of all-zero features (no information): weights stay finite.
+    let blank = sampling::DenseFeatures {
+        data: vec![0.0; frame.data.len()],
+        ..frame.clone()
+    };
+    let rep = f.step(&Pose::identity(), &blank).unwrap();
+    assert!(
+        rep.estimate
+            .translation
+            .vector
+            .iter()
+            .all(|v| v.is_finite())
+    );
+    // No floor: "floor" feature unlike every row.
+    let mut odd = vec![0f32; DIM];
+    odd[3] = 1.0;
+    assert_eq!(
+        global_init(&w.map, &odd, &FloorParams::default(), 10, &mut rng).unwrap_err(),
+        MclError::NoFloor { rho: 0.9 }
+    );
+    assert!(matches!(
+        global_init(&w.map, &[1.0; 3], &FloorParams::default(), 10, &mut rng),
+        Err(MclError::PromptDim { .. })
+    ));
+}
+
+#[test]
+fn misses_score_the_miss_parameter() {
+    let w = world();
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    let truth = start_pose(&w);
+    let frame = render(&w, &truth, 0.0, &mut rng);
+    let pixels = vec![(10, 10), (50, 40), (90, 70)];
+    let table = SimilarityTable::new(&frame, &pixels, w.map.db()).unwrap();
+    // A camera outside the building looking away from it: every ray misses.
+    let outside = Particle::new(
+        level_camera(Vector3::new(-5.0, 4.0, 1.5), std::f64::consts::PI),
+        1.0,
+    );
+    for miss in [0.0, -0.5, 0.25] {
+        let mut sensor = SensorModel::new(
+            w.caster.clone(),
+            w.map.rows().into(),
+            w.map.grid().origin,
+            intrinsics(),
+            SensorParams {
+                miss_score: miss,
+                ..Default::default()
+            },
+        );
+        let l = sensor
+            .likelihoods(&[outside, Particle::new(truth, 1.0)], &pixels, &table)
+            .to_vec();
+        assert!((l[0] - miss).abs() < 1e-6, "{l:?}");
+        // Noise-free features at the truth: cosine 1 on every ray.
+        assert!((l[1] - 1.0).abs() < 1e-5, "{l:?}");
+    }
+}
+
+#[test]
+fn full_motion_noise_has_the_stated_spread() {
+    let m = MotionModel {
+        mode: MotionMode::Full,
+        ..Default::default()
+    };
+    let start = level_camera(Vector3::new(1.0, 1.0, 1.0), 0.7);
+    let mut rng = ChaCha8Rng::seed_from_u64(13);
+    let n = 20000;
+    let (mut st, mut sr) = (Vector3::zeros(), 0.0);
+    for _ in 0..n {
+        let p = m.sample(&start, &Pose::identity(), &mut rng);
+        let local = start.inverse() * p;
+        st += local
+            .translation
+            .vector
+            .component_mul(&local.translation.vector);
+        sr += local.rotation.angle().powi(2);
+    }
+    let st = (st / n as f64).map(f64::sqrt);
+    assert!(st.iter().all(|s| (s - 0.10).abs() < 0.004), "{st}");
+    // Rotation angle of a 3-D Gaussian rotation vector: E[angle^2] = 3 sigma^2.
+    let sr = (sr / n as f64 / 3.0).sqrt();
+    assert!((sr - 6f64.to_radians()).abs() < 0.004, "{sr}");
+}
+
+#[test]
+fn two_words_narrow_the_prompt_and_reinitialize_replaces_the_set() {
+    let w = world();
+    let floor = w.map.db().row(scene::FLOOR as usize).to_vec();
+    let params = PromptParams {
+        radius: 1.0,
+        ..Default::default()
+    };
+    let word = |k: u32| {
+        w.map
+            .db()
+            .row((scene::FURNITURE_BASE + k) as usize)
+            .to_vec()
+    };
+    let present: Vec<u32> = (0..scene::FURNITURE_KINDS)
+        .filter(|&k| !rooms_with(&w, scene::FURNITURE_BASE + k).is_empty())
+        .collect();
+    let (a, b) = (present[0], present[1]);
+    let one = init::prompt_floor_voxels(&w.map, &floor, &[word(a)], 0.9, &params).unwrap();
+    // Every voxel matching both words matches the first alone (or none
+    // matches both: a clear error).
+    match init::prompt_floor_voxels(&w.map, &floor, &[word(a), word(b)], 0.9, &params) {
+        Ok(two) => {
+            assert!(two.len() <= one.len());
+            assert!(two.iter().all(|l| one.binary_search(l).is_ok()));
+        }
+        Err(e) => assert!(matches!(e, MclError::NoPromptMatch { .. }), "{e}"),
+    }
+    assert_eq!(
+        init::prompt_floor_voxels(&w.map, &floor, &[], 0.9, &params),
+        Err(MclError::EmptyPrompt)
+    );
+
+    let mut rng = ChaCha8Rng::seed_from_u64(14);
+    let truth = start_pose(&w);
+    let init = local_init(&truth, 64, 0.3, 0.3, &mut rng);
+    let mut f = Filter::new(
+        &w.map,
+        w.caster.clone(),
+        intrinsics(),
+        FilterConfig::default(),
+        init,
+    )
+    .unwrap();
+    let fresh = global_init(&w.map, &floor, &FloorParams::default(), 100, &mut rng).unwrap();
+    assert_eq!(f.reinitialize(Vec::new()), Err(MclError::NoParticles));
+    f.reinitialize(fresh.clone()).unwrap();
+    assert_eq!(f.particles().len(), 100);
+    assert!(
+        f.particles()
+            .iter()
+            .all(|p| (p.weight - 0.01).abs() < 1e-12)
+    );
+}
