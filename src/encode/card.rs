@@ -94,9 +94,9 @@ pub struct ImageSpec {
     pub center_crop: Option<[u32; 2]>,
     /// Per-channel mean of [0, 1] RGB, subtracted before dividing by `std`.
     #[serde(default)]
-    pub mean: [f32; 3],
+    pub mean: [f64; 3],
     #[serde(default = "ones")]
-    pub std: [f32; 3],
+    pub std: [f64; 3],
     #[serde(default)]
     pub window: Option<Window>,
 }
@@ -160,7 +160,7 @@ pub struct ModelCard {
 fn default_filter() -> Filter {
     Filter::Bicubic
 }
-fn ones() -> [f32; 3] {
+fn ones() -> [f64; 3] {
     [1.0; 3]
 }
 fn default_context() -> usize {

@@ -12,9 +12,9 @@
 use image::RgbImage;
 
 /// CLIP's per-channel mean of [0, 1] RGB values.
-pub const CLIP_MEAN: [f32; 3] = [0.481_454_66, 0.457_827_5, 0.408_210_73];
+pub const CLIP_MEAN: [f64; 3] = [0.481_454_66, 0.457_827_5, 0.408_210_73];
 /// CLIP's per-channel standard deviation of [0, 1] RGB values.
-pub const CLIP_STD: [f32; 3] = [0.268_629_54, 0.261_302_58, 0.275_777_11];
+pub const CLIP_STD: [f64; 3] = [0.268_629_54, 0.261_302_58, 0.275_777_11];
 /// CLIP's square input side, pixels.
 pub const CLIP_SIZE: u32 = 224;
 
@@ -268,26 +268,26 @@ pub fn crop(img: &RgbImage, x0: u32, y0: u32, width: u32, height: u32) -> Option
 /// models expect. The arithmetic follows numpy's `float32(x) / 255` then
 /// `(v - mean) / std` in double precision, so values match Python's to the
 /// last bit where the pixels match.
-pub fn normalize_chw(img: &RgbImage, mean: [f32; 3], std: [f32; 3]) -> Vec<f32> {
+pub fn normalize_chw(img: &RgbImage, mean: [f64; 3], std: [f64; 3]) -> Vec<f32> {
     let (w, h) = (img.width() as usize, img.height() as usize);
     let mut out = vec![0f32; 3 * h * w];
     let plane = h * w;
     for (i, px) in img.as_raw().chunks_exact(3).enumerate() {
         for c in 0..3 {
             let v = f64::from(f32::from(px[c]) / 255.0);
-            out[c * plane + i] = ((v - f64::from(mean[c])) / f64::from(std[c])) as f32;
+            out[c * plane + i] = ((v - mean[c]) / std[c]) as f32;
         }
     }
     out
 }
 
 /// As [`normalize_chw`] but channel-last (H x W x C).
-pub fn normalize_hwc(img: &RgbImage, mean: [f32; 3], std: [f32; 3]) -> Vec<f32> {
+pub fn normalize_hwc(img: &RgbImage, mean: [f64; 3], std: [f64; 3]) -> Vec<f32> {
     let mut out = Vec::with_capacity(img.as_raw().len());
     for px in img.as_raw().chunks_exact(3) {
         for c in 0..3 {
             let v = f64::from(f32::from(px[c]) / 255.0);
-            out.push(((v - f64::from(mean[c])) / f64::from(std[c])) as f32);
+            out.push(((v - mean[c]) / std[c]) as f32);
         }
     }
     out
@@ -363,8 +363,8 @@ mod tests {
             for c in 0..3 {
                 let v = chw[c * 24 + i];
                 assert_eq!(v, hwc[i * 3 + c]);
-                let back = (v * CLIP_STD[c] + CLIP_MEAN[c]) * 255.0;
-                assert!((back - f32::from(px.0[c])).abs() < 1e-3);
+                let back = (f64::from(v) * CLIP_STD[c] + CLIP_MEAN[c]) * 255.0;
+                assert!((back - f64::from(px.0[c])).abs() < 1e-3);
             }
         }
     }
