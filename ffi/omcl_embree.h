@@ -51,6 +51,10 @@ void omcl_install_error_handler(RTCDevice device);
  * its message into buf (NUL-terminated, truncated to len); clears it. */
 int omcl_take_error(char *buf, size_t len);
 
+/* Counts the bytes Embree allocates for `device` (BVH and scene data) into
+ * *counter with atomic adds; the counter must outlive the device. */
+void omcl_install_memory_monitor(RTCDevice device, int64_t *counter);
+
 /* Sets flush-to-zero and denormals-are-zero on the calling thread. */
 void omcl_set_ftz_daz(void);
 

@@ -36,6 +36,19 @@ impl Ray {
         }
     }
 
+    /// Whether the ray can hit anything: finite origin and direction within
+    /// `1e18` (Embree's limit), a non-zero direction, and bounds that are not
+    /// NaN. Casters return a miss for any other ray.
+    pub fn is_valid(&self) -> bool {
+        const LARGE: f32 = 1e18;
+        let ok = |v: &f32| v.is_finite() && v.abs() <= LARGE;
+        self.origin.iter().all(ok)
+            && self.dir.iter().all(ok)
+            && self.dir.iter().any(|&v| v != 0.0)
+            && !self.t_min.is_nan()
+            && !self.t_max.is_nan()
+    }
+
     /// The point at distance `t`.
     pub fn at(&self, t: f32) -> [f32; 3] {
         [
@@ -102,6 +115,23 @@ impl Intrinsics {
     }
 }
 
+/// `world_from_camera` of a level camera (no roll or pitch) at `position`
+/// (world, metres) whose optical axis points along `yaw` radians from world
+/// +x towards +y: camera z is forward, x right, y down (world -z).
+pub fn level_camera(position: Vector3<f64>, yaw: f64) -> Pose {
+    let (s, c) = yaw.sin_cos();
+    let world_from_camera_rot = nalgebra::Matrix3::new(
+        s, 0.0, c, //
+        -c, 0.0, s, //
+        0.0, -1.0, 0.0,
+    );
+    let rot = nalgebra::Rotation3::from_matrix_unchecked(world_from_camera_rot);
+    Pose::from_parts(
+        position.into(),
+        nalgebra::UnitQuaternion::from_rotation_matrix(&rot),
+    )
+}
+
 /// The camera ray through pixel `(u, v)` of a camera at `world_from_camera`,
 /// expressed in the grid frame of a map whose origin is `map_origin`
 /// (world coordinates of grid-frame zero).
@@ -141,6 +171,18 @@ mod tests {
         let (u, v) = k.project(&Point3::new(0.0, 0.0, 2.0)).unwrap();
         assert_eq!((u, v), (50.0, 40.0));
         assert!(k.project(&Point3::new(0.0, 0.0, -1.0)).is_none());
+    }
+
+    #[test]
+    fn level_camera_axes() {
+        let p = level_camera(Vector3::new(1.0, 2.0, 1.5), std::f64::consts::FRAC_PI_2);
+        let fwd = p.rotation * Vector3::z();
+        let right = p.rotation * Vector3::x();
+        let down = p.rotation * Vector3::y();
+        assert!((fwd - Vector3::y()).norm() < 1e-12, "{fwd}");
+        assert!((right - Vector3::x()).norm() < 1e-12, "{right}");
+        assert!((down + Vector3::z()).norm() < 1e-12, "{down}");
+        assert_eq!(p.translation.vector, Vector3::new(1.0, 2.0, 1.5));
     }
 
     #[test]

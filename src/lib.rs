@@ -2,4 +2,6 @@
 pub mod encode;
 pub mod geometry;
 pub mod io;
+pub mod map;
 pub mod raycast;
+pub mod scene;

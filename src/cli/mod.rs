@@ -1,0 +1,34 @@
+//! Command-line interface: argument parsing and the glue between files and
+//! the library. Errors are `anyhow` here, `thiserror` in the library.
+
+pub mod demo;
+pub mod map;
+pub mod progress;
+
+use clap::{Parser, Subcommand};
+
+/// Open-vocabulary Monte Carlo Localization: build language maps from RGB-D
+/// frames or point clouds, localize cameras in them, and evaluate.
+#[derive(Debug, Parser)]
+#[command(name = "omcl", version, about, long_about = None, propagate_version = true)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Build, inspect, ground and query Octree Language Maps.
+    #[command(subcommand)]
+    Map(map::MapCommand),
+    /// Run the pipeline end to end on the built-in synthetic world.
+    Demo(demo::DemoArgs),
+}
+
+/// Runs a parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Map(cmd) => map::run(cmd),
+        Command::Demo(args) => demo::run(args),
+    }
+}
