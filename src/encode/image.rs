@@ -324,9 +324,9 @@ impl ImageEncoder {
         ow: usize,
         oh: usize,
     ) -> Result<(usize, usize), EncodeError> {
-        let ok = ow > 0 && oh > 0 && ww % ow == 0 && wh % oh == 0;
+        let ok = ow > 0 && oh > 0 && ww.is_multiple_of(ow) && wh.is_multiple_of(oh);
         let (rx, ry) = if ok { (ww / ow, wh / oh) } else { (0, 0) };
-        if !ok || sx % rx != 0 || sy % ry != 0 {
+        if !ok || !sx.is_multiple_of(rx) || !sy.is_multiple_of(ry) {
             return Err(EncodeError::Contract {
                 path: self.model.path().to_path_buf(),
                 reason: format!(
