@@ -228,7 +228,7 @@ fn image_encoder_errors_on_wrong_output_rank_dimension_and_input_size() {
     .err()
     .unwrap()
     .to_string();
-    assert!(e.contains("Text"), "{e}");
+    assert!(e.contains("a text encoder, not an image encoder"), "{e}");
 }
 
 #[test]

@@ -2,6 +2,7 @@
 //! the library. Errors are `anyhow` here, `thiserror` in the library.
 
 pub mod demo;
+pub mod encode;
 pub mod map;
 pub mod progress;
 
@@ -23,6 +24,9 @@ pub enum Command {
     Map(map::MapCommand),
     /// Run the pipeline end to end on the built-in synthetic world.
     Demo(demo::DemoArgs),
+    /// Run ONNX encoders: words, images and point clouds to features.
+    #[command(subcommand)]
+    Encode(encode::EncodeCommand),
 }
 
 /// Runs a parsed command line.
@@ -30,5 +34,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Map(cmd) => map::run(cmd),
         Command::Demo(args) => demo::run(args),
+        Command::Encode(cmd) => encode::run(cmd),
     }
 }

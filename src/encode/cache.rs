@@ -39,9 +39,9 @@ pub struct FeatureCache {
 impl FeatureCache {
     /// A cache in `dir` (created if missing) for features of `encoder`.
     pub fn new(dir: &Path, encoder: &str) -> Result<FeatureCache, EncodeError> {
-        std::fs::create_dir_all(dir).map_err(|source| EncodeError::Io {
+        std::fs::create_dir_all(dir).map_err(|err| EncodeError::Io {
             path: dir.to_path_buf(),
-            source,
+            err,
         })?;
         Ok(FeatureCache {
             dir: dir.to_path_buf(),
@@ -66,9 +66,9 @@ impl FeatureCache {
         if !npy.is_file() || !meta_path.is_file() {
             return Ok(None);
         }
-        let text = std::fs::read_to_string(&meta_path).map_err(|source| EncodeError::Io {
+        let text = std::fs::read_to_string(&meta_path).map_err(|err| EncodeError::Io {
             path: meta_path.clone(),
-            source,
+            err,
         })?;
         let meta: CacheMeta = serde_json::from_str(&text).map_err(|e| EncodeError::Card {
             path: meta_path.clone(),
@@ -111,9 +111,9 @@ impl FeatureCache {
             cell_size: map.cell_size,
         };
         let path = self.meta_path(frame);
-        let io = |source| EncodeError::Io {
+        let io = |err| EncodeError::Io {
             path: path.clone(),
-            source,
+            err,
         };
         let mut tmp = tempfile::NamedTempFile::new_in(&self.dir).map_err(io)?;
         let text = serde_json::to_string_pretty(&meta)

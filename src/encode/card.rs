@@ -31,6 +31,16 @@ pub enum ModelKind {
     Point,
 }
 
+impl std::fmt::Display for ModelKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            ModelKind::Image => "an image",
+            ModelKind::Text => "a text",
+            ModelKind::Point => "a point",
+        })
+    }
+}
+
 /// Tensor layout of an image input or a feature-map output.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -192,9 +202,22 @@ impl ModelCard {
     /// Reads the card beside `model` (see [`card_path_for`]).
     pub fn for_model(model: &Path) -> Result<ModelCard, EncodeError> {
         let path = card_path_for(model);
-        let text = std::fs::read_to_string(&path).map_err(|source| EncodeError::Io {
-            path: path.clone(),
-            source,
+        let text = std::fs::read_to_string(&path).map_err(|err| {
+            if err.kind() == std::io::ErrorKind::NotFound {
+                EncodeError::Card {
+                    path: path.clone(),
+                    reason: format!(
+                        "missing; every model needs a card beside it saying how to feed it \
+                         (kind, name, feature_dim, ...; see tools/README_encoders.md) for {}",
+                        model.display()
+                    ),
+                }
+            } else {
+                EncodeError::Io {
+                    path: path.clone(),
+                    err,
+                }
+            }
         })?;
         ModelCard::parse(&text, &path)
     }
@@ -267,10 +290,7 @@ impl ModelCard {
         } else {
             Err(EncodeError::Card {
                 path: path.to_path_buf(),
-                reason: format!(
-                    "card is for a {:?} encoder, not a {kind:?} encoder",
-                    self.kind
-                ),
+                reason: format!("card is for {} encoder, not {kind} encoder", self.kind),
             })
         }
     }

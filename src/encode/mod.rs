@@ -55,11 +55,10 @@ pub enum EncodeError {
     /// ONNX Runtime itself failed outside any one model.
     #[error("ONNX Runtime: {0}")]
     Runtime(String),
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
+    // `err`, not `source`: the message already carries it, and anyhow
+    // would print a `source` twice.
+    #[error("{path}: {err}")]
+    Io { path: PathBuf, err: std::io::Error },
     /// The file exists but ONNX Runtime cannot parse it as a model.
     #[error("{path}: not a loadable ONNX model: {reason}")]
     NotOnnx { path: PathBuf, reason: String },

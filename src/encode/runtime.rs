@@ -291,9 +291,9 @@ impl OnnxModel {
         intra_threads: usize,
     ) -> Result<OnnxModel, EncodeError> {
         // A missing file is an I/O error, not "not ONNX".
-        std::fs::metadata(path).map_err(|source| EncodeError::Io {
+        std::fs::metadata(path).map_err(|err| EncodeError::Io {
             path: path.to_path_buf(),
-            source,
+            err,
         })?;
         let rt_err = |e: String| EncodeError::Runtime(format!("{}: {e}", path.display()));
         let mut builder = Session::builder(&runtime.env).map_err(|e| rt_err(e.to_string()))?;
