@@ -95,7 +95,7 @@ fn models(c: &mut Criterion) {
         g.bench_function("mnist_run", |b| {
             b.iter(|| {
                 m.run(
-                    &[("Input3", &[1, 1, 28, 28], InputData::F32(x.clone()))],
+                    vec![("Input3", &[1, 1, 28, 28][..], InputData::F32(x.clone()))],
                     &["Plus214_Output_0"],
                 )
                 .expect("run")
@@ -117,7 +117,7 @@ fn models(c: &mut Criterion) {
     g.bench_function("image_per_pixel_640x480_model_only", |b| {
         b.iter(|| {
             raw.run(
-                &[("pixels", &[1, 480, 640, 3], InputData::F32(x.clone()))],
+                vec![("pixels", &[1, 480, 640, 3][..], InputData::F32(x.clone()))],
                 &["feat"],
             )
             .expect("run")
@@ -157,7 +157,7 @@ fn models(c: &mut Criterion) {
         b.iter(|| {
             raw_text
                 .run(
-                    &[("input_ids", &[8, 77], InputData::I64(ids.clone()))],
+                    vec![("input_ids", &[8, 77][..], InputData::I64(ids.clone()))],
                     &["text_features"],
                 )
                 .expect("run")
@@ -195,9 +195,9 @@ fn models(c: &mut Criterion) {
         g.bench_function("points_scannet_40684_model_only", |b| {
             b.iter(|| {
                 raw.run(
-                    &[
-                        ("points", &[1, n, 3], InputData::F32(p.clone())),
-                        ("colors", &[1, n, 3], InputData::F32(c.clone())),
+                    vec![
+                        ("points", &[1, n, 3][..], InputData::F32(p.clone())),
+                        ("colors", &[1, n, 3][..], InputData::F32(c.clone())),
                     ],
                     &["point_features"],
                 )

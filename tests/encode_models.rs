@@ -76,7 +76,7 @@ fn mnist_model_reproduces_onnxruntime_python_logits() {
         let x = pil.data[checked * 784..(checked + 1) * 784].to_vec();
         let out = model
             .run(
-                &[("Input3", &[1, 1, 28, 28], InputData::F32(x))],
+                vec![("Input3", &[1, 1, 28, 28][..], InputData::F32(x))],
                 &["Plus214_Output_0"],
             )
             .unwrap();
@@ -93,7 +93,7 @@ fn mnist_model_reproduces_onnxruntime_python_logits() {
         let x: Vec<f32> = px.iter().map(|&v| f32::from(v) / 255.0).collect();
         let out = model
             .run(
-                &[("Input3", &[1, 1, 28, 28], InputData::F32(x))],
+                vec![("Input3", &[1, 1, 28, 28][..], InputData::F32(x))],
                 &["Plus214_Output_0"],
             )
             .unwrap();
@@ -114,7 +114,7 @@ fn wrong_input_shape_and_missing_names_are_clear_errors() {
     let mut model = OnnxModel::load(rt(), &data("tiny_image.onnx"), 1).unwrap();
     let e = model
         .run(
-            &[("image", &[1, 3, 9, 8], InputData::F32(vec![0.0; 216]))],
+            vec![("image", &[1, 3, 9, 8][..], InputData::F32(vec![0.0; 216]))],
             &["features"],
         )
         .unwrap_err();
@@ -126,7 +126,7 @@ fn wrong_input_shape_and_missing_names_are_clear_errors() {
     );
     let e = model
         .run(
-            &[("pixels", &[1, 3, 8, 8], InputData::F32(vec![0.0; 192]))],
+            vec![("pixels", &[1, 3, 8, 8][..], InputData::F32(vec![0.0; 192]))],
             &["features"],
         )
         .unwrap_err()

@@ -153,7 +153,7 @@ impl ImageEncoder {
         if img.width() == 0 || img.height() == 0 {
             return Err(EncodeError::Input("empty image (0 pixels)".into()));
         }
-        let prepared = prepare(img, &self.spec).ok_or_else(|| {
+        let mut prepared = prepare(img, &self.spec).ok_or_else(|| {
             EncodeError::Input(format!(
                 "image of {}x{} is too small for the card's resize/crop",
                 img.width(),
@@ -161,7 +161,7 @@ impl ImageEncoder {
             ))
         })?;
         let grid = match self.spec.window {
-            None => self.run_whole(&prepared)?,
+            None => self.run_whole(&mut prepared)?,
             Some(w) => self.run_windows(&prepared, w)?,
         };
         let Grid {
@@ -200,7 +200,7 @@ impl ImageEncoder {
     ) -> Result<(usize, usize, Vec<f32>), EncodeError> {
         let shape = self.input_shape(w, h);
         let out = self.model.run(
-            &[(&self.input, &shape, InputData::F32(values))],
+            vec![(self.input.as_str(), &shape[..], InputData::F32(values))],
             &[&self.output],
         )?;
         let out = out
@@ -249,8 +249,10 @@ impl ImageEncoder {
         Ok((oh, ow, hwc))
     }
 
-    fn run_whole(&mut self, p: &Prepared) -> Result<Grid, EncodeError> {
-        let (oh, ow, data) = self.run_model(p.values.clone(), p.width, p.height)?;
+    fn run_whole(&mut self, p: &mut Prepared) -> Result<Grid, EncodeError> {
+        // The model consumes the values; `p` keeps only its geometry after.
+        let values = std::mem::take(&mut p.values);
+        let (oh, ow, data) = self.run_model(values, p.width, p.height)?;
         Ok(Grid {
             data,
             rows: oh,

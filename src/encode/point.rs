@@ -132,7 +132,7 @@ impl PointEncoder {
         if let Some(c) = &self.spec.colors_input {
             inputs.push((c.as_str(), &shape[..], flat(colors)));
         }
-        let out = self.model.run(&inputs, &[&self.output])?;
+        let out = self.model.run(inputs, &[&self.output])?;
         let out = out
             .into_iter()
             .next()

@@ -357,7 +357,7 @@ impl OnnxModel {
     /// input and both shapes rather than ONNX Runtime's internal message.
     pub fn run(
         &mut self,
-        inputs: &[(&str, &[usize], InputData)],
+        inputs: Vec<(&str, &[usize], InputData)>,
         outputs: &[&str],
     ) -> Result<Vec<OutputTensor>, EncodeError> {
         let mut values: Vec<(Cow<'_, str>, SessionInputValue<'_>)> = Vec::new();

@@ -143,7 +143,7 @@ impl TextEncoder {
                 .collect();
             inputs.push((name.as_str(), &shape[..], feed(&mask)));
         }
-        let out = self.model.run(&inputs, &[&self.output])?;
+        let out = self.model.run(inputs, &[&self.output])?;
         let out = out
             .into_iter()
             .next()
