@@ -49,25 +49,32 @@ fn full_image_rays(k: &Intrinsics, pose: &Pose) -> Vec<Ray> {
         .collect()
 }
 
+/// Interleaves the low 10 bits of three values (a 3-D Morton key).
+fn morton3(a: u32, b: u32, c: u32) -> u64 {
+    let sp = |v: u32| -> u64 { (0..10).map(|i| (((v >> i) & 1) as u64) << (3 * i)).sum() };
+    sp(a) | (sp(b) << 1) | (sp(c) << 2)
+}
+
 /// 1024 particles around `pose` (0.3 m, 17 degrees of yaw), 2048 pixels
 /// drawn uniformly from the image. Returns rays particle-major (same
-/// particle, nearby pixels) and pixel-major (same pixel, nearby particles).
-fn mcl_rays(k: &Intrinsics, pose: &Pose) -> (Vec<Ray>, Vec<Ray>) {
+/// particle, nearby pixels) and pixel-major (same pixel, particles that are
+/// near each other in position and yaw).
+fn mcl_rays(k: &Intrinsics, pose: &Pose, base_yaw: f64) -> (Vec<Ray>, Vec<Ray>) {
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let t = Normal::new(0.0, 0.3).expect("valid sigma");
     let yaw = Normal::new(0.0, 17f64.to_radians()).expect("valid sigma");
     let base = pose.translation.vector;
-    let base_yaw = 0.3;
-    let mut particles: Vec<Pose> = (0..1024)
+    let mut particles: Vec<(Pose, f64)> = (0..1024)
         .map(|_| {
             let p = base + Vector3::new(t.sample(&mut rng), t.sample(&mut rng), 0.0);
-            level_camera(p, base_yaw + yaw.sample(&mut rng))
+            let y = yaw.sample(&mut rng);
+            (level_camera(p, base_yaw + y), y)
         })
         .collect();
-    // Nearby particles next to each other: sort by a coarse spatial key.
-    particles.sort_by_key(|p| {
+    let q = |x: f64, step: f64| ((x / step + 512.0).max(0.0) as u32).min(1023);
+    particles.sort_by_key(|(p, y)| {
         let v = p.translation.vector - base;
-        (((v.x / 0.1).round() as i64) << 20) + (v.y / 0.1).round() as i64
+        morton3(q(v.x, 0.05), q(v.y, 0.05), q(*y, 0.02))
     });
     let mut px: Vec<(u32, u32)> = (0..2048)
         .map(|_| (rng.random_range(0..k.width), rng.random_range(0..k.height)))
@@ -76,11 +83,15 @@ fn mcl_rays(k: &Intrinsics, pose: &Pose) -> (Vec<Ray>, Vec<Ray>) {
     let o = Vector3::zeros();
     let by_particle = particles
         .iter()
-        .flat_map(|p| px.iter().map(move |&(u, v)| camera_ray(k, p, &o, u, v)))
+        .flat_map(|(p, _)| px.iter().map(move |&(u, v)| camera_ray(k, p, &o, u, v)))
         .collect();
     let by_pixel = px
         .iter()
-        .flat_map(|&(u, v)| particles.iter().map(move |p| camera_ray(k, p, &o, u, v)))
+        .flat_map(|&(u, v)| {
+            particles
+                .iter()
+                .map(move |(p, _)| camera_ray(k, p, &o, u, v))
+        })
         .collect();
     (by_particle, by_pixel)
 }
@@ -126,31 +137,37 @@ fn bench(c: &mut Criterion) {
             b.iter(|| e.cast(black_box(&image), &mut hits))
         });
     }
+    // The reference on a sixteenth of the rays (same kind of work).
+    let sub: Vec<Ray> = image.iter().step_by(16).copied().collect();
+    let mut sub_hits = vec![Hit::miss(); sub.len()];
+    g.throughput(Throughput::Elements(sub.len() as u64));
     g.sample_size(10);
     g.bench_function("reference_dda", |b| {
-        b.iter(|| reference.cast(black_box(&image), &mut hits))
+        b.iter(|| reference.cast(black_box(&sub), &mut sub_hits))
     });
     g.finish();
 
-    let (by_particle, by_pixel) = mcl_rays(&k, &pose);
+    let (by_particle, by_pixel) = mcl_rays(&k, &pose, 0.3);
     let mut hits = vec![Hit::miss(); by_particle.len()];
     let mut g = c.benchmark_group("mcl_1024x2048");
     g.sample_size(10);
     g.throughput(Throughput::Elements(by_particle.len() as u64));
-    g.bench_function("embree16_particle_major", |b| {
-        b.iter(|| embree.cast(black_box(&by_particle), &mut hits))
-    });
-    g.bench_function("embree16_pixel_major", |b| {
-        b.iter(|| embree.cast(black_box(&by_pixel), &mut hits))
-    });
-    let single = EmbreeCaster::new(res, &s.cells)
-        .expect("scene")
-        .with_packet(Packet::Single);
-    g.bench_function("embree1_particle_major", |b| {
-        b.iter(|| single.cast(black_box(&by_particle), &mut hits))
-    });
+    for p in [Packet::Single, Packet::Eight, Packet::Sixteen] {
+        let e = EmbreeCaster::new(res, &s.cells)
+            .expect("scene")
+            .with_packet(p);
+        g.bench_function(format!("embree_{p:?}_particle_major"), |b| {
+            b.iter(|| e.cast(black_box(&by_particle), &mut hits))
+        });
+        g.bench_function(format!("embree_{p:?}_pixel_major"), |b| {
+            b.iter(|| e.cast(black_box(&by_pixel), &mut hits))
+        });
+    }
+    let sub: Vec<Ray> = by_pixel.iter().step_by(64).copied().collect();
+    let mut sub_hits = vec![Hit::miss(); sub.len()];
+    g.throughput(Throughput::Elements(sub.len() as u64));
     g.bench_function("reference_dda", |b| {
-        b.iter(|| reference.cast(black_box(&by_particle), &mut hits))
+        b.iter(|| reference.cast(black_box(&sub), &mut sub_hits))
     });
     g.finish();
 

@@ -50,11 +50,12 @@ impl Default for RoomsConfig {
 }
 
 impl RoomsConfig {
-    /// About a million voxels at 5 cm (40 m x 28 m): the benchmark scene.
+    /// About a million voxels at 5 cm (30 m x 22 m, 30 rooms): the
+    /// benchmark scene.
     pub fn million() -> Self {
         RoomsConfig {
-            size_x: 40.0,
-            size_y: 28.0,
+            size_x: 30.0,
+            size_y: 22.0,
             room_x: 5.0,
             room_y: 4.0,
             ..Self::default()

@@ -3,6 +3,7 @@
 
 pub mod demo;
 pub mod encode;
+pub mod eval;
 pub mod map;
 pub mod progress;
 
@@ -27,6 +28,9 @@ pub enum Command {
     /// Run ONNX encoders: words, images and point clouds to features.
     #[command(subcommand)]
     Encode(encode::EncodeCommand),
+    /// Trajectory metrics: APE, RPE (as evo) and the KITTI odometry metric.
+    #[command(subcommand)]
+    Eval(eval::EvalCommand),
 }
 
 /// Runs a parsed command line.
@@ -35,5 +39,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Map(cmd) => map::run(cmd),
         Command::Demo(args) => demo::run(args),
         Command::Encode(cmd) => encode::run(cmd),
+        Command::Eval(cmd) => eval::run(cmd),
     }
 }

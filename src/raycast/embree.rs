@@ -67,6 +67,8 @@ pub enum Packet {
     /// `rtcIntersect16` (the default; measured fastest here).
     #[default]
     Sixteen,
+    /// Ray streams (`rtcIntersect1M`): Embree regroups the rays itself.
+    Stream,
 }
 
 impl Packet {
@@ -76,6 +78,38 @@ impl Packet {
             Packet::Four => 4,
             Packet::Eight => 8,
             Packet::Sixteen => 16,
+            Packet::Stream => 0,
+        }
+    }
+}
+
+/// Embree BVH build quality: faster builds or faster traversal.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BuildQuality {
+    /// Morton-code builder: fastest build, slowest traversal.
+    Low,
+    /// Binned SAH builder (the default).
+    #[default]
+    Medium,
+    /// SAH with spatial splits: slowest build.
+    High,
+}
+
+/// Options of the Embree scene build.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BuildOptions {
+    /// BVH build quality.
+    pub quality: BuildQuality,
+    /// Embree's robust (conservative) traversal, which never misses a box
+    /// at a shared face through rounding; slightly slower.
+    pub robust: bool,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        BuildOptions {
+            quality: BuildQuality::Medium,
+            robust: true,
         }
     }
 }
@@ -174,8 +208,17 @@ impl std::fmt::Debug for EmbreeCaster {
 
 impl EmbreeCaster {
     /// Builds the scene: one box of edge `resolution` per cell (grid frame);
-    /// hit `leaf` values index `cells`.
+    /// hit `leaf` values index `cells`. Default build options.
     pub fn new(resolution: f32, cells: &[Cell]) -> Result<Self, EmbreeError> {
+        Self::with_options(resolution, cells, BuildOptions::default())
+    }
+
+    /// As [`EmbreeCaster::new`], with explicit build options.
+    pub fn with_options(
+        resolution: f32,
+        cells: &[Cell],
+        options: BuildOptions,
+    ) -> Result<Self, EmbreeError> {
         if !(resolution.is_finite() && resolution > 0.0) {
             return Err(EmbreeError::BadResolution(resolution));
         }
@@ -229,8 +272,18 @@ impl EmbreeCaster {
         // with `lower` unmoved inside the Vec's heap buffer) until Drop
         // releases the scene. Each call is checked before the next.
         unsafe {
-            sys::rtcSetSceneFlags(scene, sys::RTCSceneFlags::RTC_SCENE_FLAG_ROBUST);
-            sys::rtcSetSceneBuildQuality(scene, sys::RTCBuildQuality::RTC_BUILD_QUALITY_MEDIUM);
+            let flags = if options.robust {
+                sys::RTCSceneFlags::RTC_SCENE_FLAG_ROBUST
+            } else {
+                sys::RTCSceneFlags::RTC_SCENE_FLAG_NONE
+            };
+            sys::rtcSetSceneFlags(scene, flags);
+            let quality = match options.quality {
+                BuildQuality::Low => sys::RTCBuildQuality::RTC_BUILD_QUALITY_LOW,
+                BuildQuality::Medium => sys::RTCBuildQuality::RTC_BUILD_QUALITY_MEDIUM,
+                BuildQuality::High => sys::RTCBuildQuality::RTC_BUILD_QUALITY_HIGH,
+            };
+            sys::rtcSetSceneBuildQuality(scene, quality);
             check(d, "rtcSetSceneFlags")?;
             if caster.len > 0 {
                 let geom = sys::rtcNewGeometry(d, sys::RTCGeometryType::RTC_GEOMETRY_TYPE_USER);
