@@ -65,6 +65,16 @@ impl FeatureMap {
     }
 }
 
+/// Builds the encoder's image type from rows of RGB pixels (as
+/// `io::rgbd::RgbImage` holds them); `None` if the count is not
+/// `width * height`.
+pub fn rgb_from_pixels(width: u32, height: u32, pixels: &[[u8; 3]]) -> Option<RgbImage> {
+    if pixels.len() != width as usize * height as usize {
+        return None;
+    }
+    RgbImage::from_raw(width, height, pixels.iter().flatten().copied().collect())
+}
+
 /// An ONNX image encoder with its model card.
 pub struct ImageEncoder {
     model: OnnxModel,
@@ -428,6 +438,22 @@ fn prepare(img: &RgbImage, spec: &ImageSpec) -> Option<Prepared> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn pixels_convert_row_major() {
+        let px = [
+            [1, 2, 3],
+            [4, 5, 6],
+            [7, 8, 9],
+            [10, 11, 12],
+            [13, 14, 15],
+            [16, 17, 18],
+        ];
+        let img = rgb_from_pixels(3, 2, &px).unwrap();
+        assert_eq!(img.get_pixel(2, 0).0, [7, 8, 9]);
+        assert_eq!(img.get_pixel(0, 1).0, [10, 11, 12]);
+        assert!(rgb_from_pixels(4, 2, &px).is_none());
+    }
 
     #[test]
     fn windows_cover_the_length() {

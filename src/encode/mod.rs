@@ -27,7 +27,7 @@ use std::path::PathBuf;
 
 pub use self::cache::FeatureCache;
 pub use self::card::{ModelCard, ModelKind};
-pub use self::image::{FeatureMap, ImageEncoder};
+pub use self::image::{FeatureMap, ImageEncoder, rgb_from_pixels};
 pub use self::point::PointEncoder;
 pub use self::runtime::{OnnxModel, Runtime};
 pub use self::text::TextEncoder;
