@@ -19,3 +19,22 @@ if [ ${#need_apt[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need_apt[@]}" >/dev/null
 fi
 echo "setup: system packages present (Embree 3, libclang, cc)"
+
+# ONNX Runtime for the encoders (omcl loads it at run time, ort's
+# `load-dynamic`): the shared library inside the PyPI `onnxruntime` wheel,
+# installed into .deps/onnxruntime/ without its Python dependencies.
+ORT_VERSION=1.31.1
+ORT_DIR=.deps/onnxruntime
+if ! ls "$ORT_DIR"/onnxruntime/capi/libonnxruntime.so* >/dev/null 2>&1; then
+  if ! python3 -m pip --version >/dev/null 2>&1; then
+    echo "setup: installing python3-pip"
+    SUDO=""
+    [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq python3-pip >/dev/null
+  fi
+  echo "setup: installing onnxruntime $ORT_VERSION into $ORT_DIR"
+  python3 -m pip install --quiet --disable-pip-version-check --no-deps \
+    --target "$ORT_DIR" "onnxruntime==$ORT_VERSION"
+fi
+echo "setup: ONNX Runtime present: $(ls "$ORT_DIR"/onnxruntime/capi/libonnxruntime.so.* | head -1)"

@@ -2,6 +2,7 @@
 //! the library. Errors are `anyhow` here, `thiserror` in the library.
 
 pub mod demo;
+pub mod encode;
 pub mod eval;
 pub mod map;
 pub mod map_build;
@@ -25,6 +26,9 @@ pub enum Command {
     Map(map::MapCommand),
     /// Run the pipeline end to end on the built-in synthetic world.
     Demo(demo::DemoArgs),
+    /// Run ONNX encoders: words, images and point clouds to features.
+    #[command(subcommand)]
+    Encode(encode::EncodeCommand),
     /// Trajectory metrics: APE, RPE (as evo) and the KITTI odometry metric.
     #[command(subcommand)]
     Eval(eval::EvalCommand),
@@ -35,6 +39,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Map(cmd) => map::run(cmd),
         Command::Demo(args) => demo::run(args),
+        Command::Encode(cmd) => encode::run(cmd),
         Command::Eval(cmd) => eval::run(cmd),
     }
 }

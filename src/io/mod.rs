@@ -1,6 +1,7 @@
 //! Reading and writing files: parsing only, no math beyond it.
 pub mod npy;
 pub mod poses;
+pub mod rgb;
 
 // Point clouds and RGB-D (helper `cloud`).
 pub mod cloud;
