@@ -4,6 +4,7 @@
 pub mod demo;
 pub mod encode;
 pub mod eval;
+pub mod localize;
 pub mod map;
 pub mod map_build;
 pub mod progress;
@@ -32,6 +33,8 @@ pub enum Command {
     /// Trajectory metrics: APE, RPE (as evo) and the KITTI odometry metric.
     #[command(subcommand)]
     Eval(eval::EvalCommand),
+    /// Localize a camera sequence in a map with the particle filter.
+    Localize(localize::LocalizeArgs),
 }
 
 /// Runs a parsed command line.
@@ -41,5 +44,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Demo(args) => demo::run(args),
         Command::Encode(cmd) => encode::run(cmd),
         Command::Eval(cmd) => eval::run(cmd),
+        Command::Localize(a) => localize::run(a),
     }
 }

@@ -192,34 +192,46 @@ impl EmbeddingTable {
         })
     }
 
-    /// Reads a class list (`<id> <name>` lines) and its `N x F` `.npy`.
+    /// Reads a class list and its `N x F` `.npy`. The list has either
+    /// `<id> <name>` lines, or one name a line with the id its line index
+    /// (counting only non-empty, non-comment lines); the first line decides,
+    /// and mixing the two is an error.
     pub fn read(classes_path: &Path, npy_path: &Path) -> Result<Self, CloudError> {
         let text =
             std::fs::read_to_string(classes_path).map_err(|e| CloudError::io(classes_path, e))?;
         let mut ids = Vec::new();
         let mut names = Vec::new();
+        let mut with_ids: Option<bool> = None;
         for (lineno, line) in text.lines().enumerate() {
             let line = line.trim();
             if line.is_empty() || line.starts_with('#') {
                 continue;
             }
-            let (id, name) = line.split_once(char::is_whitespace).ok_or_else(|| {
-                CloudError::format(
-                    classes_path,
-                    format!("line {}: expected '<id> <name>', got '{line}'", lineno + 1),
-                )
-            })?;
-            let id: u32 = id.parse().map_err(|_| {
-                CloudError::format(
+            let split = line
+                .split_once(char::is_whitespace)
+                .and_then(|(id, name)| Some((id.parse::<u32>().ok()?, name.trim())));
+            let this_has_id = split.is_some();
+            let mode = *with_ids.get_or_insert(this_has_id);
+            if mode != this_has_id {
+                return Err(CloudError::format(
                     classes_path,
                     format!(
-                        "line {}: class id '{id}' is not a non-negative integer",
-                        lineno + 1
+                        "line {}: expected {}, got '{line}' (a file uses one form throughout)",
+                        lineno + 1,
+                        if mode { "'<id> <name>'" } else { "a class name without an id" }
                     ),
-                )
-            })?;
-            ids.push(id);
-            names.push(name.trim().to_string());
+                ));
+            }
+            match split {
+                Some((id, name)) => {
+                    ids.push(id);
+                    names.push(name.to_string());
+                }
+                None => {
+                    ids.push(names.len() as u32);
+                    names.push(line.to_string());
+                }
+            }
         }
         let arr = read_npy(npy_path)?;
         if arr.shape.len() != 2 || arr.shape[0] != ids.len() {
@@ -321,5 +333,25 @@ mod tests {
         crate::io::npy::write_npy(&n, &[3, 2], &[0.0; 6]).unwrap();
         let e = EmbeddingTable::read(&c, &n).unwrap_err().to_string();
         assert!(e.contains("emb.npy") && e.contains("[3, 2]"), "{e}");
+    }
+
+    #[test]
+    fn names_only_lists_take_line_indices_and_forms_do_not_mix() {
+        let d = tempfile::tempdir().unwrap();
+        let c = d.path().join("classes.txt");
+        let n = d.path().join("emb.npy");
+        std::fs::write(&c, "floor
+# comment
+tv monitor
+").unwrap();
+        crate::io::npy::write_npy(&n, &[2, 2], &[1.0, 0.0, 0.0, 1.0]).unwrap();
+        let t = EmbeddingTable::read(&c, &n).unwrap();
+        assert_eq!(t.ids, vec![0, 1]);
+        assert_eq!(t.names, vec!["floor", "tv monitor"]);
+        std::fs::write(&c, "floor
+7 wall
+").unwrap();
+        let e = EmbeddingTable::read(&c, &n).unwrap_err().to_string();
+        assert!(e.contains("classes.txt") && e.contains("line 2"), "{e}");
     }
 }

@@ -1,0 +1,370 @@
+//! `omcl localize`: the particle filter over a recorded sequence.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use anyhow::{Context, bail, ensure};
+use clap::{Args, ValueEnum};
+use nalgebra::{UnitQuaternion, Vector3};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
+use omcl::eval::ape::{PoseRelation, ape};
+use omcl::eval::localization::CompletionRule;
+use omcl::geometry::Pose;
+use omcl::io::labels::EmbeddingTable;
+use omcl::io::poses::{self, PoseFormat};
+use omcl::io::{npy, rgbd};
+use omcl::map::{self, LanguageMap};
+use omcl::mcl::{
+    self, Filter, FilterConfig, FloorParams, FrameFeatures, PromptParams, SamplingStrategy,
+};
+use omcl::raycast::{EmbreeCaster, Packet};
+use omcl::trajectory::Trajectory;
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum InitArg {
+    /// Around a known pose (--init-pose, or the first ground-truth pose).
+    Local,
+    /// Uniformly over all floor voxels.
+    Global,
+    /// Over the floor voxels that match --prompt.
+    Prompt,
+}
+
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum SamplingArg {
+    Stratified,
+    Uniform,
+    Equal,
+}
+
+#[derive(Debug, Args)]
+pub struct LocalizeArgs {
+    /// The map (`.omcl`).
+    #[arg(long)]
+    pub map: PathBuf,
+    /// The sequence folder: intrinsics.txt, labels/NNNNNN.png with
+    /// classes.txt + embeddings.npy (ground-truth features) or
+    /// features/NNNNNN.npy (`h x w x F`), poses.txt (ground truth, TUM;
+    /// optional), odometry.txt (TUM; optional).
+    #[arg(long)]
+    pub sequence: PathBuf,
+    /// Odometry pose file (TUM or KITTI); default: the sequence's
+    /// odometry.txt, else ground truth plus noise (--odom-noise-*).
+    #[arg(long)]
+    pub odometry: Option<PathBuf>,
+    /// Use ground truth plus Gaussian noise as odometry even if a file exists.
+    #[arg(long)]
+    pub odom_from_gt: bool,
+    /// Odometry noise per frame when made from ground truth: metres.
+    #[arg(long, default_value_t = 0.10)]
+    pub odom_noise_m: f64,
+    /// Odometry noise per frame when made from ground truth: degrees.
+    #[arg(long, default_value_t = 6.0)]
+    pub odom_noise_deg: f64,
+    /// How particles start.
+    #[arg(long, value_enum, default_value = "local")]
+    pub init: InitArg,
+    /// `tx ty tz qx qy qz qw` for --init local (default: first ground truth).
+    #[arg(long)]
+    pub init_pose: Option<String>,
+    /// Spread of --init local: metres and degrees (paper: 0.3, 17).
+    #[arg(long, default_value_t = 0.3)]
+    pub init_sigma_m: f64,
+    #[arg(long, default_value_t = 17.0)]
+    pub init_sigma_deg: f64,
+    /// Prompt words for --init prompt, comma-separated ("toilet, sink").
+    #[arg(long)]
+    pub prompt: Option<String>,
+    /// Number of particles (paper: 1024).
+    #[arg(long, default_value_t = 1024)]
+    pub particles: usize,
+    /// Sampled pixels per frame before duplicates are dropped (paper: 2048).
+    #[arg(long, default_value_t = 2048)]
+    pub rays: usize,
+    /// Ray sampling strategy.
+    #[arg(long, value_enum, default_value = "stratified")]
+    pub sampling: SamplingArg,
+    /// Exponent on the likelihood (1 = the paper's eq. 2).
+    #[arg(long)]
+    pub sharpen: Option<f64>,
+    /// Seed of every random draw.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Use at most this many frames.
+    #[arg(long)]
+    pub frames: Option<usize>,
+    /// Estimated trajectory (TUM), written atomically.
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// Per-frame diagnostics (CSV: ESS, spread, likelihood, time).
+    #[arg(long)]
+    pub diagnostics: Option<PathBuf>,
+}
+
+/// Features of one frame: a label image looked up in an embedding table.
+struct LabelFrame<'a> {
+    width: u32,
+    height: u32,
+    labels: Vec<u32>,
+    table: &'a EmbeddingTable,
+    /// Nearest map row of each table row.
+    map_row: &'a [u32],
+}
+
+impl FrameFeatures for LabelFrame<'_> {
+    fn width(&self) -> u32 {
+        self.width
+    }
+    fn height(&self) -> u32 {
+        self.height
+    }
+    fn dim(&self) -> usize {
+        self.table.dim
+    }
+    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
+        let l = self.labels[(v * self.width + u) as usize];
+        match self.table.row(l) {
+            Some(f) => out.copy_from_slice(f),
+            None => out.fill(0.0),
+        }
+    }
+    fn nearest_row(&self, u: u32, v: u32) -> Option<u32> {
+        let l = self.labels[(v * self.width + u) as usize];
+        self.table.row_index(l).map(|r| self.map_row[r])
+    }
+}
+
+/// A feature map at any resolution, read from features/NNNNNN.npy.
+struct NpyFrame {
+    width: u32,
+    height: u32,
+    h: usize,
+    w: usize,
+    dim: usize,
+    data: Vec<f32>,
+}
+
+impl FrameFeatures for NpyFrame {
+    fn width(&self) -> u32 {
+        self.width
+    }
+    fn height(&self) -> u32 {
+        self.height
+    }
+    fn dim(&self) -> usize {
+        self.dim
+    }
+    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
+        let fu = ((2 * u as usize + 1) * self.w / (2 * self.width as usize)).min(self.w - 1);
+        let fv = ((2 * v as usize + 1) * self.h / (2 * self.height as usize)).min(self.h - 1);
+        let i = (fv * self.w + fu) * self.dim;
+        out.copy_from_slice(&self.data[i..i + self.dim]);
+    }
+}
+
+fn parse_pose(s: &str) -> anyhow::Result<Pose> {
+    rgbd::parse_tum_pose(s).map_err(|e| anyhow::anyhow!("--init-pose {s:?}: {e}"))
+}
+
+fn noisy_odometry(gt: &[Pose], sigma_m: f64, sigma_deg: f64, seed: u64) -> anyhow::Result<Vec<Pose>> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x0d0);
+    let t = Normal::new(0.0, sigma_m).context("--odom-noise-m")?;
+    let r = Normal::new(0.0, sigma_deg.to_radians()).context("--odom-noise-deg")?;
+    let mut out = Vec::with_capacity(gt.len());
+    let mut acc = gt[0];
+    out.push(acc);
+    for w in gt.windows(2) {
+        let inc = w[0].inverse() * w[1];
+        let noise = Pose::from_parts(
+            Vector3::new(t.sample(&mut rng), t.sample(&mut rng), t.sample(&mut rng)).into(),
+            UnitQuaternion::from_scaled_axis(Vector3::new(0.0, r.sample(&mut rng), 0.0)),
+        );
+        acc = acc * inc * noise;
+        out.push(acc);
+    }
+    Ok(out)
+}
+
+fn word_features(table: &EmbeddingTable, words: &str, path: &Path) -> anyhow::Result<Vec<Vec<f32>>> {
+    words
+        .split(',')
+        .map(str::trim)
+        .filter(|w| !w.is_empty())
+        .map(|w| {
+            let i = table
+                .names
+                .iter()
+                .position(|n| n.eq_ignore_ascii_case(w))
+                .with_context(|| format!("prompt word {w:?} is not a class of {}", path.display()))?;
+            Ok(table.data[i * table.dim..(i + 1) * table.dim].to_vec())
+        })
+        .collect()
+}
+
+pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
+    let m: LanguageMap = map::load(&a.map)?;
+    let d = &a.sequence;
+    let k = rgbd::read_intrinsics(&d.join("intrinsics.txt"))?;
+    let gt_path = d.join("poses.txt");
+    let gt = gt_path
+        .exists()
+        .then(|| poses::read_poses(&gt_path))
+        .transpose()?
+        .map(|p| p.trajectory);
+    let classes = d.join("classes.txt");
+    let table = if d.join("labels").is_dir() {
+        Some(EmbeddingTable::read(&classes, &d.join("embeddings.npy"))?)
+    } else {
+        None
+    };
+    if let Some(t) = &table {
+        ensure!(
+            t.dim == m.db().dim(),
+            "{}: features have dimension {}, the map {} has {}",
+            d.join("embeddings.npy").display(),
+            t.dim,
+            a.map.display(),
+            m.db().dim()
+        );
+    }
+    let map_row: Vec<u32> = match &table {
+        Some(t) => (0..t.ids.len())
+            .map(|r| {
+                m.db()
+                    .nearest(&t.data[r * t.dim..(r + 1) * t.dim])
+                    .ok()
+                    .flatten()
+                    .map_or(0, |(i, _)| i as u32)
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    let odom_file = a.odometry.clone().or_else(|| {
+        let p = d.join("odometry.txt");
+        (!a.odom_from_gt && p.exists()).then_some(p)
+    });
+    let odom: Vec<Pose> = match (&odom_file, &gt) {
+        (Some(p), _) => poses::read_poses(p)?.trajectory.poses().to_vec(),
+        (None, Some(g)) => noisy_odometry(g.poses(), a.odom_noise_m, a.odom_noise_deg, a.seed)?,
+        (None, None) => bail!(
+            "{}: no odometry: pass --odometry FILE, or provide poses.txt to make it from ground truth",
+            d.display()
+        ),
+    };
+    let n = odom.len().min(a.frames.unwrap_or(usize::MAX));
+    ensure!(n > 0, "{}: the sequence has no frames", d.display());
+
+    let mut rng = ChaCha8Rng::seed_from_u64(a.seed);
+    let floor_params = FloorParams::default();
+    let floor_feature = || -> anyhow::Result<Vec<f32>> {
+        let t = table.as_ref().context("global and prompt initialization need classes.txt with \"floor\"")?;
+        Ok(word_features(t, "floor", &classes)?.remove(0))
+    };
+    let particles = match a.init {
+        InitArg::Local => {
+            let pose = match (&a.init_pose, &gt) {
+                (Some(s), _) => parse_pose(s)?,
+                (None, Some(g)) => g.poses()[0],
+                (None, None) => bail!("--init local needs --init-pose or a poses.txt"),
+            };
+            mcl::local_init(&pose, a.particles, a.init_sigma_m, a.init_sigma_deg.to_radians(), &mut rng)
+        }
+        InitArg::Global => mcl::global_init(&m, &floor_feature()?, &floor_params, a.particles, &mut rng)?,
+        InitArg::Prompt => {
+            let words = a.prompt.as_deref().context("--init prompt needs --prompt \"word, word\"")?;
+            let t = table.as_ref().context("--init prompt needs classes.txt and embeddings.npy")?;
+            let w = word_features(t, words, &classes)?;
+            mcl::prompt_init(&m, &floor_feature()?, &w, &floor_params, &PromptParams::default(), a.particles, &mut rng)
+                .with_context(|| format!("prompt {words:?}"))?
+        }
+    };
+    let mut config = FilterConfig {
+        seed: a.seed,
+        ..FilterConfig::default()
+    };
+    config.sampling.rays = a.rays;
+    config.sampling.strategy = match a.sampling {
+        SamplingArg::Stratified => SamplingStrategy::Stratified,
+        SamplingArg::Uniform => SamplingStrategy::Uniform,
+        SamplingArg::Equal => SamplingStrategy::EqualWithDuplicates,
+    };
+    if let Some(s) = a.sharpen {
+        config.sharpen = s;
+    }
+    let caster = Arc::new(EmbreeCaster::new(m.grid().resolution as f32, &m.cells())?.with_packet(Packet::Single));
+    let mut filter = Filter::new(&m, caster, k, config, particles)?;
+
+    let mut estimates = Vec::with_capacity(n);
+    let mut diag = String::from("frame,ess,spread_m,mean_likelihood,particles,rays,step_ms\n");
+    let pb = super::progress::bar(n as u64, "localizing");
+    for i in 0..n {
+        let inc = if i == 0 { Pose::identity() } else { odom[i - 1].inverse() * odom[i] };
+        let report = if let Some(t) = &table {
+            let p = d.join("labels").join(format!("{i:06}.png"));
+            let (w, h, labels) = rgbd::read_label_png(&p)?;
+            let f = LabelFrame {
+                width: w,
+                height: h,
+                labels,
+                table: t,
+                map_row: &map_row,
+            };
+            filter.step(&inc, &f).with_context(|| format!("frame {i} ({})", p.display()))?
+        } else {
+            let p = d.join("features").join(format!("{i:06}.npy"));
+            let arr = npy::read_npy(&p)?;
+            ensure!(arr.shape.len() == 3, "{}: expected h x w x F, got {:?}", p.display(), arr.shape);
+            let f = NpyFrame {
+                width: k.width,
+                height: k.height,
+                h: arr.shape[0],
+                w: arr.shape[1],
+                dim: arr.shape[2],
+                data: arr.data,
+            };
+            filter.step(&inc, &f).with_context(|| format!("frame {i} ({})", p.display()))?
+        };
+        let t = &report.timings;
+        let ms = 1e3 * (t.features + t.predict + t.weigh + t.update);
+        diag.push_str(&format!(
+            "{i},{:.1},{:.4},{:.4},{},{},{ms:.1}\n",
+            report.ess, report.spread, report.mean_likelihood, report.n_particles, report.n_rays
+        ));
+        estimates.push(report.estimate);
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    let stamps: Vec<f64> = match &gt {
+        Some(g) if g.len() >= n => g.stamps()[..n].to_vec(),
+        _ => (0..n).map(|i| i as f64).collect(),
+    };
+    let est = Trajectory::new(stamps, estimates)?;
+    poses::write_poses(&a.out, &est, PoseFormat::Tum)?;
+    if let Some(p) = &a.diagnostics {
+        let dir = p.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
+        tmp.write_all(diag.as_bytes())?;
+        tmp.persist(p).with_context(|| format!("writing {}", p.display()))?;
+    }
+    print!("wrote {} ({n} frames)", a.out.display());
+    if let Some(g) = &gt {
+        let reference = Trajectory::new(g.stamps()[..n].to_vec(), g.poses()[..n].to_vec())?;
+        let e = ape(&reference, &est, PoseRelation::Translation)?;
+        let done = CompletionRule::default().is_completed(&e.errors);
+        println!(
+            "; APE rmse {:.3} m, mean {:.3}, median {:.3}, max {:.3}; completed: {}",
+            e.stats.rmse,
+            e.stats.mean,
+            e.stats.median,
+            e.stats.max,
+            if done { "yes" } else { "no" }
+        );
+    } else {
+        println!();
+    }
+    Ok(())
+}
