@@ -170,7 +170,12 @@ fn parse_pose(s: &str) -> anyhow::Result<Pose> {
     rgbd::parse_tum_pose(s).map_err(|e| anyhow::anyhow!("--init-pose {s:?}: {e}"))
 }
 
-fn noisy_odometry(gt: &[Pose], sigma_m: f64, sigma_deg: f64, seed: u64) -> anyhow::Result<Vec<Pose>> {
+fn noisy_odometry(
+    gt: &[Pose],
+    sigma_m: f64,
+    sigma_deg: f64,
+    seed: u64,
+) -> anyhow::Result<Vec<Pose>> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x0d0);
     let t = Normal::new(0.0, sigma_m).context("--odom-noise-m")?;
     let r = Normal::new(0.0, sigma_deg.to_radians()).context("--odom-noise-deg")?;
@@ -189,7 +194,11 @@ fn noisy_odometry(gt: &[Pose], sigma_m: f64, sigma_deg: f64, seed: u64) -> anyho
     Ok(out)
 }
 
-fn word_features(table: &EmbeddingTable, words: &str, path: &Path) -> anyhow::Result<Vec<Vec<f32>>> {
+fn word_features(
+    table: &EmbeddingTable,
+    words: &str,
+    path: &Path,
+) -> anyhow::Result<Vec<Vec<f32>>> {
     words
         .split(',')
         .map(str::trim)
@@ -199,7 +208,9 @@ fn word_features(table: &EmbeddingTable, words: &str, path: &Path) -> anyhow::Re
                 .names
                 .iter()
                 .position(|n| n.eq_ignore_ascii_case(w))
-                .with_context(|| format!("prompt word {w:?} is not a class of {}", path.display()))?;
+                .with_context(|| {
+                    format!("prompt word {w:?} is not a class of {}", path.display())
+                })?;
             Ok(table.data[i * table.dim..(i + 1) * table.dim].to_vec())
         })
         .collect()
@@ -261,7 +272,9 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     let mut rng = ChaCha8Rng::seed_from_u64(a.seed);
     let floor_params = FloorParams::default();
     let floor_feature = || -> anyhow::Result<Vec<f32>> {
-        let t = table.as_ref().context("global and prompt initialization need classes.txt with \"floor\"")?;
+        let t = table
+            .as_ref()
+            .context("global and prompt initialization need classes.txt with \"floor\"")?;
         Ok(word_features(t, "floor", &classes)?.remove(0))
     };
     let particles = match a.init {
@@ -271,15 +284,36 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
                 (None, Some(g)) => g.poses()[0],
                 (None, None) => bail!("--init local needs --init-pose or a poses.txt"),
             };
-            mcl::local_init(&pose, a.particles, a.init_sigma_m, a.init_sigma_deg.to_radians(), &mut rng)
+            mcl::local_init(
+                &pose,
+                a.particles,
+                a.init_sigma_m,
+                a.init_sigma_deg.to_radians(),
+                &mut rng,
+            )
         }
-        InitArg::Global => mcl::global_init(&m, &floor_feature()?, &floor_params, a.particles, &mut rng)?,
+        InitArg::Global => {
+            mcl::global_init(&m, &floor_feature()?, &floor_params, a.particles, &mut rng)?
+        }
         InitArg::Prompt => {
-            let words = a.prompt.as_deref().context("--init prompt needs --prompt \"word, word\"")?;
-            let t = table.as_ref().context("--init prompt needs classes.txt and embeddings.npy")?;
+            let words = a
+                .prompt
+                .as_deref()
+                .context("--init prompt needs --prompt \"word, word\"")?;
+            let t = table
+                .as_ref()
+                .context("--init prompt needs classes.txt and embeddings.npy")?;
             let w = word_features(t, words, &classes)?;
-            mcl::prompt_init(&m, &floor_feature()?, &w, &floor_params, &PromptParams::default(), a.particles, &mut rng)
-                .with_context(|| format!("prompt {words:?}"))?
+            mcl::prompt_init(
+                &m,
+                &floor_feature()?,
+                &w,
+                &floor_params,
+                &PromptParams::default(),
+                a.particles,
+                &mut rng,
+            )
+            .with_context(|| format!("prompt {words:?}"))?
         }
     };
     let mut config = FilterConfig {
@@ -295,14 +329,20 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     if let Some(s) = a.sharpen {
         config.sharpen = s;
     }
-    let caster = Arc::new(EmbreeCaster::new(m.grid().resolution as f32, &m.cells())?.with_packet(Packet::Single));
+    let caster = Arc::new(
+        EmbreeCaster::new(m.grid().resolution as f32, &m.cells())?.with_packet(Packet::Single),
+    );
     let mut filter = Filter::new(&m, caster, k, config, particles)?;
 
     let mut estimates = Vec::with_capacity(n);
     let mut diag = String::from("frame,ess,spread_m,mean_likelihood,particles,rays,step_ms\n");
     let pb = super::progress::bar(n as u64, "localizing");
     for i in 0..n {
-        let inc = if i == 0 { Pose::identity() } else { odom[i - 1].inverse() * odom[i] };
+        let inc = if i == 0 {
+            Pose::identity()
+        } else {
+            odom[i - 1].inverse() * odom[i]
+        };
         let report = if let Some(t) = &table {
             let p = d.join("labels").join(format!("{i:06}.png"));
             let (w, h, labels) = rgbd::read_label_png(&p)?;
@@ -313,11 +353,18 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
                 table: t,
                 map_row: &map_row,
             };
-            filter.step(&inc, &f).with_context(|| format!("frame {i} ({})", p.display()))?
+            filter
+                .step(&inc, &f)
+                .with_context(|| format!("frame {i} ({})", p.display()))?
         } else {
             let p = d.join("features").join(format!("{i:06}.npy"));
             let arr = npy::read_npy(&p)?;
-            ensure!(arr.shape.len() == 3, "{}: expected h x w x F, got {:?}", p.display(), arr.shape);
+            ensure!(
+                arr.shape.len() == 3,
+                "{}: expected h x w x F, got {:?}",
+                p.display(),
+                arr.shape
+            );
             let f = NpyFrame {
                 width: k.width,
                 height: k.height,
@@ -326,10 +373,12 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
                 dim: arr.shape[2],
                 data: arr.data,
             };
-            filter.step(&inc, &f).with_context(|| format!("frame {i} ({})", p.display()))?
+            filter
+                .step(&inc, &f)
+                .with_context(|| format!("frame {i} ({})", p.display()))?
         };
         let t = &report.timings;
-        let ms = 1e3 * (t.features + t.predict + t.weigh + t.update);
+        let ms = 1e3 * (t.features + t.predict + t.weigh + t.update).as_secs_f64();
         diag.push_str(&format!(
             "{i},{:.1},{:.4},{:.4},{},{},{ms:.1}\n",
             report.ess, report.spread, report.mean_likelihood, report.n_particles, report.n_rays
@@ -345,10 +394,14 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     let est = Trajectory::new(stamps, estimates)?;
     poses::write_poses(&a.out, &est, PoseFormat::Tum)?;
     if let Some(p) = &a.diagnostics {
-        let dir = p.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let dir = p
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
         let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
         tmp.write_all(diag.as_bytes())?;
-        tmp.persist(p).with_context(|| format!("writing {}", p.display()))?;
+        tmp.persist(p)
+            .with_context(|| format!("writing {}", p.display()))?;
     }
     print!("wrote {} ({n} frames)", a.out.display());
     if let Some(g) = &gt {

@@ -218,7 +218,11 @@ impl EmbeddingTable {
                     format!(
                         "line {}: expected {}, got '{line}' (a file uses one form throughout)",
                         lineno + 1,
-                        if mode { "'<id> <name>'" } else { "a class name without an id" }
+                        if mode {
+                            "'<id> <name>'"
+                        } else {
+                            "a class name without an id"
+                        }
                     ),
                 ));
             }
@@ -340,17 +344,25 @@ mod tests {
         let d = tempfile::tempdir().unwrap();
         let c = d.path().join("classes.txt");
         let n = d.path().join("emb.npy");
-        std::fs::write(&c, "floor
+        std::fs::write(
+            &c,
+            "floor
 # comment
 tv monitor
-").unwrap();
+",
+        )
+        .unwrap();
         crate::io::npy::write_npy(&n, &[2, 2], &[1.0, 0.0, 0.0, 1.0]).unwrap();
         let t = EmbeddingTable::read(&c, &n).unwrap();
         assert_eq!(t.ids, vec![0, 1]);
         assert_eq!(t.names, vec!["floor", "tv monitor"]);
-        std::fs::write(&c, "floor
+        std::fs::write(
+            &c,
+            "floor
 7 wall
-").unwrap();
+",
+        )
+        .unwrap();
         let e = EmbeddingTable::read(&c, &n).unwrap_err().to_string();
         assert!(e.contains("classes.txt") && e.contains("line 2"), "{e}");
     }
