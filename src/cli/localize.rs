@@ -103,6 +103,12 @@ pub struct LocalizeArgs {
     /// Per-frame diagnostics (CSV: ESS, spread, likelihood, time).
     #[arg(long)]
     pub diagnostics: Option<PathBuf>,
+    #[command(flatten)]
+    pub encoder: super::encoders::EncoderArgs,
+    /// Text encoder for --prompt and "floor" (default: the sequence's
+    /// classes.txt + embeddings.npy).
+    #[arg(long, value_name = "ONNX")]
+    pub text_model: Option<PathBuf>,
 }
 
 /// Features of one frame: a label image looked up in an embedding table.
@@ -227,7 +233,18 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         .transpose()?
         .map(|p| p.trajectory);
     let classes = d.join("classes.txt");
-    let table = if d.join("labels").is_dir() {
+    let mut image = super::encoders::ImageSource::open(&a.encoder)?;
+    if let Some(src) = &image {
+        ensure!(
+            src.dim() == m.db().dim(),
+            "image encoder {} gives {}-d features, the map {} has {}",
+            src.name,
+            src.dim(),
+            a.map.display(),
+            m.db().dim()
+        );
+    }
+    let table = if d.join("labels").is_dir() && (image.is_none() || classes.exists()) {
         Some(EmbeddingTable::read(&classes, &d.join("embeddings.npy"))?)
     } else {
         None
@@ -343,7 +360,18 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         } else {
             odom[i - 1].inverse() * odom[i]
         };
-        let report = if let Some(t) = &table {
+        let report = if let Some(src) = image.as_mut() {
+            let p = d.join("rgb").join(format!("{i:06}.png"));
+            let fm = src.encode(&p, i)?;
+            let f = super::encoders::EncodedFrame {
+                map: &fm,
+                width: k.width,
+                height: k.height,
+            };
+            filter
+                .step(&inc, &f)
+                .with_context(|| format!("frame {i} ({})", p.display()))?
+        } else if let Some(t) = &table {
             let p = d.join("labels").join(format!("{i:06}.png"));
             let (w, h, labels) = rgbd::read_label_png(&p)?;
             let f = LabelFrame {

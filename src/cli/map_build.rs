@@ -14,7 +14,7 @@ use omcl::map::{self, FeatureDb, GridSpec, Integrator, LanguageMap};
 use omcl::mapping::{self, Feature, FeatureMap, IntegrationStats, LabelImage, colors};
 
 /// Options shared by the commands that build a map.
-#[derive(Debug, Args)]
+#[derive(Debug, Clone, Args)]
 pub struct BuildOptions {
     /// Where to write the map (`.omcl`); written atomically, never half.
     #[arg(long, short)]
@@ -254,6 +254,8 @@ pub struct RgbdArgs {
     /// Use at most this many frames.
     #[arg(long)]
     pub frames: Option<usize>,
+    #[command(flatten)]
+    pub encoder: super::encoders::EncoderArgs,
 }
 
 pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
@@ -262,7 +264,8 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
     let k = rgbd_io::read_intrinsics(&d.join("intrinsics.txt"))?;
     let traj = poses::read_poses(&d.join("poses.txt"))?.trajectory;
     let n = traj.poses().len().min(a.frames.unwrap_or(usize::MAX));
-    let use_labels = !a.use_features && d.join("labels").is_dir();
+    let mut image = super::encoders::ImageSource::open(&a.encoder)?;
+    let use_labels = image.is_none() && !a.use_features && d.join("labels").is_dir();
     let table = if use_labels {
         let mut b = a.build.table()?;
         if b.is_none() {
@@ -284,9 +287,12 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
             .map(|v| (v / a.build.resolution).floor())
             * a.build.resolution,
     };
-    let db = match &table {
-        Some(t) => table_db(t, a.build.tau)?,
-        None => {
+    let db = match (&table, &image) {
+        (Some(t), _) => table_db(t, a.build.tau)?,
+        (None, Some(img)) => {
+            FeatureDb::new(img.dim(), a.build.tau)?.with_max_rows(a.build.max_rows)
+        }
+        (None, None) => {
             let f0 = d.join("features").join(format!("{:06}.npy", 0));
             let arr = npy::read_npy(&f0).with_context(|| {
                 format!(
@@ -335,6 +341,11 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
                 row_of_label: &rows,
             };
             mapping::rgbd::integrate_frame(&mut integ, &k, &depth.depth, pose, &img, &opt)?
+        } else if let Some(src) = image.as_mut() {
+            let rgb = d.join("rgb").join(format!("{i:06}.png"));
+            let fm = src.encode(&rgb, i)?;
+            let feats = super::encoders::Encoded(&fm);
+            mapping::rgbd::integrate_frame(&mut integ, &k, &depth.depth, pose, &feats, &opt)?
         } else {
             let p = d.join("features").join(format!("{i:06}.npy"));
             let arr = npy::read_npy(&p)?;
@@ -366,47 +377,82 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
         pb.inc(1);
     }
     pb.finish_and_clear();
-    finish(integ, &a.build, stats)
+    match &image {
+        // The map lives in the encoder's feature space: record its name.
+        Some(src) => {
+            let mut b = a.build.clone();
+            b.encoder = src.name.clone();
+            finish(integ, &b, stats)
+        }
+        None => finish(integ, &a.build, stats),
+    }
 }
 
-/// Where prompt words get their features.
+/// Where prompt words get their features: a class table, or a text encoder.
 #[derive(Debug, Args)]
 pub struct WordSource {
-    /// Class list (`<id> <name>` lines) whose names the words are looked up in.
-    #[arg(long)]
-    pub classes: PathBuf,
+    /// Class list (`<id> <name>` or one name a line) whose names the words
+    /// are looked up in.
+    #[arg(long, requires = "embeddings")]
+    pub classes: Option<PathBuf>,
     /// Text features, one row per class of --classes (`.npy`).
-    #[arg(long)]
-    pub embeddings: PathBuf,
+    #[arg(long, requires = "classes")]
+    pub embeddings: Option<PathBuf>,
+    /// A text encoder (`.onnx` with its `.card.json`, e.g. CLIP's) instead
+    /// of a class table: any words work.
+    #[arg(long, value_name = "ONNX", conflicts_with = "classes")]
+    pub text_model: Option<PathBuf>,
+    /// ONNX Runtime library for --text-model.
+    #[arg(long, value_name = "PATH")]
+    pub ort_lib: Option<PathBuf>,
 }
 
 impl WordSource {
     /// Unit features of `words`, in order; an unknown word is an error that
     /// lists a few known names.
     fn features(&self, words: &[String], dim: usize) -> anyhow::Result<FeatureDb> {
-        let t = EmbeddingTable::read(&self.classes, &self.embeddings)?;
-        ensure!(
-            t.dim == dim,
-            "{}: text features have dimension {}, the map {dim}",
-            self.embeddings.display(),
-            t.dim
-        );
-        let mut rows = Vec::with_capacity(words.len() * dim);
-        for w in words {
-            let i = t
-                .names
-                .iter()
-                .position(|n| n.eq_ignore_ascii_case(w.trim()))
-                .with_context(|| {
-                    let some: Vec<&str> = t.names.iter().take(12).map(String::as_str).collect();
-                    format!(
-                        "word {w:?} is not in {} (known: {}, ...)",
-                        self.classes.display(),
-                        some.join(", ")
-                    )
-                })?;
-            rows.extend_from_slice(&t.data[i * dim..(i + 1) * dim]);
-        }
+        let rows = match (&self.text_model, &self.classes, &self.embeddings) {
+            (Some(model), _, _) => {
+                let (name, rows) =
+                    super::encoders::text_features(model, self.ort_lib.as_deref(), words)?;
+                if let Some(r) = rows.first() {
+                    ensure!(
+                        r.len() == dim,
+                        "text encoder {name} gives {}-d features, the map has {dim}",
+                        r.len()
+                    );
+                }
+                rows.concat()
+            }
+            (None, Some(classes), Some(embeddings)) => {
+                let t = EmbeddingTable::read(classes, embeddings)?;
+                ensure!(
+                    t.dim == dim,
+                    "{}: text features have dimension {}, the map {dim}",
+                    embeddings.display(),
+                    t.dim
+                );
+                let mut rows = Vec::with_capacity(words.len() * dim);
+                for w in words {
+                    let i = t
+                        .names
+                        .iter()
+                        .position(|n| n.eq_ignore_ascii_case(w.trim()))
+                        .with_context(|| {
+                            let some: Vec<&str> =
+                                t.names.iter().take(12).map(String::as_str).collect();
+                            format!(
+                                "word {w:?} is not in {} (known: {}, ...)",
+                                classes.display(),
+                                some.join(", ")
+                            )
+                        })?;
+                    rows.extend_from_slice(&t.data[i * dim..(i + 1) * dim]);
+                }
+                rows
+            }
+            _ => bail!("words need features: pass --classes and --embeddings, or --text-model"),
+        };
         Ok(FeatureDb::from_rows(dim, 0.0, rows)?)
     }
 }

@@ -3,6 +3,7 @@
 
 pub mod demo;
 pub mod encode;
+pub mod encoders;
 pub mod eval;
 pub mod localize;
 pub mod map;

@@ -1,0 +1,129 @@
+//! ONNX encoders as feature sources of the map and localize commands.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use clap::Args;
+
+use omcl::encode::cache::FeatureCache;
+use omcl::encode::image::{FeatureMap as EncodedMap, ImageEncoder};
+use omcl::encode::text::TextEncoder;
+use omcl::mapping::{self, Feature};
+
+/// Options that select ONNX encoders.
+#[derive(Debug, Args, Default)]
+pub struct EncoderArgs {
+    /// Image encoder (`.onnx` with its `.card.json`): per-pixel features
+    /// from the sequence's rgb/NNNNNN.png instead of labels or feature files.
+    #[arg(long, value_name = "ONNX")]
+    pub image_model: Option<PathBuf>,
+    /// Cache folder for image-encoder features (NNNNNN.npy; reused when
+    /// present and made by the same encoder).
+    #[arg(long, value_name = "DIR")]
+    pub feature_cache: Option<PathBuf>,
+    /// ONNX Runtime library (overrides ORT_DYLIB_PATH and .deps/).
+    #[arg(long, value_name = "PATH")]
+    pub ort_lib: Option<PathBuf>,
+}
+
+/// A loaded image encoder with its optional cache.
+pub struct ImageSource {
+    encoder: ImageEncoder,
+    cache: Option<FeatureCache>,
+    pub name: String,
+}
+
+impl ImageSource {
+    /// Loads the encoder of `args`, if one was given.
+    pub fn open(args: &EncoderArgs) -> anyhow::Result<Option<ImageSource>> {
+        let Some(model) = &args.image_model else {
+            return Ok(None);
+        };
+        let rt = super::encode::init_runtime(args.ort_lib.as_deref())?;
+        let encoder = ImageEncoder::load(rt, model, 0)?;
+        let name = encoder.card().name.clone();
+        let cache = args
+            .feature_cache
+            .as_deref()
+            .map(|d| FeatureCache::new(d, &name))
+            .transpose()?;
+        Ok(Some(ImageSource {
+            encoder,
+            cache,
+            name,
+        }))
+    }
+
+    /// Feature dimension of the encoder.
+    pub fn dim(&self) -> usize {
+        self.encoder.feature_dim()
+    }
+
+    /// Features of the image `rgb` (frame `frame` of its sequence).
+    pub fn encode(&mut self, rgb: &Path, frame: usize) -> anyhow::Result<EncodedMap> {
+        let id = format!("{frame:06}");
+        let enc = &mut self.encoder;
+        let mut compute = || {
+            let img = omcl::io::rgb::read_rgb(rgb)
+                .map_err(|e| omcl::encode::EncodeError::Input(format!("{}: {e}", rgb.display())))?;
+            enc.encode(&img)
+        };
+        let fm = match &self.cache {
+            Some(c) => c.get_or_compute(&id, compute),
+            None => compute(),
+        };
+        fm.with_context(|| format!("encoding {}", rgb.display()))
+    }
+}
+
+/// An encoded feature map as a mapping feature source.
+pub struct Encoded<'a>(pub &'a EncodedMap);
+
+impl mapping::FrameFeatures for Encoded<'_> {
+    fn at(&self, u: u32, v: u32) -> Feature<'_> {
+        match self.0.at_pixel(u, v) {
+            Some(f) => Feature::Vector(f),
+            None => Feature::Unknown,
+        }
+    }
+}
+
+impl omcl::mcl::FrameFeatures for EncodedFrame<'_> {
+    fn width(&self) -> u32 {
+        self.width
+    }
+    fn height(&self) -> u32 {
+        self.height
+    }
+    fn dim(&self) -> usize {
+        self.map.dim
+    }
+    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
+        match self.map.at_pixel(u, v) {
+            Some(f) => out.copy_from_slice(f),
+            None => out.fill(0.0),
+        }
+    }
+}
+
+/// An encoded frame for the localizer (image size from the intrinsics).
+pub struct EncodedFrame<'a> {
+    pub map: &'a EncodedMap,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// Unit text features of `words` from a text encoder.
+pub fn text_features(
+    model: &Path,
+    ort_lib: Option<&Path>,
+    words: &[String],
+) -> anyhow::Result<(String, Vec<Vec<f32>>)> {
+    let rt = super::encode::init_runtime(ort_lib)?;
+    let mut enc = TextEncoder::load(rt, model, 0)?;
+    let refs: Vec<&str> = words.iter().map(String::as_str).collect();
+    let rows = enc
+        .encode(&refs)
+        .with_context(|| format!("encoding {words:?} with {}", model.display()))?;
+    Ok((enc.card().name.clone(), rows))
+}

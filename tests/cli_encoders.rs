@@ -1,0 +1,201 @@
+//! The map commands with ONNX encoders as feature sources (real inference
+//! through ONNX Runtime on the committed tiny models).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use nalgebra::Vector3;
+use omcl::encode::{ImageEncoder, Runtime, TextEncoder};
+use omcl::map::{self, FeatureDb, GridSpec, LanguageMap};
+
+fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/encode")
+        .join(name)
+}
+
+fn omcl(args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(args)
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), text)
+}
+
+#[test]
+fn ground_and_query_with_a_text_encoder() {
+    let rt = Runtime::init(None).unwrap_or_else(|e| panic!("{e}"));
+    let mut enc = TextEncoder::load(rt, &data("tiny_text.onnx"), 1).unwrap();
+    let f = enc.encode(&["a red chair", "an old table"]).unwrap();
+    // A map whose rows are the two phrases' features and a third direction.
+    let mut rows: Vec<f32> = f.concat();
+    let mut other = vec![0.0f32; 4];
+    // Orthogonal-ish third row: the component of e0 not explained by the two.
+    other[0] = 1.0;
+    rows.extend(other);
+    let db = FeatureDb::from_rows(4, 0.0, rows).unwrap();
+    let grid = GridSpec {
+        resolution: 1.0,
+        origin: Vector3::zeros(),
+    };
+    let leaves = (0..30).map(|i| ([i, 0, 0], (i % 3) as u32));
+    let m = LanguageMap::from_cells(grid, db, "tiny_text", leaves).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("m.omcl");
+    map::save(&m, &p).unwrap();
+    let model = data("tiny_text.onnx");
+    let g = dir.path().join("g.omcl");
+    let (ok, text) = omcl(&[
+        "map",
+        "ground",
+        p.to_str().unwrap(),
+        "a red chair",
+        "--text-model",
+        model.to_str().unwrap(),
+        "--min-similarity",
+        "0.999",
+        "-o",
+        g.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let grounded = map::load(&g).unwrap();
+    // Exactly the voxels of row 0 ("a red chair") are kept (plus any row
+    // that happens to be as similar, which the check below would reveal).
+    let sim = m.similarity(&f[0]).unwrap();
+    assert_eq!(grounded.len(), sim.iter().filter(|&&s| s >= 0.999).count());
+    assert!(grounded.len() >= 10);
+
+    let heat = dir.path().join("h.ply");
+    let (ok, text) = omcl(&[
+        "map",
+        "query",
+        p.to_str().unwrap(),
+        "an old table",
+        "--text-model",
+        model.to_str().unwrap(),
+        "-o",
+        heat.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let cloud = omcl::io::ply::read_ply(&heat).unwrap();
+    let cols = cloud.colors.unwrap();
+    for (i, c) in cols.iter().enumerate() {
+        if i % 3 == 1 {
+            assert!(
+                c[0] > 200 && c[2] < 60,
+                "voxel {i} of row 1 should be hottest: {c:?}"
+            );
+        }
+    }
+    // Without any word source: a clear error.
+    let (ok, text) = omcl(&[
+        "map",
+        "query",
+        p.to_str().unwrap(),
+        "x",
+        "-o",
+        heat.to_str().unwrap(),
+    ]);
+    assert!(!ok && text.contains("--text-model"), "{text}");
+}
+
+fn write_png(
+    path: &Path,
+    w: u32,
+    h: u32,
+    color: png::ColorType,
+    depth: png::BitDepth,
+    data: &[u8],
+) {
+    let f = std::fs::File::create(path).unwrap();
+    let mut e = png::Encoder::new(std::io::BufWriter::new(f), w, h);
+    e.set_color(color);
+    e.set_depth(depth);
+    e.write_header().unwrap().write_image_data(data).unwrap();
+}
+
+#[test]
+fn rgbd_mapping_with_an_image_encoder() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (w, h) = (16u32, 16u32);
+    std::fs::create_dir_all(d.join("rgb")).unwrap();
+    std::fs::create_dir_all(d.join("depth")).unwrap();
+    std::fs::write(d.join("intrinsics.txt"), "16 16 8 8 16 16\n").unwrap();
+    std::fs::write(d.join("poses.txt"), "0 0 0 0 0 0 0 1\n").unwrap();
+    // A wall 2 m in front (z-depth 2 m = 10000 units of 1/5000 m).
+    let depth: Vec<u8> = (0..w * h).flat_map(|_| 10000u16.to_be_bytes()).collect();
+    write_png(
+        &d.join("depth/000000.png"),
+        w,
+        h,
+        png::ColorType::Grayscale,
+        png::BitDepth::Sixteen,
+        &depth,
+    );
+    let rgb: Vec<u8> = (0..w * h)
+        .flat_map(|i| [(i * 7 % 256) as u8, (i * 13 % 256) as u8, 90])
+        .collect();
+    write_png(
+        &d.join("rgb/000000.png"),
+        w,
+        h,
+        png::ColorType::Rgb,
+        png::BitDepth::Eight,
+        &rgb,
+    );
+    let out = d.join("m.omcl");
+    let model = data("tiny_image.onnx");
+    let cache = d.join("cache");
+    let (ok, text) = omcl(&[
+        "map",
+        "rgbd",
+        d.to_str().unwrap(),
+        "--image-model",
+        model.to_str().unwrap(),
+        "--feature-cache",
+        cache.to_str().unwrap(),
+        "--stride",
+        "1",
+        "--resolution",
+        "0.1",
+        "--tau",
+        "0.0005",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let m = map::load(&out).unwrap();
+    assert_eq!(m.encoder(), "tiny_image");
+    assert_eq!(m.db().dim(), 4);
+    assert!(!m.is_empty());
+    // Every voxel sits on the wall plane z = 2 m (cell 19 or 20 at 0.1 m).
+    assert!(
+        m.cells().iter().all(|c| c[2] == 19 || c[2] == 20),
+        "{:?}",
+        m.cells()
+    );
+    assert!(cache.join("000000.npy").exists(), "features were cached");
+    // Every map row is a mean of encoded pixel features: close to some pixel.
+    let rt = Runtime::init(None).unwrap();
+    let mut enc = ImageEncoder::load(rt, &model, 1).unwrap();
+    let img = omcl::io::rgb::read_rgb(&d.join("rgb/000000.png")).unwrap();
+    let fm = enc.encode(&img).unwrap();
+    for r in 0..m.db().len() {
+        let row = m.db().row(r);
+        let best = (0..h)
+            .flat_map(|v| (0..w).map(move |u| (u, v)))
+            .filter_map(|(u, v)| fm.at_pixel(u, v))
+            .map(|f| omcl::map::features::dot(row, f) / omcl::map::features::dot(f, f).sqrt())
+            .fold(f32::MIN, f32::max);
+        assert!(
+            best > 0.9,
+            "row {r} is far from every pixel feature: {best}"
+        );
+    }
+}
