@@ -210,6 +210,51 @@ fn aerial_las_converts_and_grounds_queries_and_exports() {
 }
 
 #[test]
+fn las_noise_classes_are_dropped_unless_asked_to_keep() {
+    // 32-1-472-150-76.laz holds classes 1, 2, 7 (noise) and 9.
+    let Some(las) = shared("las/32-1-472-150-76.laz") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (classes, emb) = one_hot_table(
+        dir.path(),
+        &[
+            (1, "unclassified"),
+            (2, "ground"),
+            (7, "noise"),
+            (9, "water"),
+        ],
+    );
+    let run = |extra: &[&str]| {
+        let out = dir.path().join("n.omcl");
+        let mut args = vec![
+            "map",
+            "cloud",
+            las.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--resolution",
+            "0.5",
+            "--classes",
+            classes.to_str().unwrap(),
+            "--embeddings",
+            emb.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let (ok, text) = omcl(&args);
+        assert!(ok, "{text}");
+        let m = map::load(&out).unwrap();
+        m.similarity(&[0.0, 0.0, 1.0, 0.0])
+            .unwrap()
+            .iter()
+            .filter(|&&s| s > 0.5)
+            .count()
+    };
+    assert_eq!(run(&[]), 0, "noise voxels must be dropped by default");
+    assert!(run(&["--keep-all"]) > 0, "--keep-all keeps the noise class");
+}
+
+#[test]
 fn bad_input_fails_clearly_and_writes_nothing() {
     let Some(las) = shared("las/simple.las") else {
         return;

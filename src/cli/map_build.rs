@@ -123,7 +123,8 @@ pub struct CloudArgs {
     /// Sequence folders: per-scan feature files NNNNNN.npy in this folder.
     #[arg(long)]
     pub features_dir: Option<PathBuf>,
-    /// Sequence folders: keep unlabeled, outlier and moving points.
+    /// Keep points the authors drop: SemanticKITTI unlabeled, outlier and
+    /// moving classes; LAS noise classes 7 and 18.
     #[arg(long)]
     pub keep_all: bool,
     /// Sequence folders: ignore points farther than this from the sensor (m).
@@ -160,6 +161,16 @@ fn load_cloud(a: &CloudArgs) -> anyhow::Result<PointCloud> {
     let mut c = read_point_cloud(&a.input, format)?;
     if let Some(f) = &a.features {
         c.attach_features_npy(f)?;
+    }
+    let is_las = matches!(
+        format.or_else(|| CloudFormat::from_path(&a.input)),
+        Some(CloudFormat::Las)
+    );
+    if is_las && !a.keep_all {
+        // ASPRS classes 7 (low point, noise) and 18 (high noise) are outliers.
+        if let Some(labels) = c.labels.clone() {
+            c.retain_indices(|i| !matches!(labels[i], 7 | 18));
+        }
     }
     c.validate(&a.input.display().to_string())?;
     Ok(c)
