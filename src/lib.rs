@@ -2,3 +2,4 @@
 pub mod geometry;
 pub mod io;
 pub mod raycast;
+pub mod sim;

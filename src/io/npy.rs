@@ -61,7 +61,9 @@ pub fn read_npy(path: &Path) -> Result<NpyArray, NpyError> {
     let file = File::open(path).map_err(io_err)?;
     let npy = NpyFile::new(BufReader::new(file)).map_err(|e| fmt(e.to_string()))?;
     if npy.order() != npyz::Order::C {
-        return Err(unsupported("Fortran order; save with np.ascontiguousarray".into()));
+        return Err(unsupported(
+            "Fortran order; save with np.ascontiguousarray".into(),
+        ));
     }
     let shape: Vec<usize> = npy.shape().iter().map(|&d| d as usize).collect();
     let expected: usize = shape.iter().product();
@@ -106,10 +108,16 @@ pub fn write_npy(path: &Path, shape: &[usize], data: &[f32]) -> Result<(), NpyEr
     if expected != data.len() {
         return Err(NpyError::Unsupported {
             path: path.to_path_buf(),
-            reason: format!("shape {shape:?} needs {expected} values, got {}", data.len()),
+            reason: format!(
+                "shape {shape:?} needs {expected} values, got {}",
+                data.len()
+            ),
         });
     }
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     let tmp = tempfile::NamedTempFile::new_in(dir).map_err(io_err)?;
     {
         let mut buf = BufWriter::new(tmp.as_file());
