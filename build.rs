@@ -17,11 +17,20 @@ fn main() {
     if let Ok(dir) = env::var("EMBREE_DIR") {
         let dir = PathBuf::from(dir);
         include_dirs.push(dir.join("include"));
-        println!("cargo:rustc-link-search=native={}", dir.join("lib").display());
+        println!(
+            "cargo:rustc-link-search=native={}",
+            dir.join("lib").display()
+        );
     }
     let header_found = include_dirs
         .iter()
-        .chain([PathBuf::from("/usr/include"), PathBuf::from("/usr/local/include")].iter())
+        .chain(
+            [
+                PathBuf::from("/usr/include"),
+                PathBuf::from("/usr/local/include"),
+            ]
+            .iter(),
+        )
         .any(|d| d.join("embree3/rtcore.h").exists());
     if !header_found {
         panic!(
@@ -31,7 +40,9 @@ fn main() {
     }
 
     let mut c = cc::Build::new();
-    c.file("ffi/omcl_embree.c").opt_level(3).flag_if_supported("-std=c11");
+    c.file("ffi/omcl_embree.c")
+        .opt_level(3)
+        .flag_if_supported("-std=c11");
     for d in &include_dirs {
         c.include(d);
     }
@@ -46,7 +57,9 @@ fn main() {
         .allowlist_type("Omcl.*")
         .allowlist_var("RTC_.*")
         .allowlist_var("OMCL_.*")
-        .default_enum_style(bindgen::EnumVariation::Rust { non_exhaustive: false })
+        .default_enum_style(bindgen::EnumVariation::Rust {
+            non_exhaustive: false,
+        })
         .layout_tests(false)
         .parse_callbacks(Box::new(bindgen::CargoCallbacks::new()));
     for d in &include_dirs {

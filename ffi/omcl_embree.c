@@ -93,6 +93,18 @@ static void box_occluded(const struct RTCOccludedFunctionNArguments *args) {
   }
 }
 
+/* Mirrors Ray::is_valid on the Rust side: Embree asserts on rays with
+ * coordinates beyond 1.8e18 or NaN bounds, so such rays are masked out. */
+static inline int ray_ok(const OmclRay *r) {
+  const float large = 1e18f;
+  int nonzero = 0;
+  for (int a = 0; a < 3; ++a) {
+    if (!(fabsf(r->org[a]) <= large) || !(fabsf(r->dir[a]) <= large)) return 0;
+    nonzero |= r->dir[a] != 0.0f;
+  }
+  return nonzero && !isnan(r->tnear) && !isnan(r->tfar);
+}
+
 void omcl_set_box_callbacks(RTCGeometry geom, const OmclBoxes *boxes) {
   rtcSetGeometryUserPrimitiveCount(geom, boxes->count);
   rtcSetGeometryUserData(geom, (void *)boxes);
@@ -137,10 +149,12 @@ void omcl_set_ftz_daz(void) {
     for (size_t s = 0; s < n; s += W) {                                        \
       size_t m = n - s < W ? n - s : W;                                        \
       TYPE p;                                                                  \
+      const OmclRay safe_ray = {{0, 0, 0}, {1, 0, 0}, 0.0f, 0.0f};             \
       int valid[W];                                                            \
       for (size_t i = 0; i < W; ++i) {                                         \
         const OmclRay *r = &rays[s + (i < m ? i : 0)];                         \
-        valid[i] = i < m ? -1 : 0;                                             \
+        valid[i] = (i < m && ray_ok(r)) ? -1 : 0;                              \
+        if (!valid[i]) r = &safe_ray;                                          \
         p.ray.org_x[i] = r->org[0]; p.ray.org_y[i] = r->org[1];                \
         p.ray.org_z[i] = r->org[2]; p.ray.dir_x[i] = r->dir[0];                \
         p.ray.dir_y[i] = r->dir[1]; p.ray.dir_z[i] = r->dir[2];                \
@@ -172,6 +186,11 @@ static void trace_1(RTCScene scene, struct RTCIntersectContext *ctx,
                     const OmclRay *rays, OmclHit *hits, size_t n) {
   for (size_t s = 0; s < n; ++s) {
     const OmclRay *r = &rays[s];
+    OmclHit *h = &hits[s];
+    if (!ray_ok(r)) {
+      h->prim = OMCL_NO_HIT; h->geom = OMCL_NO_HIT; h->t = INFINITY;
+      continue;
+    }
     struct RTCRayHit p;
     p.ray.org_x = r->org[0]; p.ray.org_y = r->org[1]; p.ray.org_z = r->org[2];
     p.ray.dir_x = r->dir[0]; p.ray.dir_y = r->dir[1]; p.ray.dir_z = r->dir[2];
@@ -181,7 +200,6 @@ static void trace_1(RTCScene scene, struct RTCIntersectContext *ctx,
     p.hit.primID = RTC_INVALID_GEOMETRY_ID;
     p.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(scene, ctx, &p);
-    OmclHit *h = &hits[s];
     if (p.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
       h->prim = OMCL_NO_HIT; h->geom = OMCL_NO_HIT; h->t = INFINITY;
     } else {

@@ -36,6 +36,19 @@ impl Ray {
         }
     }
 
+    /// Whether the ray can hit anything: finite origin and direction within
+    /// `1e18` (Embree's limit), a non-zero direction, and bounds that are not
+    /// NaN. Casters return a miss for any other ray.
+    pub fn is_valid(&self) -> bool {
+        const LARGE: f32 = 1e18;
+        let ok = |v: &f32| v.is_finite() && v.abs() <= LARGE;
+        self.origin.iter().all(ok)
+            && self.dir.iter().all(ok)
+            && self.dir.iter().any(|&v| v != 0.0)
+            && !self.t_min.is_nan()
+            && !self.t_max.is_nan()
+    }
+
     /// The point at distance `t`.
     pub fn at(&self, t: f32) -> [f32; 3] {
         [

@@ -1,0 +1,273 @@
+//! The feature database (`Features_DB` in the paper): K unit-norm rows of
+//! dimension F that are mutually more than a cosine distance `tau` apart.
+//!
+//! A feature is *admitted* (appended) only if its cosine distance
+//! `d(a, b) = 1 - a.b / (|a||b|)` to every row exceeds `tau` (paper, eq. 1);
+//! otherwise it is represented by its most similar row. An optional cap on
+//! the number of rows bounds memory and per-feature cost when features are
+//! noisy; past the cap every feature maps to its nearest row.
+
+/// Errors building a database.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum FeatureDbError {
+    #[error("feature dimension must be at least 1")]
+    ZeroDim,
+    #[error("feature has dimension {got}, database has {expected}")]
+    DimMismatch { expected: usize, got: usize },
+    #[error("feature {index} is zero or not finite: it has no direction")]
+    Degenerate { index: usize },
+    #[error("tau must be a cosine distance in [0, 2], got {0}")]
+    BadTau(f32),
+}
+
+/// Normalizes `v` in place; `false` when it has no direction (zero or not
+/// finite), in which case `v` is left unchanged.
+pub fn normalize(v: &mut [f32]) -> bool {
+    let n = v.iter().map(|x| x * x).sum::<f32>().sqrt();
+    if !(n.is_finite() && n > 0.0) {
+        return false;
+    }
+    v.iter_mut().for_each(|x| *x /= n);
+    true
+}
+
+/// Dot product of two equally long slices.
+#[inline]
+pub fn dot(a: &[f32], b: &[f32]) -> f32 {
+    // Four accumulators let the compiler vectorize without reassociation.
+    let mut acc = [0.0f32; 8];
+    let (ca, ra) = a.as_chunks::<8>();
+    let (cb, rb) = b.as_chunks::<8>();
+    for (x, y) in ca.iter().zip(cb) {
+        for l in 0..8 {
+            acc[l] += x[l] * y[l];
+        }
+    }
+    let tail: f32 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+    acc.iter().sum::<f32>() + tail
+}
+
+/// The feature database.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FeatureDb {
+    dim: usize,
+    tau: f32,
+    max_rows: Option<usize>,
+    rows: Vec<f32>,
+}
+
+impl FeatureDb {
+    /// An empty database of `dim`-dimensional features with admission
+    /// threshold `tau` (a cosine distance; the paper uses 0.02).
+    pub fn new(dim: usize, tau: f32) -> Result<Self, FeatureDbError> {
+        if dim == 0 {
+            return Err(FeatureDbError::ZeroDim);
+        }
+        if !(0.0..=2.0).contains(&tau) {
+            return Err(FeatureDbError::BadTau(tau));
+        }
+        Ok(FeatureDb {
+            dim,
+            tau,
+            max_rows: None,
+            rows: Vec::new(),
+        })
+    }
+
+    /// Caps the number of rows; past it features map to their nearest row.
+    pub fn with_max_rows(mut self, max_rows: usize) -> Self {
+        self.max_rows = Some(max_rows.max(1));
+        self
+    }
+
+    /// A database holding exactly `rows` (row-major, `dim` columns), each
+    /// normalized, without the admission test: used for prompt features and
+    /// for databases read from files.
+    pub fn from_rows(dim: usize, tau: f32, mut rows: Vec<f32>) -> Result<Self, FeatureDbError> {
+        let mut db = FeatureDb::new(dim, tau)?;
+        if !rows.len().is_multiple_of(dim) {
+            return Err(FeatureDbError::DimMismatch {
+                expected: dim,
+                got: rows.len() % dim,
+            });
+        }
+        for (index, r) in rows.chunks_exact_mut(dim).enumerate() {
+            if !normalize(r) {
+                return Err(FeatureDbError::Degenerate { index });
+            }
+        }
+        db.rows = rows;
+        Ok(db)
+    }
+
+    /// Feature dimension F.
+    pub fn dim(&self) -> usize {
+        self.dim
+    }
+
+    /// Admission threshold (cosine distance).
+    pub fn tau(&self) -> f32 {
+        self.tau
+    }
+
+    /// Number of rows K.
+    pub fn len(&self) -> usize {
+        self.rows.len() / self.dim
+    }
+
+    /// Whether the database has no rows.
+    pub fn is_empty(&self) -> bool {
+        self.rows.is_empty()
+    }
+
+    /// Row `i` (unit norm).
+    pub fn row(&self, i: usize) -> &[f32] {
+        &self.rows[i * self.dim..(i + 1) * self.dim]
+    }
+
+    /// All rows, row-major.
+    pub fn rows(&self) -> &[f32] {
+        &self.rows
+    }
+
+    fn check(&self, f: &[f32]) -> Result<(), FeatureDbError> {
+        if f.len() != self.dim {
+            return Err(FeatureDbError::DimMismatch {
+                expected: self.dim,
+                got: f.len(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The most similar row to `f` (any norm) and its cosine similarity;
+    /// `None` for an empty database or a feature without direction.
+    pub fn nearest(&self, f: &[f32]) -> Result<Option<(usize, f32)>, FeatureDbError> {
+        self.check(f)?;
+        let n = dot(f, f).sqrt();
+        if !(n.is_finite() && n > 0.0) || self.is_empty() {
+            return Ok(None);
+        }
+        Ok(self.nearest_unit(f, n))
+    }
+
+    fn nearest_unit(&self, f: &[f32], norm: f32) -> Option<(usize, f32)> {
+        let mut best = None::<(usize, f32)>;
+        for (i, r) in self.rows.chunks_exact(self.dim).enumerate() {
+            let s = dot(f, r) / norm;
+            if best.is_none_or(|(_, b)| s > b) {
+                best = Some((i, s));
+            }
+        }
+        best
+    }
+
+    /// Cosine similarity of `f` to every row.
+    pub fn similarities(&self, f: &[f32]) -> Result<Vec<f32>, FeatureDbError> {
+        self.check(f)?;
+        let n = dot(f, f).sqrt();
+        let n = if n > 0.0 && n.is_finite() { n } else { 1.0 };
+        Ok(self
+            .rows
+            .chunks_exact(self.dim)
+            .map(|r| dot(f, r) / n)
+            .collect())
+    }
+
+    /// Admits `f` if it is farther than `tau` (cosine distance) from every
+    /// row and the cap allows, and returns the row that represents it: the
+    /// new row, or the nearest existing one.
+    pub fn admit(&mut self, f: &[f32]) -> Result<usize, FeatureDbError> {
+        self.check(f)?;
+        let n = dot(f, f).sqrt();
+        if !(n.is_finite() && n > 0.0) {
+            return Err(FeatureDbError::Degenerate { index: self.len() });
+        }
+        if let Some((i, s)) = self.nearest_unit(f, n) {
+            let full = self.max_rows.is_some_and(|m| self.len() >= m);
+            if 1.0 - s <= self.tau || full {
+                return Ok(i);
+            }
+        }
+        self.rows.extend(f.iter().map(|x| x / n));
+        Ok(self.len() - 1)
+    }
+
+    /// Bytes held by the rows.
+    pub fn memory_bytes(&self) -> usize {
+        self.rows.len() * std::mem::size_of::<f32>()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit(angle_deg: f32) -> Vec<f32> {
+        let a = angle_deg.to_radians();
+        vec![a.cos(), a.sin(), 0.0]
+    }
+
+    #[test]
+    fn admission_obeys_tau() {
+        // tau = 0.02 is a cosine distance: angle acos(0.98) = 11.48 degrees.
+        let mut db = FeatureDb::new(3, 0.02).unwrap();
+        assert_eq!(db.admit(&unit(0.0)).unwrap(), 0);
+        // 10 degrees: distance 1 - cos(10) = 0.0152 <= tau: not admitted.
+        assert_eq!(db.admit(&unit(10.0)).unwrap(), 0);
+        assert_eq!(db.len(), 1);
+        // 13 degrees: distance 0.0256 > tau: a new row.
+        assert_eq!(db.admit(&unit(13.0)).unwrap(), 1);
+        // 20 degrees is nearer row 1 (7 degrees away) than row 0.
+        assert_eq!(db.admit(&unit(20.0)).unwrap(), 1);
+        assert_eq!(db.len(), 2);
+        // Every pair of rows is farther apart than tau.
+        assert!(1.0 - dot(db.row(0), db.row(1)) > 0.02);
+    }
+
+    #[test]
+    fn rows_are_unit_norm_whatever_the_input_scale() {
+        let mut db = FeatureDb::new(3, 0.1).unwrap();
+        db.admit(&[0.0, 5.0, 0.0]).unwrap();
+        assert_eq!(db.row(0), &[0.0, 1.0, 0.0]);
+        let (i, s) = db.nearest(&[0.0, 0.1, 0.0]).unwrap().unwrap();
+        assert_eq!(i, 0);
+        assert!((s - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn cap_maps_to_nearest() {
+        let mut db = FeatureDb::new(3, 0.0).unwrap().with_max_rows(2);
+        db.admit(&[1.0, 0.0, 0.0]).unwrap();
+        db.admit(&[0.0, 1.0, 0.0]).unwrap();
+        assert_eq!(db.admit(&[0.1, 0.9, 0.3]).unwrap(), 1);
+        assert_eq!(db.len(), 2);
+    }
+
+    #[test]
+    fn bad_input_is_rejected() {
+        let mut db = FeatureDb::new(3, 0.02).unwrap();
+        assert!(matches!(
+            db.admit(&[1.0, 0.0]),
+            Err(FeatureDbError::DimMismatch {
+                expected: 3,
+                got: 2
+            })
+        ));
+        assert!(matches!(
+            db.admit(&[0.0, 0.0, 0.0]),
+            Err(FeatureDbError::Degenerate { .. })
+        ));
+        assert!(db.admit(&[f32::NAN, 1.0, 0.0]).is_err());
+        assert!(FeatureDb::new(0, 0.1).is_err());
+        assert!(FeatureDb::new(3, -0.1).is_err());
+        assert!(FeatureDb::from_rows(2, 0.1, vec![1.0, 0.0, 0.0, 0.0]).is_err());
+    }
+
+    #[test]
+    fn dot_handles_tails() {
+        let a: Vec<f32> = (0..19).map(|i| i as f32).collect();
+        let expected: f32 = a.iter().map(|x| x * x).sum();
+        assert_eq!(dot(&a, &a), expected);
+    }
+}

@@ -1,0 +1,451 @@
+//! The map file: one self-describing, versioned safetensors file.
+//!
+//! Tensors: `codes` (U64, L leaves' Morton codes, strictly increasing),
+//! `rows` (U32, L feature rows) and `features` (F32, K x F unit rows).
+//! Header metadata (strings): `format` = `omcl-language-map`, `version`,
+//! `resolution` (m), `origin_x`/`origin_y`/`origin_z` (m, world frame),
+//! `feature_dim`, `tau`, `encoder`, `leaves`, `rows`, and `crc32`: the
+//! CRC-32 (IEEE) of the three tensors' bytes in that order, so corruption
+//! of the data is caught as well as corruption of the header.
+//!
+//! Python reads it with `safetensors.numpy.load_file(path)` and the header
+//! with `safetensors.safe_open(path, "np").metadata()`.
+//!
+//! Writes go to a temporary file in the target's folder that is renamed into
+//! place, so a failed write never leaves a damaged map.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use nalgebra::Vector3;
+use safetensors::tensor::{Dtype, SafeTensors, TensorView};
+
+use super::features::FeatureDb;
+use super::key::GridSpec;
+use super::octree::{LanguageMap, MapError};
+
+/// Value of the `format` field.
+pub const FORMAT: &str = "omcl-language-map";
+/// Version this build writes and reads.
+pub const VERSION: u32 = 1;
+
+/// Errors reading or writing a map file; each names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum MapFileError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: not an omcl map: not a safetensors file ({reason})")]
+    NotSafetensors { path: PathBuf, reason: String },
+    #[error("{path}: not an omcl map: header field `format` is {found:?}, expected \"{FORMAT}\"")]
+    Foreign {
+        path: PathBuf,
+        found: Option<String>,
+    },
+    #[error(
+        "{path}: map format version {found} is not supported (this build reads version {VERSION})"
+    )]
+    Version { path: PathBuf, found: String },
+    #[error("{path}: header field `{field}` is missing")]
+    MissingField { path: PathBuf, field: &'static str },
+    #[error("{path}: header field `{field}` = {value:?} is not valid: {expected}")]
+    BadField {
+        path: PathBuf,
+        field: &'static str,
+        value: String,
+        expected: &'static str,
+    },
+    #[error("{path}: tensor `{name}`: {reason}")]
+    Tensor {
+        path: PathBuf,
+        name: &'static str,
+        reason: String,
+    },
+    #[error(
+        "{path}: checksum mismatch (header says {stored:08x}, data gives {computed:08x}): the file is corrupt"
+    )]
+    Checksum {
+        path: PathBuf,
+        stored: u32,
+        computed: u32,
+    },
+    #[error("{path}: inconsistent map: {source}")]
+    Invalid { path: PathBuf, source: MapError },
+}
+
+fn le_bytes_u64(v: &[u64]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+fn le_bytes_u32(v: &[u32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+fn le_bytes_f32(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// Serializes a map into the bytes of a map file.
+pub fn to_bytes(map: &LanguageMap) -> Vec<u8> {
+    let codes = le_bytes_u64(map.codes());
+    let rows = le_bytes_u32(map.rows());
+    let features = le_bytes_f32(map.db().rows());
+    let mut crc = crc32fast::Hasher::new();
+    crc.update(&codes);
+    crc.update(&rows);
+    crc.update(&features);
+    let g = map.grid();
+    let meta: HashMap<String, String> = [
+        ("format", FORMAT.to_string()),
+        ("version", VERSION.to_string()),
+        ("resolution", format!("{:?}", g.resolution)),
+        ("origin_x", format!("{:?}", g.origin.x)),
+        ("origin_y", format!("{:?}", g.origin.y)),
+        ("origin_z", format!("{:?}", g.origin.z)),
+        ("feature_dim", map.db().dim().to_string()),
+        ("tau", format!("{:?}", map.db().tau())),
+        ("encoder", map.encoder().to_string()),
+        ("leaves", map.len().to_string()),
+        ("rows", map.db().len().to_string()),
+        ("crc32", format!("{:08x}", crc.finalize())),
+        ("writer", format!("omcl {}", env!("CARGO_PKG_VERSION"))),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v))
+    .collect();
+    let l = map.len();
+    let views = [
+        ("codes", TensorView::new(Dtype::U64, vec![l], &codes)),
+        ("rows", TensorView::new(Dtype::U32, vec![l], &rows)),
+        (
+            "features",
+            TensorView::new(Dtype::F32, vec![map.db().len(), map.db().dim()], &features),
+        ),
+    ];
+    let views = views.into_iter().map(|(n, v)| {
+        (
+            n,
+            v.expect("tensor sizes follow from the map's own lengths"),
+        )
+    });
+    safetensors::serialize(views, Some(meta)).expect("a map always has a valid safetensors layout")
+}
+
+/// Writes `map` to `path` atomically.
+pub fn save(map: &LanguageMap, path: &Path) -> Result<(), MapFileError> {
+    let io = |source| MapFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let bytes = to_bytes(map);
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".omcl-map-")
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .map_err(io)?;
+    std::io::Write::write_all(&mut tmp, &bytes).map_err(io)?;
+    tmp.as_file().sync_all().map_err(io)?;
+    tmp.persist(path).map_err(|e| io(e.error))?;
+    Ok(())
+}
+
+/// Reads a map file.
+pub fn load(path: &Path) -> Result<LanguageMap, MapFileError> {
+    let bytes = std::fs::read(path).map_err(|source| MapFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    from_bytes(&bytes, path)
+}
+
+/// The header fields of a map file, without reading its tensors.
+pub fn read_header(path: &Path) -> Result<HashMap<String, String>, MapFileError> {
+    let bytes = std::fs::read(path).map_err(|source| MapFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let (_, meta) =
+        SafeTensors::read_metadata(&bytes).map_err(|e| MapFileError::NotSafetensors {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+    Ok(meta.metadata().clone().unwrap_or_default())
+}
+
+/// Parses the bytes of a map file; `path` names it in errors.
+pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<LanguageMap, MapFileError> {
+    let p = || path.to_path_buf();
+    let st = SafeTensors::deserialize(bytes).map_err(|e| MapFileError::NotSafetensors {
+        path: p(),
+        reason: e.to_string(),
+    })?;
+    let (_, header) =
+        SafeTensors::read_metadata(bytes).map_err(|e| MapFileError::NotSafetensors {
+            path: p(),
+            reason: e.to_string(),
+        })?;
+    let meta = header.metadata().clone().unwrap_or_default();
+    let format = meta.get("format");
+    if format.map(String::as_str) != Some(FORMAT) {
+        return Err(MapFileError::Foreign {
+            path: p(),
+            found: format.cloned(),
+        });
+    }
+    let field = |name: &'static str| -> Result<&String, MapFileError> {
+        meta.get(name).ok_or(MapFileError::MissingField {
+            path: p(),
+            field: name,
+        })
+    };
+    let version = field("version")?;
+    if version.parse::<u32>() != Ok(VERSION) {
+        return Err(MapFileError::Version {
+            path: p(),
+            found: version.clone(),
+        });
+    }
+    fn parse<T: std::str::FromStr>(
+        path: &Path,
+        name: &'static str,
+        v: &str,
+        expected: &'static str,
+        ok: impl Fn(&T) -> bool,
+    ) -> Result<T, MapFileError> {
+        v.parse::<T>()
+            .ok()
+            .filter(|x| ok(x))
+            .ok_or(MapFileError::BadField {
+                path: path.to_path_buf(),
+                field: name,
+                value: v.to_string(),
+                expected,
+            })
+    }
+    let finite = |x: &f64| x.is_finite();
+    let resolution: f64 = parse(
+        path,
+        "resolution",
+        field("resolution")?,
+        "a positive number",
+        |x: &f64| x.is_finite() && *x > 0.0,
+    )?;
+    let ox: f64 = parse(
+        path,
+        "origin_x",
+        field("origin_x")?,
+        "a finite number",
+        finite,
+    )?;
+    let oy: f64 = parse(
+        path,
+        "origin_y",
+        field("origin_y")?,
+        "a finite number",
+        finite,
+    )?;
+    let oz: f64 = parse(
+        path,
+        "origin_z",
+        field("origin_z")?,
+        "a finite number",
+        finite,
+    )?;
+    let dim: usize = parse(
+        path,
+        "feature_dim",
+        field("feature_dim")?,
+        "a positive integer",
+        |d| *d > 0,
+    )?;
+    let tau: f32 = parse(
+        path,
+        "tau",
+        field("tau")?,
+        "a cosine distance in [0, 2]",
+        |t: &f32| (0.0..=2.0).contains(t),
+    )?;
+    let leaves: usize = parse(path, "leaves", field("leaves")?, "an integer", |_| true)?;
+    let nrows: usize = parse(path, "rows", field("rows")?, "an integer", |_| true)?;
+    let stored: u32 =
+        u32::from_str_radix(field("crc32")?, 16).map_err(|_| MapFileError::BadField {
+            path: p(),
+            field: "crc32",
+            value: meta["crc32"].clone(),
+            expected: "8 hex digits",
+        })?;
+    let encoder = field("encoder")?.clone();
+
+    let tensor = |name: &'static str, dtype: Dtype, shape: Vec<usize>| {
+        let t = st.tensor(name).map_err(|e| MapFileError::Tensor {
+            path: p(),
+            name,
+            reason: e.to_string(),
+        })?;
+        if t.dtype() != dtype || t.shape() != shape.as_slice() {
+            return Err(MapFileError::Tensor {
+                path: p(),
+                name,
+                reason: format!(
+                    "is {:?} {:?}, header promises {:?} {:?}",
+                    t.dtype(),
+                    t.shape(),
+                    dtype,
+                    shape
+                ),
+            });
+        }
+        Ok(t.data())
+    };
+    let codes_b = tensor("codes", Dtype::U64, vec![leaves])?;
+    let rows_b = tensor("rows", Dtype::U32, vec![leaves])?;
+    let feat_b = tensor("features", Dtype::F32, vec![nrows, dim])?;
+    let mut crc = crc32fast::Hasher::new();
+    crc.update(codes_b);
+    crc.update(rows_b);
+    crc.update(feat_b);
+    let computed = crc.finalize();
+    if computed != stored {
+        return Err(MapFileError::Checksum {
+            path: p(),
+            stored,
+            computed,
+        });
+    }
+    let codes: Vec<u64> = codes_b
+        .chunks_exact(8)
+        .map(|c| u64::from_le_bytes(c.try_into().expect("chunks of 8")))
+        .collect();
+    let rows: Vec<u32> = rows_b
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes(c.try_into().expect("chunks of 4")))
+        .collect();
+    let feats: Vec<f32> = feat_b
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes(c.try_into().expect("chunks of 4")))
+        .collect();
+    let invalid = |source: MapError| MapFileError::Invalid { path: p(), source };
+    let db = FeatureDb::from_rows(dim, tau, feats).map_err(|e| invalid(e.into()))?;
+    let grid = GridSpec {
+        resolution,
+        origin: Vector3::new(ox, oy, oz),
+    };
+    LanguageMap::from_sorted(grid, db, encoder, codes, rows).map_err(invalid)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> LanguageMap {
+        let db = FeatureDb::from_rows(3, 0.05, vec![1.0, 0.0, 0.0, 0.0, 0.6, 0.8]).unwrap();
+        let grid = GridSpec {
+            resolution: 0.05,
+            origin: Vector3::new(-12.345678901234, 0.1, 1e6 + 0.3),
+        };
+        LanguageMap::from_cells(
+            grid,
+            db,
+            "clip-vit-b32",
+            vec![([0, 0, 0], 0), ([-3, 7, 2], 1), ([100, -100, 5], 1)],
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn round_trip_is_exact() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.omcl");
+        let m = sample();
+        save(&m, &path).unwrap();
+        let back = load(&path).unwrap();
+        assert_eq!(back, m);
+        let h = read_header(&path).unwrap();
+        assert_eq!(h["encoder"], "clip-vit-b32");
+        assert_eq!(h["leaves"], "3");
+        // No temporary file is left behind.
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn empty_map_round_trips() {
+        let db = FeatureDb::new(4, 0.02).unwrap();
+        let grid = GridSpec {
+            resolution: 1.0,
+            origin: Vector3::zeros(),
+        };
+        let m = LanguageMap::from_sorted(grid, db, "none", vec![], vec![]).unwrap();
+        let back = from_bytes(&to_bytes(&m), Path::new("e")).unwrap();
+        assert_eq!(back, m);
+    }
+
+    #[test]
+    fn every_flipped_data_byte_is_caught() {
+        let bytes = to_bytes(&sample());
+        let header_len = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+        for i in (8 + header_len)..bytes.len() {
+            let mut b = bytes.clone();
+            b[i] ^= 0x10;
+            let e = from_bytes(&b, Path::new("x.omcl")).unwrap_err();
+            assert!(matches!(e, MapFileError::Checksum { .. }), "byte {i}: {e}");
+            assert!(e.to_string().contains("x.omcl"));
+        }
+    }
+
+    #[test]
+    fn truncation_is_caught_at_every_length() {
+        let bytes = to_bytes(&sample());
+        for n in 0..bytes.len() {
+            assert!(
+                from_bytes(&bytes[..n], Path::new("t")).is_err(),
+                "length {n}"
+            );
+        }
+    }
+
+    #[test]
+    fn wrong_version_and_foreign_files_are_named() {
+        let bytes = to_bytes(&sample());
+        // Same-length edit of the version inside the JSON header.
+        let needle = b"\"version\":\"1\"";
+        let at = bytes
+            .windows(needle.len())
+            .position(|w| w == needle)
+            .expect("header holds the version");
+        let mut edited = bytes.clone();
+        edited[at + needle.len() - 2] = b'9';
+        let e = from_bytes(&edited, Path::new("v.omcl")).unwrap_err();
+        assert!(matches!(e, MapFileError::Version { .. }), "{e}");
+        assert!(e.to_string().contains("version 9"));
+
+        let other = safetensors::serialize(
+            [(
+                "x",
+                TensorView::new(Dtype::F32, vec![1], &[0u8; 4]).unwrap(),
+            )],
+            None,
+        )
+        .unwrap();
+        let e = from_bytes(&other, Path::new("model.safetensors")).unwrap_err();
+        assert!(matches!(e, MapFileError::Foreign { .. }), "{e}");
+
+        let e = from_bytes(b"ply\nformat ascii 1.0\n", Path::new("cloud.ply")).unwrap_err();
+        assert!(matches!(e, MapFileError::NotSafetensors { .. }), "{e}");
+        assert!(e.to_string().contains("cloud.ply"));
+    }
+
+    #[test]
+    fn a_failed_save_leaves_the_old_file_intact() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.omcl");
+        save(&sample(), &path).unwrap();
+        let before = std::fs::read(&path).unwrap();
+        // Saving into a missing folder fails without touching anything else.
+        assert!(save(&sample(), &dir.path().join("missing/m.omcl")).is_err());
+        assert_eq!(std::fs::read(&path).unwrap(), before);
+    }
+}

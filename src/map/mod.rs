@@ -1,0 +1,15 @@
+//! The Octree Language Map: voxel keys, the feature database, the sorted
+//! leaves, integration of observations, grounding, and the file format.
+pub mod features;
+pub mod file;
+pub mod ground;
+pub mod integrate;
+pub mod key;
+pub mod octree;
+
+pub use features::{FeatureDb, FeatureDbError};
+pub use file::{MapFileError, load, save};
+pub use ground::{GroundingReport, ground};
+pub use integrate::Integrator;
+pub use key::{Cell, GridSpec};
+pub use octree::{LanguageMap, MapError};

@@ -1,0 +1,305 @@
+//! The Embree backend: every voxel is one axis-aligned box of an Embree 3
+//! user geometry; rays are traced in packets by the C shim in `ffi/`.
+//!
+//! This is the only module with `unsafe` code. Invariants it keeps:
+//! - the device outlives the scene, and the box array the geometry's
+//!   callbacks read outlives the scene (released first in `Drop`);
+//! - the scene is committed once in `new` and never modified afterwards, so
+//!   concurrent `rtcIntersect*` calls from many threads are allowed (Embree
+//!   documents traversal of a committed scene as thread-safe);
+//! - every Embree call is followed by an error check; nothing panics across
+//!   the FFI boundary (the callbacks are C).
+
+use std::ffi::CStr;
+
+use rayon::prelude::*;
+
+use super::{CHUNK, Hit, RayCaster};
+use crate::geometry::Ray;
+use crate::map::Cell;
+
+mod sys {
+    #![allow(
+        non_upper_case_globals,
+        non_camel_case_types,
+        non_snake_case,
+        dead_code,
+        unsafe_op_in_unsafe_fn,
+        clippy::all
+    )]
+    include!(concat!(env!("OUT_DIR"), "/embree_bindings.rs"));
+}
+
+// `Ray` is passed to C as `OmclRay`: same fields, same order, both repr(C).
+const _: () = {
+    assert!(std::mem::size_of::<Ray>() == std::mem::size_of::<sys::OmclRay>());
+    assert!(std::mem::align_of::<Ray>() == std::mem::align_of::<sys::OmclRay>());
+    assert!(std::mem::offset_of!(Ray, dir) == std::mem::offset_of!(sys::OmclRay, dir));
+    assert!(std::mem::offset_of!(Ray, t_min) == std::mem::offset_of!(sys::OmclRay, tnear));
+    assert!(std::mem::offset_of!(Ray, t_max) == std::mem::offset_of!(sys::OmclRay, tfar));
+};
+
+/// An error reported by Embree.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum EmbreeError {
+    #[error("Embree {call} failed: {code} ({message})")]
+    Api {
+        call: &'static str,
+        code: String,
+        message: String,
+    },
+    #[error("{0} voxels exceed the 2^32 - 2 primitives of one Embree geometry")]
+    TooManyVoxels(usize),
+    #[error("resolution must be positive and finite, got {0}")]
+    BadResolution(f32),
+}
+
+/// How many consecutive rays form one packet.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Packet {
+    /// `rtcIntersect1`, one ray at a time.
+    Single,
+    /// `rtcIntersect4`.
+    Four,
+    /// `rtcIntersect8`.
+    Eight,
+    /// `rtcIntersect16` (the default; measured fastest here).
+    #[default]
+    Sixteen,
+}
+
+impl Packet {
+    fn width(self) -> u32 {
+        match self {
+            Packet::Single => 1,
+            Packet::Four => 4,
+            Packet::Eight => 8,
+            Packet::Sixteen => 16,
+        }
+    }
+}
+
+fn code_name(code: sys::RTCError) -> &'static str {
+    match code {
+        sys::RTCError::RTC_ERROR_NONE => "no error",
+        sys::RTCError::RTC_ERROR_UNKNOWN => "unknown error",
+        sys::RTCError::RTC_ERROR_INVALID_ARGUMENT => "invalid argument",
+        sys::RTCError::RTC_ERROR_INVALID_OPERATION => "invalid operation",
+        sys::RTCError::RTC_ERROR_OUT_OF_MEMORY => "out of memory",
+        sys::RTCError::RTC_ERROR_UNSUPPORTED_CPU => "unsupported CPU",
+        sys::RTCError::RTC_ERROR_CANCELLED => "cancelled",
+    }
+}
+
+/// Returns the error the device recorded on this thread since the last check.
+fn check(device: sys::RTCDevice, call: &'static str) -> Result<(), EmbreeError> {
+    let mut buf = [0 as std::os::raw::c_char; 256];
+    // SAFETY: `buf` is a writable buffer of the length we pass; the shim
+    // NUL-terminates within it. `rtcGetDeviceError` accepts any device
+    // handle returned by rtcNewDevice, and null for creation errors.
+    let (shim_code, dev_code) = unsafe {
+        (
+            sys::omcl_take_error(buf.as_mut_ptr(), buf.len()),
+            sys::rtcGetDeviceError(device),
+        )
+    };
+    let code = if dev_code != sys::RTCError::RTC_ERROR_NONE {
+        dev_code
+    } else if shim_code != 0 {
+        // The shim stores the enum's integer value; map it back.
+        match shim_code {
+            1 => sys::RTCError::RTC_ERROR_UNKNOWN,
+            2 => sys::RTCError::RTC_ERROR_INVALID_ARGUMENT,
+            3 => sys::RTCError::RTC_ERROR_INVALID_OPERATION,
+            4 => sys::RTCError::RTC_ERROR_OUT_OF_MEMORY,
+            5 => sys::RTCError::RTC_ERROR_UNSUPPORTED_CPU,
+            _ => sys::RTCError::RTC_ERROR_CANCELLED,
+        }
+    } else {
+        return Ok(());
+    };
+    // SAFETY: the buffer is NUL-terminated by the shim (zeroed otherwise).
+    let message = unsafe { CStr::from_ptr(buf.as_ptr()) }
+        .to_string_lossy()
+        .into_owned();
+    Err(EmbreeError::Api {
+        call,
+        code: code_name(code).to_string(),
+        message,
+    })
+}
+
+struct Device(sys::RTCDevice);
+
+impl Drop for Device {
+    fn drop(&mut self) {
+        // SAFETY: the handle came from rtcNewDevice and is released once.
+        unsafe { sys::rtcReleaseDevice(self.0) }
+    }
+}
+
+/// The Embree ray caster.
+pub struct EmbreeCaster {
+    scene: sys::RTCScene,
+    // Read by the geometry's callbacks through raw pointers: boxed so the
+    // address stays fixed, and kept until the scene is released.
+    boxes: Box<sys::OmclBoxes>,
+    lower: Vec<f32>,
+    len: usize,
+    packet: Packet,
+    device: Device,
+}
+
+// SAFETY: the scene is committed in `new` and never modified afterwards
+// (there is no `&mut self` method that touches it), and Embree allows
+// concurrent traversal of a committed scene from any thread; the box data
+// the callbacks read is immutable for the caster's lifetime.
+unsafe impl Send for EmbreeCaster {}
+// SAFETY: as for Send: shared access only ever traces rays.
+unsafe impl Sync for EmbreeCaster {}
+
+impl std::fmt::Debug for EmbreeCaster {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("EmbreeCaster")
+            .field("voxels", &self.len)
+            .field("resolution", &self.boxes.size)
+            .field("packet", &self.packet)
+            .finish()
+    }
+}
+
+impl EmbreeCaster {
+    /// Builds the scene: one box of edge `resolution` per cell (grid frame);
+    /// hit `leaf` values index `cells`.
+    pub fn new(resolution: f32, cells: &[Cell]) -> Result<Self, EmbreeError> {
+        if !(resolution.is_finite() && resolution > 0.0) {
+            return Err(EmbreeError::BadResolution(resolution));
+        }
+        if cells.len() >= u32::MAX as usize - 1 {
+            return Err(EmbreeError::TooManyVoxels(cells.len()));
+        }
+        let lower: Vec<f32> = cells
+            .iter()
+            .flat_map(|c| c.map(|v| v as f32 * resolution))
+            .collect();
+        // SAFETY: a null config string selects Embree's defaults.
+        let raw = unsafe { sys::rtcNewDevice(std::ptr::null()) };
+        check(std::ptr::null_mut(), "rtcNewDevice")?;
+        if raw.is_null() {
+            return Err(EmbreeError::Api {
+                call: "rtcNewDevice",
+                code: "null device".into(),
+                message: String::new(),
+            });
+        }
+        let device = Device(raw);
+        // SAFETY: valid device; the handler only writes thread-local storage.
+        unsafe { sys::omcl_install_error_handler(device.0) };
+        let boxes = Box::new(sys::OmclBoxes {
+            lower: lower.as_ptr(),
+            count: cells.len() as u32,
+            size: resolution,
+        });
+        // SAFETY: valid device.
+        let scene = unsafe { sys::rtcNewScene(device.0) };
+        check(device.0, "rtcNewScene")?;
+        let caster = EmbreeCaster {
+            scene,
+            boxes,
+            lower,
+            len: cells.len(),
+            packet: Packet::default(),
+            device,
+        };
+        let d = caster.device.0;
+        // SAFETY: `scene` is a fresh scene of `d`. The geometry's user data
+        // points at `caster.boxes`, which lives (boxed, at a fixed address,
+        // with `lower` unmoved inside the Vec's heap buffer) until Drop
+        // releases the scene. Each call is checked before the next.
+        unsafe {
+            sys::rtcSetSceneFlags(scene, sys::RTCSceneFlags::RTC_SCENE_FLAG_ROBUST);
+            sys::rtcSetSceneBuildQuality(scene, sys::RTCBuildQuality::RTC_BUILD_QUALITY_MEDIUM);
+            check(d, "rtcSetSceneFlags")?;
+            if caster.len > 0 {
+                let geom = sys::rtcNewGeometry(d, sys::RTCGeometryType::RTC_GEOMETRY_TYPE_USER);
+                check(d, "rtcNewGeometry")?;
+                sys::omcl_set_box_callbacks(geom, &*caster.boxes);
+                check(d, "rtcSetGeometryUser*")?;
+                sys::rtcCommitGeometry(geom);
+                check(d, "rtcCommitGeometry")?;
+                sys::rtcAttachGeometry(scene, geom);
+                sys::rtcReleaseGeometry(geom);
+                check(d, "rtcAttachGeometry")?;
+            }
+            sys::rtcCommitScene(scene);
+            check(d, "rtcCommitScene")?;
+        }
+        Ok(caster)
+    }
+
+    /// Chooses the packet width used by [`RayCaster::cast`].
+    pub fn with_packet(mut self, packet: Packet) -> Self {
+        self.packet = packet;
+        self
+    }
+
+    /// Bytes of the box array handed to Embree (the BVH itself is Embree's
+    /// and not counted here).
+    pub fn box_bytes(&self) -> usize {
+        self.lower.len() * std::mem::size_of::<f32>()
+    }
+
+    /// Traces one chunk on the calling thread.
+    fn trace_chunk(&self, rays: &[Ray], hits: &mut [Hit]) {
+        let mut out = [sys::OmclHit {
+            prim: 0,
+            geom: 0,
+            t: 0.0,
+        }; CHUNK];
+        for (r, h) in rays.chunks(CHUNK).zip(hits.chunks_mut(CHUNK)) {
+            // SAFETY: `Ray` and `OmclRay` have the same layout (checked at
+            // compile time above); `out` has room for `r.len() <= CHUNK`
+            // hits; the scene is committed and shared read-only.
+            unsafe {
+                sys::omcl_trace(
+                    self.scene,
+                    r.as_ptr().cast::<sys::OmclRay>(),
+                    out.as_mut_ptr(),
+                    r.len(),
+                    self.packet.width(),
+                );
+            }
+            for (o, h) in out.iter().zip(h.iter_mut()) {
+                *h = if o.prim == sys::OMCL_NO_HIT {
+                    Hit::miss()
+                } else {
+                    Hit {
+                        leaf: o.prim,
+                        t: o.t,
+                    }
+                };
+            }
+        }
+    }
+}
+
+impl RayCaster for EmbreeCaster {
+    fn cast(&self, rays: &[Ray], hits: &mut [Hit]) {
+        assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
+        rays.par_chunks(CHUNK)
+            .zip(hits.par_chunks_mut(CHUNK))
+            .for_each(|(r, h)| self.trace_chunk(r, h));
+    }
+
+    fn len(&self) -> usize {
+        self.len
+    }
+}
+
+impl Drop for EmbreeCaster {
+    fn drop(&mut self) {
+        // SAFETY: the scene handle came from rtcNewScene and is released
+        // once, before the box data and the device (dropped after this).
+        unsafe { sys::rtcReleaseScene(self.scene) }
+    }
+}

@@ -1,0 +1,249 @@
+//! Both backends against analytic answers, and against each other.
+
+use proptest::prelude::*;
+
+use super::*;
+use crate::geometry::Ray;
+use crate::map::Cell;
+
+fn casters(res: f32, cells: &[Cell]) -> Vec<(&'static str, Box<dyn RayCaster>)> {
+    vec![
+        ("reference", Box::new(ReferenceCaster::new(res, cells))),
+        ("embree16", Box::new(EmbreeCaster::new(res, cells).unwrap())),
+        (
+            "embree1",
+            Box::new(
+                EmbreeCaster::new(res, cells)
+                    .unwrap()
+                    .with_packet(Packet::Single),
+            ),
+        ),
+        (
+            "embree8",
+            Box::new(
+                EmbreeCaster::new(res, cells)
+                    .unwrap()
+                    .with_packet(Packet::Eight),
+            ),
+        ),
+    ]
+}
+
+fn ray(o: [f32; 3], d: [f32; 3]) -> Ray {
+    Ray::new(o, d)
+}
+
+/// One box, cell (2, 0, 0) at resolution 0.5: spans x in [1, 1.5], y and z in [0, 0.5].
+fn single_box_cases() -> Vec<(&'static str, Ray, Option<f32>)> {
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    vec![
+        (
+            "head-on",
+            ray([0.0, 0.25, 0.25], [1.0, 0.0, 0.0]),
+            Some(1.0),
+        ),
+        (
+            "scaled dir",
+            ray([0.0, 0.25, 0.25], [2.0, 0.0, 0.0]),
+            Some(0.5),
+        ),
+        (
+            "from behind",
+            ray([3.0, 0.25, 0.25], [-1.0, 0.0, 0.0]),
+            Some(1.5),
+        ),
+        ("inside", ray([1.2, 0.1, 0.4], [0.0, 0.0, 1.0]), Some(0.0)),
+        (
+            "box behind origin",
+            ray([2.0, 0.25, 0.25], [1.0, 0.0, 0.0]),
+            None,
+        ),
+        (
+            "parallel, outside",
+            ray([0.0, 0.75, 0.25], [1.0, 0.0, 0.0]),
+            None,
+        ),
+        (
+            "parallel, on the face (closed box)",
+            ray([0.0, 0.5, 0.25], [1.0, 0.0, 0.0]),
+            Some(1.0),
+        ),
+        ("diagonal", ray([0.5, -0.5, 0.25], [s, s, 0.0]), Some(s)),
+        // Towards the edge x = 1, z = 0 from above-left: touches it exactly.
+        (
+            "grazing an edge",
+            ray([0.5, 0.25, 0.5], [s, 0.0, -s]),
+            Some(s),
+        ),
+        (
+            "just past the edge",
+            ray([0.49, 0.25, 0.5], [s, 0.0, -s]),
+            None,
+        ),
+        (
+            "beyond t_max",
+            Ray {
+                t_max: 0.9,
+                ..ray([0.0, 0.25, 0.25], [1.0, 0.0, 0.0])
+            },
+            None,
+        ),
+        (
+            "t_min inside box",
+            Ray {
+                t_min: 1.2,
+                ..ray([0.0, 0.25, 0.25], [1.0, 0.0, 0.0])
+            },
+            Some(1.2),
+        ),
+        (
+            "NaN direction",
+            ray([0.0, 0.25, 0.25], [f32::NAN, 0.0, 0.0]),
+            None,
+        ),
+        (
+            "zero direction, inside",
+            ray([1.2, 0.1, 0.4], [0.0, 0.0, 0.0]),
+            None,
+        ),
+        (
+            "origin beyond 1e18",
+            ray([1e30, 0.25, 0.25], [-1.0, 0.0, 0.0]),
+            None,
+        ),
+        (
+            "NaN t_max",
+            Ray {
+                t_max: f32::NAN,
+                ..ray([0.0, 0.25, 0.25], [1.0, 0.0, 0.0])
+            },
+            None,
+        ),
+    ]
+}
+
+#[test]
+fn single_box_analytic_answers() {
+    for (name, c) in casters(0.5, &[[2, 0, 0]]) {
+        for (case, r, expected) in single_box_cases() {
+            let h = c.cast_vec(&[r])[0];
+            match expected {
+                Some(t) => {
+                    assert_eq!(h.leaf, 0, "{name}: {case}: expected a hit, got {h:?}");
+                    assert!((h.t - t).abs() < 1e-5, "{name}: {case}: t {} != {t}", h.t);
+                }
+                None => assert!(!h.is_hit(), "{name}: {case}: expected a miss, got {h:?}"),
+            }
+        }
+    }
+}
+
+#[test]
+fn nearest_of_several_boxes_and_leaf_indices() {
+    // A row of boxes along x with a gap; the leaf index is the cell's index.
+    let cells = [[5, 0, 0], [2, 0, 0], [3, 0, 0], [-4, 0, 0]];
+    for (name, c) in casters(1.0, &cells) {
+        let hits = c.cast_vec(&[
+            ray([0.5, 0.5, 0.5], [1.0, 0.0, 0.0]),
+            ray([0.5, 0.5, 0.5], [-1.0, 0.0, 0.0]),
+            ray([4.5, 0.5, 0.5], [1.0, 0.0, 0.0]),
+            ray([4.5, 0.5, 0.5], [-1.0, 0.0, 0.0]),
+            ray([0.5, 0.5, 5.0], [0.0, 0.0, -1.0]),
+        ]);
+        let got: Vec<(u32, f32)> = hits.iter().map(|h| (h.leaf, h.t)).collect();
+        assert_eq!(
+            got,
+            vec![
+                (1, 1.5),
+                (3, 3.5),
+                (0, 0.5),
+                (2, 0.5),
+                (Hit::MISS, f32::INFINITY)
+            ],
+            "{name}"
+        );
+    }
+}
+
+#[test]
+fn empty_scene_misses_everything() {
+    for (name, c) in casters(0.1, &[]) {
+        assert!(c.is_empty());
+        assert!(
+            !c.cast_vec(&[ray([0.0; 3], [1.0, 0.0, 0.0])])[0].is_hit(),
+            "{name}"
+        );
+    }
+}
+
+#[test]
+fn bad_resolution_is_an_error() {
+    assert!(matches!(
+        EmbreeCaster::new(0.0, &[[0, 0, 0]]),
+        Err(EmbreeError::BadResolution(_))
+    ));
+}
+
+#[test]
+fn odd_ray_counts_fill_partial_packets() {
+    let cells: Vec<Cell> = (0..10).map(|i| [i, 0, 0]).collect();
+    let rays: Vec<Ray> = (0..37)
+        .map(|i| ray([i as f32 * 0.25 + 0.1, 0.5, 3.0], [0.0, 0.0, -1.0]))
+        .collect();
+    let reference = ReferenceCaster::new(1.0, &cells).cast_vec(&rays);
+    for p in [Packet::Single, Packet::Four, Packet::Eight, Packet::Sixteen] {
+        let e = EmbreeCaster::new(1.0, &cells)
+            .unwrap()
+            .with_packet(p)
+            .cast_vec(&rays);
+        assert_eq!(e, reference, "{p:?}");
+    }
+    assert_eq!(reference.iter().filter(|h| h.is_hit()).count(), 37);
+}
+
+/// Random scenes and rays: Embree agrees with the reference except where
+/// two voxels are hit at (numerically) the same distance.
+fn agree(cells: &[Cell], rays: &[Ray]) -> Result<(), TestCaseError> {
+    let res = 0.05;
+    let r = ReferenceCaster::new(res, cells).cast_vec(rays);
+    let e = EmbreeCaster::new(res, cells).unwrap().cast_vec(rays);
+    let mut ties = 0;
+    for (i, (a, b)) in r.iter().zip(&e).enumerate() {
+        if a.leaf == b.leaf {
+            if a.is_hit() {
+                prop_assert!((a.t - b.t).abs() < 1e-4, "ray {i}: t {} vs {}", a.t, b.t);
+            }
+            continue;
+        }
+        // A tie: both hit, at the same distance within float error.
+        prop_assert!(
+            a.is_hit() && b.is_hit() && (a.t - b.t).abs() < 1e-4,
+            "ray {i} {:?}: reference {a:?}, embree {b:?}",
+            rays[i]
+        );
+        ties += 1;
+    }
+    prop_assert!(ties * 20 <= rays.len().max(20), "too many ties: {ties}");
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn embree_agrees_with_reference(
+        cells in prop::collection::vec((-12i32..12, -12i32..12, -6i32..6), 1..300),
+        rays in prop::collection::vec(
+            ((-1.0f32..1.0, -1.0f32..1.0, -0.5f32..0.5), (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0)),
+            64..256,
+        ),
+    ) {
+        let cells: Vec<Cell> = cells.into_iter().map(|(x, y, z)| [x, y, z]).collect();
+        let rays: Vec<Ray> = rays
+            .into_iter()
+            .filter(|(_, d)| d.0 * d.0 + d.1 * d.1 + d.2 * d.2 > 1e-4)
+            .map(|(o, d)| ray([o.0, o.1, o.2], [d.0, d.1, d.2]))
+            .collect();
+        agree(&cells, &rays)?;
+    }
+}
