@@ -11,4 +11,6 @@
 //! results in the real datasets' layouts.
 pub mod embeddings;
 pub mod indoor;
+pub mod paths;
+pub mod render;
 pub mod world;
