@@ -29,6 +29,8 @@ pub enum EmbeddingError {
     BadRow { index: usize, name: String },
     #[error("embedding table: class name {0:?} appears twice")]
     Duplicate(String),
+    #[error("class {index} ({name:?}) is not in the embedding table")]
+    Unknown { index: usize, name: String },
     #[error("real embedding bank holds no rows to fit missing classes")]
     EmptyBank,
 }
@@ -101,6 +103,23 @@ impl ClassEmbeddings {
     /// Cosine similarity between classes `a` and `b`.
     pub fn cosine(&self, a: usize, b: usize) -> f32 {
         dot(self.row(a), self.row(b))
+    }
+
+    /// The table restricted to `names`, in that order (ids renumbered).
+    pub fn subset(&self, names: &[&str]) -> Result<ClassEmbeddings, EmbeddingError> {
+        let mut rows = Vec::with_capacity(names.len() * self.dim);
+        for (i, n) in names.iter().enumerate() {
+            let id = self.index_of(n).ok_or(EmbeddingError::Unknown {
+                index: i,
+                name: n.to_string(),
+            })?;
+            rows.extend_from_slice(self.row(id));
+        }
+        ClassEmbeddings::new(
+            names.iter().map(|s| s.to_string()).collect(),
+            self.dim,
+            rows,
+        )
     }
 
     /// The class whose row is most similar to `feature` (any length-`dim`

@@ -9,7 +9,11 @@
 //! do. [`paths`] makes camera paths and odometry, [`render`] casts camera and
 //! LiDAR rays through the project's ray caster, and [`files`] writes the
 //! results in the real datasets' layouts.
+pub mod consistency;
+pub mod dataset;
 pub mod embeddings;
+pub mod features;
+pub mod files;
 pub mod indoor;
 pub mod paths;
 pub mod render;
