@@ -9,6 +9,62 @@
 //! the prediction of that frame; a class never predicted has precision 0,
 //! one never referenced has recall 0 (scikit-learn's `zero_division=0`).
 
+use rayon::prelude::*;
+
+use super::features::FeatureModel;
+use super::render::{self, NO_LABEL};
+use super::world::VoxelWorld;
+use crate::geometry::{Intrinsics, Pose};
+use crate::raycast::RayCaster;
+
+/// Measures the consistency of `model`'s features with a map whose
+/// database is the model's class table and whose voxels carry the world's
+/// labels: for every `stride`-th pixel (both directions) of every frame
+/// rendered at `poses`, the reference is the class of the voxel hit from
+/// the true pose, the prediction the table row most similar to the pixel's
+/// feature. Pixels that see nothing are skipped. Frame `i` uses feature
+/// frame index `i`.
+pub fn measure(
+    model: &FeatureModel,
+    world: &VoxelWorld,
+    caster: &dyn RayCaster,
+    k: &Intrinsics,
+    poses: &[(u64, Pose)],
+    stride: u32,
+) -> Scores {
+    let s = stride.max(1);
+    let mut mean = ScoreMean::default();
+    for (frame_index, pose) in poses {
+        let frame = render::render_frame(caster, world, k, pose);
+        let rows: Vec<u32> = (0..frame.height).step_by(s as usize).collect();
+        let conf = rows
+            .par_iter()
+            .fold(
+                || (Confusion::new(model.table.len()), vec![0.0f32; model.dim()]),
+                |(mut c, mut scratch), &v| {
+                    for u in (0..frame.width).step_by(s as usize) {
+                        let ctx = model.context(&frame, u, v);
+                        if ctx.label == NO_LABEL {
+                            continue;
+                        }
+                        if let Some(p) =
+                            model.predicted_class(*frame_index, u, v, &ctx, &mut scratch)
+                        {
+                            c.add(ctx.label as usize, p);
+                        }
+                    }
+                    (c, scratch)
+                },
+            )
+            .map(|(c, _)| c)
+            .reduce(|| Confusion::new(model.table.len()), |a, b| a.merged(&b));
+        if conf.total() > 0 {
+            mean.add(conf.scores());
+        }
+    }
+    mean.mean()
+}
+
 /// Counts of (reference, predicted) class pairs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Confusion {
@@ -39,6 +95,14 @@ impl Confusion {
         if reference < self.k && predicted < self.k {
             self.counts[reference * self.k + predicted] += 1;
         }
+    }
+
+    /// The sum of two matrices over the same classes.
+    pub fn merged(mut self, other: &Confusion) -> Confusion {
+        for (a, b) in self.counts.iter_mut().zip(&other.counts) {
+            *a += b;
+        }
+        self
     }
 
     /// Number of counted pixels.
