@@ -15,6 +15,8 @@ pub mod embeddings;
 pub mod features;
 pub mod files;
 pub mod indoor;
+pub mod lidar;
+pub mod outdoor;
 pub mod paths;
 pub mod render;
 pub mod world;

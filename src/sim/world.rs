@@ -207,9 +207,20 @@ impl VoxelWorld {
 /// sides removed. A primitive thinner than a cell still marks the cells that
 /// contain its mid-plane, so thin pictures and rugs are not lost.
 pub fn voxelize(scene: &Scene, resolution: f64, origin: Vector3<f64>) -> VoxelWorld {
+    voxelize_onto(scene, resolution, origin, FxHashMap::default())
+}
+
+/// [`voxelize`] on top of cells made by other means (`base`: cell to
+/// class), which the primitives paint over.
+pub fn voxelize_onto(
+    scene: &Scene,
+    resolution: f64,
+    origin: Vector3<f64>,
+    base: FxHashMap<[i32; 3], u16>,
+) -> VoxelWorld {
     let r = resolution;
     let o = origin;
-    let mut map: FxHashMap<[i32; 3], u16> = FxHashMap::default();
+    let mut map = base;
     for prim in &scene.primitives {
         let b = prim.shape.bounds();
         let mut lo = [0i32; 3];
