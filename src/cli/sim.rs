@@ -60,6 +60,36 @@ pub enum SimCommand {
         #[arg(long)]
         table: Option<PathBuf>,
     },
+    /// A street along a real driving path and a KITTI odometry sequence
+    /// (LiDAR scans, SemanticKITTI labels, camera-2 images) on it.
+    Outdoor {
+        /// Output directory (created); the sequence goes to DIR/sequences/00.
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// KITTI poses file of the driving path (default: KITTI 00 ground
+        /// truth in the shared data beside the source tree).
+        #[arg(long)]
+        path: Option<PathBuf>,
+        /// First frame of the path and number of frames.
+        #[arg(long, default_value_t = 0)]
+        start: usize,
+        #[arg(long, default_value_t = 200)]
+        frames: usize,
+        /// Voxel edge, metres.
+        #[arg(long, default_value_t = 0.2)]
+        resolution: f64,
+        /// LiDAR directions per revolution (64 beams each).
+        #[arg(long, default_value_t = 2048)]
+        azimuth_steps: u32,
+        /// Skip the camera-2 images.
+        #[arg(long)]
+        no_images: bool,
+        /// Embedding table folder (classes.txt + embeddings.npy); default built in.
+        #[arg(long)]
+        table: Option<PathBuf>,
+    },
     /// Writes the simulator's class embedding table from real CLIP text
     /// embeddings (folder in the layout of shared/data/clip_text).
     Classes {
@@ -159,6 +189,48 @@ pub fn run(cmd: SimCommand) -> anyhow::Result<()> {
                 pb.set_position(n as u64)
             })
             .with_context(|| format!("writing the indoor dataset to {}", out.display()))?;
+            pb.finish_and_clear();
+            println!("{summary}");
+        }
+        SimCommand::Outdoor {
+            out,
+            seed,
+            path,
+            start,
+            frames,
+            resolution,
+            azimuth_steps,
+            no_images,
+            table,
+        } => {
+            anyhow::ensure!(
+                (0.02..=1.0).contains(&resolution),
+                "--resolution {resolution} m is outside [0.02, 1]"
+            );
+            let path = match path {
+                Some(p) => p,
+                None => Path::new(env!("CARGO_MANIFEST_DIR"))
+                    .join("../shared/data/trajectories/KITTI_00_gt.txt"),
+            };
+            let gt = files::read_kitti_poses(&path)
+                .with_context(|| format!("reading the driving path {}", path.display()))?;
+            anyhow::ensure!(
+                start < gt.len(),
+                "--start {start} is past the path's {} poses",
+                gt.len()
+            );
+            let mut cfg = dataset::OutdoorDatasetConfig::new(seed);
+            cfg.world.start = start;
+            cfg.world.frames = frames;
+            cfg.world.resolution = resolution;
+            cfg.lidar.azimuth_steps = azimuth_steps.max(1);
+            cfg.images = !no_images;
+            let table = load_table(table.as_deref())?;
+            let pb = progress_bar(frames.min(gt.len() - start));
+            pb.set_message("scanning");
+            let summary =
+                dataset::write_outdoor(&out, &cfg, &gt, &table, &|n| pb.set_position(n as u64))
+                    .with_context(|| format!("writing the outdoor dataset to {}", out.display()))?;
             pb.finish_and_clear();
             println!("{summary}");
         }

@@ -12,6 +12,8 @@ use super::embeddings::ClassEmbeddings;
 use super::features::{FeatureModel, Preset};
 use super::files::{self, SimIoError};
 use super::indoor::{self, INDOOR_CLASSES, IndoorConfig, IndoorWorld};
+use super::lidar::{self, LidarConfig};
+use super::outdoor::{self, OUTDOOR_CLASSES, OutdoorConfig, SEMANTIC_KITTI_IDS};
 use super::paths::{self, IndoorPathConfig, OdometryConfig};
 use super::render::{self, Frame, NO_LABEL};
 use crate::geometry::{Intrinsics, Pose};
@@ -279,4 +281,184 @@ fn write_indoor_frame(
         .map_err(SimIoError::from)?;
     }
     Ok(())
+}
+
+/// KITTI odometry sequence 00's calibration (`calib.txt`): P0..P3 are the
+/// rectified projection matrices of cameras 0..3, Tr maps velodyne to
+/// camera-0 coordinates. Public numbers of the KITTI benchmark.
+pub const KITTI00_CALIB: &str = "P0: 7.188560000000e+02 0.000000000000e+00 6.071928000000e+02 0.000000000000e+00 0.000000000000e+00 7.188560000000e+02 1.852157000000e+02 0.000000000000e+00 0.000000000000e+00 0.000000000000e+00 1.000000000000e+00 0.000000000000e+00
+P1: 7.188560000000e+02 0.000000000000e+00 6.071928000000e+02 -3.861448000000e+02 0.000000000000e+00 7.188560000000e+02 1.852157000000e+02 0.000000000000e+00 0.000000000000e+00 0.000000000000e+00 1.000000000000e+00 0.000000000000e+00
+P2: 7.188560000000e+02 0.000000000000e+00 6.071928000000e+02 4.538225000000e+01 0.000000000000e+00 7.188560000000e+02 1.852157000000e+02 -1.130887000000e-01 0.000000000000e+00 0.000000000000e+00 1.000000000000e+00 3.779761000000e-03
+P3: 7.188560000000e+02 0.000000000000e+00 6.071928000000e+02 -3.372877000000e+02 0.000000000000e+00 7.188560000000e+02 1.852157000000e+02 2.369057000000e+00 0.000000000000e+00 0.000000000000e+00 1.000000000000e+00 4.915215000000e-03
+Tr: 4.276802385584e-04 -9.999672484946e-01 -8.084491683471e-03 -1.198459927713e-02 -7.210626507497e-03 8.081198471645e-03 -9.999413164504e-01 -5.403984729748e-02 9.999738645903e-01 4.859485810390e-04 -7.206933692422e-03 -2.921968648686e-01
+";
+
+/// `camera0_from_velodyne` of [`KITTI00_CALIB`] (its `Tr`).
+pub fn kitti00_camera_from_velodyne() -> Pose {
+    use nalgebra::{Matrix3, Rotation3, Translation3, UnitQuaternion};
+    let m = Matrix3::new(
+        4.276802385584e-04,
+        -9.999672484946e-01,
+        -8.084491683471e-03, //
+        -7.210626507497e-03,
+        8.081198471645e-03,
+        -9.999413164504e-01, //
+        9.999738645903e-01,
+        4.859485810390e-04,
+        -7.206933692422e-03,
+    );
+    Pose::from_parts(
+        Translation3::new(
+            -1.198459927713e-02,
+            -5.403984729748e-02,
+            -2.921968648686e-01,
+        ),
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix(&m)),
+    )
+}
+
+/// The intrinsics of KITTI 00's camera 2 (1241 x 376) and its offset from
+/// camera 0 (`camera0_from_camera2`, from P2's fourth column).
+pub fn kitti00_camera2() -> (Intrinsics, Pose) {
+    let (fx, cx, cy) = (7.188560000000e+02, 6.071928000000e+02, 1.852157000000e+02);
+    let k = Intrinsics {
+        fx,
+        fy: fx,
+        cx,
+        cy,
+        width: 1241,
+        height: 376,
+    };
+    // P2 = K [I | t] with t = (4.538225e+01 / fx, -1.130887e-01 / fy, 3.779761e-03) roughly;
+    // the camera centre is -t.
+    let t = nalgebra::Vector3::new(4.538225000000e+01 / fx, 0.0, 0.0);
+    (k, Pose::translation(-t.x, -t.y, -t.z))
+}
+
+/// Everything that decides an outdoor dataset.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct OutdoorDatasetConfig {
+    pub seed: u64,
+    pub world: OutdoorConfig,
+    pub lidar: LidarConfig,
+    /// Render `image_2` PNGs.
+    pub images: bool,
+}
+
+impl OutdoorDatasetConfig {
+    /// Defaults for `seed`.
+    pub fn new(seed: u64) -> Self {
+        OutdoorDatasetConfig {
+            seed,
+            world: OutdoorConfig {
+                seed,
+                ..Default::default()
+            },
+            lidar: LidarConfig::default(),
+            images: true,
+        }
+    }
+}
+
+/// Generates an outdoor dataset along `kitti_gt` (KITTI 00 ground-truth
+/// camera poses) into `dir`: `dir/sequences/00/...` in the SemanticKITTI
+/// layout plus classes, embeddings, world and sim.json beside it.
+pub fn write_outdoor(
+    dir: &Path,
+    cfg: &OutdoorDatasetConfig,
+    kitti_gt: &[Pose],
+    table: &ClassEmbeddings,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<Summary, SimError> {
+    let start = Instant::now();
+    if kitti_gt.is_empty() {
+        return Err(SimError::Config("the driving path has no poses".into()));
+    }
+    let table = table.subset(OUTDOOR_CLASSES)?;
+    let world = outdoor::generate(&cfg.world, kitti_gt);
+    let caster = EmbreeCaster::new(world.voxels.resolution as f32, &world.voxels.cells)?;
+    let seq = dir.join("sequences").join("00");
+    for sub in ["velodyne", "labels", "image_2"] {
+        files::create_dir(&seq.join(sub))?;
+    }
+    files::create_dir(&dir.join("world"))?;
+    files::write_atomic(&seq.join("calib.txt"), KITTI00_CALIB.as_bytes())?;
+    files::write_atomic(
+        &seq.join("poses.txt"),
+        files::kitti_lines(&world.kitti_poses).as_bytes(),
+    )?;
+    let times: String = (0..world.poses.len())
+        .map(|i| format!("{:.6e}\n", i as f64 * 0.1))
+        .collect();
+    files::write_atomic(&seq.join("times.txt"), times.as_bytes())?;
+    files::save_table(dir, &table)?;
+    let ids: String = OUTDOOR_CLASSES
+        .iter()
+        .zip(SEMANTIC_KITTI_IDS)
+        .map(|(n, id)| format!("{id} {n}\n"))
+        .collect();
+    files::write_atomic(&dir.join("semantickitti_ids.txt"), ids.as_bytes())?;
+    files::write_world(&dir.join("world"), &world.voxels)?;
+    let cam_from_velo = kitti00_camera_from_velodyne();
+    let (k2, cam0_from_cam2) = kitti00_camera2();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    for (i, pose) in world.poses.iter().enumerate() {
+        let world_from_lidar = pose * cam_from_velo;
+        let pts = lidar::scan(
+            &caster,
+            &world.voxels,
+            &world_from_lidar,
+            &cfg.lidar,
+            cfg.seed.wrapping_add(i as u64),
+        );
+        let xyzr: Vec<[f32; 4]> = pts
+            .iter()
+            .map(|p| [p.xyz[0], p.xyz[1], p.xyz[2], p.reflectance])
+            .collect();
+        let labels: Vec<u32> = pts
+            .iter()
+            .map(|p| {
+                SEMANTIC_KITTI_IDS
+                    .get(p.label as usize)
+                    .copied()
+                    .unwrap_or(0)
+            })
+            .collect();
+        let name = format!("{i:06}");
+        files::write_velodyne(&seq.join("velodyne").join(format!("{name}.bin")), &xyzr)?;
+        files::write_labels(&seq.join("labels").join(format!("{name}.label")), &labels)?;
+        if cfg.images {
+            let f = render::render_frame(&caster, &world.voxels, &k2, &(pose * cam0_from_cam2));
+            let colour = |l: u16| render::class_colour(l + 29);
+            let rgb = render::rgb_image(&f, &colour);
+            files::write_png_rgb(
+                &seq.join("image_2").join(format!("{name}.png")),
+                f.width,
+                f.height,
+                &rgb,
+            )?;
+        }
+        progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
+    }
+    let (mean_step_m, mean_turn_deg) = paths::mean_motion(&world.poses);
+    let summary = Summary {
+        dir: dir.to_path_buf(),
+        frames: world.poses.len(),
+        cells: world.voxels.cells.len(),
+        classes: table.len(),
+        seconds: start.elapsed().as_secs_f64(),
+        mean_step_m,
+        mean_turn_deg,
+        drift_source: None,
+    };
+    let meta = serde_json::json!({
+        "generator": "omcl sim outdoor",
+        "version": env!("CARGO_PKG_VERSION"),
+        "config": cfg,
+        "path": "KITTI odometry 00 ground truth (CC BY-NC-SA 3.0, Geiger et al.)",
+        "world_from_kitti_camera0": "x = z_cam, y = -x_cam, z = -y_cam",
+        "summary": summary,
+    });
+    files::write_json(&dir.join("sim.json"), &meta)?;
+    Ok(summary)
 }
