@@ -3,6 +3,8 @@
 #include "omcl_embree.h"
 
 #include <math.h>
+#include <stdbool.h>
+#include <sys/types.h>
 #include <string.h>
 #include <xmmintrin.h>
 #include <pmmintrin.h>
@@ -138,6 +140,16 @@ int omcl_take_error(char *buf, size_t len) {
   return code;
 }
 
+static bool count_memory(void *user, ssize_t bytes, bool post) {
+  (void)post;
+  __atomic_fetch_add((int64_t *)user, (int64_t)bytes, __ATOMIC_RELAXED);
+  return true;
+}
+
+void omcl_install_memory_monitor(RTCDevice device, int64_t *counter) {
+  rtcSetDeviceMemoryMonitorFunction(device, count_memory, counter);
+}
+
 void omcl_set_ftz_daz(void) {
   _MM_SET_FLUSH_ZERO_MODE(_MM_FLUSH_ZERO_ON);
   _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
@@ -208,6 +220,40 @@ static void trace_1(RTCScene scene, struct RTCIntersectContext *ctx,
   }
 }
 
+/* Ray streams: Embree regroups the rays itself (rtcIntersect1M). */
+static void trace_stream(RTCScene scene, struct RTCIntersectContext *ctx,
+                         const OmclRay *rays, OmclHit *hits, size_t n) {
+  enum { M = 256 };
+  struct RTCRayHit buf[M];
+  for (size_t s = 0; s < n; s += M) {
+    size_t m = n - s < M ? n - s : M;
+    for (size_t i = 0; i < m; ++i) {
+      const OmclRay *r = &rays[s + i];
+      struct RTCRayHit *p = &buf[i];
+      int ok = ray_ok(r);
+      p->ray.org_x = ok ? r->org[0] : 0.0f; p->ray.org_y = ok ? r->org[1] : 0.0f;
+      p->ray.org_z = ok ? r->org[2] : 0.0f; p->ray.dir_x = ok ? r->dir[0] : 1.0f;
+      p->ray.dir_y = ok ? r->dir[1] : 0.0f; p->ray.dir_z = ok ? r->dir[2] : 0.0f;
+      p->ray.tnear = ok ? r->tnear : 0.0f;
+      p->ray.tfar = ok ? r->tfar : -INFINITY; /* tfar < tnear: inactive */
+      p->ray.time = 0.0f; p->ray.mask = 0xFFFFFFFFu; p->ray.id = (unsigned)i;
+      p->ray.flags = 0;
+      p->hit.geomID = RTC_INVALID_GEOMETRY_ID;
+      p->hit.primID = RTC_INVALID_GEOMETRY_ID;
+      p->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    }
+    rtcIntersect1M(scene, ctx, buf, (unsigned)m, sizeof(struct RTCRayHit));
+    for (size_t i = 0; i < m; ++i) {
+      OmclHit *h = &hits[s + i];
+      if (buf[i].hit.geomID == RTC_INVALID_GEOMETRY_ID) {
+        h->prim = OMCL_NO_HIT; h->geom = OMCL_NO_HIT; h->t = INFINITY;
+      } else {
+        h->prim = buf[i].hit.primID; h->geom = buf[i].hit.geomID; h->t = buf[i].ray.tfar;
+      }
+    }
+  }
+}
+
 void omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
                 unsigned packet) {
   omcl_set_ftz_daz();
@@ -218,6 +264,7 @@ void omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
     case 16: trace_16(scene, &ctx, rays, hits, n); break;
     case 8: trace_8(scene, &ctx, rays, hits, n); break;
     case 4: trace_4(scene, &ctx, rays, hits, n); break;
+    case 0: trace_stream(scene, &ctx, rays, hits, n); break;
     default: trace_1(scene, &ctx, rays, hits, n); break;
   }
 }

@@ -51,10 +51,15 @@ void omcl_install_error_handler(RTCDevice device);
  * its message into buf (NUL-terminated, truncated to len); clears it. */
 int omcl_take_error(char *buf, size_t len);
 
+/* Counts the bytes Embree allocates for `device` (BVH and scene data) into
+ * *counter with atomic adds; the counter must outlive the device. */
+void omcl_install_memory_monitor(RTCDevice device, int64_t *counter);
+
 /* Sets flush-to-zero and denormals-are-zero on the calling thread. */
 void omcl_set_ftz_daz(void);
 
-/* Traces n rays in packets of `packet` (1, 4, 8 or 16) consecutive rays;
+/* Traces n rays in packets of `packet` (1, 4, 8 or 16) consecutive rays, or
+ * as Embree ray streams for packet 0;
  * sets FTZ/DAZ on the calling thread first. */
 void omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
                 unsigned packet);

@@ -115,6 +115,23 @@ impl Intrinsics {
     }
 }
 
+/// `world_from_camera` of a level camera (no roll or pitch) at `position`
+/// (world, metres) whose optical axis points along `yaw` radians from world
+/// +x towards +y: camera z is forward, x right, y down (world -z).
+pub fn level_camera(position: Vector3<f64>, yaw: f64) -> Pose {
+    let (s, c) = yaw.sin_cos();
+    let world_from_camera_rot = nalgebra::Matrix3::new(
+        s, 0.0, c, //
+        -c, 0.0, s, //
+        0.0, -1.0, 0.0,
+    );
+    let rot = nalgebra::Rotation3::from_matrix_unchecked(world_from_camera_rot);
+    Pose::from_parts(
+        position.into(),
+        nalgebra::UnitQuaternion::from_rotation_matrix(&rot),
+    )
+}
+
 /// The camera ray through pixel `(u, v)` of a camera at `world_from_camera`,
 /// expressed in the grid frame of a map whose origin is `map_origin`
 /// (world coordinates of grid-frame zero).
@@ -154,6 +171,18 @@ mod tests {
         let (u, v) = k.project(&Point3::new(0.0, 0.0, 2.0)).unwrap();
         assert_eq!((u, v), (50.0, 40.0));
         assert!(k.project(&Point3::new(0.0, 0.0, -1.0)).is_none());
+    }
+
+    #[test]
+    fn level_camera_axes() {
+        let p = level_camera(Vector3::new(1.0, 2.0, 1.5), std::f64::consts::FRAC_PI_2);
+        let fwd = p.rotation * Vector3::z();
+        let right = p.rotation * Vector3::x();
+        let down = p.rotation * Vector3::y();
+        assert!((fwd - Vector3::y()).norm() < 1e-12, "{fwd}");
+        assert!((right - Vector3::x()).norm() < 1e-12, "{right}");
+        assert!((down + Vector3::z()).norm() < 1e-12, "{down}");
+        assert_eq!(p.translation.vector, Vector3::new(1.0, 2.0, 1.5));
     }
 
     #[test]

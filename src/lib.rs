@@ -1,6 +1,9 @@
 //! omcl: Open-vocabulary Monte Carlo Localization.
+pub mod eval;
 pub mod geometry;
 pub mod io;
 pub mod map;
 pub mod raycast;
+pub mod scene;
+pub mod trajectory;
 pub mod sim;

@@ -1,2 +1,44 @@
-//! Command-line front ends.
+//! Command-line interface: argument parsing and the glue between files and
+//! the library. Errors are `anyhow` here, `thiserror` in the library.
+
+pub mod demo;
+pub mod eval;
+pub mod map;
+pub mod progress;
 pub mod sim;
+
+use clap::{Parser, Subcommand};
+
+/// Open-vocabulary Monte Carlo Localization: build language maps from RGB-D
+/// frames or point clouds, localize cameras in them, and evaluate.
+#[derive(Debug, Parser)]
+#[command(name = "omcl", version, about, long_about = None, propagate_version = true)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Build, inspect, ground and query Octree Language Maps.
+    #[command(subcommand)]
+    Map(map::MapCommand),
+    /// Run the pipeline end to end on the built-in synthetic world.
+    Demo(demo::DemoArgs),
+    /// Trajectory metrics: APE, RPE (as evo) and the KITTI odometry metric.
+    #[command(subcommand)]
+    Eval(eval::EvalCommand),
+    /// Synthetic worlds and sensor data in real datasets' layouts.
+    #[command(subcommand)]
+    Sim(sim::SimCommand),
+}
+
+/// Runs a parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Map(cmd) => map::run(cmd),
+        Command::Demo(args) => demo::run(args),
+        Command::Eval(cmd) => eval::run(cmd),
+        Command::Sim(cmd) => sim::run(cmd),
+    }
+}

@@ -372,6 +372,25 @@ mod tests {
     }
 
     #[test]
+    fn round_trip_of_a_realistic_map_is_bit_exact() {
+        // Rows produced by normalization are unit only within float error.
+        let mut db = FeatureDb::new(7, 0.02).unwrap();
+        for i in 0..20 {
+            let f: Vec<f32> = (0..7).map(|j| ((i * 7 + j) as f32 * 0.731).sin()).collect();
+            db.admit(&f).unwrap();
+        }
+        let k = db.len() as u32;
+        let grid = GridSpec {
+            resolution: 0.02,
+            origin: Vector3::new(0.1, 0.2, 0.3),
+        };
+        let leaves = (0..500).map(|i| ([i % 13 - 6, i / 13, i % 5], i as u32 % k));
+        let m = LanguageMap::from_cells(grid, db, "x", leaves).unwrap();
+        let back = from_bytes(&to_bytes(&m), Path::new("r")).unwrap();
+        assert_eq!(back, m);
+    }
+
+    #[test]
     fn empty_map_round_trips() {
         let db = FeatureDb::new(4, 0.02).unwrap();
         let grid = GridSpec {

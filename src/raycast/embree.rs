@@ -11,6 +11,7 @@
 //!   the FFI boundary (the callbacks are C).
 
 use std::ffi::CStr;
+use std::sync::atomic::{AtomicI64, Ordering};
 
 use rayon::prelude::*;
 
@@ -66,6 +67,8 @@ pub enum Packet {
     /// `rtcIntersect16` (the default; measured fastest here).
     #[default]
     Sixteen,
+    /// Ray streams (`rtcIntersect1M`): Embree regroups the rays itself.
+    Stream,
 }
 
 impl Packet {
@@ -75,6 +78,38 @@ impl Packet {
             Packet::Four => 4,
             Packet::Eight => 8,
             Packet::Sixteen => 16,
+            Packet::Stream => 0,
+        }
+    }
+}
+
+/// Embree BVH build quality: faster builds or faster traversal.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BuildQuality {
+    /// Morton-code builder: fastest build, slowest traversal.
+    Low,
+    /// Binned SAH builder (the default).
+    #[default]
+    Medium,
+    /// SAH with spatial splits: slowest build.
+    High,
+}
+
+/// Options of the Embree scene build.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BuildOptions {
+    /// BVH build quality.
+    pub quality: BuildQuality,
+    /// Embree's robust (conservative) traversal, which never misses a box
+    /// at a shared face through rounding; slightly slower.
+    pub robust: bool,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        BuildOptions {
+            quality: BuildQuality::Medium,
+            robust: true,
         }
     }
 }
@@ -148,6 +183,9 @@ pub struct EmbreeCaster {
     len: usize,
     packet: Packet,
     device: Device,
+    // Bytes Embree allocated, updated by the device's memory monitor; boxed
+    // so its address is fixed, and dropped after the device.
+    embree_bytes: Box<AtomicI64>,
 }
 
 // SAFETY: the scene is committed in `new` and never modified afterwards
@@ -170,8 +208,17 @@ impl std::fmt::Debug for EmbreeCaster {
 
 impl EmbreeCaster {
     /// Builds the scene: one box of edge `resolution` per cell (grid frame);
-    /// hit `leaf` values index `cells`.
+    /// hit `leaf` values index `cells`. Default build options.
     pub fn new(resolution: f32, cells: &[Cell]) -> Result<Self, EmbreeError> {
+        Self::with_options(resolution, cells, BuildOptions::default())
+    }
+
+    /// As [`EmbreeCaster::new`], with explicit build options.
+    pub fn with_options(
+        resolution: f32,
+        cells: &[Cell],
+        options: BuildOptions,
+    ) -> Result<Self, EmbreeError> {
         if !(resolution.is_finite() && resolution > 0.0) {
             return Err(EmbreeError::BadResolution(resolution));
         }
@@ -193,8 +240,15 @@ impl EmbreeCaster {
             });
         }
         let device = Device(raw);
-        // SAFETY: valid device; the handler only writes thread-local storage.
-        unsafe { sys::omcl_install_error_handler(device.0) };
+        let embree_bytes = Box::new(AtomicI64::new(0));
+        // SAFETY: valid device; the error handler only writes thread-local
+        // storage. The memory monitor adds atomically into `embree_bytes`,
+        // an AtomicI64 (same layout as int64_t) at a fixed heap address that
+        // the caster drops after the device.
+        unsafe {
+            sys::omcl_install_error_handler(device.0);
+            sys::omcl_install_memory_monitor(device.0, embree_bytes.as_ptr());
+        }
         let boxes = Box::new(sys::OmclBoxes {
             lower: lower.as_ptr(),
             count: cells.len() as u32,
@@ -210,6 +264,7 @@ impl EmbreeCaster {
             len: cells.len(),
             packet: Packet::default(),
             device,
+            embree_bytes,
         };
         let d = caster.device.0;
         // SAFETY: `scene` is a fresh scene of `d`. The geometry's user data
@@ -217,8 +272,18 @@ impl EmbreeCaster {
         // with `lower` unmoved inside the Vec's heap buffer) until Drop
         // releases the scene. Each call is checked before the next.
         unsafe {
-            sys::rtcSetSceneFlags(scene, sys::RTCSceneFlags::RTC_SCENE_FLAG_ROBUST);
-            sys::rtcSetSceneBuildQuality(scene, sys::RTCBuildQuality::RTC_BUILD_QUALITY_MEDIUM);
+            let flags = if options.robust {
+                sys::RTCSceneFlags::RTC_SCENE_FLAG_ROBUST
+            } else {
+                sys::RTCSceneFlags::RTC_SCENE_FLAG_NONE
+            };
+            sys::rtcSetSceneFlags(scene, flags);
+            let quality = match options.quality {
+                BuildQuality::Low => sys::RTCBuildQuality::RTC_BUILD_QUALITY_LOW,
+                BuildQuality::Medium => sys::RTCBuildQuality::RTC_BUILD_QUALITY_MEDIUM,
+                BuildQuality::High => sys::RTCBuildQuality::RTC_BUILD_QUALITY_HIGH,
+            };
+            sys::rtcSetSceneBuildQuality(scene, quality);
             check(d, "rtcSetSceneFlags")?;
             if caster.len > 0 {
                 let geom = sys::rtcNewGeometry(d, sys::RTCGeometryType::RTC_GEOMETRY_TYPE_USER);
@@ -247,6 +312,12 @@ impl EmbreeCaster {
     /// and not counted here).
     pub fn box_bytes(&self) -> usize {
         self.lower.len() * std::mem::size_of::<f32>()
+    }
+
+    /// Bytes Embree holds for this caster's scene (BVH and bookkeeping), as
+    /// reported by its memory monitor.
+    pub fn embree_bytes(&self) -> usize {
+        self.embree_bytes.load(Ordering::Relaxed).max(0) as usize
     }
 
     /// Traces one chunk on the calling thread.

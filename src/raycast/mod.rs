@@ -14,7 +14,7 @@
 mod embree;
 mod reference;
 
-pub use embree::{EmbreeCaster, EmbreeError, Packet};
+pub use embree::{BuildOptions, BuildQuality, EmbreeCaster, EmbreeError, Packet};
 pub use reference::ReferenceCaster;
 
 use crate::geometry::Ray;

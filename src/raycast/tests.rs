@@ -191,7 +191,13 @@ fn odd_ray_counts_fill_partial_packets() {
         .map(|i| ray([i as f32 * 0.25 + 0.1, 0.5, 3.0], [0.0, 0.0, -1.0]))
         .collect();
     let reference = ReferenceCaster::new(1.0, &cells).cast_vec(&rays);
-    for p in [Packet::Single, Packet::Four, Packet::Eight, Packet::Sixteen] {
+    for p in [
+        Packet::Single,
+        Packet::Four,
+        Packet::Eight,
+        Packet::Sixteen,
+        Packet::Stream,
+    ] {
         let e = EmbreeCaster::new(1.0, &cells)
             .unwrap()
             .with_packet(p)

@@ -1,0 +1,159 @@
+//! `omcl map ...`: inspect maps.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::{Args, Subcommand};
+
+use omcl::map::{LanguageMap, file};
+
+#[derive(Debug, Subcommand)]
+pub enum MapCommand {
+    /// Print a map file's header and statistics.
+    Info(InfoArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// The map file (`.omcl`, safetensors).
+    pub file: PathBuf,
+    /// Print machine-readable JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// How many of the most used feature rows to list.
+    #[arg(long, default_value_t = 10)]
+    pub top: usize,
+}
+
+pub fn run(cmd: MapCommand) -> anyhow::Result<()> {
+    match cmd {
+        MapCommand::Info(a) => info(&a),
+    }
+}
+
+/// Statistics of a map, as printed by `omcl map info`.
+#[derive(Debug, serde::Serialize)]
+pub struct MapInfo {
+    pub file: String,
+    pub file_bytes: u64,
+    pub format: String,
+    pub version: String,
+    pub encoder: String,
+    pub resolution_m: f64,
+    pub origin_m: [f64; 3],
+    pub feature_dim: usize,
+    pub tau: f32,
+    pub leaves: usize,
+    pub rows: usize,
+    pub bounds_min_m: Option<[f64; 3]>,
+    pub bounds_max_m: Option<[f64; 3]>,
+    pub memory_bytes: usize,
+    pub top_rows: Vec<(usize, usize)>,
+    pub unused_rows: usize,
+}
+
+pub fn map_info(path: &std::path::Path, map: &LanguageMap, top: usize) -> anyhow::Result<MapInfo> {
+    let header = file::read_header(path)?;
+    let g = map.grid();
+    let bounds = map.cell_bounds().map(|(lo, hi)| {
+        let lo = g.origin
+            + nalgebra::Vector3::new(lo[0] as f64, lo[1] as f64, lo[2] as f64) * g.resolution;
+        let hi = g.origin
+            + nalgebra::Vector3::new((hi[0] + 1) as f64, (hi[1] + 1) as f64, (hi[2] + 1) as f64)
+                * g.resolution;
+        ([lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z])
+    });
+    let counts = map.row_counts();
+    let mut ranked: Vec<(usize, usize)> = counts.iter().copied().enumerate().collect();
+    ranked.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+    let unused_rows = counts.iter().filter(|&&c| c == 0).count();
+    ranked.truncate(top);
+    Ok(MapInfo {
+        file: path.display().to_string(),
+        file_bytes: std::fs::metadata(path).map(|m| m.len()).unwrap_or(0),
+        format: header.get("format").cloned().unwrap_or_default(),
+        version: header.get("version").cloned().unwrap_or_default(),
+        encoder: map.encoder().to_string(),
+        resolution_m: g.resolution,
+        origin_m: [g.origin.x, g.origin.y, g.origin.z],
+        feature_dim: map.db().dim(),
+        tau: map.db().tau(),
+        leaves: map.len(),
+        rows: map.db().len(),
+        bounds_min_m: bounds.map(|b| b.0),
+        bounds_max_m: bounds.map(|b| b.1),
+        memory_bytes: map.memory_bytes(),
+        top_rows: ranked,
+        unused_rows,
+    })
+}
+
+fn info(a: &InfoArgs) -> anyhow::Result<()> {
+    let map = file::load(&a.file)?;
+    let i = map_info(&a.file, &map, a.top)?;
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&i).context("serializing map info")?
+        );
+        return Ok(());
+    }
+    print!("{}", render_info(&i));
+    Ok(())
+}
+
+/// The text form of `omcl map info`.
+pub fn render_info(i: &MapInfo) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "map          {} ({:.2} MB)",
+        i.file,
+        i.file_bytes as f64 / 1e6
+    );
+    let _ = writeln!(s, "format       {} v{} (checksum ok)", i.format, i.version);
+    let _ = writeln!(s, "encoder      {}", i.encoder);
+    let _ = writeln!(s, "resolution   {} m", i.resolution_m);
+    let _ = writeln!(
+        s,
+        "origin       {:.3} {:.3} {:.3} m",
+        i.origin_m[0], i.origin_m[1], i.origin_m[2]
+    );
+    let _ = writeln!(
+        s,
+        "features     {} rows x {} dims, tau {}",
+        i.rows, i.feature_dim, i.tau
+    );
+    let _ = writeln!(s, "leaves       {} voxels", i.leaves);
+    if let (Some(lo), Some(hi)) = (i.bounds_min_m, i.bounds_max_m) {
+        let _ = writeln!(
+            s,
+            "bounds       [{:.2}, {:.2}] x [{:.2}, {:.2}] x [{:.2}, {:.2}] m (extent {:.2} x {:.2} x {:.2} m)",
+            lo[0],
+            hi[0],
+            lo[1],
+            hi[1],
+            lo[2],
+            hi[2],
+            hi[0] - lo[0],
+            hi[1] - lo[1],
+            hi[2] - lo[2]
+        );
+    }
+    let _ = writeln!(
+        s,
+        "memory       {:.2} MB in RAM ({:.1} B/voxel)",
+        i.memory_bytes as f64 / 1e6,
+        i.memory_bytes as f64 / i.leaves.max(1) as f64
+    );
+    let _ = writeln!(s, "rows by use  (row: voxels)  {} unused", i.unused_rows);
+    for (r, n) in &i.top_rows {
+        let _ = writeln!(
+            s,
+            "  {r:>6}: {n:>9} ({:.1} %)",
+            100.0 * *n as f64 / i.leaves.max(1) as f64
+        );
+    }
+    s
+}

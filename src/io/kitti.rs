@@ -1,0 +1,388 @@
+//! KITTI / SemanticKITTI: velodyne scans, `.label` files, `calib.txt`,
+//! `poses.txt`, and [`KittiSequence`], which puts scans into one world frame.
+//!
+//! Frames: a scan is in the LiDAR frame; `poses.txt` holds
+//! `cam0_world_from_cam0_i` (left camera, KITTI camera frame: x right, y
+//! down, z forward); `Tr` in `calib.txt` is `camera_from_lidar`. The LiDAR
+//! pose of scan `i`, in the frame of the first LiDAR scan, is therefore
+//! `world_from_lidar_i = Tr^-1 * P_i * Tr`.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Matrix3, Matrix3x4, Translation3, UnitQuaternion, Vector3};
+
+use crate::geometry::Pose;
+use crate::io::cloud::{CloudError, PointCloud, voxel_downsample};
+use crate::io::labels::{is_dropped_semantic_kitti, semantic_id};
+use crate::io::poses::{PoseFormat, read_poses_in};
+
+/// Largest accepted deviation of `R^T R` from identity in `Tr`; the same
+/// bound as the pose files ([`crate::io::poses::ROTATION_TOLERANCE`]).
+const RIGID_TOLERANCE: f64 = crate::io::poses::ROTATION_TOLERANCE;
+
+/// Reads a velodyne `.bin` scan (float32 x, y, z, reflectance per point, in
+/// metres, LiDAR frame). Reflectance is not kept. Errors when the size is not
+/// a multiple of 16 bytes or a coordinate is not finite.
+pub fn read_velodyne_bin(path: &Path) -> Result<PointCloud, CloudError> {
+    let bytes = std::fs::read(path).map_err(|e| CloudError::io(path, e))?;
+    if bytes.len() % 16 != 0 {
+        return Err(CloudError::format(
+            path,
+            format!(
+                "size {} bytes is not a multiple of 16 (float32 x y z reflectance per point): \
+                 truncated or not a velodyne scan",
+                bytes.len()
+            ),
+        ));
+    }
+    let f = |b: &[u8]| f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64;
+    let points: Vec<[f64; 3]> = bytes
+        .chunks_exact(16)
+        .map(|r| [f(&r[0..4]), f(&r[4..8]), f(&r[8..12])])
+        .collect();
+    let cloud = PointCloud::from_points(points);
+    cloud.validate(&path.display().to_string())?;
+    cloud.non_empty(&path.display().to_string(), "the scan holds no points")
+}
+
+/// Reads a SemanticKITTI `.label` file: one little-endian u32 a point
+/// (semantic class in the low 16 bits, instance id in the high 16; see
+/// [`crate::io::labels::semantic_id`]). `expected_points` is the scan's point
+/// count; a different count is an error.
+pub fn read_label_file(path: &Path, expected_points: usize) -> Result<Vec<u32>, CloudError> {
+    let bytes = std::fs::read(path).map_err(|e| CloudError::io(path, e))?;
+    if bytes.len() % 4 != 0 {
+        return Err(CloudError::format(
+            path,
+            format!(
+                "size {} bytes is not a multiple of 4 (u32 labels)",
+                bytes.len()
+            ),
+        ));
+    }
+    let n = bytes.len() / 4;
+    if n != expected_points {
+        return Err(CloudError::mismatch(
+            path,
+            format!("{n} labels for a scan of {expected_points} points"),
+        ));
+    }
+    Ok(bytes
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect())
+}
+
+/// A rigid pose from a row-major 3x4 `[R | t]`; rejects non-finite values,
+/// non-orthonormal `R` and reflections. `R` is re-orthonormalised so that
+/// rounding in the file does not accumulate.
+pub fn pose_from_3x4(m: &[f64; 12]) -> Result<Pose, String> {
+    if let Some(v) = m.iter().find(|v| !v.is_finite()) {
+        return Err(format!("non-finite value {v}"));
+    }
+    let r = Matrix3::new(m[0], m[1], m[2], m[4], m[5], m[6], m[8], m[9], m[10]);
+    let err = (r.transpose() * r - Matrix3::identity()).abs().max();
+    if err > RIGID_TOLERANCE {
+        return Err(format!(
+            "rotation part is not orthonormal (|R^T R - I| = {err:.2e}): not a rigid pose"
+        ));
+    }
+    if r.determinant() < 0.0 {
+        return Err("rotation part is a reflection (det < 0): not a rigid pose".into());
+    }
+    Ok(Pose::from_parts(
+        Translation3::new(m[3], m[7], m[11]),
+        UnitQuaternion::from_matrix(&r),
+    ))
+}
+
+fn parse_12(path: &Path, lineno: usize, fields: &[&str]) -> Result<[f64; 12], CloudError> {
+    if fields.len() != 12 {
+        return Err(CloudError::format(
+            path,
+            format!(
+                "line {lineno}: expected 12 numbers (3x4 row-major), found {}",
+                fields.len()
+            ),
+        ));
+    }
+    let mut out = [0.0; 12];
+    for (o, s) in out.iter_mut().zip(fields) {
+        *o = s.parse().map_err(|_| {
+            CloudError::format(path, format!("line {lineno}: '{s}' is not a number"))
+        })?;
+    }
+    Ok(out)
+}
+
+/// KITTI `calib.txt`: projection matrices and the LiDAR-to-camera transform.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KittiCalib {
+    /// `P0..P3`: 3x4 projection matrices of the rectified cameras, pixels.
+    pub projections: BTreeMap<String, Matrix3x4<f64>>,
+    /// `Tr`: maps LiDAR coordinates to camera-0 coordinates.
+    pub camera_from_lidar: Pose,
+}
+
+/// Reads `calib.txt` (`KEY: 12 numbers` lines; `Tr` required).
+pub fn read_calib(path: &Path) -> Result<KittiCalib, CloudError> {
+    let text = std::fs::read_to_string(path).map_err(|e| CloudError::io(path, e))?;
+    let mut projections = BTreeMap::new();
+    let mut tr = None;
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() {
+            continue;
+        }
+        let Some((key, rest)) = line.split_once(':') else {
+            return Err(CloudError::format(
+                path,
+                format!("line {}: expected 'KEY: 12 numbers'", i + 1),
+            ));
+        };
+        let fields: Vec<&str> = rest.split_whitespace().collect();
+        let m = parse_12(path, i + 1, &fields)?;
+        if key == "Tr" || key == "Tr_velo_to_cam" {
+            tr = Some(
+                pose_from_3x4(&m)
+                    .map_err(|r| CloudError::format(path, format!("line {}: Tr: {r}", i + 1)))?,
+            );
+        } else {
+            if m.iter().any(|v| !v.is_finite()) {
+                return Err(CloudError::format(
+                    path,
+                    format!("line {}: {key} has a non-finite value", i + 1),
+                ));
+            }
+            projections.insert(key.to_string(), Matrix3x4::from_row_slice(&m));
+        }
+    }
+    let camera_from_lidar =
+        tr.ok_or_else(|| CloudError::format(path, "no 'Tr:' line (velodyne-to-camera)"))?;
+    Ok(KittiCalib {
+        projections,
+        camera_from_lidar,
+    })
+}
+
+/// Reads a KITTI pose file (one row-major 3x4 `world_from_camera` a line)
+/// through [`crate::io::poses`], which rejects non-finite and non-rigid
+/// poses with the file and line.
+pub fn read_kitti_poses(path: &Path) -> Result<Vec<Pose>, CloudError> {
+    let file = read_poses_in(path, PoseFormat::Kitti)?;
+    Ok(file.trajectory.poses().to_vec())
+}
+
+/// One SemanticKITTI sequence directory (`velodyne/`, optional `labels/`,
+/// `calib.txt`, `poses.txt`).
+#[derive(Debug, Clone)]
+pub struct KittiSequence {
+    /// The sequence directory.
+    pub dir: PathBuf,
+    pub calib: KittiCalib,
+    /// `cam0_world_from_cam0_i`, one per frame number.
+    pub camera_poses: Vec<Pose>,
+    /// Frame numbers of the scans present, ascending.
+    pub frames: Vec<usize>,
+}
+
+/// What [`KittiSequence::aggregate`] keeps.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AggregateOptions {
+    /// Voxel edge in metres for down-sampling the merged map (first point
+    /// per voxel kept); `None` keeps every point.
+    pub voxel_size: Option<f64>,
+    /// Drop unlabeled, outlier and moving points (needs label files).
+    pub drop_unlabeled_outlier_moving: bool,
+    /// Ignore points farther than this from the sensor (metres); `None` keeps
+    /// all.
+    pub max_range: Option<f64>,
+    /// Directory of per-scan feature files `NNNNNN.npy` (`N x F`, one row a
+    /// point of the scan, e.g. OpenScene features computed elsewhere);
+    /// attached before filtering so rows stay with their points.
+    pub features_dir: Option<PathBuf>,
+}
+
+impl Default for AggregateOptions {
+    fn default() -> Self {
+        AggregateOptions {
+            voxel_size: Some(0.1),
+            drop_unlabeled_outlier_moving: true,
+            max_range: None,
+            features_dir: None,
+        }
+    }
+}
+
+impl KittiSequence {
+    /// Opens a sequence: reads calibration and poses and lists the scans.
+    pub fn open(dir: &Path) -> Result<Self, CloudError> {
+        let calib = read_calib(&dir.join("calib.txt"))?;
+        let camera_poses = read_kitti_poses(&dir.join("poses.txt"))?;
+        let vel = dir.join("velodyne");
+        let entries = std::fs::read_dir(&vel).map_err(|e| CloudError::io(&vel, e))?;
+        let mut frames = Vec::new();
+        for entry in entries {
+            let p = entry.map_err(|e| CloudError::io(&vel, e))?.path();
+            if p.extension().and_then(|e| e.to_str()) != Some("bin") {
+                continue;
+            }
+            let frame = p
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .and_then(|s| s.parse::<usize>().ok())
+                .ok_or_else(|| {
+                    CloudError::format(&p, "scan file name is not a frame number (NNNNNN.bin)")
+                })?;
+            if frame >= camera_poses.len() {
+                return Err(CloudError::mismatch(
+                    &dir.join("poses.txt"),
+                    format!(
+                        "{} poses, but scan {} needs pose {frame}",
+                        camera_poses.len(),
+                        p.display()
+                    ),
+                ));
+            }
+            frames.push(frame);
+        }
+        frames.sort_unstable();
+        if frames.is_empty() {
+            return Err(CloudError::Empty {
+                source_name: vel.display().to_string(),
+                reason: "no .bin scans".into(),
+            });
+        }
+        Ok(KittiSequence {
+            dir: dir.to_path_buf(),
+            calib,
+            camera_poses,
+            frames,
+        })
+    }
+
+    /// Path of the scan of `frame`.
+    pub fn scan_path(&self, frame: usize) -> PathBuf {
+        self.dir.join("velodyne").join(format!("{frame:06}.bin"))
+    }
+
+    /// Path of the label file of `frame` (it may not exist).
+    pub fn label_path(&self, frame: usize) -> PathBuf {
+        self.dir.join("labels").join(format!("{frame:06}.label"))
+    }
+
+    /// `world_from_lidar` of `frame`: `Tr^-1 * P_frame * Tr`; the world is
+    /// the first LiDAR frame of the sequence. `None` past the pose file.
+    pub fn world_from_lidar(&self, frame: usize) -> Option<Pose> {
+        let tr = &self.calib.camera_from_lidar;
+        self.camera_poses.get(frame).map(|p| tr.inverse() * p * tr)
+    }
+
+    /// Scan `frame` in the world frame, with semantic ids (low 16 bits of
+    /// the `.label` file) as labels when the label file exists.
+    pub fn load_scan(&self, frame: usize) -> Result<PointCloud, CloudError> {
+        let (cloud, _) = self.load_scan_with_range(frame)?;
+        Ok(cloud)
+    }
+
+    /// As [`Self::load_scan`], also returning each point's range from the
+    /// sensor in metres.
+    fn load_scan_with_range(&self, frame: usize) -> Result<(PointCloud, Vec<f64>), CloudError> {
+        let path = self.scan_path(frame);
+        let mut cloud = read_velodyne_bin(&path)?;
+        let range = cloud
+            .points
+            .iter()
+            .map(|p| Vector3::from(*p).norm())
+            .collect();
+        let lp = self.label_path(frame);
+        if lp.exists() {
+            let raw = read_label_file(&lp, cloud.len())?;
+            cloud.labels = Some(raw.into_iter().map(semantic_id).collect());
+        }
+        let pose = self.world_from_lidar(frame).ok_or_else(|| {
+            CloudError::mismatch(
+                &self.dir.join("poses.txt"),
+                format!("no pose for frame {frame}"),
+            )
+        })?;
+        cloud.transform(&pose);
+        Ok((cloud, range))
+    }
+
+    /// Merges the scans of `frames` (all scans when empty) into one world-
+    /// frame cloud, filtered and down-sampled as `opts` says. An empty result
+    /// is an error.
+    pub fn aggregate(
+        &self,
+        frames: &[usize],
+        opts: &AggregateOptions,
+    ) -> Result<PointCloud, CloudError> {
+        let frames = if frames.is_empty() {
+            &self.frames[..]
+        } else {
+            frames
+        };
+        let mut map = PointCloud::default();
+        for &frame in frames {
+            let (mut scan, range) = self.load_scan_with_range(frame)?;
+            if let Some(dir) = &opts.features_dir {
+                scan.attach_features_npy(&dir.join(format!("{frame:06}.npy")))?;
+            }
+            if opts.drop_unlabeled_outlier_moving {
+                let Some(labels) = scan.labels.as_ref() else {
+                    return Err(CloudError::mismatch(
+                        &self.label_path(frame),
+                        "label file missing, but dropping unlabeled/outlier/moving classes needs labels",
+                    ));
+                };
+                let keep: Vec<bool> = labels
+                    .iter()
+                    .map(|&l| !is_dropped_semantic_kitti(l))
+                    .collect();
+                scan.retain_indices(|i| keep[i]);
+                let kept_range: Vec<f64> = range
+                    .iter()
+                    .zip(&keep)
+                    .filter(|(_, k)| **k)
+                    .map(|(r, _)| *r)
+                    .collect();
+                if let Some(max) = opts.max_range {
+                    scan.retain_indices(|i| kept_range[i] <= max);
+                }
+            } else if let Some(max) = opts.max_range {
+                scan.retain_indices(|i| range[i] <= max);
+            }
+            map.append(scan);
+            // Down-sampling as we go bounds memory for long sequences.
+            if let Some(v) = opts.voxel_size {
+                voxel_downsample(&mut map, v);
+            }
+        }
+        map.non_empty(
+            &self.dir.display().to_string(),
+            "no points left after filtering",
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rigid_check_accepts_rotation_and_rejects_scale_and_reflection() {
+        let ok = [0.0, -1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 2.0, 0.0, 0.0, 1.0, 3.0];
+        let p = pose_from_3x4(&ok).unwrap();
+        let q = p * nalgebra::Point3::new(1.0, 0.0, 0.0);
+        assert!((q - nalgebra::Point3::new(1.0, 3.0, 3.0)).norm() < 1e-12);
+        let scaled = [2.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+        assert!(pose_from_3x4(&scaled).unwrap_err().contains("not a rigid"));
+        let mirror = [-1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+        assert!(pose_from_3x4(&mirror).unwrap_err().contains("reflection"));
+        let mut nan = ok;
+        nan[3] = f64::NAN;
+        assert!(pose_from_3x4(&nan).unwrap_err().contains("non-finite"));
+    }
+}

@@ -1,0 +1,325 @@
+//! Class labels: the SemanticKITTI label set (ids, names, the 19-class
+//! learning map, which classes are dropped) and label-to-embedding tables
+//! (ground-truth feature mode).
+//!
+//! Embedding-table files are two files side by side: a text file of class
+//! ids and names, one class a line (`<id> <name>`, `#` comments; names may
+//! contain spaces), and an `N x F` `.npy` whose row `k` is the embedding of
+//! the `k`-th class line. Python writes them with `np.save` and a loop.
+
+use std::path::Path;
+
+use rustc_hash::FxHashMap;
+
+use crate::io::cloud::CloudError;
+use crate::io::npy::read_npy;
+
+/// SemanticKITTI raw class ids and names (`semantic-kitti.yaml`, `labels`).
+pub const SEMANTIC_KITTI_CLASSES: [(u32, &str); 34] = [
+    (0, "unlabeled"),
+    (1, "outlier"),
+    (10, "car"),
+    (11, "bicycle"),
+    (13, "bus"),
+    (15, "motorcycle"),
+    (16, "on-rails"),
+    (18, "truck"),
+    (20, "other-vehicle"),
+    (30, "person"),
+    (31, "bicyclist"),
+    (32, "motorcyclist"),
+    (40, "road"),
+    (44, "parking"),
+    (48, "sidewalk"),
+    (49, "other-ground"),
+    (50, "building"),
+    (51, "fence"),
+    (52, "other-structure"),
+    (60, "lane-marking"),
+    (70, "vegetation"),
+    (71, "trunk"),
+    (72, "terrain"),
+    (80, "pole"),
+    (81, "traffic-sign"),
+    (99, "other-object"),
+    (252, "moving-car"),
+    (253, "moving-bicyclist"),
+    (254, "moving-person"),
+    (255, "moving-motorcyclist"),
+    (256, "moving-on-rails"),
+    (257, "moving-bus"),
+    (258, "moving-truck"),
+    (259, "moving-other-vehicle"),
+];
+
+/// SemanticKITTI `learning_map`: raw id to the 19 training classes
+/// (0 = ignored). Moving classes map to their static counterparts.
+pub const SEMANTIC_KITTI_LEARNING_MAP: [(u32, u32); 34] = [
+    (0, 0),
+    (1, 0),
+    (10, 1),
+    (11, 2),
+    (13, 5),
+    (15, 3),
+    (16, 5),
+    (18, 4),
+    (20, 5),
+    (30, 6),
+    (31, 7),
+    (32, 8),
+    (40, 9),
+    (44, 10),
+    (48, 11),
+    (49, 12),
+    (50, 13),
+    (51, 14),
+    (52, 0),
+    (60, 9),
+    (70, 15),
+    (71, 16),
+    (72, 17),
+    (80, 18),
+    (81, 19),
+    (99, 0),
+    (252, 1),
+    (253, 7),
+    (254, 6),
+    (255, 8),
+    (256, 5),
+    (257, 5),
+    (258, 4),
+    (259, 5),
+];
+
+/// Names of the 19 training classes, index = learning-map id - 1.
+pub const SEMANTIC_KITTI_TRAIN_NAMES: [&str; 19] = [
+    "car",
+    "bicycle",
+    "motorcycle",
+    "truck",
+    "other-vehicle",
+    "person",
+    "bicyclist",
+    "motorcyclist",
+    "road",
+    "parking",
+    "sidewalk",
+    "other-ground",
+    "building",
+    "fence",
+    "vegetation",
+    "trunk",
+    "terrain",
+    "pole",
+    "traffic-sign",
+];
+
+/// Semantic class of a raw `.label` value (low 16 bits).
+pub fn semantic_id(raw: u32) -> u32 {
+    raw & 0xFFFF
+}
+
+/// Instance id of a raw `.label` value (high 16 bits).
+pub fn instance_id(raw: u32) -> u32 {
+    raw >> 16
+}
+
+/// Name of a SemanticKITTI raw class id.
+pub fn semantic_kitti_name(id: u32) -> Option<&'static str> {
+    SEMANTIC_KITTI_CLASSES
+        .iter()
+        .find(|(i, _)| *i == id)
+        .map(|(_, n)| *n)
+}
+
+/// Learning-map class (1..=19, 0 = ignored) of a raw class id; `None` for
+/// ids outside the SemanticKITTI set.
+pub fn semantic_kitti_learning_id(id: u32) -> Option<u32> {
+    SEMANTIC_KITTI_LEARNING_MAP
+        .iter()
+        .find(|(i, _)| *i == id)
+        .map(|(_, t)| *t)
+}
+
+/// True for classes a static map leaves out: unlabeled (0), outlier (1) and
+/// moving objects (252-259), as the OMCL authors do.
+pub fn is_dropped_semantic_kitti(semantic: u32) -> bool {
+    semantic == 0 || semantic == 1 || (252..=259).contains(&semantic)
+}
+
+/// Class names mapped to embedding vectors (ground-truth feature mode).
+#[derive(Debug, Clone, PartialEq)]
+pub struct EmbeddingTable {
+    /// Class ids, in row order.
+    pub ids: Vec<u32>,
+    /// Class names, in row order.
+    pub names: Vec<String>,
+    /// Embedding dimension.
+    pub dim: usize,
+    /// `ids.len() x dim` values, row-major.
+    pub data: Vec<f32>,
+    row_of: FxHashMap<u32, usize>,
+}
+
+impl EmbeddingTable {
+    /// Builds a table; ids must be unique and `data.len() == ids.len() * dim`.
+    pub fn new(
+        ids: Vec<u32>,
+        names: Vec<String>,
+        dim: usize,
+        data: Vec<f32>,
+    ) -> Result<Self, String> {
+        if ids.len() != names.len() || data.len() != ids.len() * dim || dim == 0 {
+            return Err(format!(
+                "{} ids, {} names, {} values for dimension {dim}",
+                ids.len(),
+                names.len(),
+                data.len()
+            ));
+        }
+        let mut row_of = FxHashMap::default();
+        for (row, &id) in ids.iter().enumerate() {
+            if row_of.insert(id, row).is_some() {
+                return Err(format!("class id {id} appears twice"));
+            }
+        }
+        Ok(EmbeddingTable {
+            ids,
+            names,
+            dim,
+            data,
+            row_of,
+        })
+    }
+
+    /// Reads a class list (`<id> <name>` lines) and its `N x F` `.npy`.
+    pub fn read(classes_path: &Path, npy_path: &Path) -> Result<Self, CloudError> {
+        let text =
+            std::fs::read_to_string(classes_path).map_err(|e| CloudError::io(classes_path, e))?;
+        let mut ids = Vec::new();
+        let mut names = Vec::new();
+        for (lineno, line) in text.lines().enumerate() {
+            let line = line.trim();
+            if line.is_empty() || line.starts_with('#') {
+                continue;
+            }
+            let (id, name) = line.split_once(char::is_whitespace).ok_or_else(|| {
+                CloudError::format(
+                    classes_path,
+                    format!("line {}: expected '<id> <name>', got '{line}'", lineno + 1),
+                )
+            })?;
+            let id: u32 = id.parse().map_err(|_| {
+                CloudError::format(
+                    classes_path,
+                    format!(
+                        "line {}: class id '{id}' is not a non-negative integer",
+                        lineno + 1
+                    ),
+                )
+            })?;
+            ids.push(id);
+            names.push(name.trim().to_string());
+        }
+        let arr = read_npy(npy_path)?;
+        if arr.shape.len() != 2 || arr.shape[0] != ids.len() {
+            return Err(CloudError::mismatch(
+                npy_path,
+                format!(
+                    "embedding table must be {} x F (one row per class in {}), got shape {:?}",
+                    ids.len(),
+                    classes_path.display(),
+                    arr.shape
+                ),
+            ));
+        }
+        if arr.data.iter().any(|v| !v.is_finite()) {
+            return Err(CloudError::format(npy_path, "non-finite embedding value"));
+        }
+        EmbeddingTable::new(ids, names, arr.shape[1], arr.data)
+            .map_err(|r| CloudError::format(classes_path, r))
+    }
+
+    /// Row index of class `id` (for feature databases built from this
+    /// table in the same row order).
+    pub fn row_index(&self, id: u32) -> Option<usize> {
+        self.row_of.get(&id).copied()
+    }
+
+    /// The embedding of class `id`.
+    pub fn row(&self, id: u32) -> Option<&[f32]> {
+        self.row_of
+            .get(&id)
+            .map(|&r| &self.data[r * self.dim..(r + 1) * self.dim])
+    }
+
+    /// Per-point features for `labels` (`labels.len() x dim`, row-major).
+    /// A label missing from the table is an error naming `source`, the point
+    /// and the label.
+    pub fn features_for(&self, labels: &[u32], source: &str) -> Result<Vec<f32>, CloudError> {
+        let mut out = Vec::with_capacity(labels.len() * self.dim);
+        for (i, &l) in labels.iter().enumerate() {
+            let row = self.row(l).ok_or_else(|| CloudError::Invalid {
+                source_name: source.to_string(),
+                reason: format!("point {i} has label {l}, which the embedding table lacks"),
+            })?;
+            out.extend_from_slice(row);
+        }
+        Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn label_bits_split() {
+        let raw = (7u32 << 16) | 252;
+        assert_eq!(semantic_id(raw), 252);
+        assert_eq!(instance_id(raw), 7);
+        assert!(is_dropped_semantic_kitti(semantic_id(raw)));
+        assert!(!is_dropped_semantic_kitti(50));
+    }
+
+    #[test]
+    fn tables_agree() {
+        for (id, name) in SEMANTIC_KITTI_CLASSES {
+            let t = semantic_kitti_learning_id(id).unwrap();
+            if t > 0 && id < 252 {
+                // Static classes keep their names through the learning map,
+                // except those merged into a broader class.
+                let merged = matches!(id, 16 | 13 | 60);
+                assert!(
+                    merged || SEMANTIC_KITTI_TRAIN_NAMES[t as usize - 1] == name,
+                    "{id} {name}"
+                );
+            }
+        }
+        assert_eq!(semantic_kitti_name(70), Some("vegetation"));
+    }
+
+    #[test]
+    fn table_reads_and_maps_labels() {
+        let d = tempfile::tempdir().unwrap();
+        let c = d.path().join("classes.txt");
+        let n = d.path().join("emb.npy");
+        std::fs::write(&c, "# id name\n40 road\n50 tall building\n").unwrap();
+        crate::io::npy::write_npy(&n, &[2, 2], &[1.0, 0.0, 0.0, 1.0]).unwrap();
+        let t = EmbeddingTable::read(&c, &n).unwrap();
+        assert_eq!(t.names[1], "tall building");
+        assert_eq!((t.row_index(50), t.row_index(41)), (Some(1), None));
+        assert_eq!(
+            t.features_for(&[50, 40], "s").unwrap(),
+            vec![0.0, 1.0, 1.0, 0.0]
+        );
+        let e = t.features_for(&[40, 10], "scan7").unwrap_err().to_string();
+        assert!(
+            e.contains("scan7") && e.contains("point 1") && e.contains("10"),
+            "{e}"
+        );
+        crate::io::npy::write_npy(&n, &[3, 2], &[0.0; 6]).unwrap();
+        let e = EmbeddingTable::read(&c, &n).unwrap_err().to_string();
+        assert!(e.contains("emb.npy") && e.contains("[3, 2]"), "{e}");
+    }
+}

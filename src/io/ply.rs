@@ -1,0 +1,767 @@
+//! PLY point clouds: reading (ASCII, binary little- and big-endian, via
+//! `ply-rs-bw`) and writing (binary little-endian, atomic).
+//!
+//! The `vertex` element is read; other elements (faces, ...) are skipped.
+//! Recognised vertex properties:
+//! - `x y z`: `float` or `double` (required), metres;
+//! - `red green blue`: `uchar` (optional, all three or none);
+//! - one label property named `label`, `class`, `scalar_label` or
+//!   `classification` (any letter case; CloudCompare writes `scalar_Label`):
+//!   any integer type, or a float type holding whole numbers (CloudCompare
+//!   stores scalar fields as float); non-negative (optional);
+//! - features `f0 f1 ...` or `feat_0 feat_1 ...` (also `feature_0 ...`):
+//!   `float` or `double`, numbered consecutively from 0 in header order
+//!   (optional).
+//!
+//! Other properties are ignored.
+
+use std::fs::File;
+use std::io::{BufRead, BufReader, BufWriter, Read, Write};
+use std::path::Path;
+
+use ply_rs_bw::parser::{Parser, Reader};
+use ply_rs_bw::ply::{
+    ElementDef, Encoding, Property, PropertyAccess, PropertyAccessResult, PropertyType, ScalarType,
+};
+
+use crate::io::cloud::{CloudError, PointCloud};
+
+const LABEL_NAMES: [&str; 4] = ["label", "class", "scalar_label", "classification"];
+
+fn is_label_name(name: &str) -> bool {
+    LABEL_NAMES.iter().any(|n| n.eq_ignore_ascii_case(name))
+}
+
+/// A label value as a class id: a whole number in `0..=u32::MAX`.
+fn label_id(raw: f64) -> Option<u32> {
+    (raw >= 0.0 && raw <= u32::MAX as f64 && raw.fract() == 0.0).then_some(raw as u32)
+}
+const FEATURE_PREFIXES: [&str; 3] = ["feat_", "feature_", "f"];
+
+/// One vertex as the parser fills it. Features go to a `Vec` only when the
+/// file has them (the parser constructs a fresh element per vertex, so that
+/// is the one per-point allocation, and only for feature files).
+#[derive(Default)]
+struct Vertex {
+    xyz: [f64; 3],
+    rgb: [u8; 3],
+    /// Any PLY scalar is exact in `f64`.
+    label: f64,
+    feat: Vec<f32>,
+}
+
+fn feature_index(name: &str) -> Option<usize> {
+    FEATURE_PREFIXES.iter().find_map(|p| {
+        name.strip_prefix(p)
+            .filter(|rest| !rest.is_empty() && rest.bytes().all(|b| b.is_ascii_digit()))
+            .and_then(|rest| rest.parse().ok())
+    })
+}
+
+impl Vertex {
+    fn set_f64(&mut self, name: &str, v: f64) -> PropertyAccessResult {
+        match name {
+            "x" => self.xyz[0] = v,
+            "y" => self.xyz[1] = v,
+            "z" => self.xyz[2] = v,
+            _ if is_label_name(name) => self.label = v,
+            // The header check guarantees features arrive in index order.
+            _ if feature_index(name).is_some() => self.feat.push(v as f32),
+            _ => return PropertyAccessResult::Ignored,
+        }
+        PropertyAccessResult::Set
+    }
+
+    fn set_int(&mut self, name: &str, v: i64) -> PropertyAccessResult {
+        if is_label_name(name) {
+            self.label = v as f64;
+            PropertyAccessResult::Set
+        } else {
+            PropertyAccessResult::Ignored
+        }
+    }
+}
+
+impl PropertyAccess for Vertex {
+    fn new() -> Self {
+        Vertex::default()
+    }
+    fn set_property(&mut self, _name: &str, _p: Property) -> PropertyAccessResult {
+        PropertyAccessResult::Ignored
+    }
+    fn set_uchar(&mut self, name: &str, v: u8) -> PropertyAccessResult {
+        match name {
+            "red" => self.rgb[0] = v,
+            "green" => self.rgb[1] = v,
+            "blue" => self.rgb[2] = v,
+            _ => return self.set_int(name, v as i64),
+        }
+        PropertyAccessResult::Set
+    }
+    fn set_char(&mut self, name: &str, v: i8) -> PropertyAccessResult {
+        self.set_int(name, v as i64)
+    }
+    fn set_short(&mut self, name: &str, v: i16) -> PropertyAccessResult {
+        self.set_int(name, v as i64)
+    }
+    fn set_ushort(&mut self, name: &str, v: u16) -> PropertyAccessResult {
+        self.set_int(name, v as i64)
+    }
+    fn set_int(&mut self, name: &str, v: i32) -> PropertyAccessResult {
+        Vertex::set_int(self, name, v as i64)
+    }
+    fn set_uint(&mut self, name: &str, v: u32) -> PropertyAccessResult {
+        Vertex::set_int(self, name, v as i64)
+    }
+    fn set_float(&mut self, name: &str, v: f32) -> PropertyAccessResult {
+        self.set_f64(name, v as f64)
+    }
+    fn set_double(&mut self, name: &str, v: f64) -> PropertyAccessResult {
+        self.set_f64(name, v)
+    }
+}
+
+/// Which optional columns the vertex element declares.
+struct Layout {
+    colors: bool,
+    label: bool,
+    feature_dim: usize,
+}
+
+fn scalar(p: &PropertyType) -> Option<&ScalarType> {
+    match p {
+        PropertyType::Scalar(s) => Some(s),
+        PropertyType::List(..) => None,
+    }
+}
+
+fn check_vertex_layout(path: &Path, def: &ElementDef) -> Result<Layout, CloudError> {
+    let fmt = |r: String| CloudError::format(path, r);
+    let find = |n: &str| def.properties.get(n).map(|p| &p.data_type);
+    for axis in ["x", "y", "z"] {
+        match find(axis).and_then(scalar) {
+            Some(ScalarType::Float | ScalarType::Double) => {}
+            Some(t) => {
+                return Err(fmt(format!(
+                    "vertex property '{axis}' has type {t:?}, expected float or double"
+                )));
+            }
+            None => {
+                return Err(fmt(format!(
+                    "vertex element lacks a scalar '{axis}' property"
+                )));
+            }
+        }
+    }
+    let rgb: Vec<_> = ["red", "green", "blue"].iter().map(|n| find(n)).collect();
+    let colors = rgb.iter().all(Option::is_some);
+    if !colors && rgb.iter().any(Option::is_some) {
+        return Err(fmt("vertex has some but not all of red, green, blue".into()));
+    }
+    if colors {
+        for (n, t) in ["red", "green", "blue"].iter().zip(&rgb) {
+            if t.and_then(scalar) != Some(&ScalarType::UChar) {
+                return Err(fmt(format!(
+                    "vertex property '{n}' must be uchar (0-255), found {t:?}"
+                )));
+            }
+        }
+    }
+    let labels: Vec<&str> = def
+        .properties
+        .keys()
+        .map(String::as_str)
+        .filter(|n| is_label_name(n))
+        .collect();
+    if labels.len() > 1 {
+        return Err(fmt(format!(
+            "vertex has several label properties {labels:?}; keep one"
+        )));
+    }
+    if let Some(n) = labels.first()
+        && find(n).and_then(scalar).is_none()
+    {
+        return Err(fmt(format!(
+            "label property '{n}' must be a scalar, not a list"
+        )));
+    }
+    let mut feature_dim = 0;
+    for (name, p) in &def.properties {
+        if let Some(i) = feature_index(name) {
+            if i != feature_dim {
+                return Err(fmt(format!(
+                    "feature property '{name}' out of order: expected index {feature_dim}"
+                )));
+            }
+            if !matches!(
+                scalar(&p.data_type),
+                Some(ScalarType::Float | ScalarType::Double)
+            ) {
+                return Err(fmt(format!(
+                    "feature property '{name}' must be float or double"
+                )));
+            }
+            feature_dim += 1;
+        }
+    }
+    Ok(Layout {
+        colors,
+        label: !labels.is_empty(),
+        feature_dim,
+    })
+}
+
+/// Reads the vertices of a PLY file (any encoding) into a [`PointCloud`] in
+/// the file's frame, then validates it (finite points, non-negative labels).
+pub fn read_ply(path: &Path) -> Result<PointCloud, CloudError> {
+    let file = File::open(path).map_err(|e| CloudError::io(path, e))?;
+    let mut reader = Reader::new(BufReader::with_capacity(1 << 20, file));
+    let parser = Parser::<Vertex>::new();
+    let header = parser
+        .read_header(&mut reader)
+        .map_err(|e| CloudError::format(path, format!("bad PLY header: {e}")))?;
+    let Some(vertex_pos) = header.elements.get_index_of("vertex") else {
+        return Err(CloudError::format(path, "no 'vertex' element in header"));
+    };
+    let skip = Parser::<Skip>::new();
+    let mut cloud = PointCloud::default();
+    for (pos, (_, def)) in header.elements.iter().enumerate() {
+        if pos < vertex_pos {
+            // Elements before the vertices must be consumed to reach them.
+            for i in 0..def.count {
+                read_one(&skip, &mut reader, def, header.encoding).map_err(|e| {
+                    CloudError::format(path, format!("element '{}' {i}: {e}", def.name))
+                })?;
+            }
+            continue;
+        }
+        let layout = check_vertex_layout(path, def)?;
+        let big_endian = match header.encoding {
+            Encoding::Ascii => None,
+            Encoding::BinaryLittleEndian => Some(false),
+            Encoding::BinaryBigEndian => Some(true),
+        };
+        cloud = match (big_endian, FixedRecord::new(def)) {
+            // Scalar-only binary vertices have a fixed record size: decode
+            // them in bulk instead of one property call at a time.
+            (Some(big), Some(rec)) => {
+                read_fixed_vertices(path, reader.get_mut(), def, &layout, &rec, big)?
+            }
+            _ => read_vertices(path, &parser, &mut reader, def, header.encoding, &layout)?,
+        };
+        break;
+    }
+    cloud.validate(&path.display().to_string())?;
+    cloud.non_empty(&path.display().to_string(), "the file holds no vertices")
+}
+
+/// An element whose every property is ignored.
+struct Skip;
+impl PropertyAccess for Skip {
+    fn new() -> Self {
+        Skip
+    }
+}
+
+fn read_one<E: PropertyAccess, R: BufRead>(
+    parser: &Parser<E>,
+    reader: &mut Reader<R>,
+    def: &ElementDef,
+    encoding: Encoding,
+) -> Result<E, String> {
+    let r = reader.get_mut();
+    match encoding {
+        Encoding::BinaryLittleEndian => parser
+            .read_little_endian_element(r, def)
+            .map_err(|e| e.to_string()),
+        Encoding::BinaryBigEndian => parser
+            .read_big_endian_element(r, def)
+            .map_err(|e| e.to_string()),
+        Encoding::Ascii => {
+            let mut line = String::new();
+            // Blank lines between records carry nothing; skip them.
+            loop {
+                line.clear();
+                let n = r.read_line(&mut line).map_err(|e| e.to_string())?;
+                if n == 0 {
+                    return Err("unexpected end of file".into());
+                }
+                if !line.trim().is_empty() {
+                    break;
+                }
+            }
+            parser
+                .read_ascii_element(&line, def)
+                .map_err(|e| e.to_string())
+        }
+    }
+}
+
+fn read_vertices<R: BufRead>(
+    path: &Path,
+    parser: &Parser<Vertex>,
+    reader: &mut Reader<R>,
+    def: &ElementDef,
+    encoding: Encoding,
+    layout: &Layout,
+) -> Result<PointCloud, CloudError> {
+    // The header's count is untrusted: cap the up-front reservation.
+    let cap = def.count.min(1 << 24);
+    let mut points = Vec::with_capacity(cap);
+    let mut labels = layout.label.then(|| Vec::with_capacity(cap));
+    let mut colors = layout.colors.then(|| Vec::with_capacity(cap));
+    let dim = layout.feature_dim;
+    let mut feats = (dim > 0).then(|| Vec::with_capacity(cap.saturating_mul(dim)));
+    for i in 0..def.count {
+        let v = read_one(parser, reader, def, encoding).map_err(|e| {
+            if e.contains("failed to fill whole buffer") || e.contains("end of file") {
+                CloudError::format(
+                    path,
+                    format!(
+                        "truncated: file ends in vertex {i} (header declares {})",
+                        def.count
+                    ),
+                )
+            } else {
+                CloudError::format(path, format!("vertex {i}: {}", first_line(&e)))
+            }
+        })?;
+        points.push(v.xyz);
+        if let Some(l) = &mut labels {
+            let lab = label_id(v.label).ok_or_else(|| {
+                CloudError::format(
+                    path,
+                    format!(
+                        "vertex {i}: label {} is not a whole number in 0..=4294967295",
+                        v.label
+                    ),
+                )
+            })?;
+            l.push(lab);
+        }
+        if let Some(c) = &mut colors {
+            c.push(v.rgb);
+        }
+        if let Some(f) = &mut feats {
+            f.extend_from_slice(&v.feat);
+        }
+    }
+    Ok(PointCloud {
+        points,
+        labels,
+        colors,
+        features: feats.map(|f| (dim, f)),
+    })
+}
+
+/// Byte offsets of the used properties in a fixed-size binary record.
+struct FixedRecord {
+    len: usize,
+    xyz: [(usize, ScalarType); 3],
+    rgb: [usize; 3],
+    label: Option<(usize, ScalarType)>,
+    features: Vec<(usize, ScalarType)>,
+}
+
+fn scalar_size(t: &ScalarType) -> usize {
+    match t {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    }
+}
+
+impl FixedRecord {
+    /// `None` when the element has a list property (variable record size).
+    fn new(def: &ElementDef) -> Option<Self> {
+        let mut rec = FixedRecord {
+            len: 0,
+            xyz: [
+                (0, ScalarType::Float),
+                (0, ScalarType::Float),
+                (0, ScalarType::Float),
+            ],
+            rgb: [0; 3],
+            label: None,
+            features: Vec::new(),
+        };
+        for (name, p) in &def.properties {
+            let t = scalar(&p.data_type)?.clone();
+            let at = rec.len;
+            rec.len += scalar_size(&t);
+            match name.as_str() {
+                "x" => rec.xyz[0] = (at, t),
+                "y" => rec.xyz[1] = (at, t),
+                "z" => rec.xyz[2] = (at, t),
+                "red" => rec.rgb[0] = at,
+                "green" => rec.rgb[1] = at,
+                "blue" => rec.rgb[2] = at,
+                n if is_label_name(n) => rec.label = Some((at, t)),
+                n if feature_index(n).is_some() => rec.features.push((at, t)),
+                _ => {}
+            }
+        }
+        Some(rec)
+    }
+}
+
+fn bytes_at<const N: usize>(r: &[u8], at: usize) -> [u8; N] {
+    let mut b = [0u8; N];
+    b.copy_from_slice(&r[at..at + N]);
+    b
+}
+
+/// A scalar of type `t` at `at` in record `r`, as `f64` (exact for every
+/// PLY type).
+fn decode(r: &[u8], at: usize, t: &ScalarType, big: bool) -> f64 {
+    macro_rules! num {
+        ($ty:ty, $n:literal) => {{
+            let b = bytes_at::<$n>(r, at);
+            (if big {
+                <$ty>::from_be_bytes(b)
+            } else {
+                <$ty>::from_le_bytes(b)
+            }) as f64
+        }};
+    }
+    match t {
+        ScalarType::Char => r[at] as i8 as f64,
+        ScalarType::UChar => r[at] as f64,
+        ScalarType::Short => num!(i16, 2),
+        ScalarType::UShort => num!(u16, 2),
+        ScalarType::Int => num!(i32, 4),
+        ScalarType::UInt => num!(u32, 4),
+        ScalarType::Float => num!(f32, 4),
+        ScalarType::Double => num!(f64, 8),
+    }
+}
+
+/// Reads until `buf` is full or the input ends; returns the bytes read.
+fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut got = 0;
+    while got < buf.len() {
+        match r.read(&mut buf[got..]) {
+            Ok(0) => break,
+            Ok(n) => got += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(got)
+}
+
+fn read_fixed_vertices(
+    path: &Path,
+    r: &mut impl Read,
+    def: &ElementDef,
+    layout: &Layout,
+    rec: &FixedRecord,
+    big: bool,
+) -> Result<PointCloud, CloudError> {
+    let n = def.count;
+    let cap = n.min(1 << 24);
+    let mut points = Vec::with_capacity(cap);
+    let mut labels = layout.label.then(|| Vec::with_capacity(cap));
+    let mut colors = layout.colors.then(|| Vec::with_capacity(cap));
+    let dim = layout.feature_dim;
+    let mut feats = (dim > 0).then(|| Vec::with_capacity(cap.saturating_mul(dim)));
+    let chunk = (1usize << 20) / rec.len.max(1) + 1;
+    let mut buf = vec![0u8; chunk * rec.len];
+    let mut done = 0;
+    while done < n {
+        let k = chunk.min(n - done);
+        let want = k * rec.len;
+        let got = read_full(r, &mut buf[..want]).map_err(|e| CloudError::io(path, e))?;
+        if got < want {
+            return Err(CloudError::format(
+                path,
+                format!(
+                    "truncated: file ends in vertex {} (header declares {n})",
+                    done + got / rec.len
+                ),
+            ));
+        }
+        for (j, v) in buf[..want].chunks_exact(rec.len).enumerate() {
+            let [x, y, z] = rec.xyz.each_ref().map(|(at, t)| decode(v, *at, t, big));
+            points.push([x, y, z]);
+            if let (Some(l), Some((at, t))) = (&mut labels, &rec.label) {
+                let raw = decode(v, *at, t, big);
+                let id = label_id(raw).ok_or_else(|| {
+                    CloudError::format(
+                        path,
+                        format!(
+                            "vertex {}: label {raw} is not a whole number in 0..=4294967295",
+                            done + j
+                        ),
+                    )
+                })?;
+                l.push(id);
+            }
+            if let Some(c) = &mut colors {
+                c.push(rec.rgb.map(|at| v[at]));
+            }
+            if let Some(f) = &mut feats {
+                f.extend(
+                    rec.features
+                        .iter()
+                        .map(|(at, t)| decode(v, *at, t, big) as f32),
+                );
+            }
+        }
+        done += k;
+    }
+    Ok(PointCloud {
+        points,
+        labels,
+        colors,
+        features: feats.map(|f| (dim, f)),
+    })
+}
+
+fn first_line(s: &str) -> String {
+    s.lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect::<Vec<_>>()
+        .join(" | ")
+}
+
+/// Writes `cloud` as a binary little-endian PLY: `double x y z`, then
+/// `uchar red green blue`, `uint label` and `float f0..f{F-1}` when present.
+/// Coordinates stay `double` so georeferenced maps keep their precision. The
+/// file is written to a temporary file beside `path` and renamed into place.
+pub fn write_ply(path: &Path, cloud: &PointCloud) -> Result<(), CloudError> {
+    cloud.validate(&path.display().to_string())?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let io_err = |e| CloudError::io(path, e);
+    let tmp = tempfile::NamedTempFile::new_in(dir).map_err(io_err)?;
+    {
+        let mut w = BufWriter::with_capacity(1 << 20, tmp.as_file());
+        let mut header = format!(
+            "ply\nformat binary_little_endian 1.0\ncomment written by omcl\nelement vertex {}\n\
+             property double x\nproperty double y\nproperty double z\n",
+            cloud.len()
+        );
+        if cloud.colors.is_some() {
+            header.push_str("property uchar red\nproperty uchar green\nproperty uchar blue\n");
+        }
+        if cloud.labels.is_some() {
+            header.push_str("property uint label\n");
+        }
+        let dim = cloud.feature_dim().unwrap_or(0);
+        for k in 0..dim {
+            header.push_str(&format!("property float f{k}\n"));
+        }
+        header.push_str("end_header\n");
+        w.write_all(header.as_bytes()).map_err(io_err)?;
+        let mut rec = Vec::with_capacity(24 + 3 + 4 + 4 * dim);
+        for i in 0..cloud.len() {
+            rec.clear();
+            for c in cloud.points[i] {
+                rec.extend_from_slice(&c.to_le_bytes());
+            }
+            if let Some(c) = &cloud.colors {
+                rec.extend_from_slice(&c[i]);
+            }
+            if let Some(l) = &cloud.labels {
+                rec.extend_from_slice(&l[i].to_le_bytes());
+            }
+            if let Some((d, f)) = &cloud.features {
+                for v in &f[i * d..(i + 1) * d] {
+                    rec.extend_from_slice(&v.to_le_bytes());
+                }
+            }
+            w.write_all(&rec).map_err(io_err)?;
+        }
+        w.flush().map_err(io_err)?;
+    }
+    tmp.as_file().sync_all().map_err(io_err)?;
+    tmp.persist(path).map_err(|e| io_err(e.error))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(dir: &Path, name: &str, bytes: &[u8]) -> std::path::PathBuf {
+        let p = dir.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p
+    }
+
+    #[test]
+    fn feature_names_parse() {
+        assert_eq!(feature_index("f0"), Some(0));
+        assert_eq!(feature_index("feat_12"), Some(12));
+        assert_eq!(feature_index("feature_3"), Some(3));
+        assert_eq!(feature_index("face"), None);
+        assert_eq!(feature_index("f"), None);
+    }
+
+    #[test]
+    fn ascii_with_faces_before_and_after() {
+        let d = tempfile::tempdir().unwrap();
+        let p = write(
+            d.path(),
+            "a.ply",
+            b"ply\nformat ascii 1.0\nelement camera 1\nproperty float k\n\
+              element vertex 2\nproperty float x\nproperty float y\nproperty float z\n\
+              property uchar red\nproperty uchar green\nproperty uchar blue\nproperty int label\n\
+              element face 1\nproperty list uchar int vertex_indices\nend_header\n\
+              7.5\n1 2 3 10 20 30 5\n-1 0.5 2 255 0 1 40\n3 0 1 1\n",
+        );
+        let c = read_ply(&p).unwrap();
+        assert_eq!(c.points, vec![[1.0, 2.0, 3.0], [-1.0, 0.5, 2.0]]);
+        assert_eq!(c.colors, Some(vec![[10, 20, 30], [255, 0, 1]]));
+        assert_eq!(c.labels, Some(vec![5, 40]));
+        assert!(c.features.is_none());
+    }
+
+    #[test]
+    fn write_then_read_round_trips() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("out.ply");
+        let cloud = PointCloud {
+            points: vec![[637_000.123_456, -5.0, 1e-3], [0.0, 1.0, 2.0]],
+            labels: Some(vec![7, u32::MAX]),
+            colors: Some(vec![[1, 2, 3], [4, 5, 6]]),
+            features: Some((3, vec![0.5, -1.0, 2.0, 0.0, 0.25, 9.0])),
+        };
+        write_ply(&p, &cloud).unwrap();
+        assert_eq!(read_ply(&p).unwrap(), cloud);
+        let bytes = std::fs::read(&p).unwrap();
+        assert!(bytes.starts_with(b"ply\nformat binary_little_endian 1.0\n"));
+    }
+
+    /// The same vertices with and without a list property: the first goes
+    /// through ply-rs-bw element by element, the second through the
+    /// fixed-record decoder; both must agree, in both byte orders.
+    #[test]
+    fn generic_and_fixed_record_binary_paths_agree() {
+        let d = tempfile::tempdir().unwrap();
+        for (enc, big) in [("binary_little_endian", false), ("binary_big_endian", true)] {
+            let mut files = Vec::new();
+            for with_list in [true, false] {
+                let mut b = format!(
+                    "ply\nformat {enc} 1.0\nelement vertex 3\nproperty double x\n\
+                     property float y\nproperty float z\nproperty short label\n{}\
+                     property uchar red\nproperty uchar green\nproperty uchar blue\n\
+                     property double feat_0\nproperty float feat_1\nend_header\n",
+                    if with_list {
+                        "property list uchar int extra\n"
+                    } else {
+                        ""
+                    }
+                )
+                .into_bytes();
+                for i in 0..3u8 {
+                    let f = i as f32;
+                    let put4 = |b: &mut Vec<u8>, v: f32| {
+                        b.extend(if big {
+                            v.to_be_bytes()
+                        } else {
+                            v.to_le_bytes()
+                        })
+                    };
+                    let x = 1e6 + i as f64 * 0.125;
+                    b.extend(if big {
+                        x.to_be_bytes()
+                    } else {
+                        x.to_le_bytes()
+                    });
+                    put4(&mut b, -f);
+                    put4(&mut b, 2.5 * f);
+                    let l = 300i16 * i as i16;
+                    b.extend(if big {
+                        l.to_be_bytes()
+                    } else {
+                        l.to_le_bytes()
+                    });
+                    if with_list {
+                        b.push(i);
+                        for k in 0..i as i32 {
+                            b.extend(if big {
+                                k.to_be_bytes()
+                            } else {
+                                k.to_le_bytes()
+                            });
+                        }
+                    }
+                    b.extend([i, 2 * i, 200 + i]);
+                    let f0 = 0.1 * i as f64;
+                    b.extend(if big {
+                        f0.to_be_bytes()
+                    } else {
+                        f0.to_le_bytes()
+                    });
+                    put4(&mut b, 7.0 - f);
+                }
+                let p = write(d.path(), &format!("{enc}_{with_list}.ply"), &b);
+                files.push(read_ply(&p).unwrap());
+            }
+            assert_eq!(files[0], files[1], "{enc}");
+            let c = &files[0];
+            assert_eq!(c.points[2], [1e6 + 0.25, -2.0, 5.0]);
+            assert_eq!(c.labels, Some(vec![0, 300, 600]));
+            assert_eq!(c.colors.as_ref().unwrap()[1], [1, 2, 201]);
+            assert_eq!(c.features, Some((2, vec![0.0, 7.0, 0.1, 6.0, 0.2, 5.0])));
+        }
+    }
+
+    #[test]
+    fn float_labels_in_any_case_are_accepted_when_whole() {
+        let d = tempfile::tempdir().unwrap();
+        let head = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+                    property float z\nproperty float scalar_Label\nend_header\n";
+        let p = write(
+            d.path(),
+            "cc.ply",
+            format!("{head}0 0 0 3\n1 1 1 7.0\n").as_bytes(),
+        );
+        assert_eq!(read_ply(&p).unwrap().labels, Some(vec![3, 7]));
+        let p = write(
+            d.path(),
+            "half.ply",
+            format!("{head}0 0 0 3\n1 1 1 2.5\n").as_bytes(),
+        );
+        let e = read_ply(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("half.ply") && e.contains("vertex 1") && e.contains("2.5"),
+            "{e}"
+        );
+        // Binary float label through the fixed-record path.
+        let mut b = b"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n\
+                      property float y\nproperty float z\nproperty float class\nend_header\n"
+            .to_vec();
+        for v in [1.0f32, 2.0, 3.0, -4.0] {
+            b.extend(v.to_le_bytes());
+        }
+        let p = write(d.path(), "neg_bin.ply", &b);
+        let e = read_ply(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("neg_bin.ply") && e.contains("vertex 0") && e.contains("-4"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn negative_label_is_an_error() {
+        let d = tempfile::tempdir().unwrap();
+        let p = write(
+            d.path(),
+            "neg.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+              property float z\nproperty int label\nend_header\n0 0 0 -1\n",
+        );
+        let e = read_ply(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("neg.ply") && e.contains("vertex 0") && e.contains("-1"),
+            "{e}"
+        );
+    }
+}

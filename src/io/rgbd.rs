@@ -1,0 +1,329 @@
+//! RGB-D frames: 16-bit depth PNGs (TUM: 5000 units a metre; Replica:
+//! 6553.5), colour PNGs, intrinsics files, single-pose files, and the
+//! back-projection of a depth image to camera-frame points.
+//!
+//! Camera frame: OpenCV (x right, y down, z forward), metres; depth is
+//! z-depth. Pixel centres are at `(u + 0.5, v + 0.5)` as everywhere in the
+//! crate, so intrinsics given in the integer-centre convention (TUM's
+//! `cx = 319.5`) describe the same camera with `cx + 0.5`, `cy + 0.5`.
+
+use std::fs::File;
+use std::io::BufReader;
+use std::path::Path;
+
+use nalgebra::{Quaternion, Translation3, UnitQuaternion};
+use png::{BitDepth, ColorType, Transformations};
+
+use crate::geometry::{Intrinsics, Pose};
+use crate::io::cloud::{CloudError, PointCloud};
+
+/// TUM RGB-D depth PNG units per metre.
+pub const TUM_DEPTH_UNITS_PER_METRE: f64 = 5000.0;
+/// Replica (NICE-SLAM layout) depth PNG units per metre.
+pub const REPLICA_DEPTH_UNITS_PER_METRE: f64 = 6553.5;
+
+/// A depth image: z-depth in metres, row-major, `0.0` where the sensor gave
+/// no reading.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthImage {
+    pub width: u32,
+    pub height: u32,
+    /// `width * height` depths, metres; 0 = invalid.
+    pub depth: Vec<f32>,
+}
+
+/// An 8-bit sRGB image, row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RgbImage {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<[u8; 3]>,
+}
+
+fn open_png(
+    path: &Path,
+    transform: Transformations,
+) -> Result<(png::OutputInfo, Vec<u8>), CloudError> {
+    let file = File::open(path).map_err(|e| CloudError::io(path, e))?;
+    let mut decoder = png::Decoder::new(BufReader::new(file));
+    decoder.set_transformations(transform);
+    let mut reader = decoder
+        .read_info()
+        .map_err(|e| CloudError::format(path, format!("not a readable PNG: {e}")))?;
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| CloudError::format(path, "PNG image too large"))?;
+    let mut buf = vec![0u8; size];
+    let info = reader
+        .next_frame(&mut buf)
+        .map_err(|e| CloudError::format(path, format!("corrupt or truncated PNG: {e}")))?;
+    buf.truncate(info.buffer_size());
+    Ok((info, buf))
+}
+
+/// Reads a 16-bit single-channel depth PNG; `units_per_metre` converts the
+/// stored integers to metres (see the constants above). Zero stays zero
+/// (invalid).
+pub fn read_depth_png(path: &Path, units_per_metre: f64) -> Result<DepthImage, CloudError> {
+    if !(units_per_metre.is_finite() && units_per_metre > 0.0) {
+        return Err(CloudError::Invalid {
+            source_name: path.display().to_string(),
+            reason: format!("depth scale {units_per_metre} must be positive"),
+        });
+    }
+    let (info, buf) = open_png(path, Transformations::IDENTITY)?;
+    if info.color_type != ColorType::Grayscale || info.bit_depth != BitDepth::Sixteen {
+        return Err(CloudError::format(
+            path,
+            format!(
+                "depth PNG must be 16-bit grayscale, found {:?} {:?}",
+                info.color_type, info.bit_depth
+            ),
+        ));
+    }
+    let scale = (1.0 / units_per_metre) as f32;
+    // PNG stores 16-bit samples big-endian.
+    let depth = buf
+        .chunks_exact(2)
+        .map(|b| u16::from_be_bytes([b[0], b[1]]) as f32 * scale)
+        .collect();
+    Ok(DepthImage {
+        width: info.width,
+        height: info.height,
+        depth,
+    })
+}
+
+/// Reads a colour PNG (palette, grey, RGB, with or without alpha, 8 or 16
+/// bits) as 8-bit RGB.
+pub fn read_rgb_png(path: &Path) -> Result<RgbImage, CloudError> {
+    let (info, buf) = open_png(path, Transformations::normalize_to_color8())?;
+    let channels = match info.color_type {
+        ColorType::Grayscale => 1,
+        ColorType::GrayscaleAlpha => 2,
+        ColorType::Rgb => 3,
+        ColorType::Rgba => 4,
+        ColorType::Indexed => {
+            return Err(CloudError::format(path, "palette PNG was not expanded"));
+        }
+    };
+    let pixels = buf
+        .chunks_exact(channels)
+        .map(|p| match channels {
+            1 | 2 => [p[0]; 3],
+            _ => [p[0], p[1], p[2]],
+        })
+        .collect();
+    Ok(RgbImage {
+        width: info.width,
+        height: info.height,
+        pixels,
+    })
+}
+
+/// Reads an intrinsics file: `fx fy cx cy width height` (whitespace
+/// separated, `#` comments), pixels, pixel centres at `u + 0.5`.
+pub fn read_intrinsics(path: &Path) -> Result<Intrinsics, CloudError> {
+    let text = std::fs::read_to_string(path).map_err(|e| CloudError::io(path, e))?;
+    let fields: Vec<&str> = text
+        .lines()
+        .map(|l| l.split('#').next().unwrap_or(""))
+        .flat_map(str::split_whitespace)
+        .collect();
+    if fields.len() != 6 {
+        return Err(CloudError::format(
+            path,
+            format!(
+                "expected 6 values 'fx fy cx cy width height', found {}",
+                fields.len()
+            ),
+        ));
+    }
+    let mut f = [0.0; 4];
+    for (o, s) in f.iter_mut().zip(&fields[..4]) {
+        *o = s
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| CloudError::format(path, format!("'{s}' is not a finite number")))?;
+    }
+    let dim = |s: &str| {
+        s.parse::<u32>()
+            .ok()
+            .filter(|v| *v > 0)
+            .ok_or_else(|| CloudError::format(path, format!("'{s}' is not a positive image size")))
+    };
+    let (width, height) = (dim(fields[4])?, dim(fields[5])?);
+    if f[0] <= 0.0 || f[1] <= 0.0 {
+        return Err(CloudError::format(path, "focal lengths must be positive"));
+    }
+    Ok(Intrinsics {
+        fx: f[0],
+        fy: f[1],
+        cx: f[2],
+        cy: f[3],
+        width,
+        height,
+    })
+}
+
+/// Parses one TUM pose `tx ty tz qx qy qz qw` (an optional leading
+/// timestamp makes 8 fields) into `world_from_camera`. The quaternion must
+/// be within 1 % of unit length (files print 4 decimals) and is normalised.
+pub fn parse_tum_pose(line: &str) -> Result<Pose, String> {
+    let v: Vec<f64> = line
+        .split_whitespace()
+        .map(|s| {
+            s.parse::<f64>()
+                .map_err(|_| format!("'{s}' is not a number"))
+        })
+        .collect::<Result<_, _>>()?;
+    let v = match v.len() {
+        7 => &v[..],
+        8 => &v[1..],
+        n => {
+            return Err(format!(
+                "expected 7 numbers 'tx ty tz qx qy qz qw', found {n}"
+            ));
+        }
+    };
+    if v.iter().any(|x| !x.is_finite()) {
+        return Err("non-finite value".into());
+    }
+    let q = Quaternion::new(v[6], v[3], v[4], v[5]);
+    let n = q.norm();
+    if (n - 1.0).abs() > 0.01 {
+        return Err(format!("quaternion norm {n:.4} is not 1: not a rotation"));
+    }
+    Ok(Pose::from_parts(
+        Translation3::new(v[0], v[1], v[2]),
+        UnitQuaternion::from_quaternion(q),
+    ))
+}
+
+/// Reads a file holding a single TUM pose line (`#` lines ignored).
+pub fn read_single_tum_pose(path: &Path) -> Result<Pose, CloudError> {
+    let text = std::fs::read_to_string(path).map_err(|e| CloudError::io(path, e))?;
+    let line = text
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with('#'))
+        .ok_or_else(|| CloudError::format(path, "no pose line"))?;
+    parse_tum_pose(line).map_err(|r| CloudError::format(path, r))
+}
+
+/// Camera-frame points of the valid pixels of `depth` (metres, OpenCV frame),
+/// with the row-major pixel index of each. `depth` must match the intrinsics'
+/// image size.
+pub fn backproject(
+    k: &Intrinsics,
+    depth: &DepthImage,
+) -> Result<(Vec<[f64; 3]>, Vec<u32>), String> {
+    if depth.width != k.width || depth.height != k.height {
+        return Err(format!(
+            "depth image is {}x{}, intrinsics are for {}x{}",
+            depth.width, depth.height, k.width, k.height
+        ));
+    }
+    let mut points = Vec::with_capacity(depth.depth.len());
+    let mut pixels = Vec::with_capacity(depth.depth.len());
+    let w = depth.width as usize;
+    for (i, &z) in depth.depth.iter().enumerate() {
+        if !(z > 0.0 && z.is_finite()) {
+            continue;
+        }
+        let (u, v) = ((i % w) as f64, (i / w) as f64);
+        let z = z as f64;
+        points.push([(u + 0.5 - k.cx) / k.fx * z, (v + 0.5 - k.cy) / k.fy * z, z]);
+        pixels.push(i as u32);
+    }
+    Ok((points, pixels))
+}
+
+/// Reads one RGB-D frame and returns its valid pixels as a coloured cloud in
+/// the world frame (`world_from_camera` applied). Image sizes must match the
+/// intrinsics; a frame with no valid depth is an error.
+pub fn read_rgbd_frame(
+    depth_path: &Path,
+    color_path: &Path,
+    k: &Intrinsics,
+    units_per_metre: f64,
+    world_from_camera: &Pose,
+) -> Result<PointCloud, CloudError> {
+    let depth = read_depth_png(depth_path, units_per_metre)?;
+    let color = read_rgb_png(color_path)?;
+    if (color.width, color.height) != (depth.width, depth.height) {
+        return Err(CloudError::mismatch(
+            color_path,
+            format!(
+                "colour image is {}x{}, depth image {} is {}x{}",
+                color.width,
+                color.height,
+                depth_path.display(),
+                depth.width,
+                depth.height
+            ),
+        ));
+    }
+    let (points, pixels) =
+        backproject(k, &depth).map_err(|r| CloudError::mismatch(depth_path, r))?;
+    let colors = pixels.iter().map(|&i| color.pixels[i as usize]).collect();
+    let mut cloud = PointCloud {
+        points,
+        labels: None,
+        colors: Some(colors),
+        features: None,
+    };
+    cloud.transform(world_from_camera);
+    cloud.non_empty(&depth_path.display().to_string(), "no valid depth pixel")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Point3;
+
+    #[test]
+    fn backprojection_inverts_projection() {
+        let k = Intrinsics {
+            fx: 500.0,
+            fy: 400.0,
+            cx: 2.0,
+            cy: 1.5,
+            width: 4,
+            height: 3,
+        };
+        let mut depth = DepthImage {
+            width: 4,
+            height: 3,
+            depth: vec![2.0; 12],
+        };
+        depth.depth[5] = 0.0;
+        let (pts, px) = backproject(&k, &depth).unwrap();
+        assert_eq!(pts.len(), 11);
+        assert!(!px.contains(&5));
+        for (p, &i) in pts.iter().zip(&px) {
+            let (u, v) = k.project(&Point3::from(*p)).unwrap();
+            assert_eq!((u.floor() as u32, v.floor() as u32), (i % 4, i / 4));
+            assert!((u.fract() - 0.5).abs() < 1e-9 && (v.fract() - 0.5).abs() < 1e-9);
+        }
+        // Pixel (1, 2), centre (1.5, 2.5): x = (1.5 - 2) / 500 * 2,
+        // y = (2.5 - 1.5) / 400 * 2.
+        let j = px.iter().position(|&i| i == 2 * 4 + 1).unwrap();
+        assert!((pts[j][0] + 0.002).abs() < 1e-12 && (pts[j][1] - 0.005).abs() < 1e-12);
+    }
+
+    #[test]
+    fn tum_pose_parses_and_rejects_non_rotations() {
+        let p = parse_tum_pose("1 2 3 0 0 0.7071068 0.7071068").unwrap();
+        let q = p * Point3::new(1.0, 0.0, 0.0);
+        assert!((q - Point3::new(1.0, 3.0, 3.0)).norm() < 1e-6);
+        assert!(
+            parse_tum_pose("0 0 0 0 0 0 2")
+                .unwrap_err()
+                .contains("norm")
+        );
+        assert!(parse_tum_pose("0 0 0 0 0 1").is_err());
+        assert!(parse_tum_pose("0 0 inf 0 0 0 1").is_err());
+    }
+}

@@ -1,0 +1,87 @@
+//! The `omcl` binary on map files: info on a good map, clear errors and a
+//! non-zero exit on bad ones.
+
+use std::path::Path;
+use std::process::Command;
+
+use nalgebra::Vector3;
+use omcl::map::{self, FeatureDb, GridSpec, LanguageMap};
+
+fn omcl(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(args)
+        .output()
+        .expect("the omcl binary runs");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn write_map(path: &Path) -> LanguageMap {
+    let db = FeatureDb::from_rows(2, 0.05, vec![1.0, 0.0, 0.0, 1.0, 0.6, 0.8]).unwrap();
+    let grid = GridSpec {
+        resolution: 0.25,
+        origin: Vector3::new(10.0, -2.0, 0.5),
+    };
+    let leaves = (0..40).map(|i| ([i % 4, i / 4, 0], (i % 2) as u32));
+    let m = LanguageMap::from_cells(grid, db, "unit-test", leaves).unwrap();
+    map::save(&m, path).unwrap();
+    m
+}
+
+#[test]
+fn info_prints_header_and_statistics() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("m.omcl");
+    write_map(&p);
+    let (ok, out, err) = omcl(&["map", "info", p.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    assert!(out.contains("unit-test"), "{out}");
+    assert!(out.contains("40 voxels"), "{out}");
+    assert!(out.contains("3 rows x 2 dims"), "{out}");
+    // Bounds: origin + cells 0..3 / 0..9 at 0.25 m.
+    assert!(out.contains("[10.00, 11.00] x [-2.00, 0.50]"), "{out}");
+    assert!(out.contains("1 unused"), "{out}");
+
+    let (ok, json, _) = omcl(&["map", "info", p.to_str().unwrap(), "--json"]);
+    assert!(ok);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(v["leaves"], 40);
+    assert_eq!(v["rows"], 3);
+    assert_eq!(v["resolution_m"], 0.25);
+}
+
+#[test]
+fn corrupt_truncated_and_foreign_files_fail_with_the_file_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("m.omcl");
+    write_map(&p);
+    let bytes = std::fs::read(&p).unwrap();
+
+    let corrupt = dir.path().join("corrupt.omcl");
+    let mut b = bytes.clone();
+    let n = b.len();
+    b[n - 3] ^= 0xff;
+    std::fs::write(&corrupt, &b).unwrap();
+
+    let truncated = dir.path().join("truncated.omcl");
+    std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
+
+    let foreign = dir.path().join("cloud.ply");
+    std::fs::write(&foreign, "ply\nformat ascii 1.0\nend_header\n").unwrap();
+
+    for (file, what) in [
+        (&corrupt, "checksum"),
+        (&truncated, "not a safetensors file"),
+        (&foreign, "not an omcl map"),
+    ] {
+        let (ok, _, err) = omcl(&["map", "info", file.to_str().unwrap()]);
+        assert!(!ok, "{} should fail", file.display());
+        assert!(err.contains(file.to_str().unwrap()), "{err}");
+        assert!(err.contains(what), "{err}");
+    }
+    let (ok, _, err) = omcl(&["map", "info", "/nonexistent/x.omcl"]);
+    assert!(!ok && err.contains("/nonexistent/x.omcl"), "{err}");
+}

@@ -1,0 +1,99 @@
+//! `omcl eval` end to end on the real KITTI 00 files.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/trajectories");
+const REFERENCE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/tests/data/eval/evo_reference.json"
+);
+
+fn data_dir() -> Option<PathBuf> {
+    let dir = PathBuf::from(DATA);
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    if std::env::var_os("CI").is_some() {
+        panic!(
+            "{} is missing (CI must have shared/ beside the repo)",
+            dir.display()
+        );
+    }
+    eprintln!("skipping: {} not found", dir.display());
+    None
+}
+
+fn reference_case(name: &str) -> serde_json::Value {
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(REFERENCE).unwrap()).unwrap();
+    doc["cases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["name"] == name)
+        .cloned()
+        .unwrap_or_else(|| panic!("case {name}"))
+}
+
+#[test]
+fn ape_sim3_json_matches_evo_and_bad_pairs_fail() {
+    let Some(dir) = data_dir() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let json = tmp.path().join("ape.json");
+    let aligned = tmp.path().join("aligned.txt");
+    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(["eval", "ape"])
+        .arg(dir.join("KITTI_00_gt.txt"))
+        .arg(dir.join("KITTI_00_ORB.txt"))
+        .args(["--align", "sim3", "--json"])
+        .arg(&json)
+        .arg("--save-aligned")
+        .arg(&aligned)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("rmse") && stdout.contains("4541 poses paired by index"),
+        "{stdout}"
+    );
+    let ours: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let evo = reference_case("kitti00_ape_sim3");
+    for k in ["rmse", "mean", "median", "std", "min", "max", "sse"] {
+        let (a, b) = (
+            ours["stats"][k].as_f64().unwrap(),
+            evo["stats"][k].as_f64().unwrap(),
+        );
+        assert!((a - b).abs() <= 1e-6 * b.abs().max(1.0), "{k}: {a} vs {b}");
+    }
+    assert_eq!(ours["errors"].as_array().unwrap().len(), 4541);
+    // The saved aligned estimate, compared with no further alignment, gives
+    // evo's Sim(3)-aligned rmse.
+    let again = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(["eval", "ape"])
+        .arg(dir.join("KITTI_00_gt.txt"))
+        .arg(&aligned)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&again.stdout);
+    assert!(
+        text.contains(&format!("{:.6}", evo["stats"]["rmse"].as_f64().unwrap())),
+        "{text}"
+    );
+
+    // Unequal lengths without stamps: a clear error and a non-zero exit.
+    let bad = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(["eval", "rpe"])
+        .arg(dir.join("KITTI_00_gt.txt"))
+        .arg(dir.join("fr2_desk_ORB.txt"))
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("counts must agree"));
+}

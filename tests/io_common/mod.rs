@@ -1,0 +1,56 @@
+//! Helpers shared by the `io_*` integration tests.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+/// A path under `../shared/data`, or `None` (with a message) when the shared
+/// data is absent outside CI. Under CI (`CI` set) absence is a failure.
+pub fn shared(rel: &str) -> Option<PathBuf> {
+    let p = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data")).join(rel);
+    if p.exists() {
+        return Some(p);
+    }
+    if std::env::var_os("CI").is_some() {
+        panic!("shared data {} missing (CI is set)", p.display());
+    }
+    eprintln!("skipping: shared data {} not found", p.display());
+    None
+}
+
+/// A committed test file under `tests/data/io`.
+pub fn local(name: &str) -> PathBuf {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/io")).join(name)
+}
+
+/// Rows of a whitespace-separated numeric `.expected.txt` file.
+pub fn expected_rows(data_file: &Path) -> Vec<Vec<f64>> {
+    let mut p = data_file.as_os_str().to_owned();
+    p.push(".expected.txt");
+    std::fs::read_to_string(&p)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| l.split_whitespace().map(|s| s.parse().unwrap()).collect())
+        .collect()
+}
+
+/// Copies the first `keep` bytes of `src` to `dir/name` and returns the path.
+pub fn truncated_copy(src: &Path, dir: &Path, name: &str, keep: usize) -> PathBuf {
+    let bytes = std::fs::read(src).unwrap();
+    let p = dir.join(name);
+    std::fs::write(&p, &bytes[..keep.min(bytes.len())]).unwrap();
+    p
+}
+
+/// Asserts the error's message names the file (by its file name) and
+/// contains `what`.
+pub fn assert_err_names<E: std::fmt::Display>(e: E, file: &Path, what: &str) {
+    let msg = e.to_string();
+    eprintln!("error message: {msg}");
+    let name = file.file_name().unwrap().to_string_lossy();
+    assert!(
+        msg.contains(name.as_ref()),
+        "error does not name {name}: {msg}"
+    );
+    assert!(msg.contains(what), "error lacks '{what}': {msg}");
+}

@@ -1,0 +1,324 @@
+//! SemanticKITTI: the three real scans of sequence 00 with labels, calib and
+//! poses must line up in one world frame; bad input must be named.
+mod io_common;
+
+use std::collections::HashSet;
+use std::path::Path;
+
+use io_common::{assert_err_names, shared, truncated_copy};
+use omcl::io::cloud::PointCloud;
+use omcl::io::kitti::{
+    AggregateOptions, KittiSequence, read_calib, read_kitti_poses, read_label_file,
+    read_velodyne_bin,
+};
+use omcl::io::labels::is_dropped_semantic_kitti;
+
+const BUILDING: u32 = 50;
+
+fn building_cells(c: &PointCloud, res: f64) -> HashSet<[i64; 3]> {
+    c.points
+        .iter()
+        .zip(c.labels.as_ref().unwrap())
+        .filter(|(_, l)| **l == BUILDING)
+        .map(|(p, _)| p.map(|v| (v / res).floor() as i64))
+        .collect()
+}
+
+fn iou_sets(a: &HashSet<[i64; 3]>, b: &HashSet<[i64; 3]>) -> f64 {
+    let inter = a.intersection(b).count() as f64;
+    inter / (a.len() as f64 + b.len() as f64 - inter)
+}
+
+#[test]
+fn real_scans_line_up_with_lidar_poses() {
+    let Some(dir) = shared("semantickitti/sequences/00") else {
+        return;
+    };
+    let seq = KittiSequence::open(&dir).unwrap();
+    assert_eq!(seq.frames, vec![0, 1, 2]);
+    assert_eq!(seq.camera_poses.len(), 4541);
+    let world0 = seq.load_scan(0).unwrap();
+    let world2 = seq.load_scan(2).unwrap();
+    assert_eq!(world0.len(), 124_668);
+    assert_eq!(world2.len(), 124_478);
+    let sensor0 = read_velodyne_bin(&seq.scan_path(0)).unwrap();
+    let mut sensor2 = read_velodyne_bin(&seq.scan_path(2)).unwrap();
+    sensor2.labels = world2.labels.clone();
+    let mut sensor0 = sensor0;
+    sensor0.labels = world0.labels.clone();
+    let with_poses = iou_sets(&building_cells(&world0, 0.3), &building_cells(&world2, 0.3));
+    let without = iou_sets(
+        &building_cells(&sensor0, 0.3),
+        &building_cells(&sensor2, 0.3),
+    );
+    eprintln!("building IoU at 0.3 m: {with_poses:.3} with poses, {without:.3} without");
+    assert!(with_poses > 0.5, "with poses {with_poses}");
+    assert!(without < 0.3, "without poses {without}");
+    // The car drives forward about 0.8 m a frame along the LiDAR's x axis.
+    let t2 = seq.world_from_lidar(2).unwrap().translation.vector;
+    assert!(
+        t2.x > 1.0 && t2.x < 2.5 && t2.y.abs() < 0.3 && t2.z.abs() < 0.3,
+        "{t2}"
+    );
+    // Frame 0 is the world frame.
+    let t0 = seq.world_from_lidar(0).unwrap();
+    assert!(t0.translation.vector.norm() < 0.05 && t0.rotation.angle() < 0.01);
+}
+
+#[test]
+fn aggregation_filters_and_downsamples() {
+    let Some(dir) = shared("semantickitti/sequences/00") else {
+        return;
+    };
+    let seq = KittiSequence::open(&dir).unwrap();
+    let opts = AggregateOptions {
+        voxel_size: Some(0.2),
+        drop_unlabeled_outlier_moving: true,
+        max_range: Some(40.0),
+        features_dir: None,
+    };
+    let map = seq.aggregate(&[], &opts).unwrap();
+    map.validate("map").unwrap();
+    let labels = map.labels.as_ref().unwrap();
+    assert!(labels.iter().all(|&l| !is_dropped_semantic_kitti(l)));
+    let cells: HashSet<[i64; 3]> = map
+        .points
+        .iter()
+        .map(|p| p.map(|v| (v / 0.2).floor() as i64))
+        .collect();
+    assert_eq!(cells.len(), map.len(), "one point per voxel");
+    // Far fewer points than the three scans, yet more than one scan alone.
+    let one = seq.aggregate(&[0], &opts).unwrap();
+    assert!(
+        map.len() > one.len() && map.len() < 3 * 124_668 / 2,
+        "{} {}",
+        map.len(),
+        one.len()
+    );
+    // Range cut in the world frame of scan 0 (the sensor of frame 0 is the origin).
+    assert!(
+        one.points
+            .iter()
+            .all(|p| p.iter().map(|v| v * v).sum::<f64>().sqrt() <= 40.0 + 1e-6)
+    );
+}
+
+/// A sequence dir in `tmp` with scan 0 of the real data and the given
+/// calib/poses text.
+fn fake_sequence(tmp: &Path, real: &Path, calib: &str, poses: &str) {
+    std::fs::create_dir_all(tmp.join("velodyne")).unwrap();
+    std::fs::create_dir_all(tmp.join("labels")).unwrap();
+    std::fs::copy(
+        real.join("velodyne/000000.bin"),
+        tmp.join("velodyne/000000.bin"),
+    )
+    .unwrap();
+    std::fs::copy(
+        real.join("labels/000000.label"),
+        tmp.join("labels/000000.label"),
+    )
+    .unwrap();
+    std::fs::write(tmp.join("calib.txt"), calib).unwrap();
+    std::fs::write(tmp.join("poses.txt"), poses).unwrap();
+}
+
+const IDENTITY: &str = "1 0 0 0 0 1 0 0 0 0 1 0\n";
+
+#[test]
+fn bad_scans_and_labels_are_named() {
+    let Some(dir) = shared("semantickitti/sequences/00") else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let p = truncated_copy(
+        &dir.join("velodyne/000000.bin"),
+        d.path(),
+        "000000.bin",
+        1000 * 16 + 6,
+    );
+    assert_err_names(read_velodyne_bin(&p).unwrap_err(), &p, "multiple of 16");
+    let l = dir.join("labels/000001.label");
+    let e = read_label_file(&l, 124_668).unwrap_err();
+    assert_err_names(e, &l, "124605 labels for a scan of 124668 points");
+    let p = truncated_copy(
+        &dir.join("labels/000000.label"),
+        d.path(),
+        "odd.label",
+        4001,
+    );
+    assert_err_names(read_label_file(&p, 1000).unwrap_err(), &p, "multiple of 4");
+    // NaN in a scan.
+    let mut bytes = std::fs::read(dir.join("velodyne/000000.bin")).unwrap();
+    bytes.truncate(16 * 100);
+    bytes[16 * 42 + 4..16 * 42 + 8].copy_from_slice(&f32::NAN.to_le_bytes());
+    let p = d.path().join("nan.bin");
+    std::fs::write(&p, bytes).unwrap();
+    assert_err_names(read_velodyne_bin(&p).unwrap_err(), &p, "point 42");
+    let p = d.path().join("empty.bin");
+    std::fs::write(&p, b"").unwrap();
+    assert_err_names(read_velodyne_bin(&p).unwrap_err(), &p, "empty");
+    // A label file of the wrong length inside a sequence is caught on load.
+    let seq_dir = d.path().join("seq_badlabel");
+    let calib = std::fs::read_to_string(dir.join("calib.txt")).unwrap();
+    fake_sequence(&seq_dir, &dir, &calib, IDENTITY);
+    std::fs::copy(
+        dir.join("labels/000002.label"),
+        seq_dir.join("labels/000000.label"),
+    )
+    .unwrap();
+    let seq = KittiSequence::open(&seq_dir).unwrap();
+    let e = seq.load_scan(0).unwrap_err();
+    assert_err_names(
+        e,
+        &seq_dir.join("labels/000000.label"),
+        "labels for a scan of",
+    );
+}
+
+#[test]
+fn bad_poses_and_calibration_are_named() {
+    let Some(dir) = shared("semantickitti/sequences/00") else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let calib = std::fs::read_to_string(dir.join("calib.txt")).unwrap();
+    let p = d.path().join("poses_nan.txt");
+    std::fs::write(&p, format!("{IDENTITY}1 0 0 nan 0 1 0 0 0 0 1 0\n")).unwrap();
+    assert_err_names(read_kitti_poses(&p).unwrap_err(), &p, ":2: column 4");
+    let p = d.path().join("poses_scaled.txt");
+    std::fs::write(&p, "2 0 0 0 0 2 0 0 0 0 2 0\n").unwrap();
+    assert_err_names(read_kitti_poses(&p).unwrap_err(), &p, "not a rotation");
+    let p = d.path().join("poses_short.txt");
+    std::fs::write(&p, "1 0 0 0 0 1 0 0 0 0 1\n").unwrap();
+    assert_err_names(read_kitti_poses(&p).unwrap_err(), &p, "expected 12");
+    let p = d.path().join("poses_empty.txt");
+    std::fs::write(&p, "\n").unwrap();
+    assert_err_names(read_kitti_poses(&p).unwrap_err(), &p, "no poses");
+    let p = d.path().join("calib_no_tr.txt");
+    let no_tr: String = calib
+        .lines()
+        .filter(|l| !l.starts_with("Tr"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(&p, no_tr).unwrap();
+    assert_err_names(read_calib(&p).unwrap_err(), &p, "Tr");
+    let p = d.path().join("calib_shear.txt");
+    std::fs::write(&p, "Tr: 1 0.5 0 0 0 1 0 0 0 0 1 0\n").unwrap();
+    assert_err_names(read_calib(&p).unwrap_err(), &p, "not a rigid pose");
+    // Poses shorter than the scans.
+    let seq_dir = d.path().join("seq_short");
+    fake_sequence(&seq_dir, &dir, &calib, IDENTITY);
+    std::fs::copy(
+        dir.join("velodyne/000002.bin"),
+        seq_dir.join("velodyne/000002.bin"),
+    )
+    .unwrap();
+    let e = KittiSequence::open(&seq_dir).unwrap_err();
+    assert_err_names(e, &seq_dir.join("poses.txt"), "needs pose 2");
+}
+
+#[test]
+fn everything_filtered_is_an_empty_error() {
+    let Some(dir) = shared("semantickitti/sequences/00") else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let seq_dir = d.path().join("seq_unlabeled");
+    let calib = std::fs::read_to_string(dir.join("calib.txt")).unwrap();
+    fake_sequence(&seq_dir, &dir, &calib, IDENTITY);
+    // Every point labelled "moving-car" (252), instance 3.
+    let n = std::fs::metadata(seq_dir.join("velodyne/000000.bin"))
+        .unwrap()
+        .len() as usize
+        / 16;
+    let raw: Vec<u8> = (0..n)
+        .flat_map(|_| ((3u32 << 16) | 252).to_le_bytes())
+        .collect();
+    std::fs::write(seq_dir.join("labels/000000.label"), raw).unwrap();
+    let seq = KittiSequence::open(&seq_dir).unwrap();
+    let e = seq
+        .aggregate(&[], &AggregateOptions::default())
+        .unwrap_err();
+    assert_err_names(e, &seq_dir, "empty result");
+}
+
+#[test]
+fn real_labels_use_known_classes_and_instances() {
+    use omcl::io::labels::{instance_id, semantic_id, semantic_kitti_name};
+    let Some(dir) = shared("semantickitti/sequences/00") else {
+        return;
+    };
+    let n = read_velodyne_bin(&dir.join("velodyne/000000.bin"))
+        .unwrap()
+        .len();
+    let raw = read_label_file(&dir.join("labels/000000.label"), n).unwrap();
+    let unknown: HashSet<u32> = raw
+        .iter()
+        .map(|&r| semantic_id(r))
+        .filter(|&s| semantic_kitti_name(s).is_none())
+        .collect();
+    assert!(unknown.is_empty(), "unknown classes {unknown:?}");
+    let count = |id: u32| raw.iter().filter(|&&r| semantic_id(r) == id).count();
+    // An urban street: road, building, vegetation and cars all present.
+    for id in [40, 50, 70, 10] {
+        assert!(count(id) > 500, "class {id}: {}", count(id));
+    }
+    // Cars carry instance ids; road does not.
+    assert!(
+        raw.iter()
+            .any(|&r| semantic_id(r) == 10 && instance_id(r) > 0)
+    );
+    assert!(
+        raw.iter()
+            .filter(|&&r| semantic_id(r) == 40)
+            .all(|&r| instance_id(r) == 0)
+    );
+}
+
+#[test]
+fn per_scan_features_stay_with_their_points() {
+    let Some(dir) = shared("semantickitti/sequences/00") else {
+        return;
+    };
+    let seq = KittiSequence::open(&dir).unwrap();
+    let d = tempfile::tempdir().unwrap();
+    // Feature row = (semantic label, frame): after filtering and down-sampling
+    // every point's feature must still name its own label.
+    for &frame in &seq.frames {
+        let scan = seq.load_scan(frame).unwrap();
+        let data: Vec<f32> = scan
+            .labels
+            .as_ref()
+            .unwrap()
+            .iter()
+            .flat_map(|&l| [l as f32, frame as f32])
+            .collect();
+        omcl::io::npy::write_npy(
+            &d.path().join(format!("{frame:06}.npy")),
+            &[scan.len(), 2],
+            &data,
+        )
+        .unwrap();
+    }
+    let opts = AggregateOptions {
+        voxel_size: Some(0.5),
+        features_dir: Some(d.path().to_path_buf()),
+        ..AggregateOptions::default()
+    };
+    let map = seq.aggregate(&[], &opts).unwrap();
+    let (dim, f) = map.features.as_ref().unwrap();
+    assert_eq!(*dim, 2);
+    for (i, &l) in map.labels.as_ref().unwrap().iter().enumerate() {
+        assert_eq!(f[2 * i], l as f32, "point {i}");
+    }
+    let frames: HashSet<u32> = f.chunks(2).map(|r| r[1] as u32).collect();
+    assert_eq!(frames, HashSet::from([0, 1, 2]));
+    // A feature file for another scan (wrong row count) is named.
+    std::fs::copy(d.path().join("000002.npy"), d.path().join("000000.npy")).unwrap();
+    let e = seq.aggregate(&[], &opts).unwrap_err();
+    assert_err_names(
+        e,
+        &d.path().join("000000.npy"),
+        "feature rows for a cloud of 124668",
+    );
+}

@@ -1,0 +1,141 @@
+//! The two real TUM fr1_xyz RGB-D pairs: depth back-projected from the
+//! previous view, moved by the ground-truth poses into the current view,
+//! must agree with the current depth within sensor noise.
+mod io_common;
+
+use std::path::Path;
+
+use io_common::{assert_err_names, shared, truncated_copy};
+use nalgebra::Point3;
+use omcl::geometry::{Intrinsics, Pose};
+use omcl::io::rgbd::{
+    DepthImage, TUM_DEPTH_UNITS_PER_METRE, backproject, read_depth_png, read_intrinsics,
+    read_rgb_png, read_rgbd_frame, read_single_tum_pose,
+};
+
+/// TUM's calibrated freiburg1 intrinsics (integer-centre convention, so
+/// +0.5 for the crate's pixel-centre convention).
+fn fr1() -> Intrinsics {
+    Intrinsics {
+        fx: 517.3,
+        fy: 516.5,
+        cx: 318.6 + 0.5,
+        cy: 255.3 + 0.5,
+        width: 640,
+        height: 480,
+    }
+}
+
+/// Median |z_projected - z_current| over previous-view points that land on
+/// a valid current pixel, and the fraction of points that do.
+fn reprojection_error(
+    k: &Intrinsics,
+    prev: &DepthImage,
+    world_from_prev: &Pose,
+    curr: &DepthImage,
+    world_from_curr: &Pose,
+) -> (f64, f64) {
+    let (pts, _) = backproject(k, prev).unwrap();
+    let curr_from_prev = world_from_curr.inverse() * world_from_prev;
+    let mut diffs = Vec::new();
+    for p in &pts {
+        let q = curr_from_prev * Point3::from(*p);
+        let Some((u, v)) = k.project(&q) else {
+            continue;
+        };
+        if u < 0.0 || v < 0.0 || u >= k.width as f64 || v >= k.height as f64 {
+            continue;
+        }
+        let z = curr.depth[v as usize * k.width as usize + u as usize] as f64;
+        if z > 0.0 {
+            diffs.push((q.z - z).abs());
+        }
+    }
+    let frac = diffs.len() as f64 / pts.len() as f64;
+    diffs.sort_by(f64::total_cmp);
+    (diffs[diffs.len() / 2], frac)
+}
+
+fn check_case(dir: &Path) {
+    let k = fr1();
+    let prev = read_depth_png(&dir.join("dep_prev.png"), TUM_DEPTH_UNITS_PER_METRE).unwrap();
+    let curr = read_depth_png(&dir.join("dep_curr.png"), TUM_DEPTH_UNITS_PER_METRE).unwrap();
+    assert_eq!((prev.width, prev.height), (640, 480));
+    let valid = prev.depth.iter().filter(|&&z| z > 0.0).count();
+    assert!(valid > 200_000, "{valid} valid pixels");
+    // A desk scene seen from about a metre: depths between 0.3 m and 5 m.
+    assert!(
+        prev.depth
+            .iter()
+            .all(|&z| z == 0.0 || (0.3..5.0).contains(&z))
+    );
+    let wp = read_single_tum_pose(&dir.join("pose_prev.txt")).unwrap();
+    let wc = read_single_tum_pose(&dir.join("pose_curr.txt")).unwrap();
+    let (med, frac) = reprojection_error(&k, &prev, &wp, &curr, &wc);
+    // Swapping the poses applies the motion backwards: twice the error.
+    let (med_swapped, _) = reprojection_error(&k, &prev, &wc, &curr, &wp);
+    eprintln!(
+        "{}: median |dz| {med:.4} m over {:.0}% of points; poses swapped {med_swapped:.4} m",
+        dir.display(),
+        frac * 100.0
+    );
+    // Kinect noise at 1 m is about 1 cm.
+    assert!(med < 0.03, "median {med}");
+    assert!(frac > 0.8, "overlap {frac}");
+    assert!(med_swapped > 3.0 * med, "{med_swapped} vs {med}");
+    let rgb = read_rgb_png(&dir.join("img_prev.png")).unwrap();
+    assert_eq!(rgb.pixels.len(), 640 * 480);
+    let cloud = read_rgbd_frame(
+        &dir.join("dep_prev.png"),
+        &dir.join("img_prev.png"),
+        &k,
+        TUM_DEPTH_UNITS_PER_METRE,
+        &wp,
+    )
+    .unwrap();
+    assert_eq!(cloud.len(), valid);
+    cloud.validate("tum").unwrap();
+}
+
+#[test]
+fn real_pairs_agree_between_views() {
+    let Some(root) = shared("rgbd_tum_fr1_xyz") else {
+        return;
+    };
+    check_case(&root.join("case_1"));
+    check_case(&root.join("case_2"));
+}
+
+#[test]
+fn bad_images_and_intrinsics_are_named() {
+    let Some(root) = shared("rgbd_tum_fr1_xyz") else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let dep = root.join("case_1/dep_prev.png");
+    let p = truncated_copy(&dep, d.path(), "cut_depth.png", 60_000);
+    assert_err_names(read_depth_png(&p, 5000.0).unwrap_err(), &p, "PNG");
+    let p = truncated_copy(&dep, d.path(), "header_only.png", 20);
+    assert_err_names(read_depth_png(&p, 5000.0).unwrap_err(), &p, "PNG");
+    // A colour image is not a depth image.
+    let img = root.join("case_1/img_prev.png");
+    assert_err_names(
+        read_depth_png(&img, 5000.0).unwrap_err(),
+        &img,
+        "16-bit grayscale",
+    );
+    let k = d.path().join("k.txt");
+    std::fs::write(&k, "525 525 319.5 239.5 640\n").unwrap();
+    assert_err_names(read_intrinsics(&k).unwrap_err(), &k, "expected 6 values");
+    std::fs::write(&k, "# fx fy cx cy w h\n525 525 319.5 239.5 640 480\n").unwrap();
+    let small = Intrinsics {
+        width: 320,
+        height: 240,
+        ..read_intrinsics(&k).unwrap()
+    };
+    let e = read_rgbd_frame(&dep, &img, &small, 5000.0, &Pose::identity()).unwrap_err();
+    assert_err_names(e, &dep, "intrinsics are for 320x240");
+    let pose = d.path().join("pose.txt");
+    std::fs::write(&pose, "1 2 3 0 0 0 3\n").unwrap();
+    assert_err_names(read_single_tum_pose(&pose).unwrap_err(), &pose, "norm");
+}
