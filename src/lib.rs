@@ -5,5 +5,5 @@ pub mod io;
 pub mod map;
 pub mod raycast;
 pub mod scene;
-pub mod trajectory;
 pub mod sim;
+pub mod trajectory;

@@ -235,10 +235,10 @@ pub fn generate(config: &IndoorConfig) -> IndoorWorld {
         &[Opening::window(0.5 * cw, 0.8)],
     );
     // Blind walls where one side of the corridor is shorter than the other.
-    for side in 0..2 {
-        if x_side[side] < length - 1e-9 {
+    for (side, &x_end) in x_side.iter().enumerate() {
+        if x_end < length - 1e-9 {
             let (ya, yb) = if side == 0 { (y_min, 0.0) } else { (cw, y_max) };
-            wall_y(&mut scene, x_side[side], ya, yb, t, h, &[]);
+            wall_y(&mut scene, x_end, ya, yb, t, h, &[]);
         }
     }
     for rm in &rooms {

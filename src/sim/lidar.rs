@@ -146,8 +146,7 @@ mod tests {
     #[test]
     fn points_lie_on_the_ground_plane() {
         // Flat ground at z = 0; scanner 1.73 m above it, no noise.
-        let mut s = Scene::default();
-        s.classes = vec!["road".into()];
+        let mut s = Scene::new(&["road"]);
         s.add_box(0, [-60.0, -60.0, -0.2], [60.0, 60.0, 0.0]);
         let w = voxelize(&s, 0.2, Vector3::new(-61.0, -61.0, -1.0));
         let caster = ReferenceCaster::new(0.2, &w.cells);

@@ -42,9 +42,9 @@ impl Default for IndoorPathConfig {
             frames: 300,
             seed: 0,
             height: 1.5,
-            step: 0.2,
+            step: 0.28,
             turn_rate_deg: 16.0,
-            sway_deg: 18.0,
+            sway_deg: 10.0,
         }
     }
 }
@@ -90,7 +90,7 @@ pub fn indoor_path(layout: &IndoorLayout, config: &IndoorPathConfig) -> Vec<Pose
     let mut i = 0;
     while walker.poses.len() < config.frames {
         let room = &layout.rooms[order[i % order.len()]];
-        let look = rng.random_range(200.0..360.0f64).to_radians()
+        let look = rng.random_range(150.0..300.0f64).to_radians()
             * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
         walker.turn_by(look);
         let next = &layout.rooms[order[(i + 1) % order.len()]];

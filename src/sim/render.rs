@@ -189,8 +189,7 @@ mod tests {
     #[test]
     fn plain_wall_depth_matches_analytic_depth() {
         // Wall: the face x = 3 m of a slab; at z-depth every pixel sees 3 m.
-        let mut s = Scene::default();
-        s.classes = vec!["wall".into()];
+        let mut s = Scene::new(&["wall"]);
         s.add_box(0, [3.0, -20.0, -20.0], [3.1, 20.0, 20.0]);
         let w = voxelize(&s, 0.05, Vector3::new(-1.0, -21.0, -21.0));
         let caster = ReferenceCaster::new(0.05, &w.cells);
@@ -213,8 +212,7 @@ mod tests {
     #[test]
     fn labels_follow_the_geometry() {
         // Left half of the view a red box at x = 2, right half a wall at x = 4.
-        let mut s = Scene::default();
-        s.classes = vec!["wall".into(), "box".into()];
+        let mut s = Scene::new(&["wall", "box"]);
         s.add_box(0, [4.0, -10.0, -10.0], [4.1, 10.0, 10.0]);
         s.add_box(1, [2.0, 0.0, -10.0], [2.5, 10.0, 10.0]);
         let w = voxelize(&s, 0.05, Vector3::new(-1.0, -11.0, -11.0));

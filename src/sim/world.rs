@@ -117,6 +117,14 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// An empty scene with these class names.
+    pub fn new(classes: &[&str]) -> Self {
+        Scene {
+            classes: classes.iter().map(|s| s.to_string()).collect(),
+            primitives: Vec::new(),
+        }
+    }
+
     /// Adds a box with class `label`.
     pub fn add_box(&mut self, label: u16, a: [f64; 3], b: [f64; 3]) {
         self.primitives.push(Primitive {
@@ -313,8 +321,7 @@ mod tests {
     #[test]
     fn box_shell_has_the_expected_cell_count() {
         // A 1 m cube at 0.1 m: 10^3 cells, shell = 10^3 - 8^3 = 488.
-        let mut s = Scene::default();
-        s.classes = vec!["a".into()];
+        let mut s = Scene::new(&["a"]);
         s.add_box(0, [0.0, 0.0, 0.0], [1.0, 1.0, 1.0]);
         let w = voxelize(&s, 0.1, Vector3::zeros());
         assert_eq!(w.cells.len(), 488);
@@ -325,8 +332,7 @@ mod tests {
 
     #[test]
     fn later_primitives_paint_over_earlier_ones_and_thin_ones_survive() {
-        let mut s = Scene::default();
-        s.classes = vec!["floor".into(), "rug".into()];
+        let mut s = Scene::new(&["floor", "rug"]);
         s.add_box(0, [0.0, 0.0, -0.1], [2.0, 2.0, 0.0]);
         // A 1 cm rug above the floor: thinner than a cell.
         s.add_box(1, [0.5, 0.5, 0.0], [1.0, 1.0, 0.01]);
@@ -339,8 +345,7 @@ mod tests {
 
     #[test]
     fn cylinder_and_ellipsoid_cells_lie_near_their_surface() {
-        let mut s = Scene::default();
-        s.classes = vec!["pole".into(), "ball".into()];
+        let mut s = Scene::new(&["pole", "ball"]);
         s.add(
             0,
             Shape::Cylinder {
