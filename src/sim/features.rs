@@ -415,8 +415,8 @@ impl FeatureModel {
         }
     }
 
-    /// The class whose row is most similar to pixel `(u, v)`'s feature,
-    /// computed without materializing the feature when it is noise-free.
+    /// The class whose row is most similar to pixel `(u, v)`'s feature
+    /// (`scratch` holds the feature afterwards); `None` for a miss.
     pub fn predicted_class(
         &self,
         frame: u64,

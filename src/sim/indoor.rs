@@ -459,8 +459,7 @@ fn wall_place(rm: &Room, wall: usize, along: f64, inset: f64) -> Place {
 struct Furnisher<'a> {
     rm: &'a Room,
     taken: Vec<Rect>,
-    /// Wall index of the corridor (door) wall and of the outer (window) wall.
-    door_wall: usize,
+    /// Wall index of the outer (window) wall.
     window_wall: usize,
     window: (f64, f64),
 }
@@ -542,12 +541,11 @@ impl Furnisher<'_> {
 
 fn furnish(scene: &mut Scene, rm: &Room, window: (f64, f64, f64), rng: &mut ChaCha8Rng) {
     let south = rm.inward[1] < 0.0;
-    // Door on the corridor side; the window is on the opposite wall.
-    let (door_wall, window_wall) = if south { (1, 0) } else { (0, 1) };
+    // The door is on the corridor side; the window on the opposite wall.
+    let window_wall = if south { 0 } else { 1 };
     let mut f = Furnisher {
         rm,
         taken: Vec::new(),
-        door_wall,
         window_wall,
         window: (window.0, window.1),
     };
@@ -561,7 +559,6 @@ fn furnish(scene: &mut Scene, rm: &Room, window: (f64, f64, f64), rng: &mut ChaC
         min: [rm.viewpoint[0] - 0.7, rm.viewpoint[1] - 0.7],
         max: [rm.viewpoint[0] + 0.7, rm.viewpoint[1] + 0.7],
     });
-    let _ = f.door_wall;
     // Curtains either side of the window in living rooms and bedrooms.
     if matches!(rm.kind, RoomKind::Living | RoomKind::Bedroom) {
         let wy = window.2 + rm.inward[1] * 0.08;

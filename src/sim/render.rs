@@ -6,6 +6,7 @@
 //! see exactly the voxels a map built from the world would hold.
 
 use nalgebra::Vector3;
+use rayon::prelude::*;
 
 use super::world::VoxelWorld;
 use crate::geometry::{Intrinsics, Pose, Ray, camera_ray};
@@ -39,13 +40,14 @@ impl Frame {
 
 /// The camera rays of every pixel, row-major, in the world's grid frame.
 pub fn camera_rays(world: &VoxelWorld, k: &Intrinsics, world_from_camera: &Pose) -> Vec<Ray> {
-    let mut rays = Vec::with_capacity(k.pixel_count());
-    for v in 0..k.height {
-        for u in 0..k.width {
-            rays.push(camera_ray(k, world_from_camera, &world.origin, u, v));
-        }
-    }
-    rays
+    let w = k.width as usize;
+    (0..k.pixel_count())
+        .into_par_iter()
+        .map(|i| {
+            let (u, v) = ((i % w) as u32, (i / w) as u32);
+            camera_ray(k, world_from_camera, &world.origin, u, v)
+        })
+        .collect()
 }
 
 /// Renders one frame of camera `k` at `world_from_camera`.
@@ -57,26 +59,27 @@ pub fn render_frame(
 ) -> Frame {
     let rays = camera_rays(world, k, world_from_camera);
     let hits = caster.cast_vec(&rays);
-    let n = rays.len();
-    let mut frame = Frame {
+    let axis_cam = world_from_camera.rotation * Vector3::z();
+    let axis = [axis_cam.x as f32, axis_cam.y as f32, axis_cam.z as f32];
+    let px: Vec<(f32, u16, u32, f32)> = rays
+        .par_iter()
+        .zip(hits.par_iter())
+        .map(|(ray, hit)| match shade(world, ray, hit) {
+            Some((label, inc)) => {
+                let along = ray.dir[0] * axis[0] + ray.dir[1] * axis[1] + ray.dir[2] * axis[2];
+                (hit.t * along, label, hit.leaf, inc)
+            }
+            None => (0.0, NO_LABEL, u32::MAX, 0.0),
+        })
+        .collect();
+    Frame {
         width: k.width,
         height: k.height,
-        depth: vec![0.0; n],
-        labels: vec![NO_LABEL; n],
-        leaves: vec![u32::MAX; n],
-        incidence: vec![0.0; n],
-    };
-    let axis_cam = world_from_camera.rotation * Vector3::z();
-    for (i, (ray, hit)) in rays.iter().zip(&hits).enumerate() {
-        if let Some((label, inc)) = shade(world, ray, hit) {
-            let d = Vector3::new(ray.dir[0] as f64, ray.dir[1] as f64, ray.dir[2] as f64);
-            frame.depth[i] = (hit.t as f64 * d.dot(&axis_cam)) as f32;
-            frame.labels[i] = label;
-            frame.leaves[i] = hit.leaf;
-            frame.incidence[i] = inc;
-        }
+        depth: px.iter().map(|p| p.0).collect(),
+        labels: px.iter().map(|p| p.1).collect(),
+        leaves: px.iter().map(|p| p.2).collect(),
+        incidence: px.iter().map(|p| p.3).collect(),
     }
-    frame
 }
 
 /// Class and incidence of a hit (`None` for a miss). The entered face is
