@@ -38,12 +38,12 @@ pub enum SimCommand {
         /// Feature preset: exact, gt or lseg-like.
         #[arg(long, default_value = "lseg-like")]
         preset: Preset,
-        /// Write per-frame feature .npy files (about 0.6 MB per frame at
-        /// stride 4 and 540x540; 10 GB at stride 1 for 300 frames).
+        /// Write per-frame feature .npy files (large: 9.2 MB a 540x540 frame
+        /// at stride 8, 600 MB at stride 1).
         #[arg(long)]
         features: bool,
         /// Pixel stride of the written features.
-        #[arg(long, default_value_t = 4)]
+        #[arg(long, default_value_t = 8)]
         feature_stride: u32,
         /// Odometry noise per frame: translation (m) and rotation (degrees).
         #[arg(long, default_value_t = 0.10)]

@@ -74,7 +74,7 @@ impl IndoorDatasetConfig {
             hfov_deg: 90.0,
             preset: Preset::LsegLike,
             features: false,
-            feature_stride: 4,
+            feature_stride: 8,
         }
     }
 

@@ -85,8 +85,8 @@ impl Preset {
                 range_gain: 0.0,
                 patch_px: 24,
             },
-            // Calibrated with examples/sim_calibrate.rs (README): about 88 /
-            // 75 / 77 / 65 against Table II's GT row 86.8 / 79.0 / 79.0 / 67.5.
+            // Calibrated with examples/sim_calibrate.rs (docs/sim.md): 87.0 /
+            // 74.5 / 75.8 / 64.1 against Table II's GT row 86.8 / 79.0 / 79.0 / 67.5.
             Preset::Gt => FeatureParams {
                 noise: 0.0,
                 boundary_px: 5.0,
@@ -102,16 +102,16 @@ impl Preset {
                 range_gain: 0.0,
                 patch_px: 8,
             },
-            // Calibrated with examples/sim_calibrate.rs (README): about 83 /
-            // 61 / 55 / 49 against Table II's LSeg row 82.7 / 59.7 / 54.3 / 43.4.
+            // Calibrated with examples/sim_calibrate.rs (docs/sim.md): 81.9 /
+            // 58.7 / 52.6 / 46.9 against Table II's LSeg row 82.7 / 59.7 / 54.3 / 43.4.
             Preset::LsegLike => FeatureParams {
                 noise: 0.5,
                 boundary_px: 6.0,
                 stuff_boundary_px: 0.0,
                 boundary_mix: 0.9,
                 boundary_jitter: 0.6,
-                confusion_object: 0.7,
-                confusion_stuff: 0.15,
+                confusion_object: 0.65,
+                confusion_stuff: 0.12,
                 patch_fraction: 0.3,
                 difficulty_spread: 0.6,
                 temperature: 0.01,
