@@ -189,3 +189,39 @@ fn outdoor_sequence_reads_back_and_lidar_points_lie_on_labelled_surfaces() {
     assert!(agree as f64 > 0.99 * points as f64, "{agree} of {points}");
     assert_eq!(OUTDOOR_CLASSES.len(), SEMANTIC_KITTI_IDS.len());
 }
+
+#[test]
+fn real_drift_comes_from_kitti_orb_against_ground_truth() {
+    let dir = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared/data/trajectories"
+    ));
+    if !dir.join("KITTI_00_ORB.txt").exists() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "shared data missing at {}",
+            dir.display()
+        );
+        eprintln!("skipping: {} not found", dir.display());
+        return;
+    }
+    let (errs, source) = omcl::sim::dataset::load_drift(dir).unwrap();
+    assert_eq!(errs.len(), 4540);
+    assert!(source.contains("ORB"));
+    // ORB-SLAM2's per-frame relative errors on KITTI 00 are centimetres and
+    // hundredths of a degree: real, small, and not all zero.
+    let n = errs.len() as f64;
+    let mean_t = errs
+        .iter()
+        .map(|e| e.translation.vector.norm())
+        .sum::<f64>()
+        / n;
+    let mean_r = errs
+        .iter()
+        .map(|e| e.rotation.angle().to_degrees())
+        .sum::<f64>()
+        / n;
+    assert!(mean_t > 1e-3 && mean_t < 0.5, "{mean_t}");
+    assert!(mean_r > 1e-4 && mean_r < 2.0, "{mean_r}");
+    eprintln!("KITTI 00 ORB drift: {mean_t:.4} m, {mean_r:.4} deg per frame");
+}
