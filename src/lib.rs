@@ -8,4 +8,5 @@ pub mod mapping;
 pub mod mcl;
 pub mod raycast;
 pub mod scene;
+pub mod sim;
 pub mod trajectory;

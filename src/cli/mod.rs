@@ -9,6 +9,7 @@ pub mod localize;
 pub mod map;
 pub mod map_build;
 pub mod progress;
+pub mod sim;
 
 use clap::{Parser, Subcommand};
 
@@ -36,6 +37,9 @@ pub enum Command {
     Eval(eval::EvalCommand),
     /// Localize a camera sequence in a map with the particle filter.
     Localize(localize::LocalizeArgs),
+    /// Synthetic worlds and sensor data in real datasets' layouts.
+    #[command(subcommand)]
+    Sim(sim::SimCommand),
 }
 
 /// Runs a parsed command line.
@@ -46,5 +50,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Encode(cmd) => encode::run(cmd),
         Command::Eval(cmd) => eval::run(cmd),
         Command::Localize(a) => localize::run(a),
+        Command::Sim(cmd) => sim::run(cmd),
     }
 }
