@@ -91,6 +91,10 @@ pub struct LocalizeArgs {
     /// Exponent on the likelihood (1 = the paper's eq. 2).
     #[arg(long)]
     pub sharpen: Option<f64>,
+    /// Score rays with the plain cosine of eq. 2 instead of the per-pixel
+    /// contrast-rescaled cosine (see `SensorParams::contrast`).
+    #[arg(long)]
+    pub no_contrast: bool,
     /// Seed of every random draw.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -346,6 +350,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     if let Some(s) = a.sharpen {
         config.sharpen = s;
     }
+    config.sensor.contrast = !a.no_contrast;
     let caster = Arc::new(
         EmbreeCaster::new(m.grid().resolution as f32, &m.cells())?.with_packet(Packet::Single),
     );

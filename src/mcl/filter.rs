@@ -205,7 +205,7 @@ impl Filter {
         }
         let t0 = Instant::now();
         let pixels = sample_pixels(frame, &self.db, &self.config.sampling, &mut self.rng)?;
-        let table = SimilarityTable::new(frame, &pixels, &self.db)?;
+        let table = SimilarityTable::new(frame, &pixels, &self.db, self.config.sensor.contrast)?;
         let t1 = Instant::now();
         self.config
             .motion

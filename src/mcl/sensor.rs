@@ -33,10 +33,15 @@ pub struct SimilarityTable {
 impl SimilarityTable {
     /// Builds the table for `pixels` of `frame`. A pixel feature without
     /// direction (zero) scores 0 against every row.
+    ///
+    /// With `contrast`, each pixel's cosines are rescaled over the rows to
+    /// `[0, 1]` (its most similar row 1, its least similar 0); see
+    /// [`SensorParams::contrast`].
     pub fn new(
         frame: &dyn FrameFeatures,
         pixels: &[(u32, u32)],
         db: &FeatureDb,
+        contrast: bool,
     ) -> Result<Self, MclError> {
         if frame.dim() != db.dim() {
             return Err(MclError::DimMismatch {
@@ -55,6 +60,13 @@ impl SimilarityTable {
                     if n.is_finite() && n > 0.0 {
                         for (o, row) in out.iter_mut().zip(db.rows().chunks_exact(dim)) {
                             *o = dot(buf, row) / n;
+                        }
+                        if contrast {
+                            let lo = out.iter().copied().fold(f32::INFINITY, f32::min);
+                            let hi = out.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+                            if hi > lo {
+                                out.iter_mut().for_each(|o| *o = (*o - lo) / (hi - lo));
+                            }
                         }
                     }
                 },
@@ -82,6 +94,15 @@ pub struct SensorParams {
     pub miss_score: f32,
     /// Largest ray length, metres (`inf`: unlimited). Hits beyond it miss.
     pub max_range: f32,
+    /// Rescale each pixel's cosines over the database rows to `[0, 1]`
+    /// before averaging (the paper's eq. 2 uses the plain cosine: `false`).
+    /// Real CLIP class embeddings are far from orthogonal (cosines of 0.7 to
+    /// 0.9 between classes), so a wrong hit costs little and the plain mean
+    /// barely separates poses: on the synthetic apartment (seed 7, 60
+    /// frames, 256 particles x 512 rays, the sequence's noisy odometry) APE
+    /// RMSE was 0.8 to 2.1 m with plain cosines for sharpening 80 to 2000,
+    /// and 0.17 to 0.27 m with contrast for sharpening 10 to 80.
+    pub contrast: bool,
 }
 
 impl Default for SensorParams {
@@ -89,6 +110,7 @@ impl Default for SensorParams {
         SensorParams {
             miss_score: 0.0,
             max_range: f32::INFINITY,
+            contrast: true,
         }
     }
 }

@@ -111,7 +111,7 @@ fn the_true_pose_scores_highest() {
         &mut rng,
     )
     .unwrap();
-    let table = SimilarityTable::new(&frame, &pixels, w.map.db()).unwrap();
+    let table = SimilarityTable::new(&frame, &pixels, w.map.db(), false).unwrap();
     let mut sensor = SensorModel::new(
         w.caster.clone(),
         w.map.rows().into(),
@@ -226,6 +226,12 @@ fn kld_shrinks_the_set_once_converged_and_recovery_injects_when_lost() {
             max_particles: 512,
             ..Default::default()
         }),
+        // The scenario was tuned with the paper's plain cosines; KLD, not
+        // the sensor, is under test here.
+        sensor: SensorParams {
+            contrast: false,
+            ..Default::default()
+        },
         seed: 4,
         ..Default::default()
     };
@@ -492,13 +498,35 @@ fn bad_input_gives_clear_errors() {
 }
 
 #[test]
+fn contrast_rescales_each_pixel_to_its_best_and_worst_row() {
+    let w = world();
+    let mut rng = ChaCha8Rng::seed_from_u64(13);
+    let frame = render(&w, &start_pose(&w), 0.3, &mut rng);
+    let pixels = vec![(10, 10), (50, 40), (90, 70)];
+    let plain = SimilarityTable::new(&frame, &pixels, w.map.db(), false).unwrap();
+    let c = SimilarityTable::new(&frame, &pixels, w.map.db(), true).unwrap();
+    let k = w.map.db().len();
+    for j in 0..pixels.len() {
+        let row: Vec<f32> = (0..k).map(|r| plain.get(j, r)).collect();
+        let (lo, hi) = row
+            .iter()
+            .fold((f32::MAX, f32::MIN), |(a, b), &x| (a.min(x), b.max(x)));
+        for (r, &x) in row.iter().enumerate() {
+            let want = (x - lo) / (hi - lo);
+            assert!((c.get(j, r) - want).abs() < 1e-6);
+        }
+        assert!((0..k).any(|r| c.get(j, r) == 1.0) && (0..k).any(|r| c.get(j, r) == 0.0));
+    }
+}
+
+#[test]
 fn misses_score_the_miss_parameter() {
     let w = world();
     let mut rng = ChaCha8Rng::seed_from_u64(12);
     let truth = start_pose(&w);
     let frame = render(&w, &truth, 0.0, &mut rng);
     let pixels = vec![(10, 10), (50, 40), (90, 70)];
-    let table = SimilarityTable::new(&frame, &pixels, w.map.db()).unwrap();
+    let table = SimilarityTable::new(&frame, &pixels, w.map.db(), false).unwrap();
     // A camera outside the building looking away from it: every ray misses.
     let outside = Particle::new(
         level_camera(Vector3::new(-5.0, 4.0, 1.5), std::f64::consts::PI),
