@@ -255,6 +255,52 @@ fn las_noise_classes_are_dropped_unless_asked_to_keep() {
 }
 
 #[test]
+fn scannet_scan_converts_through_a_point_encoder() {
+    let Some(bin) = shared("pointclouds/scannet_scene0000_00_xyzrgb.bin") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("scannet.omcl");
+    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/encode/tiny_point.onnx");
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        bin.to_str().unwrap(),
+        "--format",
+        "scannet",
+        "--point-model",
+        model.to_str().unwrap(),
+        "--resolution",
+        "0.05",
+        "--tau",
+        "0.01",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let m = map::load(&out).unwrap();
+    assert_eq!(m.encoder(), "tiny_point");
+    assert_eq!(m.db().dim(), 5);
+    // 40,684 points at 5 cm: fewer voxels than points, but thousands.
+    assert!(m.len() > 5_000 && m.len() < 40_684, "{}", m.len());
+    assert!(m.db().len() > 1);
+    // Without labels, features or an encoder: a clear error.
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        bin.to_str().unwrap(),
+        "--format",
+        "scannet",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        !ok && text.contains("neither features nor labels"),
+        "{text}"
+    );
+}
+
+#[test]
 fn bad_input_fails_clearly_and_writes_nothing() {
     let Some(las) = shared("las/simple.las") else {
         return;

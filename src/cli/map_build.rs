@@ -130,6 +130,13 @@ pub struct CloudArgs {
     /// Sequence folders: ignore points farther than this from the sensor (m).
     #[arg(long)]
     pub max_range: Option<f64>,
+    /// Point encoder (`.onnx` with its `.card.json`, points and colours to
+    /// per-point features), for clouds without labels or feature files.
+    #[arg(long, value_name = "ONNX", conflicts_with = "features")]
+    pub point_model: Option<PathBuf>,
+    /// ONNX Runtime library for --point-model.
+    #[arg(long, value_name = "PATH")]
+    pub ort_lib: Option<PathBuf>,
 }
 
 fn load_cloud(a: &CloudArgs) -> anyhow::Result<PointCloud> {
@@ -208,8 +215,35 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     );
     let grid = grid_for(&c.points, a.build.resolution);
     let table = a.build.table()?;
+    let mut c = c;
+    let mut build = a.build.clone();
+    if let Some(model) = &a.point_model {
+        let rt = super::encode::init_runtime(a.ort_lib.as_deref())?;
+        let mut enc = omcl::encode::PointEncoder::load(rt, model, 0)?;
+        // Points relative to the grid origin keep f32 precision (UTM).
+        let pts: Vec<[f32; 3]> = c
+            .points
+            .iter()
+            .map(|p| {
+                let q = nalgebra::Vector3::from(*p) - grid.origin;
+                [q.x as f32, q.y as f32, q.z as f32]
+            })
+            .collect();
+        let cols: Vec<[f32; 3]> = match &c.colors {
+            Some(cs) => cs.iter().map(|k| k.map(|v| v as f32 / 255.0)).collect(),
+            None => vec![[0.5; 3]; pts.len()],
+        };
+        let pb = super::progress::spinner(&format!("encoding {} points", pts.len()));
+        let f = enc
+            .encode(&pts, &cols)
+            .with_context(|| format!("{source}: point encoder"))?;
+        pb.finish_and_clear();
+        c.features = Some((enc.feature_dim(), f));
+        build.encoder = enc.card().name.clone();
+    }
+    let a_build = &build;
     let (integ, stats) = if let Some((dim, feats)) = &c.features {
-        let db = FeatureDb::new(*dim, a.build.tau)?.with_max_rows(a.build.max_rows);
+        let db = FeatureDb::new(*dim, a_build.tau)?.with_max_rows(a_build.max_rows);
         let mut integ = Integrator::new(grid, db)?;
         let s = mapping::cloud::integrate_points(&mut integ, &c.points, |i| {
             Feature::Vector(&feats[i * dim..(i + 1) * dim])
@@ -217,7 +251,7 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         .with_context(|| format!("{source}: per-point features"))?;
         (integ, s)
     } else if let (Some(labels), Some(t)) = (&c.labels, &table) {
-        let mut integ = Integrator::new(grid, table_db(t, a.build.tau)?)?;
+        let mut integ = Integrator::new(grid, table_db(t, a_build.tau)?)?;
         let rows: Vec<Option<u32>> = labels
             .iter()
             .map(|&l| t.row_index(l).map(|r| r as u32))
@@ -231,11 +265,11 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         );
     } else {
         bail!(
-            "{source}: points carry neither features nor labels: pass --features (N x F .npy) or \
+            "{source}: points carry neither features nor labels: pass --features (N x F .npy), --point-model, or \
              use a labelled cloud with --classes/--embeddings"
         );
     };
-    finish(integ, &a.build, stats)
+    finish(integ, a_build, stats)
 }
 
 #[derive(Debug, Args)]
