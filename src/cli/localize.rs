@@ -101,6 +101,10 @@ pub struct LocalizeArgs {
     /// Use at most this many frames.
     #[arg(long)]
     pub frames: Option<usize>,
+    /// Take pixel features from features/NNNNNN.npy even if labels/ exists
+    /// (e.g. the simulator's noisy "lseg-like" features).
+    #[arg(long)]
+    pub use_features: bool,
     /// Estimated trajectory (TUM), written atomically.
     #[arg(long, short)]
     pub out: PathBuf,
@@ -365,6 +369,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         } else {
             odom[i - 1].inverse() * odom[i]
         };
+        let labels_frame = table.as_ref().filter(|_| !a.use_features);
         let report = if let Some(src) = image.as_mut() {
             let p = d.join("rgb").join(format!("{i:06}.png"));
             let fm = src.encode(&p, i)?;
@@ -376,7 +381,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             filter
                 .step(&inc, &f)
                 .with_context(|| format!("frame {i} ({})", p.display()))?
-        } else if let Some(t) = &table {
+        } else if let Some(t) = labels_frame {
             let p = d.join("labels").join(format!("{i:06}.png"));
             let (w, h, labels) = rgbd::read_label_png(&p)?;
             let f = LabelFrame {
