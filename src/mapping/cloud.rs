@@ -34,20 +34,7 @@ pub fn integrate_points<'a>(
         ..Default::default()
     };
     for (i, p) in points.iter().enumerate() {
-        let p = Vector3::from(*p);
-        let ok = match feature(i) {
-            Feature::Row(r) => integ.add_row(&p, r),
-            Feature::Vector(f) => integ.add_feature(&p, f)?,
-            Feature::Unknown => {
-                s.skipped += 1;
-                continue;
-            }
-        };
-        if ok {
-            s.integrated += 1;
-        } else {
-            s.rejected += 1;
-        }
+        s.add(integ, &Vector3::from(*p), feature(i))?;
     }
     Ok(s)
 }

@@ -90,6 +90,31 @@ pub struct IntegrationStats {
     pub rejected: usize,
 }
 
+impl IntegrationStats {
+    /// Adds one observation at world point `p` to `integ` and counts it.
+    pub(crate) fn add(
+        &mut self,
+        integ: &mut crate::map::Integrator,
+        p: &nalgebra::Vector3<f64>,
+        feature: Feature<'_>,
+    ) -> Result<(), crate::map::FeatureDbError> {
+        let ok = match feature {
+            Feature::Row(r) => integ.add_row(p, r),
+            Feature::Vector(f) => integ.add_feature(p, f)?,
+            Feature::Unknown => {
+                self.skipped += 1;
+                return Ok(());
+            }
+        };
+        if ok {
+            self.integrated += 1;
+        } else {
+            self.rejected += 1;
+        }
+        Ok(())
+    }
+}
+
 impl std::ops::AddAssign for IntegrationStats {
     fn add_assign(&mut self, o: Self) {
         self.offered += o.offered;

@@ -2,7 +2,7 @@
 
 use nalgebra::{Point3, Vector3};
 
-use super::{Feature, FrameFeatures, IntegrationStats};
+use super::{FrameFeatures, IntegrationStats};
 use crate::geometry::{Intrinsics, Pose};
 use crate::map::{FeatureDbError, Integrator};
 
@@ -61,19 +61,7 @@ pub fn integrate_frame(
                 s.skipped += 1;
                 continue;
             }
-            let ok = match features.at(u, v) {
-                Feature::Row(r) => integ.add_row(&p, r),
-                Feature::Vector(f) => integ.add_feature(&p, f)?,
-                Feature::Unknown => {
-                    s.skipped += 1;
-                    continue;
-                }
-            };
-            if ok {
-                s.integrated += 1;
-            } else {
-                s.rejected += 1;
-            }
+            s.add(integ, &p, features.at(u, v))?;
         }
     }
     Ok(s)

@@ -420,20 +420,13 @@ pub fn build_table(
     )
 }
 
-/// Dot product.
+/// Dot product, summed in order (not `map::features::dot`, whose
+/// vectorized summation order would change the built-in table's bits).
 pub fn dot(a: &[f32], b: &[f32]) -> f32 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
-/// Scales `v` to unit length; false when its norm is zero or not finite.
-pub fn normalize(v: &mut [f32]) -> bool {
-    let n = v.iter().map(|x| x * x).sum::<f32>().sqrt();
-    if !(n.is_finite() && n > 0.0) {
-        return false;
-    }
-    v.iter_mut().for_each(|x| *x /= n);
-    true
-}
+pub use crate::map::features::normalize;
 
 fn lookup_key(name: &str) -> String {
     name.trim()
