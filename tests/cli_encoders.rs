@@ -186,6 +186,37 @@ fn rgbd_mapping_with_an_image_encoder() {
     let mut enc = ImageEncoder::load(rt, &model, 1).unwrap();
     let img = omcl::io::rgb::read_rgb(&d.join("rgb/000000.png")).unwrap();
     let fm = enc.encode(&img).unwrap();
+    // The same encoder drives the localizer from raw RGB (one frame).
+    let est = d.join("est.txt");
+    let (ok, text) = omcl(&[
+        "localize",
+        "--map",
+        out.to_str().unwrap(),
+        "--sequence",
+        d.to_str().unwrap(),
+        "--image-model",
+        model.to_str().unwrap(),
+        "--particles",
+        "16",
+        "--rays",
+        "32",
+        "--init-sigma-m",
+        "0.05",
+        "-o",
+        est.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let lines: Vec<String> = std::fs::read_to_string(&est)
+        .unwrap()
+        .lines()
+        .map(String::from)
+        .collect();
+    assert_eq!(
+        lines.iter().filter(|l| !l.starts_with('#')).count(),
+        1,
+        "{lines:?}"
+    );
+    assert!(text.contains("APE rmse"), "{text}");
     for r in 0..m.db().len() {
         let row = m.db().row(r);
         let best = (0..h)
