@@ -8,10 +8,10 @@ use std::hint::black_box;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::Vector3;
-use omcl::geometry::{Intrinsics, camera_ray, level_camera};
+use omcl::geometry::{Intrinsics, level_camera};
 use omcl::map::{FeatureDb, GridSpec, Integrator};
 use omcl::mapping::{self, Feature, LabelImage};
-use omcl::raycast::{EmbreeCaster, RayCaster};
+use omcl::raycast::EmbreeCaster;
 use omcl::scene::{FURNITURE_BASE, FURNITURE_KINDS, RoomsConfig, rooms};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -110,33 +110,7 @@ fn bench(c: &mut Criterion) {
     let caster = EmbreeCaster::new(s.resolution as f32, &s.cells).expect("scene");
     let [x, y] = s.free_spots[0];
     let pose = level_camera(Vector3::new(x, y, 1.5), 0.7);
-    let rays: Vec<_> = (0..k.height)
-        .flat_map(|v| (0..k.width).map(move |u| (u, v)))
-        .map(|(u, v)| camera_ray(&k, &pose, &grid.origin, u, v))
-        .collect();
-    let hits = caster.cast_vec(&rays);
-    let depth: Vec<f32> = hits
-        .iter()
-        .enumerate()
-        .map(|(i, h)| {
-            let (u, v) = (i as u32 % k.width, i as u32 / k.width);
-            if h.is_hit() {
-                h.t * k.pixel_dir(u, v).z as f32
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    let labels: Vec<u32> = hits
-        .iter()
-        .map(|h| {
-            if h.is_hit() {
-                s.labels[h.leaf as usize]
-            } else {
-                u32::MAX
-            }
-        })
-        .collect();
+    let omcl::scene::View { depth, labels, .. } = omcl::scene::render(&s, &caster, &k, &pose);
     let row_of = |l: u32| (l != u32::MAX).then_some(l);
     let img = LabelImage {
         width: k.width,

@@ -8,7 +8,9 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use crate::geometry::{Intrinsics, Pose, camera_ray};
 use crate::map::Cell;
+use crate::raycast::{Hit, RayCaster};
 
 /// Labels of [`Scene`] voxels.
 pub const FLOOR: u32 = 0;
@@ -182,6 +184,60 @@ pub fn rooms(cfg: &RoomsConfig) -> Scene {
         labels,
         free_spots,
         config: cfg.clone(),
+    }
+}
+
+/// What a camera sees of a [`Scene`]: z-depth (metres, 0 where the ray
+/// missed), the label of the hit voxel (`u32::MAX` for a miss), and the hits,
+/// row-major.
+#[derive(Debug, Clone)]
+pub struct View {
+    pub depth: Vec<f32>,
+    pub labels: Vec<u32>,
+    pub hits: Vec<Hit>,
+}
+
+/// Renders `scene` (cast with `caster`, built over `scene.cells`) from a
+/// camera at `world_from_camera`; the scene frame is the world frame.
+pub fn render(
+    scene: &Scene,
+    caster: &dyn RayCaster,
+    k: &Intrinsics,
+    world_from_camera: &Pose,
+) -> View {
+    let origin = nalgebra::Vector3::zeros();
+    let rays: Vec<_> = (0..k.height)
+        .flat_map(|v| (0..k.width).map(move |u| (u, v)))
+        .map(|(u, v)| camera_ray(k, world_from_camera, &origin, u, v))
+        .collect();
+    let hits = caster.cast_vec(&rays);
+    // z-depth = t * (camera-frame z of the unit ray direction).
+    let depth = hits
+        .iter()
+        .enumerate()
+        .map(|(i, h)| {
+            let (u, v) = (i as u32 % k.width, i as u32 / k.width);
+            if h.is_hit() {
+                h.t * k.pixel_dir(u, v).z as f32
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let labels = hits
+        .iter()
+        .map(|h| {
+            if h.is_hit() {
+                scene.labels[h.leaf as usize]
+            } else {
+                u32::MAX
+            }
+        })
+        .collect();
+    View {
+        depth,
+        labels,
+        hits,
     }
 }
 

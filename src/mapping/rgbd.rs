@@ -70,10 +70,10 @@ pub fn integrate_frame(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::{camera_ray, level_camera};
+    use crate::geometry::level_camera;
     use crate::map::{FeatureDb, GridSpec};
     use crate::mapping::LabelImage;
-    use crate::raycast::{EmbreeCaster, RayCaster};
+    use crate::raycast::EmbreeCaster;
     use crate::scene::{RoomsConfig, rooms};
 
     /// Renders depth and labels of `scene` with the ray caster, maps the
@@ -110,35 +110,9 @@ mod tests {
                     Vector3::new(spot[0], spot[1], 1.2),
                     yaw as f64 * std::f64::consts::FRAC_PI_4 + n as f64,
                 );
-                let rays: Vec<_> = (0..k.height)
-                    .flat_map(|v| (0..k.width).map(move |u| (u, v)))
-                    .map(|(u, v)| camera_ray(&k, &pose, &grid.origin, u, v))
-                    .collect();
-                let hits = caster.cast_vec(&rays);
-                seen.extend(hits.iter().filter(|h| h.is_hit()).map(|h| h.leaf));
-                // z-depth = t * (camera-frame z of the unit ray direction).
-                let depth: Vec<f32> = hits
-                    .iter()
-                    .enumerate()
-                    .map(|(i, h)| {
-                        let (u, v) = (i as u32 % k.width, i as u32 / k.width);
-                        if h.is_hit() {
-                            h.t * k.pixel_dir(u, v).z as f32
-                        } else {
-                            0.0
-                        }
-                    })
-                    .collect();
-                let labels: Vec<u32> = hits
-                    .iter()
-                    .map(|h| {
-                        if h.is_hit() {
-                            scene.labels[h.leaf as usize]
-                        } else {
-                            u32::MAX
-                        }
-                    })
-                    .collect();
+                let view = crate::scene::render(&scene, &caster, &k, &pose);
+                seen.extend(view.hits.iter().filter(|h| h.is_hit()).map(|h| h.leaf));
+                let (depth, labels) = (view.depth, view.labels);
                 let rows = |l: u32| (l != u32::MAX).then_some(l);
                 let img = LabelImage {
                     width: k.width,
