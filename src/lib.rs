@@ -1,6 +1,7 @@
 //! omcl: Open-vocabulary Monte Carlo Localization.
 pub mod encode;
 pub mod eval;
+pub mod experiment;
 pub mod geometry;
 pub mod io;
 pub mod map;

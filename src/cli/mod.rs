@@ -1,6 +1,7 @@
 //! Command-line interface: argument parsing and the glue between files and
 //! the library. Errors are `anyhow` here, `thiserror` in the library.
 
+pub mod bench;
 pub mod demo;
 pub mod encode;
 pub mod encoders;
@@ -27,6 +28,8 @@ pub enum Command {
     /// Build, inspect, ground and query Octree Language Maps.
     #[command(subcommand)]
     Map(map::MapCommand),
+    /// The paper's experiments on the synthetic benchmark: tables and plots.
+    Bench(bench::BenchArgs),
     /// Run the pipeline end to end on the built-in synthetic world.
     Demo(demo::DemoArgs),
     /// Run ONNX encoders: words, images and point clouds to features.
@@ -46,6 +49,7 @@ pub enum Command {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Map(cmd) => map::run(cmd),
+        Command::Bench(args) => bench::run(args),
         Command::Demo(args) => demo::run(args),
         Command::Encode(cmd) => encode::run(cmd),
         Command::Eval(cmd) => eval::run(cmd),

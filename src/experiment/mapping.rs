@@ -1,0 +1,169 @@
+//! Maps of a benchmark sequence's world, built the ways the paper's Table I
+//! compares: from posed RGB-D frames with ground-truth labels or with an
+//! encoder's (simulated) features, the latter grounded on the class names.
+//!
+//! The mapping frames come from a second camera path through the same
+//! world (another seed), so localization never sees the exact views the map
+//! was made from.
+
+use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
+
+use super::ExperimentError;
+use super::sequence::SimSequence;
+use crate::geometry::Pose;
+use crate::map::{FeatureDb, GridSpec, Integrator, LanguageMap};
+use crate::sim::features::{FeatureModel, Preset};
+use crate::sim::paths::{self, IndoorPathConfig};
+use crate::sim::render::{self, Frame, NO_LABEL};
+
+/// Where the voxels' features come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum MapSource {
+    /// The true class of every back-projected pixel (a semantic mesh's
+    /// labels, as Matterport3D's ground truth): the "GT" map.
+    Labels,
+    /// Each pixel's feature from the preset's model, assigned to its most
+    /// similar class row (grounding per observation), then counted per
+    /// voxel: the "LSeg" map. (The paper averages raw features per voxel
+    /// and grounds the means; with 512-d features and a million voxels
+    /// that needs the whole feature stream in memory or a per-feature
+    /// database search, so the experiment grounds first.)
+    Features(Preset),
+}
+
+impl MapSource {
+    /// A short name for tables.
+    pub fn name(&self) -> String {
+        match self {
+            MapSource::Labels => "labels".into(),
+            MapSource::Features(p) => format!("{}-features", p.name()),
+        }
+    }
+}
+
+/// How mapping frames are taken.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MapParams {
+    /// Voxel edge, metres.
+    pub resolution: f64,
+    /// Frames of the mapping path (300, the simulator's default, visits
+    /// every room) and the step between used frames.
+    pub frames: usize,
+    pub frame_step: usize,
+    /// Use every `pixel_stride`-th pixel of a frame in u and v.
+    pub pixel_stride: u32,
+    /// Points above this height (m) are dropped: the ceiling is cropped so
+    /// floor plans and prompts see the rooms (the authors do the same).
+    pub max_height: f64,
+    /// Admission threshold of the map's database (paper: 0.02).
+    pub tau: f32,
+}
+
+impl Default for MapParams {
+    fn default() -> Self {
+        MapParams {
+            resolution: 0.05,
+            frames: 300,
+            frame_step: 2,
+            pixel_stride: 2,
+            max_height: 10.0,
+            tau: 0.02,
+        }
+    }
+}
+
+/// The mapping path of `seq`: a different walk through the same world.
+pub fn mapping_poses(seq: &SimSequence, frames: usize) -> Vec<Pose> {
+    let cfg = IndoorPathConfig {
+        frames,
+        seed: seq.config.path.seed.wrapping_add(0x9a9),
+        ..seq.config.path.clone()
+    };
+    paths::indoor_path(&seq.scene.world.layout, &cfg)
+}
+
+/// Builds the map of `seq`'s world from `source`. `model` gives the
+/// features of [`MapSource::Features`] (its preset must match).
+pub fn build_map(
+    seq: &SimSequence,
+    source: MapSource,
+    params: &MapParams,
+    model: Option<&FeatureModel>,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<LanguageMap, ExperimentError> {
+    if let MapSource::Features(_) = source
+        && model.is_none()
+    {
+        return Err(ExperimentError::Config(
+            "a feature map needs a feature model".into(),
+        ));
+    }
+    let table = &seq.table;
+    let db = FeatureDb::from_rows(table.dim, params.tau, table.rows.clone())?;
+    // The map's grid is offset from the world's voxels by half a map voxel:
+    // a real map's grid does not line up with the walls, and surfaces on
+    // voxel faces would split their points between two voxels.
+    let grid = GridSpec {
+        resolution: params.resolution,
+        origin: seq.scene.world.voxels.origin - Vector3::repeat(0.5 * params.resolution),
+    };
+    let mut integ = Integrator::new(grid, db)?;
+    let k = &seq.intrinsics;
+    let s = params.pixel_stride.max(1);
+    for (i, pose) in mapping_poses(seq, params.frames)
+        .iter()
+        .enumerate()
+        .step_by(params.frame_step.max(1))
+    {
+        let frame = render::render_frame(&seq.scene.caster, &seq.scene.world.voxels, k, pose);
+        let (points, rows) = frame_points(&frame, k, pose, s, params.max_height, |u, v| {
+            let l = frame.labels[frame.index(u, v)];
+            match (source, model) {
+                (MapSource::Features(_), Some(m)) => {
+                    let ctx = m.context(&frame, u, v);
+                    let mut buf = vec![0.0; m.dim()];
+                    m.predicted_class(0x9a9_0000 + i as u64, u, v, &ctx, &mut buf)
+                        .map(|c| c as u32)
+                }
+                _ => (l != NO_LABEL).then_some(l as u32),
+            }
+        });
+        integ.add_rows_batch(&points, &rows);
+        progress(i + 1);
+    }
+    Ok(integ.finish(source.name(), params.tau)?)
+}
+
+/// World points and rows of the used pixels of one frame (rows computed in
+/// parallel by `row_of`).
+fn frame_points(
+    frame: &Frame,
+    k: &crate::geometry::Intrinsics,
+    pose: &Pose,
+    stride: u32,
+    max_height: f64,
+    row_of: impl Fn(u32, u32) -> Option<u32> + Sync,
+) -> (Vec<[f64; 3]>, Vec<Option<u32>>) {
+    let px: Vec<(u32, u32)> = (0..frame.height)
+        .step_by(stride as usize)
+        .flat_map(|v| {
+            (0..frame.width)
+                .step_by(stride as usize)
+                .map(move |u| (u, v))
+        })
+        .filter(|&(u, v)| frame.depth[frame.index(u, v)] > 0.0)
+        .collect();
+    px.par_iter()
+        .filter_map(|&(u, v)| {
+            let z = frame.depth[frame.index(u, v)] as f64;
+            let pc = Point3::new(
+                (u as f64 + 0.5 - k.cx) / k.fx * z,
+                (v as f64 + 0.5 - k.cy) / k.fy * z,
+                z,
+            );
+            let p: Vector3<f64> = (pose * pc).coords;
+            (p.z <= max_height).then(|| ([p.x, p.y, p.z], row_of(u, v)))
+        })
+        .unzip()
+}
