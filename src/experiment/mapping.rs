@@ -2,9 +2,9 @@
 //! compares: from posed RGB-D frames with ground-truth labels or with an
 //! encoder's (simulated) features, the latter grounded on the class names.
 //!
-//! The mapping frames come from a second camera path through the same
-//! world (another seed), so localization never sees the exact views the map
-//! was made from.
+//! The mapping frames come from the sequence's own path (as maps built from
+//! a recorded sequence are) and from a second camera path through the same
+//! world (another seed) that fills in what the first did not see.
 
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
@@ -58,6 +58,10 @@ pub struct MapParams {
     pub max_height: f64,
     /// Admission threshold of the map's database (paper: 0.02).
     pub tau: f32,
+    /// Ground the finished map on the class names (the paper's default:
+    /// every voxel takes its most similar class row, the database becomes
+    /// the class table); `false` keeps the admitted voxel means ("auto").
+    pub ground: bool,
 }
 
 impl Default for MapParams {
@@ -69,6 +73,7 @@ impl Default for MapParams {
             pixel_stride: 2,
             max_height: 10.0,
             tau: 0.02,
+            ground: true,
         }
     }
 }
@@ -111,19 +116,20 @@ pub fn build_map(
     let mut integ = Integrator::new(grid, db)?;
     let k = &seq.intrinsics;
     let s = params.pixel_stride.max(1);
-    for (i, pose) in mapping_poses(seq, params.frames)
-        .iter()
-        .enumerate()
-        .step_by(params.frame_step.max(1))
-    {
+    let step = params.frame_step.max(1);
+    let poses: Vec<Pose> = mapping_poses(seq, params.frames)
+        .into_iter()
+        .step_by(step)
+        .chain(seq.poses().iter().copied().step_by(step))
+        .collect();
+    for (i, pose) in poses.iter().enumerate() {
         let frame = render::render_frame(&seq.scene.caster, &seq.scene.world.voxels, k, pose);
         let (points, rows) = frame_points(&frame, k, pose, s, params.max_height, |u, v| {
             let l = frame.labels[frame.index(u, v)];
             match (source, model) {
                 (MapSource::Features(_), Some(m)) => {
                     let ctx = m.context(&frame, u, v);
-                    let mut buf = vec![0.0; m.dim()];
-                    m.predicted_class(0x9a9_0000 + i as u64, u, v, &ctx, &mut buf)
+                    m.predicted_class(0x9a9_0000 + i as u64, u, v, &ctx)
                         .map(|c| c as u32)
                 }
                 _ => (l != NO_LABEL).then_some(l as u32),
@@ -132,7 +138,12 @@ pub fn build_map(
         integ.add_rows_batch(&points, &rows);
         progress(i + 1);
     }
-    Ok(integ.finish(source.name(), params.tau)?)
+    let mut map = integ.finish(source.name(), params.tau)?;
+    if params.ground {
+        let prompts = FeatureDb::from_rows(table.dim, params.tau, table.rows.clone())?;
+        crate::map::ground::ground(&mut map, &prompts, -1.0)?;
+    }
+    Ok(map)
 }
 
 /// World points and rows of the used pixels of one frame (rows computed in

@@ -10,6 +10,7 @@
 //! perturbed by the paper's noise (0.10 m and 6 degrees a step). The map is
 //! built from a second path through the same apartment.
 
+pub mod consistency;
 pub mod features;
 pub mod mapping;
 pub mod run;

@@ -135,3 +135,208 @@ pub fn builtin_table() -> Result<ClassEmbeddings, ExperimentError> {
     crate::sim::files::builtin_table()
         .map_err(|e| ExperimentError::Sim(crate::sim::dataset::SimError::Io(e)))
 }
+
+/// Table II: consistency of each variant's map with its features.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ConsistencyRow {
+    pub variant: String,
+    /// Per sequence, per pose.
+    pub per_pose: Vec<Vec<crate::eval::ConsistencyMetrics>>,
+    /// Averaged over poses, then over sequences.
+    pub mean: Option<crate::eval::ConsistencyMetrics>,
+}
+
+impl ConsistencyRow {
+    /// Gathers per-pose metrics of the sequences.
+    pub fn new(
+        variant: impl Into<String>,
+        per_pose: Vec<Vec<crate::eval::ConsistencyMetrics>>,
+    ) -> Self {
+        ConsistencyRow {
+            variant: variant.into(),
+            mean: crate::eval::mean_over_sequences(&per_pose),
+            per_pose,
+        }
+    }
+}
+
+/// The consistency of `map` with the features of `preset` on `seq`, every
+/// `frame_step`-th frame, every 8th pixel.
+pub fn consistency(
+    seq: &SimSequence,
+    map: &BenchMap,
+    preset: Preset,
+    frame_step: usize,
+) -> Result<Vec<crate::eval::ConsistencyMetrics>, ExperimentError> {
+    let model = feature_model(seq, preset, 0x10c);
+    super::consistency::per_pose(seq, map, &model, frame_step, 8)
+}
+
+/// Global localization (Table V): from `spec.starts` start frames of `seq`,
+/// the filter starts over all floor voxels (`prompt: false`) or over the
+/// floor voxels matching a prompt of 3 to 5 object classes found within 2 m
+/// of the start (`prompt: true`, as the paper draws its prompts), and runs
+/// for at most `max_steps` frames. Returns, per start, the steps to reach each
+/// of [`crate::eval::localization::CONVERGENCE_THRESHOLDS`].
+pub fn global_runs(
+    seq: &SimSequence,
+    map: &BenchMap,
+    spec: &GlobalSpec,
+) -> Result<Vec<GlobalRun>, ExperimentError> {
+    use crate::eval::localization::{CONVERGENCE_THRESHOLDS, steps_to_reach};
+    let GlobalSpec {
+        preset,
+        filter,
+        particles,
+        starts,
+        max_steps,
+        prompt,
+    } = *spec;
+    let model = feature_model(seq, preset, 0x10c);
+    let span = seq.len().saturating_sub(max_steps).max(1);
+    let mut out = Vec::new();
+    for s in 0..starts {
+        let first = s * span / starts.max(1);
+        let words = if prompt {
+            prompt_words(seq, first, 0x5eed ^ s as u64)
+        } else {
+            Vec::new()
+        };
+        let start = if prompt {
+            Start::Prompt(words.clone())
+        } else {
+            Start::Global
+        };
+        let spec = RunSpec {
+            filter: FilterConfig {
+                seed: filter.seed ^ (s as u64).wrapping_mul(0x9e37_79b9),
+                ..filter
+            },
+            particles,
+            start,
+            first,
+            frames: max_steps,
+            preset,
+        };
+        let (steps, error) = match run(seq, &map.map, map.caster.clone(), &model, &spec) {
+            Ok(r) => (steps_to_reach(&r.errors_m, &CONVERGENCE_THRESHOLDS), None),
+            Err(ExperimentError::Filter(e)) => (
+                vec![None; CONVERGENCE_THRESHOLDS.len()],
+                Some(e.to_string()),
+            ),
+            Err(e) => return Err(e),
+        };
+        out.push(GlobalRun {
+            first,
+            words,
+            steps,
+            error,
+        });
+    }
+    Ok(out)
+}
+
+/// What [`global_runs`] does.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GlobalSpec {
+    /// Features the localizer sees.
+    pub preset: Preset,
+    pub filter: FilterConfig,
+    pub particles: usize,
+    /// Start frames per sequence, spread evenly over it.
+    pub starts: usize,
+    /// Steps of each run.
+    pub max_steps: usize,
+    /// Start over the floor voxels matching a prompt (else all floor).
+    pub prompt: bool,
+}
+
+/// One global-localization run.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct GlobalRun {
+    /// Start frame.
+    pub first: usize,
+    /// Prompt words (empty without a prompt).
+    pub words: Vec<String>,
+    /// Steps to reach each threshold (`None`: not within the run).
+    pub steps: Vec<Option<usize>>,
+    /// Why the run could not start (e.g. no floor voxel matches the prompt).
+    pub error: Option<String>,
+}
+
+/// 3 to 5 object classes (not walls, floor, ceiling...) with at least 20
+/// voxels within 2 m (horizontally) of the camera at frame `first`, drawn
+/// with `seed`; fewer if fewer are there.
+pub fn prompt_words(seq: &SimSequence, first: usize, seed: u64) -> Vec<String> {
+    use rand::SeedableRng;
+    use rand::seq::SliceRandom;
+    let w = &seq.scene.world.voxels;
+    let p = seq.poses()[first].translation.vector;
+    let mut counts = vec![0usize; w.classes.len()];
+    for (c, &l) in w.cells.iter().zip(&w.labels) {
+        let q = w.cell_centre(*c);
+        if (q.x - p.x).hypot(q.y - p.y) <= 2.0 {
+            counts[l as usize] += 1;
+        }
+    }
+    let mut names: Vec<String> = counts
+        .iter()
+        .enumerate()
+        .filter(|&(c, &n)| {
+            n >= 20
+                && !crate::sim::features::STUFF_CLASSES
+                    .iter()
+                    .any(|s| s.eq_ignore_ascii_case(&w.classes[c]))
+                && w.classes[c] != "door"
+                && w.classes[c] != "window"
+        })
+        .map(|(c, _)| w.classes[c].clone())
+        .collect();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    names.shuffle(&mut rng);
+    let n = 3 + (seed % 3) as usize;
+    names.truncate(n);
+    names
+}
+
+/// Steps statistics of one threshold over runs (Table V's row).
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct StepsRow {
+    pub threshold_m: f64,
+    /// Over the runs that reached the threshold; `None` if none did.
+    pub mean: Option<f64>,
+    pub std: Option<f64>,
+    pub min: Option<usize>,
+    pub max: Option<usize>,
+    /// Runs that reached the threshold, of all runs.
+    pub reached: usize,
+    pub runs: usize,
+}
+
+/// Table V rows from global runs: statistics over the runs that reached
+/// each threshold (population std).
+pub fn steps_rows(runs: &[GlobalRun]) -> Vec<StepsRow> {
+    use crate::eval::localization::CONVERGENCE_THRESHOLDS;
+    CONVERGENCE_THRESHOLDS
+        .iter()
+        .enumerate()
+        .map(|(t, &threshold_m)| {
+            let s: Vec<usize> = runs
+                .iter()
+                .filter_map(|r| r.steps.get(t).copied().flatten())
+                .collect();
+            let n = s.len() as f64;
+            let mean = (!s.is_empty()).then(|| s.iter().sum::<usize>() as f64 / n);
+            StepsRow {
+                threshold_m,
+                mean,
+                std: mean
+                    .map(|m| (s.iter().map(|&x| (x as f64 - m).powi(2)).sum::<f64>() / n).sqrt()),
+                min: s.iter().copied().min(),
+                max: s.iter().copied().max(),
+                reached: s.len(),
+                runs: runs.len(),
+            }
+        })
+        .collect()
+}

@@ -92,7 +92,9 @@ pub struct SensorParams {
     /// Score of a ray that hits nothing (paper: undefined; the authors'
     /// code skips misses). 0 means "no evidence either way".
     pub miss_score: f32,
-    /// Largest ray length, metres (`inf`: unlimited). Hits beyond it miss.
+    /// Largest ray length, metres (`inf`: unlimited; `null` in JSON). Hits
+    /// beyond it miss.
+    #[serde(with = "infinite_as_null")]
     pub max_range: f32,
     /// Rescale each pixel's cosines over the database rows to `[0, 1]`
     /// before averaging (the paper's eq. 2 uses the plain cosine: `false`).
@@ -112,6 +114,23 @@ impl Default for SensorParams {
             max_range: f32::INFINITY,
             contrast: true,
         }
+    }
+}
+
+/// JSON has no infinity: `inf` is written as `null` and read back.
+mod infinite_as_null {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(x: &f32, s: S) -> Result<S::Ok, S::Error> {
+        if x.is_finite() {
+            s.serialize_f32(*x)
+        } else {
+            s.serialize_none()
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f32, D::Error> {
+        Ok(Option::<f32>::deserialize(d)?.unwrap_or(f32::INFINITY))
     }
 }
 

@@ -40,23 +40,20 @@ pub fn measure(
         let conf = rows
             .par_iter()
             .fold(
-                || (Confusion::new(model.table.len()), vec![0.0f32; model.dim()]),
-                |(mut c, mut scratch), &v| {
+                || Confusion::new(model.table.len()),
+                |mut c, &v| {
                     for u in (0..frame.width).step_by(s as usize) {
                         let ctx = model.context(&frame, u, v);
                         if ctx.label == NO_LABEL {
                             continue;
                         }
-                        if let Some(p) =
-                            model.predicted_class(*frame_index, u, v, &ctx, &mut scratch)
-                        {
+                        if let Some(p) = model.predicted_class(*frame_index, u, v, &ctx) {
                             c.add(ctx.label as usize, p);
                         }
                     }
-                    (c, scratch)
+                    c
                 },
             )
-            .map(|(c, _)| c)
             .reduce(|| Confusion::new(model.table.len()), |a, b| a.merged(&b));
         if conf.total() > 0 {
             mean.add(conf.scores());
