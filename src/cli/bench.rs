@@ -57,6 +57,10 @@ pub struct BenchArgs {
     /// Only these variants (comma-separated names, e.g. OMCL_GT).
     #[arg(long)]
     pub variants: Option<String>,
+    /// Localize (and score consistency) with these features instead of each
+    /// variant's own: exact, gt or lseg-like.
+    #[arg(long)]
+    pub preset: Option<omcl::sim::features::Preset>,
     /// The variant of Table V and the ablations.
     #[arg(long, default_value = "OMCL_LSeg")]
     pub ablation_variant: String,
