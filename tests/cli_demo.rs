@@ -8,7 +8,16 @@ fn demo_runs_end_to_end() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("demo");
     let o = Command::new(env!("CARGO_BIN_EXE_omcl"))
-        .args(["demo", "--out", out.to_str().unwrap(), "--frames", "12"])
+        .args([
+            "demo",
+            "--out",
+            out.to_str().unwrap(),
+            "--frames",
+            "12",
+            // The closing `omcl bench` step is tested in cli_bench.rs.
+            "--bench-sequences",
+            "0",
+        ])
         .output()
         .unwrap();
     let text =
@@ -19,6 +28,7 @@ fn demo_runs_end_to_end() {
         "estimate.txt",
         "diagnostics.csv",
         "toilet_heat.ply",
+        "trajectory.png",
         "apartment/poses.txt",
     ] {
         assert!(out.join(f).exists(), "{f} missing\n{text}");

@@ -48,6 +48,10 @@ pub struct BenchArgs {
     /// Frames per sequence.
     #[arg(long, default_value_t = 150)]
     pub frames: usize,
+    /// Frames of each map's second (mapping) path; every second frame of it
+    /// and of the sequence is mapped.
+    #[arg(long, default_value_t = 300)]
+    pub map_frames: usize,
     /// Particles.
     #[arg(long, default_value_t = 1024)]
     pub particles: usize,
@@ -90,6 +94,7 @@ pub struct BenchArgs {
 struct Bench {
     table: omcl::sim::embeddings::ClassEmbeddings,
     frames: usize,
+    map_params: MapParams,
     sequences: HashMap<u64, SimSequence>,
     maps: HashMap<(u64, String), BenchMap>,
 }
@@ -109,7 +114,7 @@ impl Bench {
         let key = (seed, source.name());
         if !self.maps.contains_key(&key) {
             let seq = &self.sequences[&seed];
-            let params = MapParams::default();
+            let params = self.map_params;
             let n =
                 params.frames.div_ceil(params.frame_step) + seq.len().div_ceil(params.frame_step);
             let pb = super::progress::bar(n as u64, &format!("map {seed}"));
@@ -135,6 +140,10 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     let mut bench = Bench {
         table: tables::builtin_table()?,
         frames: a.frames,
+        map_params: MapParams {
+            frames: a.map_frames,
+            ..MapParams::default()
+        },
         sequences: HashMap::new(),
         maps: HashMap::new(),
     };
@@ -305,23 +314,9 @@ fn xy(poses: &[omcl::geometry::Pose]) -> Vec<[f64; 2]> {
         .collect()
 }
 
-/// The map's floor plan: floor voxels by similarity to "floor", obstacles
-/// between 0.2 and 2.0 m.
+/// The map's floor plan, floor voxels by similarity to "floor".
 fn floor_plan(seq: &SimSequence, map: &BenchMap) -> Option<FloorPlan> {
-    let floor = seq.table.text_feature("floor")?;
-    let sim = map.map.similarity(floor).ok()?;
-    let g = map.map.grid();
-    let centres = map
-        .map
-        .cells()
-        .into_iter()
-        .zip(sim)
-        .map(|(c, s)| {
-            let p = g.center(c);
-            ([p.x, p.y, p.z], s >= 0.9)
-        })
-        .collect::<Vec<_>>();
-    FloorPlan::from_voxels(centres.into_iter(), g.resolution, (0.2, 2.0))
+    FloorPlan::from_map(&map.map, seq.table.text_feature("floor"), 0.9)
 }
 
 fn table2(a: &BenchArgs, bench: &mut Bench, variants: &[Variant]) -> anyhow::Result<String> {

@@ -4,7 +4,8 @@
 //! apartment and an RGB-D sequence (`omcl sim indoor`), build a map from it
 //! (`omcl map rgbd`), inspect it (`omcl map info`), localize the sequence in
 //! it with the particle filter (`omcl localize`), evaluate the trajectory
-//! (`omcl eval ape`), and write a heat map of a word (`omcl map query`).
+//! (`omcl eval ape`), write a heat map of a word (`omcl map query`), and
+//! reproduce Table I with its figures on fresh apartments (`omcl bench`).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -23,6 +24,9 @@ pub struct DemoArgs {
     /// Frames of the synthetic sequence.
     #[arg(long, default_value_t = 120)]
     pub frames: usize,
+    /// Sequences of the closing Table I run (0 skips it).
+    #[arg(long, default_value_t = 2)]
+    pub bench_sequences: u64,
 }
 
 fn step(title: &str, args: &[&str]) -> anyhow::Result<()> {
@@ -48,7 +52,7 @@ pub fn run(a: DemoArgs) -> anyhow::Result<()> {
     let (seed, frames) = (a.seed.to_string(), a.frames.to_string());
     let (classes, emb) = (s(&seq.join("classes.txt")), s(&seq.join("embeddings.npy")));
     step(
-        "1/6 a synthetic apartment and a camera sequence through it",
+        "1/7 a synthetic apartment and a camera sequence through it",
         &[
             "sim",
             "indoor",
@@ -61,7 +65,7 @@ pub fn run(a: DemoArgs) -> anyhow::Result<()> {
         ],
     )?;
     step(
-        "2/6 an Octree Language Map from the posed RGB-D frames (ceiling cropped)",
+        "2/7 an Octree Language Map from the posed RGB-D frames (ceiling cropped)",
         &[
             "map",
             "rgbd",
@@ -74,9 +78,9 @@ pub fn run(a: DemoArgs) -> anyhow::Result<()> {
             "2.3",
         ],
     )?;
-    step("3/6 the map", &["map", "info", &s(&map), "--top", "5"])?;
+    step("3/7 the map", &["map", "info", &s(&map), "--top", "5"])?;
     step(
-        "4/6 localization from 0.3 m / 17 deg around the first pose (1024 particles x 2048 rays)",
+        "4/7 localization from 0.3 m / 17 deg around the first pose (1024 particles x 2048 rays)",
         &[
             "localize",
             "--map",
@@ -89,14 +93,16 @@ pub fn run(a: DemoArgs) -> anyhow::Result<()> {
             &seed,
             "--diagnostics",
             &s(&a.out.join("diagnostics.csv")),
+            "--plot",
+            &s(&a.out.join("trajectory.png")),
         ],
     )?;
     step(
-        "5/6 the trajectory against ground truth (evo's statistics)",
+        "5/7 the trajectory against ground truth (evo's statistics)",
         &["eval", "ape", &s(&seq.join("poses.txt")), &s(&est)],
     )?;
     step(
-        "6/6 where is the toilet? a heat map (open in CloudCompare or MeshLab)",
+        "6/7 where is the toilet? a heat map (open in CloudCompare or MeshLab)",
         &[
             "map",
             "query",
@@ -110,6 +116,24 @@ pub fn run(a: DemoArgs) -> anyhow::Result<()> {
             &s(&a.out.join("toilet_heat.ply")),
         ],
     )?;
+    if a.bench_sequences > 0 {
+        let n = a.bench_sequences.to_string();
+        step(
+            "7/7 the paper's Table I and Figure 4 on fresh synthetic apartments (omcl bench)",
+            &[
+                "bench",
+                "table1",
+                "--sequences",
+                &n,
+                "--frames",
+                "100",
+                "--particles",
+                "512",
+                "-o",
+                &s(&a.out.join("bench")),
+            ],
+        )?;
+    }
     println!(
         "\ndemo done in {:.0} s; outputs in {}/",
         t.elapsed().as_secs_f64(),

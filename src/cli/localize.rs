@@ -108,6 +108,11 @@ pub struct LocalizeArgs {
     /// Estimated trajectory (TUM), written atomically.
     #[arg(long, short)]
     pub out: PathBuf,
+    /// Figure (PNG or SVG by extension): the estimated path coloured by its
+    /// error over the map's floor plan, with the ground truth (the paper's
+    /// Figure 4). Needs poses.txt.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
     /// Per-frame diagnostics (CSV: ESS, spread, likelihood, time).
     #[arg(long)]
     pub diagnostics: Option<PathBuf>,
@@ -240,6 +245,11 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         .then(|| poses::read_poses(&gt_path))
         .transpose()?
         .map(|p| p.trajectory);
+    ensure!(
+        a.plot.is_none() || gt.is_some(),
+        "--plot needs ground truth: {} is missing",
+        gt_path.display()
+    );
     let classes = d.join("classes.txt");
     let mut image = super::encoders::ImageSource::open(&a.encoder)?;
     if let Some(src) = &image {
@@ -446,6 +456,30 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         let reference = Trajectory::new(g.stamps()[..n].to_vec(), g.poses()[..n].to_vec())?;
         let e = ape(&reference, &est, PoseRelation::Translation)?;
         let done = CompletionRule::default().is_completed(&e.errors);
+        if let Some(p) = &a.plot {
+            let floor = table
+                .as_ref()
+                .and_then(|t| word_features(t, "floor", &classes).ok())
+                .and_then(|mut w| w.pop());
+            let plan = omcl::plot::FloorPlan::from_map(&m, floor.as_deref(), 0.9);
+            let xy = |t: &Trajectory| -> Vec<[f64; 2]> {
+                t.poses()
+                    .iter()
+                    .map(|p| [p.translation.vector.x, p.translation.vector.y])
+                    .collect()
+            };
+            let title = format!("{} (APE rmse {:.3} m)", d.display(), e.stats.rmse);
+            omcl::plot::trajectory_plot(
+                p,
+                &omcl::plot::TrajectoryPanel {
+                    title: &title,
+                    plan: plan.as_ref(),
+                    gt_xy: &xy(&reference),
+                    est_xy: &xy(&est),
+                    errors_m: &e.errors,
+                },
+            )?;
+        }
         println!(
             "; APE rmse {:.3} m, mean {:.3}, median {:.3}, max {:.3}; completed: {}",
             e.stats.rmse,

@@ -121,6 +121,47 @@ impl FloorPlan {
         Some(plan)
     }
 
+    /// The floor plan of a language map at its resolution: voxels whose
+    /// similarity to `floor_feature` (the text feature of "floor") is at
+    /// least `rho` are floor; obstacles are the other voxels from 0.2 to
+    /// 2.0 m above the median floor height (above the lowest voxel when
+    /// there is no floor feature or no floor voxel).
+    pub fn from_map(
+        map: &crate::map::LanguageMap,
+        floor_feature: Option<&[f32]>,
+        rho: f32,
+    ) -> Option<FloorPlan> {
+        let g = map.grid();
+        let centres: Vec<[f64; 3]> = map
+            .cells()
+            .into_iter()
+            .map(|c| {
+                let p = g.center(c);
+                [p.x, p.y, p.z]
+            })
+            .collect();
+        let is_floor: Vec<bool> = match floor_feature.and_then(|f| map.similarity(f).ok()) {
+            Some(sim) => sim.iter().map(|&s| s >= rho).collect(),
+            None => vec![false; centres.len()],
+        };
+        let mut floor_z: Vec<f64> = centres
+            .iter()
+            .zip(&is_floor)
+            .filter(|(_, f)| **f)
+            .map(|(p, _)| p[2])
+            .collect();
+        floor_z.sort_by(f64::total_cmp);
+        let base = match floor_z.get(floor_z.len() / 2) {
+            Some(&z) => z,
+            None => centres.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min),
+        };
+        Self::from_voxels(
+            centres.into_iter().zip(is_floor),
+            g.resolution,
+            (base + 0.2, base + 2.0),
+        )
+    }
+
     /// The (column, row) of the cell containing world point (x, y), if any.
     pub fn cell_of(&self, x: f64, y: f64) -> Option<(usize, usize)> {
         let c = ((x - self.min_xy[0]) / self.cell).floor();

@@ -667,3 +667,36 @@ fn values_near_the_limits_of_f64_are_errors_not_panics() {
     assert!(matches!(e, PlotError::LengthMismatch { .. }), "{e}");
     assert!(!path.exists());
 }
+
+/// A 1 m x 0.5 m floor at z = 0 (row 0) with a wall column at x = 0.5 m
+/// (row 1) from the floor to 2.5 m: floor cells are floor, the wall's
+/// column an obstacle, and nothing is floor without a floor feature.
+#[test]
+fn floor_plan_from_a_language_map() {
+    use crate::map::{FeatureDb, GridSpec, LanguageMap};
+    let db = FeatureDb::from_rows(2, 0.02, vec![1.0, 0.0, 0.0, 1.0]).unwrap();
+    let grid = GridSpec {
+        resolution: 0.1,
+        origin: nalgebra::Vector3::zeros(),
+    };
+    let mut leaves = Vec::new();
+    for x in 0..10 {
+        for y in 0..5 {
+            leaves.push(([x, y, 0], 0u32));
+        }
+    }
+    for z in 1..25 {
+        leaves.push(([5, 2, z], 1u32));
+    }
+    let map = LanguageMap::from_cells(grid, db, "test", leaves).unwrap();
+    let plan = FloorPlan::from_map(&map, Some(&[1.0, 0.0]), 0.9).unwrap();
+    assert_eq!((plan.width, plan.height), (10, 5));
+    let (c, r) = plan.cell_of(0.55, 0.25).unwrap();
+    assert_eq!(plan.get(c, r), Some(PlanCell::Obstacle));
+    let (c, r) = plan.cell_of(0.15, 0.25).unwrap();
+    assert_eq!(plan.get(c, r), Some(PlanCell::Floor));
+    let floors = plan.cells.iter().filter(|c| **c == PlanCell::Floor).count();
+    assert_eq!(floors, 49);
+    let none = FloorPlan::from_map(&map, None, 0.9).unwrap();
+    assert!(none.cells.iter().all(|c| *c != PlanCell::Floor));
+}

@@ -1,0 +1,93 @@
+//! `omcl bench` on a tiny benchmark: every experiment writes its Markdown
+//! and JSON tables and its figures, with values in range.
+
+use std::process::Command;
+
+fn bench(args: &[&str]) -> (std::process::Output, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .arg("bench")
+        .args(args)
+        .output()
+        .unwrap();
+    let text =
+        String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
+    (o, text)
+}
+
+#[test]
+fn table1_and_table2_write_tables_and_figures() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let small = [
+        "--sequences",
+        "1",
+        "--frames",
+        "6",
+        "--map-frames",
+        "20",
+        "--particles",
+        "64",
+        "--rays",
+        "128",
+        "-o",
+        out,
+    ];
+    let (o, text) = bench(&[&["table1"], &small[..]].concat());
+    assert!(o.status.success(), "{text}");
+    for f in [
+        "table1.md",
+        "table1.json",
+        "figure4_OMCL_GT.png",
+        "figure4_OMCL_GT.svg",
+        "figure4_OMCL_LSeg.png",
+    ] {
+        assert!(dir.path().join(f).exists(), "{f} missing\n{text}");
+    }
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("table1.json")).unwrap())
+            .unwrap();
+    let rows = rows.as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    for r in rows {
+        let runs = r["per_sequence"].as_array().unwrap();
+        assert_eq!(runs.len(), 1);
+        assert_eq!(runs[0]["errors_m"].as_array().unwrap().len(), 6);
+        let rmse = r["summary"]["mean"]["rmse"].as_f64().unwrap();
+        // From the paper's local start (0.3 m, 17 degrees) the first frames
+        // stay within a metre even with 64 particles.
+        assert!(rmse.is_finite() && rmse < 1.0, "{r}");
+    }
+    assert!(text.contains("| OMCL_GT |"), "{text}");
+
+    let (o, text) = bench(&[&["table2"], &small[..]].concat());
+    assert!(o.status.success(), "{text}");
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("table2.json")).unwrap())
+            .unwrap();
+    for r in rows.as_array().unwrap() {
+        let acc = r["mean"]["accuracy"].as_f64().unwrap();
+        assert!((0.5..=1.0).contains(&acc), "{r}");
+    }
+}
+
+#[test]
+fn overrides_reach_the_filter_and_bad_ones_are_refused() {
+    let (o, text) = bench(&[
+        "table1",
+        "--show-config",
+        "--set",
+        "sharpen=5",
+        "--set",
+        "sensor.miss_score=-0.5",
+    ]);
+    assert!(o.status.success(), "{text}");
+    let v: serde_json::Value = serde_json::from_str(&String::from_utf8_lossy(&o.stdout)).unwrap();
+    assert_eq!(v["sharpen"], 5.0);
+    assert_eq!(v["sensor"]["miss_score"], -0.5);
+    let (o, text) = bench(&["table1", "--show-config", "--set", "sensor.nope=1"]);
+    assert!(!o.status.success());
+    assert!(text.contains("no parameter \"sensor.nope\""), "{text}");
+    let (o, text) = bench(&["table1", "--show-config", "--set", "sharpen=\"x\""]);
+    assert!(!o.status.success());
+    assert!(text.contains("invalid"), "{text}");
+}
