@@ -65,7 +65,9 @@ pub fn run(a: DemoArgs) -> anyhow::Result<()> {
         ],
     )?;
     step(
-        "2/7 an Octree Language Map from the posed RGB-D frames (ceiling cropped)",
+        // The ceiling is kept: cropped, the camera's upward rays find nothing
+        // to match their ceiling pixels (APE 0.18 m instead of 0.15 m here).
+        "2/7 an Octree Language Map from the posed RGB-D frames",
         &[
             "map",
             "rgbd",
@@ -74,8 +76,6 @@ pub fn run(a: DemoArgs) -> anyhow::Result<()> {
             &s(&map),
             "--resolution",
             "0.05",
-            "--max-height",
-            "2.3",
         ],
     )?;
     step("3/7 the map", &["map", "info", &s(&map), "--top", "5"])?;
