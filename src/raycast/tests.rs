@@ -6,27 +6,38 @@ use super::*;
 use crate::geometry::Ray;
 use crate::map::Cell;
 
-fn casters(res: f32, cells: &[Cell]) -> Vec<(&'static str, Box<dyn RayCaster>)> {
-    vec![
-        ("reference", Box::new(ReferenceCaster::new(res, cells))),
-        ("embree16", Box::new(EmbreeCaster::new(res, cells).unwrap())),
-        (
-            "embree1",
-            Box::new(
-                EmbreeCaster::new(res, cells)
-                    .unwrap()
-                    .with_packet(Packet::Single),
-            ),
-        ),
-        (
-            "embree8",
-            Box::new(
-                EmbreeCaster::new(res, cells)
-                    .unwrap()
-                    .with_packet(Packet::Eight),
-            ),
-        ),
-    ]
+/// Every Embree geometry.
+const GEOMETRIES: [Geometry; 4] = [
+    Geometry::Boxes,
+    Geometry::Bricks(BrickEdge::Two),
+    Geometry::Bricks(BrickEdge::Four),
+    Geometry::Bricks(BrickEdge::Eight),
+];
+
+fn embree(res: f32, cells: &[Cell], geometry: Geometry) -> EmbreeCaster {
+    let options = BuildOptions {
+        geometry,
+        ..BuildOptions::default()
+    };
+    EmbreeCaster::with_options(res, cells, options).unwrap()
+}
+
+/// The reference and every Embree geometry with single rays and 8- and
+/// 16-wide packets (the callbacks see N = 1, 8, 16).
+fn casters(res: f32, cells: &[Cell]) -> Vec<(String, Box<dyn RayCaster>)> {
+    let mut v: Vec<(String, Box<dyn RayCaster>)> = vec![(
+        "reference".into(),
+        Box::new(ReferenceCaster::new(res, cells)),
+    )];
+    for g in GEOMETRIES {
+        for p in [Packet::Single, Packet::Eight, Packet::Sixteen] {
+            v.push((
+                format!("embree {g:?} {p:?}"),
+                Box::new(embree(res, cells, g).with_packet(p)),
+            ));
+        }
+    }
+    v
 }
 
 fn ray(o: [f32; 3], d: [f32; 3]) -> Ray {
@@ -191,28 +202,27 @@ fn odd_ray_counts_fill_partial_packets() {
         .map(|i| ray([i as f32 * 0.25 + 0.1, 0.5, 3.0], [0.0, 0.0, -1.0]))
         .collect();
     let reference = ReferenceCaster::new(1.0, &cells).cast_vec(&rays);
-    for p in [
-        Packet::Single,
-        Packet::Four,
-        Packet::Eight,
-        Packet::Sixteen,
-        Packet::Stream,
-    ] {
-        let e = EmbreeCaster::new(1.0, &cells)
-            .unwrap()
-            .with_packet(p)
-            .cast_vec(&rays);
-        assert_eq!(e, reference, "{p:?}");
+    for g in GEOMETRIES {
+        for p in [
+            Packet::Single,
+            Packet::Four,
+            Packet::Eight,
+            Packet::Sixteen,
+            Packet::Stream,
+        ] {
+            let e = embree(1.0, &cells, g).with_packet(p).cast_vec(&rays);
+            assert_eq!(e, reference, "{g:?} {p:?}");
+        }
     }
     assert_eq!(reference.iter().filter(|h| h.is_hit()).count(), 37);
 }
 
 /// Random scenes and rays: Embree agrees with the reference except where
 /// two voxels are hit at (numerically) the same distance.
-fn agree(cells: &[Cell], rays: &[Ray]) -> Result<(), TestCaseError> {
+fn agree(cells: &[Cell], rays: &[Ray], geometry: Geometry) -> Result<(), TestCaseError> {
     let res = 0.05;
     let r = ReferenceCaster::new(res, cells).cast_vec(rays);
-    let e = EmbreeCaster::new(res, cells).unwrap().cast_vec(rays);
+    let e = embree(res, cells, geometry).cast_vec(rays);
     let mut ties = 0;
     for (i, (a, b)) in r.iter().zip(&e).enumerate() {
         if a.leaf == b.leaf {
@@ -224,7 +234,7 @@ fn agree(cells: &[Cell], rays: &[Ray]) -> Result<(), TestCaseError> {
         // A tie: both hit, at the same distance within float error.
         prop_assert!(
             a.is_hit() && b.is_hit() && (a.t - b.t).abs() < 1e-4,
-            "ray {i} {:?}: reference {a:?}, embree {b:?}",
+            "ray {i} {:?}: reference {a:?}, embree {geometry:?} {b:?}",
             rays[i]
         );
         ties += 1;
@@ -250,6 +260,8 @@ proptest! {
             .filter(|(_, d)| d.0 * d.0 + d.1 * d.1 + d.2 * d.2 > 1e-4)
             .map(|(o, d)| ray([o.0, o.1, o.2], [d.0, d.1, d.2]))
             .collect();
-        agree(&cells, &rays)?;
+        for g in GEOMETRIES {
+            agree(&cells, &rays, g)?;
+        }
     }
 }
