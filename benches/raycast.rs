@@ -238,13 +238,15 @@ fn geometry_table(s: &Scene, rounds: usize) {
             e.embree_bytes() as f64 / 1e6,
         );
     }
-    let work: [(&str, Packet, &[Ray]); 6] = [
+    let work: [(&str, Packet, &[Ray]); 8] = [
         ("image 540x540", Packet::Eight, &image),
         ("image 540x540", Packet::Sixteen, &image),
         ("MCL pixel-major", Packet::Single, &by_pixel),
         ("MCL particle-major", Packet::Single, &by_particle),
         ("MCL pixel-major", Packet::Eight, &by_pixel),
+        ("MCL particle-major", Packet::Four, &by_particle),
         ("MCL particle-major", Packet::Eight, &by_particle),
+        ("MCL particle-major", Packet::Sixteen, &by_particle),
     ];
     // One caster per (workload, variant): the packet width is the caster's.
     let casters: Vec<Vec<EmbreeCaster>> = work

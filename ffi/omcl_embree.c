@@ -21,12 +21,17 @@ static void box_bounds(const struct RTCBoundsFunctionArguments *args) {
   const OmclBoxes *b = (const OmclBoxes *)args->geometryUserPtr;
   const float *lo = b->lower + 3 * (size_t)args->primID;
   struct RTCBounds *o = args->bounds_o;
-  o->lower_x = lo[0];
-  o->lower_y = lo[1];
-  o->lower_z = lo[2];
-  o->upper_x = lo[0] + b->size;
-  o->upper_y = lo[1] + b->size;
-  o->upper_z = lo[2] + b->size;
+  /* Padded a little: Embree's own box test (lower - org) * (1 / dir) is
+   * NaN for a ray with a zero direction component lying exactly on a box
+   * plane, which then culls a ray grazing a voxel's face; the callback's
+   * exact test decides. */
+  float pad = b->size * 1e-4f;
+  o->lower_x = lo[0] - (pad + fabsf(lo[0]) * 1e-6f);
+  o->lower_y = lo[1] - (pad + fabsf(lo[1]) * 1e-6f);
+  o->lower_z = lo[2] - (pad + fabsf(lo[2]) * 1e-6f);
+  o->upper_x = lo[0] + b->size + (pad + fabsf(lo[0] + b->size) * 1e-6f);
+  o->upper_y = lo[1] + b->size + (pad + fabsf(lo[1] + b->size) * 1e-6f);
+  o->upper_z = lo[2] + b->size + (pad + fabsf(lo[2] + b->size) * 1e-6f);
 }
 
 /* Slab test of a closed box. Returns the entry distance clamped to tnear
@@ -199,9 +204,9 @@ ALWAYS_INLINE const CellRay *context_cell_ray(const struct RTCIntersectContext *
 
 /* From cell c (local, in bounds), entered at t, the DDA over the brick's
  * cells up to t1: returns the entry distance of the first occupied cell and
- * its voxel index, or INFINITY. */
-ALWAYS_INLINE float brick_dda(const OmclBricks *B, unsigned E, const uint64_t *rec,
-                              const BrickHead *h, const CellRay *r, float t, float t1,
+ * its leaf slot (index into the caller's leaves table), or INFINITY. */
+ALWAYS_INLINE float brick_dda(unsigned E, const uint64_t *rec, const BrickHead *h,
+                              const CellRay *r, float t, float t1,
                               int c[3], int ga, int gb, uint32_t *leaf) {
   int hit[3];
   if (brick_probe(rec, E, c, ga, gb, hit)) goto found;
@@ -229,19 +234,19 @@ ALWAYS_INLINE float brick_dda(const OmclBricks *B, unsigned E, const uint64_t *r
     tn[a] = ((float)(h->base[a] + c[a] + (step[a] > 0)) - r->o[a]) * r->inv[a];
   }
 found:
-  *leaf = B->leaves[h->first + brick_rank(rec, E, hit[0], hit[1], hit[2])];
+  *leaf = h->first + brick_rank(rec, E, hit[0], hit[1], hit[2]);
   return t;
 }
 
 /* The first occupied cell of one brick along a ray: a slab test against the
  * brick's tight bounds, then a 3-D DDA (Amanatides-Woo) over its cells.
  * Returns the entry distance of the hit cell (tnear when the ray starts
- * inside it) and its voxel index, or INFINITY. Same conventions as the
+ * inside it) and its leaf slot, or INFINITY. Same conventions as the
  * reference DDA: on a plane, a ray moving backwards starts in the lower
  * cell; a ray running inside a cell plane (zero direction component) touches
  * the cells on both sides. */
-ALWAYS_INLINE float brick_walk(const OmclBricks *B, unsigned E, const uint64_t *rec,
-                               const CellRay *r, float tnear, float tfar,
+ALWAYS_INLINE float brick_walk(unsigned E, const uint64_t *rec, const CellRay *r,
+                               float tnear, float tfar,
                                uint32_t *leaf) {
   BrickHead h;
   brick_head(rec, &h);
@@ -284,7 +289,7 @@ ALWAYS_INLINE float brick_walk(const OmclBricks *B, unsigned E, const uint64_t *
     }
     c[a] = ci;
   }
-  return brick_dda(B, E, rec, &h, r, t0, t1, c, ga, gb, leaf);
+  return brick_dda(E, rec, &h, r, t0, t1, c, ga, gb, leaf);
 }
 
 /* Four lanes of a packet against one brick with SSE2 (baseline x86-64):
@@ -294,7 +299,7 @@ ALWAYS_INLINE float brick_walk(const OmclBricks *B, unsigned E, const uint64_t *
  * on a cell plane take the scalar path (brick_walk), which handles them.
  * The arithmetic is the scalar path's, operation for operation, so both
  * give the same answers. Returns a bit mask of the lanes that hit, with
- * their t and voxel index in t_out / leaf_out. */
+ * their t and leaf slot in t_out / leaf_out. */
 ALWAYS_INLINE unsigned brick_walk4(const OmclBricks *B, unsigned E, const uint64_t *rec,
                                    const BrickHead *h, const float *org[3],
                                    const float *dir[3], const float *tnear,
@@ -376,10 +381,10 @@ ALWAYS_INLINE unsigned brick_walk4(const OmclBricks *B, unsigned E, const uint64
     }
     float t;
     if (slow >> k & 1u) {
-      t = brick_walk(B, E, rec, &r, tnear[k], tfar[k], &leaf_out[k]);
+      t = brick_walk(E, rec, &r, tnear[k], tfar[k], &leaf_out[k]);
     } else {
       int cc[3] = {fc[0][k], fc[1][k], fc[2][k]};
-      t = brick_dda(B, E, rec, h, &r, ft0[k], ft1[k], cc, -1, -1, &leaf_out[k]);
+      t = brick_dda(E, rec, h, &r, ft0[k], ft1[k], cc, -1, -1, &leaf_out[k]);
     }
     if (t != INFINITY) {
       t_out[k] = t;
@@ -395,7 +400,8 @@ static void brick_bounds(const struct RTCBoundsFunctionArguments *args) {
   BrickHead h;
   brick_head(b->data + words * (size_t)args->primID, &h);
   /* Padded a little: the callback's exact test works in cell units, whose
-   * planes may round to either side of k * size. */
+   * planes may round to either side of k * size, and Embree's box test
+   * culls rays lying exactly on a plane (see box_bounds). */
   float lo[3], hi[3];
   for (int a = 0; a < 3; ++a) {
     float l = (float)(h.base[a] + h.lo[a]) * b->size;
@@ -461,7 +467,7 @@ ALWAYS_INLINE void brick_rays(const OmclBricks *b, unsigned E, const uint64_t *r
     float dir[3] = {RAY_F(rh, N, DIR_X, i), RAY_F(rh, N, DIR_Y, i), RAY_F(rh, N, DIR_Z, i)};
     const CellRay *cr = context_cell_ray(ctx, RAY_U(rh, N, ID, i), b->inv_size, org, dir, &own);
     uint32_t leaf;
-    float t = brick_walk(b, E, rec, cr, RAY_F(rh, N, TNEAR, i), RAY_F(rh, N, TFAR, i), &leaf);
+    float t = brick_walk(E, rec, cr, RAY_F(rh, N, TNEAR, i), RAY_F(rh, N, TFAR, i), &leaf);
     if (t == INFINITY) continue;
     if (occluded) RAY_F(rh, N, TFAR, i) = -INFINITY;
     else brick_report(rh, N, i, t, leaf, geom, ctx->instID[0]);
@@ -564,9 +570,9 @@ void omcl_set_ftz_daz(void) {
 #define TRACE_PACKET(W, TYPE, FN)                                              \
   static void trace_##W(RTCScene scene, OmclContext *ctx, float inv_size,    \
                         const OmclRay *rays, OmclHit *hits, size_t n) {       \
-    CellRay cells[W];                                                          \
-    ctx->cells = inv_size != 0.0f ? cells : NULL;                              \
-    ctx->count = W;                                                            \
+    /* Packets take the callbacks' SSE path, which needs no cell rays. */    \
+    (void)inv_size;                                                            \
+    ctx->cells = NULL;                                                         \
     for (size_t s = 0; s < n; s += W) {                                        \
       size_t m = n - s < W ? n - s : W;                                        \
       TYPE p;                                                                  \
@@ -585,7 +591,6 @@ void omcl_set_ftz_daz(void) {
         p.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;                             \
         p.hit.primID[i] = RTC_INVALID_GEOMETRY_ID;                             \
         p.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;                          \
-        if (inv_size != 0.0f) cell_ray(inv_size, r->org, r->dir, &cells[i]);   \
       }                                                                        \
       FN(valid, scene, &ctx->ctx, &p);                                         \
       for (size_t i = 0; i < m; ++i) {                                         \

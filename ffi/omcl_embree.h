@@ -35,12 +35,11 @@ typedef struct OmclBoxes {
  *   cells (one word for edge 2 and 4, eight for edge 8: word z);
  *   edge 8 only: one more pair of words holding eight 16-bit counts, the
  *   occupied cells in mask words before word z (word 11 for z < 4, 12 after).
- * The leaf of an occupied cell is leaves[first + rank], rank = the number
- * of occupied cells with a smaller bit index. Owned by Rust; must outlive
- * the geometry. */
+ * The leaf slot of an occupied cell is first + rank, rank = the number of
+ * occupied cells with a smaller bit index; the caller keeps the table from
+ * slots to voxel indices. Owned by Rust; must outlive the geometry. */
 typedef struct OmclBricks {
-  const uint64_t *data;   /* count records */
-  const uint32_t *leaves; /* one voxel index per occupied cell */
+  const uint64_t *data; /* count records */
   uint32_t count;
   uint32_t edge; /* 2, 4 or 8 */
   float size;     /* voxel edge length */
@@ -53,8 +52,8 @@ typedef struct OmclBricks {
 
 /* Registers the brick callbacks on `geom` (an RTC_GEOMETRY_TYPE_USER
  * geometry) with `bricks` as user data. Returns 0, or -1 for an edge other
- * than 2, 4 or 8 (nothing registered). Hits report the voxel index (from
- * `leaves`) as primID. */
+ * than 2, 4 or 8 (nothing registered). Hits report the leaf slot of the
+ * hit cell as primID. */
 int omcl_set_brick_callbacks(RTCGeometry geom, const OmclBricks *bricks);
 
 /* One ray in, one hit out (array-of-structs on the Rust side). */

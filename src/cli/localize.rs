@@ -356,7 +356,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     }
     config.sensor.contrast = !a.no_contrast;
     let caster = Arc::new(
-        EmbreeCaster::new(m.grid().resolution as f32, &m.cells())?.with_packet(Packet::Single),
+        EmbreeCaster::new(m.grid().resolution as f32, &m.cells())?.with_packet(Packet::Eight),
     );
     let mut filter = Filter::new(&m, caster, k, config, particles)?;
 

@@ -47,7 +47,7 @@ fn world() -> World {
     .expect("map");
     let caster = EmbreeCaster::new(scene.resolution as f32, &map.cells())
         .expect("embree")
-        .with_packet(Packet::Single);
+        .with_packet(Packet::Eight);
     World {
         scene,
         map,

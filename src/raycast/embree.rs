@@ -232,7 +232,6 @@ impl Prims {
                 let bricks = Bricks::new(cells, edge);
                 let desc = Box::new(sys::OmclBricks {
                     data: bricks.data.as_ptr(),
-                    leaves: bricks.leaves.as_ptr(),
                     count: bricks.count as u32,
                     edge: edge.cells(),
                     size: resolution,
@@ -425,9 +424,10 @@ impl EmbreeCaster {
             geom: 0,
             t: 0.0,
         }; CHUNK];
-        let inv_size = match &self.prims {
-            Prims::Boxes { .. } => 0.0,
-            Prims::Bricks { desc, .. } => desc.inv_size,
+        // Brick hits carry a leaf slot, mapped to the voxel index here.
+        let (inv_size, slots): (f32, &[u32]) = match &self.prims {
+            Prims::Boxes { .. } => (0.0, &[]),
+            Prims::Bricks { desc, bricks } => (desc.inv_size, &bricks.leaves),
         };
         for (r, h) in rays.chunks(CHUNK).zip(hits.chunks_mut(CHUNK)) {
             // SAFETY: `Ray` and `OmclRay` have the same layout (checked at
@@ -446,10 +446,15 @@ impl EmbreeCaster {
             for (o, h) in out.iter().zip(h.iter_mut()) {
                 *h = if o.prim == sys::OMCL_NO_HIT {
                     Hit::miss()
-                } else {
+                } else if slots.is_empty() {
                     Hit {
                         leaf: o.prim,
                         t: o.t,
+                    }
+                } else {
+                    match slots.get(o.prim as usize) {
+                        Some(&leaf) => Hit { leaf, t: o.t },
+                        None => Hit::miss(),
                     }
                 };
             }
