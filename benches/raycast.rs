@@ -19,7 +19,6 @@ use std::time::Instant;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::Vector3;
 use omcl::geometry::{Intrinsics, Pose, Ray, camera_ray, level_camera};
-use omcl::map::Cell;
 use omcl::raycast::{
     BrickEdge, BuildOptions, EmbreeCaster, Geometry, Hit, Packet, RayCaster, ReferenceCaster,
 };
@@ -148,81 +147,15 @@ fn geometry_table(s: &Scene, rounds: usize) {
     let image = full_image_rays(&k, &pose);
     let (by_particle, by_pixel) = mcl_rays(&k, &pose, 0.3);
     let d = BuildOptions::default();
-    let which = std::env::var("OMCL_BENCH_VARIANTS").unwrap_or_else(|_| "boxes,b2,b4,b8".into());
-    let all: Vec<(&str, BuildOptions)> = vec![
-        (
-            "boxes",
-            BuildOptions {
-                geometry: Geometry::Boxes,
-                ..d
-            },
-        ),
-        (
-            "b2",
-            BuildOptions {
-                geometry: Geometry::Bricks(BrickEdge::Two),
-                ..d
-            },
-        ),
-        (
-            "b4",
-            BuildOptions {
-                geometry: Geometry::Bricks(BrickEdge::Four),
-                ..d
-            },
-        ),
-        (
-            "b8",
-            BuildOptions {
-                geometry: Geometry::Bricks(BrickEdge::Eight),
-                ..d
-            },
-        ),
-        (
-            "b4fast",
-            BuildOptions {
-                geometry: Geometry::Bricks(BrickEdge::Four),
-                robust: false,
-                ..d
-            },
-        ),
-        (
-            "b8fast",
-            BuildOptions {
-                geometry: Geometry::Bricks(BrickEdge::Eight),
-                robust: false,
-                ..d
-            },
-        ),
-        (
-            "b4compact",
-            BuildOptions {
-                geometry: Geometry::Bricks(BrickEdge::Four),
-                compact: true,
-                ..d
-            },
-        ),
-        (
-            "b4low",
-            BuildOptions {
-                geometry: Geometry::Bricks(BrickEdge::Four),
-                quality: omcl::raycast::BuildQuality::Low,
-                ..d
-            },
-        ),
-        (
-            "b4high",
-            BuildOptions {
-                geometry: Geometry::Bricks(BrickEdge::Four),
-                quality: omcl::raycast::BuildQuality::High,
-                ..d
-            },
-        ),
-    ];
-    let variants: Vec<(&str, BuildOptions)> = all
-        .into_iter()
-        .filter(|(name, _)| which.split(',').any(|w| w == *name))
-        .collect();
+    let variants: Vec<(&str, BuildOptions)> = [
+        ("boxes", Geometry::Boxes),
+        ("bricks2", Geometry::Bricks(BrickEdge::Two)),
+        ("bricks4", Geometry::Bricks(BrickEdge::Four)),
+        ("bricks8", Geometry::Bricks(BrickEdge::Eight)),
+    ]
+    .into_iter()
+    .map(|(name, geometry)| (name, BuildOptions { geometry, ..d }))
+    .collect();
     for (name, o) in &variants {
         let (c0, t0) = (cpu_seconds(), Instant::now());
         let e = EmbreeCaster::with_options(res, &s.cells, *o).expect("Embree scene");
@@ -307,9 +240,11 @@ fn bench(c: &mut Criterion) {
     let n = s.cells.len();
     println!(
         "scene: {n} voxels at {res} m; first build {:.3} s; map {:.1} B/voxel (code 8 + row 4); \
-         Embree boxes {:.1} B/voxel; Embree BVH {:.1} B/voxel ({:.1} MB)",
+         {:?}: {} primitives, primitive data {:.1} B/voxel; Embree BVH {:.1} B/voxel ({:.1} MB)",
         build.as_secs_f64(),
         12.0,
+        embree.geometry(),
+        embree.primitives(),
         embree.box_bytes() as f64 / n as f64,
         embree.embree_bytes() as f64 / n as f64,
         embree.embree_bytes() as f64 / 1e6,

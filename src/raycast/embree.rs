@@ -125,8 +125,6 @@ pub struct BuildOptions {
     /// Embree's robust (conservative) traversal, which never misses a box
     /// at a shared face through rounding; slightly slower.
     pub robust: bool,
-    /// Embree's compact BVH layout (less memory, maybe slower).
-    pub compact: bool,
 }
 
 impl Default for BuildOptions {
@@ -135,7 +133,6 @@ impl Default for BuildOptions {
             geometry: Geometry::default(),
             quality: BuildQuality::Medium,
             robust: true,
-            compact: false,
         }
     }
 }
@@ -350,14 +347,14 @@ impl EmbreeCaster {
         // their Vecs' heap buffers) until Drop releases the scene. Each call
         // is checked before the next.
         unsafe {
-            let mut flags = sys::RTCSceneFlags::RTC_SCENE_FLAG_NONE as u32;
-            if options.robust {
-                flags |= sys::RTCSceneFlags::RTC_SCENE_FLAG_ROBUST as u32;
-            }
-            if options.compact {
-                flags |= sys::RTCSceneFlags::RTC_SCENE_FLAG_COMPACT as u32;
-            }
-            sys::rtcSetSceneFlags(scene, std::mem::transmute::<u32, sys::RTCSceneFlags>(flags));
+            // RTC_SCENE_FLAG_COMPACT measured slower on bricks (6 % for
+            // camera images, 15 % for MCL rays) for 3 B/voxel less.
+            let flags = if options.robust {
+                sys::RTCSceneFlags::RTC_SCENE_FLAG_ROBUST
+            } else {
+                sys::RTCSceneFlags::RTC_SCENE_FLAG_NONE
+            };
+            sys::rtcSetSceneFlags(scene, flags);
             let quality = match options.quality {
                 BuildQuality::Low => sys::RTCBuildQuality::RTC_BUILD_QUALITY_LOW,
                 BuildQuality::Medium => sys::RTCBuildQuality::RTC_BUILD_QUALITY_MEDIUM,
