@@ -190,6 +190,11 @@ typedef struct OmclContext {
   struct RTCIntersectContext ctx;
   const CellRay *cells; /* NULL: the callbacks compute their own */
   unsigned count;       /* entries of cells */
+  /* Packets: the same in SoA form, rows o x, y, z, d x, y, z, inv x, y, z
+   * of `width` lanes each (inv 1 where d is 0), or NULL. Lane i of the
+   * packet is lane i of every row. */
+  const float *soa;
+  unsigned width;
 } OmclContext;
 
 ALWAYS_INLINE const CellRay *context_cell_ray(const struct RTCIntersectContext *ctx,
@@ -302,7 +307,8 @@ ALWAYS_INLINE float brick_walk(unsigned E, const uint64_t *rec, const CellRay *r
  * their t and leaf slot in t_out / leaf_out. */
 ALWAYS_INLINE unsigned brick_walk4(const OmclBricks *B, unsigned E, const uint64_t *rec,
                                    const BrickHead *h, const float *org[3],
-                                   const float *dir[3], const float *tnear,
+                                   const float *dir[3], const float *pre,
+                                   unsigned stride, const float *tnear,
                                    const float *tfar, const int *valid,
                                    float t_out[4], uint32_t leaf_out[4]) {
   const __m128 inv_size = _mm_set1_ps(B->inv_size);
@@ -314,13 +320,20 @@ ALWAYS_INLINE unsigned brick_walk4(const OmclBricks *B, unsigned E, const uint64
   __m128 t0 = _mm_loadu_ps(tnear), t1 = _mm_loadu_ps(tfar);
   __m128 special = _mm_setzero_ps();
   for (int a = 0; a < 3; ++a) {
-    o[a] = _mm_mul_ps(_mm_loadu_ps(org[a]), inv_size);
-    d[a] = _mm_mul_ps(_mm_loadu_ps(dir[a]), inv_size);
+    if (pre) {
+      o[a] = _mm_loadu_ps(pre + a * stride);
+      d[a] = _mm_loadu_ps(pre + (3 + a) * stride);
+      inv[a] = _mm_loadu_ps(pre + (6 + a) * stride);
+    } else {
+      o[a] = _mm_mul_ps(_mm_loadu_ps(org[a]), inv_size);
+      d[a] = _mm_mul_ps(_mm_loadu_ps(dir[a]), inv_size);
+      __m128 nz = _mm_cmpneq_ps(d[a], zero);
+      /* 1 / d; lanes with d == 0 get 1 (ignored: they go the scalar way). */
+      inv[a] = _mm_div_ps(_mm_set1_ps(1.0f), _mm_or_ps(_mm_andnot_ps(nz, _mm_set1_ps(1.0f)),
+                                                       _mm_and_ps(nz, d[a])));
+    }
     __m128 dz = _mm_cmpeq_ps(d[a], zero);
     special = _mm_or_ps(special, dz);
-    /* 1 / d; lanes with d == 0 get 1 (ignored: they go the scalar way). */
-    inv[a] = _mm_div_ps(_mm_set1_ps(1.0f), _mm_or_ps(_mm_and_ps(dz, _mm_set1_ps(1.0f)),
-                                                     _mm_andnot_ps(dz, d[a])));
     __m128 l = _mm_set1_ps((float)(h->base[a] + h->lo[a]));
     __m128 u = _mm_set1_ps((float)(h->base[a] + h->hi[a] + 1));
     __m128 ta = _mm_mul_ps(_mm_sub_ps(l, o[a]), inv[a]);
@@ -443,6 +456,8 @@ ALWAYS_INLINE void brick_rays(const OmclBricks *b, unsigned E, const uint64_t *r
   if (N % 4 == 0) {
     BrickHead h;
     brick_head(rec, &h);
+    const OmclContext *oc = (const OmclContext *)ctx;
+    const float *soa = oc->soa && oc->width == N ? oc->soa : NULL;
     for (unsigned i = 0; i < N; i += 4) {
       const float *org[3] = {&RAY_F(rh, N, ORG_X, i), &RAY_F(rh, N, ORG_Y, i),
                              &RAY_F(rh, N, ORG_Z, i)};
@@ -450,7 +465,8 @@ ALWAYS_INLINE void brick_rays(const OmclBricks *b, unsigned E, const uint64_t *r
                              &RAY_F(rh, N, DIR_Z, i)};
       float t[4];
       uint32_t leaf[4];
-      unsigned hits = brick_walk4(b, E, rec, &h, org, dir, &RAY_F(rh, N, TNEAR, i),
+      unsigned hits = brick_walk4(b, E, rec, &h, org, dir, soa ? soa + i : NULL, N,
+                                  &RAY_F(rh, N, TNEAR, i),
                                   &RAY_F(rh, N, TFAR, i), valid + i, t, leaf);
       for (unsigned k = 0; k < 4; ++k) {
         if (!(hits >> k & 1u)) continue;
@@ -570,9 +586,11 @@ void omcl_set_ftz_daz(void) {
 #define TRACE_PACKET(W, TYPE, FN)                                              \
   static void trace_##W(RTCScene scene, OmclContext *ctx, float inv_size,    \
                         const OmclRay *rays, OmclHit *hits, size_t n) {       \
-    /* Packets take the callbacks' SSE path, which needs no cell rays. */    \
-    (void)inv_size;                                                            \
+    /* The packet's cell rays in SoA form for the callbacks' SSE path. */  \
+    float soa[9 * W];                                                          \
     ctx->cells = NULL;                                                         \
+    ctx->soa = inv_size != 0.0f ? soa : NULL;                                  \
+    ctx->width = W;                                                            \
     for (size_t s = 0; s < n; s += W) {                                        \
       size_t m = n - s < W ? n - s : W;                                        \
       TYPE p;                                                                  \
@@ -591,6 +609,18 @@ void omcl_set_ftz_daz(void) {
         p.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;                             \
         p.hit.primID[i] = RTC_INVALID_GEOMETRY_ID;                             \
         p.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;                          \
+      }                                                                        \
+      if (inv_size != 0.0f) {                                                  \
+        const float *src[3] = {p.ray.org_x, p.ray.org_y, p.ray.org_z};         \
+        const float *dsrc[3] = {p.ray.dir_x, p.ray.dir_y, p.ray.dir_z};        \
+        for (int a = 0; a < 3; ++a) {                                          \
+          for (size_t i = 0; i < W; ++i) {                                     \
+            float d = dsrc[a][i] * inv_size;                                   \
+            soa[a * W + i] = src[a][i] * inv_size;                             \
+            soa[(3 + a) * W + i] = d;                                          \
+            soa[(6 + a) * W + i] = 1.0f / (d == 0.0f ? 1.0f : d);              \
+          }                                                                    \
+        }                                                                      \
       }                                                                        \
       FN(valid, scene, &ctx->ctx, &p);                                         \
       for (size_t i = 0; i < m; ++i) {                                         \
@@ -689,6 +719,8 @@ void omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
   ctx.ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
   ctx.cells = NULL;
   ctx.count = 0;
+  ctx.soa = NULL;
+  ctx.width = 0;
   switch (packet) {
     case 16: trace_16(scene, &ctx, inv_size, rays, hits, n); break;
     case 8: trace_8(scene, &ctx, inv_size, rays, hits, n); break;
