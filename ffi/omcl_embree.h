@@ -2,8 +2,9 @@
  *
  * bindgen reads this header: it pulls in Embree 3's public API (`rtc*`) and
  * declares the small shim below, compiled from omcl_embree.c by `cc`.
- * Voxels are axis-aligned cubes of edge `size` whose lower corners are given
- * in the map's grid frame (world minus map origin, metres, float).
+ * Voxels are axis-aligned cubes of edge `size` in the map's grid frame
+ * (world minus map origin, metres, float): either one user primitive each
+ * (OmclBoxes) or grouped into bricks (OmclBricks).
  */
 #ifndef OMCL_EMBREE_H
 #define OMCL_EMBREE_H

@@ -8,13 +8,15 @@
 //! (each particle's rays through the sampled pixels, which the sampler
 //! orders so that neighbours are near in the image): consecutive rays share
 //! an origin and nearly a direction, so the caster's 8-wide packets are
-//! coherent. Measured on the 1 M-voxel rooms map with brick geometry, 1024
-//! particles x 2048 pixels (`OMCL_BENCH_GEOMETRIES=2 cargo bench --bench
-//! raycast`, rays per CPU-second): particle-major in 8-wide packets 7.8 M,
-//! pixel-major (same pixel over nearby particles) in 8-wide packets 6.5 M,
-//! single rays 6.1 to 6.3 M in either order. With the old one-box-per-voxel
-//! geometry single rays pixel-major were best (6.0 M against 3.2 M for
-//! particle-major packets), which is why the order was pixel-major before.
+//! coherent. Measured on the 1 M-voxel rooms map with the default brick
+//! geometry, 1024 particles x 2048 pixels, rays per CPU-second in four
+//! interleaved runs on a shared machine (`OMCL_BENCH_GEOMETRIES=3 cargo
+//! bench --bench raycast`): particle-major in 8-wide packets 6.9 to 7.8 M,
+//! pixel-major (same pixel over nearby particles) in 8-wide packets 5.7 to
+//! 6.5 M, single rays 5.2 to 6.3 M in either order. With the old
+//! one-box-per-voxel geometry single rays pixel-major were best (5.3 to
+//! 6.2 M, against 2.8 to 3.2 M for particle-major packets), which is why the
+//! order was pixel-major before.
 //! Scores are accumulated per particle without atomics.
 
 use std::sync::Arc;

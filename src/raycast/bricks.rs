@@ -5,10 +5,12 @@
 //! documents (`OmclBricks`): its base cell, the index of its first voxel in
 //! [`Bricks::leaves`], the tight bounds of its occupied cells, and an
 //! occupancy mask. The C intersect callback walks the brick's cells with a
-//! small DDA and turns the first occupied cell into a voxel index through the
-//! mask's rank. Grouping cuts the primitives (and the BVH over them) by the
-//! bricks' fill factor: a BVH over a million voxel boxes is ~100 MB, far
-//! beyond the caches, and ~70 % of the time went into traversing it.
+//! small DDA and reports the first occupied cell as a leaf slot (the brick's
+//! first slot plus the cell's rank in the mask), which [`Bricks::leaves`]
+//! maps to the voxel index. Grouping cuts the primitives (and the BVH over
+//! them) by the bricks' fill factor: a BVH over a million voxel boxes is
+//! ~100 MB, far beyond the caches, and ~70 % of the time went into
+//! traversing it.
 //!
 //! Pure data; no `unsafe` and no Embree here.
 
@@ -65,7 +67,7 @@ pub(crate) struct Bricks {
     /// `count` records of [`BrickEdge::record_words`] words each, in Morton
     /// order of the bricks (neighbouring bricks are near in memory).
     pub data: Vec<u64>,
-    /// Voxel index (into the caster's cell list) of every occupied cell,
+    /// Voxel index (into the caster's cell list) of every leaf slot:
     /// brick by brick, cells in mask-bit order.
     pub leaves: Vec<u32>,
     pub count: usize,
