@@ -28,9 +28,12 @@ use super::MclError;
 use super::particles::Particle;
 use super::sampling::FrameFeatures;
 use crate::geometry::{Intrinsics, Ray};
+use crate::map::Cell;
 use crate::map::FeatureDb;
 use crate::map::features::dot;
-use crate::raycast::{Hit, RayCaster};
+use crate::raycast::{
+    BrickEdge, BuildOptions, EmbreeCaster, EmbreeError, Geometry, Hit, Packet, RayCaster,
+};
 
 /// Cosines between a frame's sampled pixel features and the database rows.
 #[derive(Debug, Clone, PartialEq)]
@@ -139,6 +142,20 @@ pub struct SensorModel {
 }
 
 impl SensorModel {
+    /// The Embree caster measured fastest for the filter's rays, over
+    /// voxels of edge `resolution` (metres) at `cells` (grid frame): bricks
+    /// of edge 8 in 8-wide packets. Against the default edge 4 on the 1 M
+    /// voxel rooms map (1024 particles x 2048 pixels, particle-major), edge
+    /// 8 gave 3 to 20 % more rays per CPU-second in six interleaved runs
+    /// (its BVH is 1.4 MB instead of 7.5 MB; camera images prefer edge 4).
+    pub fn embree_caster(resolution: f32, cells: &[Cell]) -> Result<EmbreeCaster, EmbreeError> {
+        let options = BuildOptions {
+            geometry: Geometry::Bricks(BrickEdge::Eight),
+            ..BuildOptions::default()
+        };
+        Ok(EmbreeCaster::with_options(resolution, cells, options)?.with_packet(Packet::Eight))
+    }
+
     /// A model for the map whose leaves `caster` indexes, with `leaf_rows`
     /// the database row of every leaf and `origin` the world coordinates of
     /// the grid frame's zero.
