@@ -388,6 +388,13 @@ ALWAYS_INLINE unsigned brick_walk4(const OmclBricks *B, unsigned E, const uint64
   unsigned hits = 0;
   for (unsigned k = 0; k < 4; ++k) {
     if (!((fast | slow) >> k & 1u)) continue;
+    if (fast >> k & 1u && brick_bit(rec, E, fc[0][k], fc[1][k], fc[2][k])) {
+      /* The common case: the cell the ray enters by is occupied. */
+      leaf_out[k] = h->first + brick_rank(rec, E, fc[0][k], fc[1][k], fc[2][k]);
+      t_out[k] = ft0[k];
+      hits |= 1u << k;
+      continue;
+    }
     CellRay r;
     for (int a = 0; a < 3; ++a) {
       r.o[a] = fo[a][k];
@@ -595,6 +602,11 @@ void omcl_set_ftz_daz(void) {
     ctx->width = W;                                                            \
     for (size_t s = 0; s < n; s += W) {                                        \
       size_t m = n - s < W ? n - s : W;                                        \
+      /* The ray array streams from memory: fetch two packets ahead. */       \
+      if (s + 3 * W <= n) {                                                    \
+        for (size_t b = 0; b < W * sizeof(OmclRay); b += 64)                   \
+          __builtin_prefetch((const char *)&rays[s + 2 * W] + b);              \
+      }                                                                        \
       TYPE p;                                                                  \
       const OmclRay safe_ray = {{0, 0, 0}, {1, 0, 0}, 0.0f, 0.0f};             \
       int valid[W];                                                            \
