@@ -1,6 +1,8 @@
 //! Ray casting throughput on a ~1 M-voxel map at 5 cm (issue 2 targets):
-//! full camera images, MCL-shaped sparse rays in two packet orders, scene
-//! build time, and the reference traversal for the ratio.
+//! full camera images, MCL-shaped sparse rays in two packet orders (and
+//! with the filter's own caster, `SensorModel::embree_caster`), scene build
+//! time, and the reference traversal for the ratio. The criterion groups
+//! use the default geometry (bricks of edge 4).
 //!
 //! Run: `cargo bench --bench raycast`. Sizes of map, primitives and BVH are
 //! printed once before the measurements.
@@ -299,6 +301,12 @@ fn bench(c: &mut Criterion) {
             b.iter(|| e.cast(black_box(&by_pixel), &mut hits))
         });
     }
+    // What the filter uses: its own caster (bricks of edge 8, 8-wide
+    // packets) and particle-major order.
+    let f = omcl::mcl::SensorModel::embree_caster(res, &s.cells).expect("scene");
+    g.bench_function("filter_caster_particle_major", |b| {
+        b.iter(|| f.cast(black_box(&by_particle), &mut hits))
+    });
     let sub: Vec<Ray> = by_pixel.iter().step_by(64).copied().collect();
     let mut sub_hits = vec![Hit::miss(); sub.len()];
     g.throughput(Throughput::Elements(sub.len() as u64));
