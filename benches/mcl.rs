@@ -17,9 +17,10 @@ use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use omcl::geometry::{Intrinsics, Pose, camera_ray, level_camera};
 use omcl::map::{FeatureDb, GridSpec, LanguageMap};
 use omcl::mcl::{
-    Filter, FilterConfig, FloorParams, FrameFeatures, PromptParams, local_init, prompt_init,
+    Filter, FilterConfig, FloorParams, FrameFeatures, PromptParams, SensorModel, local_init,
+    prompt_init,
 };
-use omcl::raycast::{EmbreeCaster, Packet, RayCaster};
+use omcl::raycast::{Packet, RayCaster};
 use omcl::scene::{self, RoomsConfig, rooms};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -85,11 +86,8 @@ fn bench(c: &mut Criterion) {
         s.cells.iter().copied().zip(s.labels.iter().copied()),
     )
     .expect("map");
-    let caster: Arc<dyn RayCaster> = Arc::new(
-        EmbreeCaster::new(s.resolution as f32, &map.cells())
-            .expect("embree")
-            .with_packet(Packet::Single),
-    );
+    let caster: Arc<dyn RayCaster> =
+        Arc::new(SensorModel::embree_caster(s.resolution as f32, &map.cells()).expect("embree"));
     println!("map: {} voxels at {} m", map.len(), s.resolution);
 
     let k = Intrinsics::from_hfov(540, 540, 90.0);
@@ -154,9 +152,9 @@ fn bench(c: &mut Criterion) {
     );
 
     // The same step with other packet widths, for the record.
-    for packet in [Packet::Stream, Packet::Sixteen] {
+    for packet in [Packet::Single, Packet::Sixteen] {
         let other: Arc<dyn RayCaster> = Arc::new(
-            EmbreeCaster::new(s.resolution as f32, &map.cells())
+            SensorModel::embree_caster(s.resolution as f32, &map.cells())
                 .expect("embree")
                 .with_packet(packet),
         );

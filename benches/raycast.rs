@@ -1,9 +1,19 @@
 //! Ray casting throughput on a ~1 M-voxel map at 5 cm (issue 2 targets):
-//! full camera images, MCL-shaped sparse rays in two packet orders, scene
-//! build time, and the reference traversal for the ratio.
+//! full camera images, MCL-shaped sparse rays in two packet orders (and
+//! with the filter's own caster, `SensorModel::embree_caster`), scene build
+//! time, and the reference traversal for the ratio. The criterion groups
+//! use the default geometry (bricks of edge 4).
 //!
-//! Run: `cargo bench --bench raycast`. Sizes of map, boxes and BVH are
+//! Run: `cargo bench --bench raycast`. Sizes of map, primitives and BVH are
 //! printed once before the measurements.
+//!
+//! With `OMCL_BENCH_GEOMETRIES=R` set, a table comparing the Embree
+//! geometries (boxes, bricks of edge 2, 4, 8) is printed first: R rounds,
+//! each measuring every geometry on every workload in turn for about a
+//! second (interleaved, so load from other processes on a shared machine
+//! hits all variants alike), reported as the median over rounds of rays
+//! per CPU-second of this process (utime + stime, all threads) and per
+//! wall second.
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -11,7 +21,9 @@ use std::time::Instant;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::Vector3;
 use omcl::geometry::{Intrinsics, Pose, Ray, camera_ray, level_camera};
-use omcl::raycast::{EmbreeCaster, Hit, Packet, RayCaster, ReferenceCaster};
+use omcl::raycast::{
+    BrickEdge, BuildOptions, EmbreeCaster, Geometry, Hit, Packet, RayCaster, ReferenceCaster,
+};
 use omcl::scene::{RoomsConfig, Scene, rooms};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -96,8 +108,132 @@ fn mcl_rays(k: &Intrinsics, pose: &Pose, base_yaw: f64) -> (Vec<Ray>, Vec<Ray>) 
     (by_particle, by_pixel)
 }
 
+/// User + system CPU seconds of this process (all threads).
+fn cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let after = stat.rsplit(')').next().unwrap_or("");
+    let f: Vec<f64> = after
+        .split_whitespace()
+        .map(|s| s.parse().unwrap_or(0.0))
+        .collect();
+    // Fields 14 and 15 of stat (utime, stime) are 11 and 12 after ')'.
+    let ticks = f.get(11).copied().unwrap_or(0.0) + f.get(12).copied().unwrap_or(0.0);
+    ticks / 100.0
+}
+
+/// Casts `rays` repeatedly for about a second; returns (M rays per
+/// CPU-second, M rays per wall second).
+fn rate(e: &EmbreeCaster, rays: &[Ray], hits: &mut [Hit]) -> (f64, f64) {
+    e.cast(rays, hits); // warm the caches
+    let (c0, t0) = (cpu_seconds(), Instant::now());
+    let mut n = 0usize;
+    while t0.elapsed().as_secs_f64() < 1.0 {
+        e.cast(black_box(rays), hits);
+        n += rays.len();
+    }
+    let (cpu, wall) = (cpu_seconds() - c0, t0.elapsed().as_secs_f64());
+    (n as f64 / cpu.max(1e-9) / 1e6, n as f64 / wall / 1e6)
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// The interleaved comparison of the Embree geometries (see the module doc).
+fn geometry_table(s: &Scene, rounds: usize) {
+    let res = s.resolution as f32;
+    let n = s.cells.len();
+    let k = Intrinsics::from_hfov(540, 540, 90.0);
+    let pose = camera(s);
+    let image = full_image_rays(&k, &pose);
+    let (by_particle, by_pixel) = mcl_rays(&k, &pose, 0.3);
+    let d = BuildOptions::default();
+    let variants: Vec<(&str, BuildOptions)> = [
+        ("boxes", Geometry::Boxes),
+        ("bricks2", Geometry::Bricks(BrickEdge::Two)),
+        ("bricks4", Geometry::Bricks(BrickEdge::Four)),
+        ("bricks8", Geometry::Bricks(BrickEdge::Eight)),
+    ]
+    .into_iter()
+    .map(|(name, geometry)| (name, BuildOptions { geometry, ..d }))
+    .collect();
+    for (name, o) in &variants {
+        let (c0, t0) = (cpu_seconds(), Instant::now());
+        let e = EmbreeCaster::with_options(res, &s.cells, *o).expect("Embree scene");
+        println!(
+            "{name}: build {:.3} s wall / {:.3} CPU-s; {} primitives ({:.1} voxels each); \
+             primitive data {:.1} B/voxel; Embree {:.1} B/voxel ({:.1} MB)",
+            t0.elapsed().as_secs_f64(),
+            cpu_seconds() - c0,
+            e.primitives(),
+            n as f64 / e.primitives() as f64,
+            e.box_bytes() as f64 / n as f64,
+            e.embree_bytes() as f64 / n as f64,
+            e.embree_bytes() as f64 / 1e6,
+        );
+    }
+    let work: [(&str, Packet, &[Ray]); 8] = [
+        ("image 540x540", Packet::Eight, &image),
+        ("image 540x540", Packet::Sixteen, &image),
+        ("MCL pixel-major", Packet::Single, &by_pixel),
+        ("MCL particle-major", Packet::Single, &by_particle),
+        ("MCL pixel-major", Packet::Eight, &by_pixel),
+        ("MCL particle-major", Packet::Four, &by_particle),
+        ("MCL particle-major", Packet::Eight, &by_particle),
+        ("MCL particle-major", Packet::Sixteen, &by_particle),
+    ];
+    // One caster per (workload, variant): the packet width is the caster's.
+    let casters: Vec<Vec<EmbreeCaster>> = work
+        .iter()
+        .map(|(_, p, _)| {
+            variants
+                .iter()
+                .map(|(_, o)| {
+                    EmbreeCaster::with_options(res, &s.cells, *o)
+                        .expect("Embree scene")
+                        .with_packet(*p)
+                })
+                .collect()
+        })
+        .collect();
+    let mut hits = vec![Hit::miss(); image.len().max(by_pixel.len())];
+    let mut cpu = vec![vec![Vec::new(); variants.len()]; work.len()];
+    let mut wall = cpu.clone();
+    for _ in 0..rounds {
+        for (w, (_, _, rays)) in work.iter().enumerate() {
+            for (g, e) in casters[w].iter().enumerate() {
+                let (c, t) = rate(e, rays, &mut hits[..rays.len()]);
+                cpu[w][g].push(c);
+                wall[w][g].push(t);
+            }
+        }
+    }
+    println!("M rays per CPU-second (per wall second), median of {rounds} rounds:");
+    for (w, (name, packet, _)) in work.iter().enumerate() {
+        let row: Vec<String> = variants
+            .iter()
+            .enumerate()
+            .map(|(g, (v, _))| {
+                format!(
+                    "{v} {:.1} ({:.1})",
+                    median(&mut cpu[w][g]),
+                    median(&mut wall[w][g])
+                )
+            })
+            .collect();
+        println!("  {name:<19} {packet:?}: {}", row.join(", "));
+    }
+}
+
 fn bench(c: &mut Criterion) {
     let s = scene();
+    if let Some(rounds) = std::env::var("OMCL_BENCH_GEOMETRIES")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+    {
+        geometry_table(&s, rounds.max(1));
+    }
     let res = s.resolution as f32;
     let t0 = Instant::now();
     let embree = EmbreeCaster::new(res, &s.cells).expect("Embree scene");
@@ -106,9 +242,11 @@ fn bench(c: &mut Criterion) {
     let n = s.cells.len();
     println!(
         "scene: {n} voxels at {res} m; first build {:.3} s; map {:.1} B/voxel (code 8 + row 4); \
-         Embree boxes {:.1} B/voxel; Embree BVH {:.1} B/voxel ({:.1} MB)",
+         {:?}: {} primitives, primitive data {:.1} B/voxel; Embree BVH {:.1} B/voxel ({:.1} MB)",
         build.as_secs_f64(),
         12.0,
+        embree.geometry(),
+        embree.primitives(),
         embree.box_bytes() as f64 / n as f64,
         embree.embree_bytes() as f64 / n as f64,
         embree.embree_bytes() as f64 / 1e6,
@@ -163,6 +301,12 @@ fn bench(c: &mut Criterion) {
             b.iter(|| e.cast(black_box(&by_pixel), &mut hits))
         });
     }
+    // What the filter uses: its own caster (bricks of edge 8, 8-wide
+    // packets) and particle-major order.
+    let f = omcl::mcl::SensorModel::embree_caster(res, &s.cells).expect("scene");
+    g.bench_function("filter_caster_particle_major", |b| {
+        b.iter(|| f.cast(black_box(&by_particle), &mut hits))
+    });
     let sub: Vec<Ray> = by_pixel.iter().step_by(64).copied().collect();
     let mut sub_hits = vec![Hit::miss(); sub.len()];
     g.throughput(Throughput::Elements(sub.len() as u64));

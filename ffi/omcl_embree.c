@@ -1,5 +1,7 @@
-/* Box user geometry for Embree 3, and packet tracing of ray arrays.
- * See omcl_embree.h. Every function here is total: no allocation, no abort. */
+/* Brick and box user geometries for Embree 3, and packet tracing of ray
+ * arrays. See omcl_embree.h. Every function here is total: no allocation,
+ * no abort. Built for baseline x86-64 (SSE2): -march flags would tie the
+ * binary to the build machine's CPU, and measured only 2-3 % here. */
 #include "omcl_embree.h"
 
 #include <math.h>
@@ -8,6 +10,7 @@
 #include <string.h>
 #include <xmmintrin.h>
 #include <pmmintrin.h>
+#include <emmintrin.h>
 
 /* Field offsets of RTCRayHitN / RTCHitN in SoA layout (rtcore_ray.h; the
  * accessor helpers there are C++ only). */
@@ -20,12 +23,17 @@ static void box_bounds(const struct RTCBoundsFunctionArguments *args) {
   const OmclBoxes *b = (const OmclBoxes *)args->geometryUserPtr;
   const float *lo = b->lower + 3 * (size_t)args->primID;
   struct RTCBounds *o = args->bounds_o;
-  o->lower_x = lo[0];
-  o->lower_y = lo[1];
-  o->lower_z = lo[2];
-  o->upper_x = lo[0] + b->size;
-  o->upper_y = lo[1] + b->size;
-  o->upper_z = lo[2] + b->size;
+  /* Padded a little: Embree's own box test (lower - org) * (1 / dir) is
+   * NaN for a ray with a zero direction component lying exactly on a box
+   * plane, which then culls a ray grazing a voxel's face; the callback's
+   * exact test decides. */
+  float pad = b->size * 1e-4f;
+  o->lower_x = lo[0] - (pad + fabsf(lo[0]) * 1e-6f);
+  o->lower_y = lo[1] - (pad + fabsf(lo[1]) * 1e-6f);
+  o->lower_z = lo[2] - (pad + fabsf(lo[2]) * 1e-6f);
+  o->upper_x = lo[0] + b->size + (pad + fabsf(lo[0] + b->size) * 1e-6f);
+  o->upper_y = lo[1] + b->size + (pad + fabsf(lo[1] + b->size) * 1e-6f);
+  o->upper_z = lo[2] + b->size + (pad + fabsf(lo[2] + b->size) * 1e-6f);
 }
 
 /* Slab test of a closed box. Returns the entry distance clamped to tnear
@@ -95,6 +103,435 @@ static void box_occluded(const struct RTCOccludedFunctionNArguments *args) {
   }
 }
 
+/* ---- Bricks ------------------------------------------------------------ */
+
+#define ALWAYS_INLINE static inline __attribute__((always_inline))
+
+typedef struct BrickHead {
+  int32_t base[3];
+  uint32_t first;
+  int lo[3], hi[3];
+} BrickHead;
+
+ALWAYS_INLINE void brick_head(const uint64_t *rec, BrickHead *h) {
+  uint64_t w0 = rec[0], w1 = rec[1], w2 = rec[2];
+  h->base[0] = (int32_t)(uint32_t)w0;
+  h->base[1] = (int32_t)(uint32_t)(w0 >> 32);
+  h->base[2] = (int32_t)(uint32_t)w1;
+  h->first = (uint32_t)(w1 >> 32);
+  for (int a = 0; a < 3; ++a) {
+    h->lo[a] = (int)((w2 >> (8 * a)) & 0xff);
+    h->hi[a] = (int)((w2 >> (8 * (a + 3))) & 0xff);
+  }
+}
+
+ALWAYS_INLINE int brick_bit(const uint64_t *rec, unsigned E, int x, int y, int z) {
+  if (E == 8) return (int)((rec[3 + z] >> (x + 8 * y)) & 1u);
+  return (int)((rec[3] >> (x + (int)E * (y + (int)E * z))) & 1u);
+}
+
+/* Portable popcount: the shim is built for baseline x86-64 (no POPCNT), where
+ * __builtin_popcountll is a libgcc call. */
+ALWAYS_INLINE uint32_t popcount64(uint64_t x) {
+  x = x - ((x >> 1) & 0x5555555555555555ull);
+  x = (x & 0x3333333333333333ull) + ((x >> 2) & 0x3333333333333333ull);
+  x = (x + (x >> 4)) & 0x0f0f0f0f0f0f0f0full;
+  return (uint32_t)((x * 0x0101010101010101ull) >> 56);
+}
+
+ALWAYS_INLINE uint32_t brick_rank(const uint64_t *rec, unsigned E, int x, int y, int z) {
+  if (E == 8) {
+    unsigned b = (unsigned)(x + 8 * y);
+    uint32_t before = (uint32_t)((rec[11 + (z >> 2)] >> (16 * (z & 3))) & 0xffffu);
+    return before + popcount64(rec[3 + z] & ((1ull << b) - 1));
+  }
+  unsigned b = (unsigned)(x + (int)E * (y + (int)E * z));
+  return popcount64(rec[3] & ((1ull << b) - 1));
+}
+
+/* A ray in cell units: origin o = org / size, direction d = dir / size,
+ * and inv = 1 / d (0 where d is 0). The plane of cell boundary k is at the
+ * integer k, and t = (k - o) * inv is in units of |dir| as Embree's. Every
+ * brick sees the same transformed ray, so neighbouring bricks agree exactly
+ * on their shared planes and no ray slips between them. */
+typedef struct CellRay {
+  float o[3], d[3], inv[3];
+} CellRay;
+
+ALWAYS_INLINE void cell_ray(float inv_size, const float org[3], const float dir[3],
+                            CellRay *r) {
+  for (int a = 0; a < 3; ++a) {
+    r->o[a] = org[a] * inv_size;
+    r->d[a] = dir[a] * inv_size;
+    r->inv[a] = r->d[a] == 0.0f ? 0.0f : 1.0f / r->d[a];
+  }
+}
+
+/* Whether cell c of the brick is occupied, or (for a ray running inside
+ * the cell planes of axes ga and gb, -1 if none) one of the cells across
+ * those planes; writes the occupied cell to *hit. */
+ALWAYS_INLINE int brick_probe(const uint64_t *rec, unsigned E, const int c[3], int ga,
+                              int gb, int hit[3]) {
+  hit[0] = c[0]; hit[1] = c[1]; hit[2] = c[2];
+  if (brick_bit(rec, E, c[0], c[1], c[2])) return 1;
+  if (__builtin_expect(ga < 0, 1)) return 0;
+  hit[ga] -= 1;
+  if (brick_bit(rec, E, hit[0], hit[1], hit[2])) return 1;
+  if (gb < 0) return 0;
+  hit[gb] -= 1;
+  if (brick_bit(rec, E, hit[0], hit[1], hit[2])) return 1;
+  hit[ga] += 1;
+  return brick_bit(rec, E, hit[0], hit[1], hit[2]);
+}
+
+/* The intersect context omcl_trace passes to Embree: the standard context
+ * first (Embree hands our pointer to the callbacks), then the cell-unit
+ * form of every ray of the current packet or stream chunk, indexed by the
+ * ray's id, computed once per ray instead of once per visited brick. */
+typedef struct OmclContext {
+  struct RTCIntersectContext ctx;
+  const CellRay *cells; /* NULL: the callbacks compute their own */
+  unsigned count;       /* entries of cells */
+  /* Packets: the same in SoA form, rows o x, y, z, d x, y, z, inv x, y, z
+   * of `width` lanes each (inv 1 where d is 0), or NULL. Lane i of the
+   * packet is lane i of every row. */
+  const float *soa;
+  unsigned width;
+} OmclContext;
+
+ALWAYS_INLINE const CellRay *context_cell_ray(const struct RTCIntersectContext *ctx,
+                                              unsigned id, float inv_size,
+                                              const float org[3], const float dir[3],
+                                              CellRay *own) {
+  const OmclContext *oc = (const OmclContext *)ctx;
+  if (__builtin_expect(oc->cells != NULL && id < oc->count, 1)) return &oc->cells[id];
+  cell_ray(inv_size, org, dir, own);
+  return own;
+}
+
+/* From cell c (local, in bounds), entered at t, the DDA over the brick's
+ * cells up to t1: returns the entry distance of the first occupied cell and
+ * its leaf slot (index into the caller's leaves table), or INFINITY. */
+ALWAYS_INLINE float brick_dda(unsigned E, const uint64_t *rec, const BrickHead *h,
+                              const CellRay *r, float t, float t1,
+                              int c[3], int ga, int gb, uint32_t *leaf) {
+  int hit[3];
+  if (brick_probe(rec, E, c, ga, gb, hit)) goto found;
+  int step[3];
+  float tn[3];
+  for (int a = 0; a < 3; ++a) {
+    if (r->d[a] > 0.0f) {
+      step[a] = 1;
+      tn[a] = ((float)(h->base[a] + c[a] + 1) - r->o[a]) * r->inv[a];
+    } else if (r->d[a] < 0.0f) {
+      step[a] = -1;
+      tn[a] = ((float)(h->base[a] + c[a]) - r->o[a]) * r->inv[a];
+    } else {
+      step[a] = 0;
+      tn[a] = INFINITY;
+    }
+  }
+  for (;;) {
+    int a = tn[0] <= tn[1] && tn[0] <= tn[2] ? 0 : (tn[1] <= tn[2] ? 1 : 2);
+    t = tn[a];
+    if (!(t <= t1)) return INFINITY;
+    c[a] += step[a];
+    if (c[a] < h->lo[a] || c[a] > h->hi[a]) return INFINITY;
+    if (brick_probe(rec, E, c, ga, gb, hit)) goto found;
+    tn[a] = ((float)(h->base[a] + c[a] + (step[a] > 0)) - r->o[a]) * r->inv[a];
+  }
+found:
+  *leaf = h->first + brick_rank(rec, E, hit[0], hit[1], hit[2]);
+  return t;
+}
+
+/* The first occupied cell of one brick along a ray: a slab test against the
+ * brick's tight bounds, then a 3-D DDA (Amanatides-Woo) over its cells.
+ * Returns the entry distance of the hit cell (tnear when the ray starts
+ * inside it) and its leaf slot, or INFINITY. Same conventions as the
+ * reference DDA: on a plane, a ray moving backwards starts in the lower
+ * cell; a ray running inside a cell plane (zero direction component) touches
+ * the cells on both sides. */
+ALWAYS_INLINE float brick_walk(unsigned E, const uint64_t *rec, const CellRay *r,
+                               float tnear, float tfar,
+                               uint32_t *leaf) {
+  BrickHead h;
+  brick_head(rec, &h);
+  float t0 = tnear, t1 = tfar;
+  int axis = -1;
+  for (int a = 0; a < 3; ++a) {
+    float l = (float)(h.base[a] + h.lo[a]);
+    float u = (float)(h.base[a] + h.hi[a] + 1);
+    if (r->d[a] == 0.0f) {
+      if (r->o[a] < l || r->o[a] > u) return INFINITY;
+      continue;
+    }
+    float ta = (l - r->o[a]) * r->inv[a], tb = (u - r->o[a]) * r->inv[a];
+    if (ta > tb) { float s = ta; ta = tb; tb = s; }
+    if (ta > t0) { t0 = ta; axis = a; }
+    if (tb < t1) t1 = tb;
+  }
+  if (!(t0 <= t1) || t1 == INFINITY) return INFINITY;
+  int c[3];
+  int ga = -1, gb = -1; /* axes along whose cell plane the ray runs */
+  for (int a = 0; a < 3; ++a) {
+    int ci;
+    if (a == axis) {
+      ci = r->d[a] > 0.0f ? h.lo[a] : h.hi[a];
+    } else {
+      /* Local cell coordinate of the entry point, in [lo, hi + 1] up to
+       * rounding (clamped below). */
+      float q = (r->o[a] + t0 * r->d[a]) - (float)h.base[a];
+      ci = q < 0.0f ? -1 : (int)q;
+      if (__builtin_expect((float)ci == q, 0)) {
+        if (r->d[a] < 0.0f) {
+          ci -= 1;
+        } else if (r->d[a] == 0.0f && ci - 1 >= h.lo[a] && ci <= h.hi[a]) {
+          if (ga < 0) ga = a;
+          else gb = a;
+        }
+      }
+      ci = ci < h.lo[a] ? h.lo[a] : ci;
+      ci = ci > h.hi[a] ? h.hi[a] : ci;
+    }
+    c[a] = ci;
+  }
+  return brick_dda(E, rec, &h, r, t0, t1, c, ga, gb, leaf);
+}
+
+/* Four lanes of a packet against one brick with SSE2 (baseline x86-64):
+ * the slab test and the entry cell of every lane at once, then per lane
+ * the mask test, and the scalar DDA only for lanes whose entry cell is
+ * empty. Lanes with a zero direction component or an entry point exactly
+ * on a cell plane take the scalar path (brick_walk), which handles them.
+ * The arithmetic is the scalar path's, operation for operation, so both
+ * give the same answers. Returns a bit mask of the lanes that hit, with
+ * their t and leaf slot in t_out / leaf_out. */
+ALWAYS_INLINE unsigned brick_walk4(const OmclBricks *B, unsigned E, const uint64_t *rec,
+                                   const BrickHead *h, const float *org[3],
+                                   const float *dir[3], const float *pre,
+                                   unsigned stride, const float *tnear,
+                                   const float *tfar, const int *valid,
+                                   float t_out[4], uint32_t leaf_out[4]) {
+  const __m128 inv_size = _mm_set1_ps(B->inv_size);
+  const __m128 zero = _mm_setzero_ps();
+  __m128i vi = _mm_loadu_si128((const __m128i *)valid);
+  __m128 live = _mm_castsi128_ps(_mm_xor_si128(_mm_cmpeq_epi32(vi, _mm_setzero_si128()),
+                                               _mm_set1_epi32(-1)));
+  __m128 o[3], d[3], inv[3], tmin[3];
+  __m128 t0 = _mm_loadu_ps(tnear), t1 = _mm_loadu_ps(tfar);
+  __m128 special = _mm_setzero_ps();
+  for (int a = 0; a < 3; ++a) {
+    if (pre) {
+      o[a] = _mm_loadu_ps(pre + a * stride);
+      d[a] = _mm_loadu_ps(pre + (3 + a) * stride);
+      inv[a] = _mm_loadu_ps(pre + (6 + a) * stride);
+    } else {
+      o[a] = _mm_mul_ps(_mm_loadu_ps(org[a]), inv_size);
+      d[a] = _mm_mul_ps(_mm_loadu_ps(dir[a]), inv_size);
+      __m128 nz = _mm_cmpneq_ps(d[a], zero);
+      /* 1 / d; lanes with d == 0 get 1 (ignored: they go the scalar way). */
+      inv[a] = _mm_div_ps(_mm_set1_ps(1.0f), _mm_or_ps(_mm_andnot_ps(nz, _mm_set1_ps(1.0f)),
+                                                       _mm_and_ps(nz, d[a])));
+    }
+    __m128 dz = _mm_cmpeq_ps(d[a], zero);
+    special = _mm_or_ps(special, dz);
+    __m128 l = _mm_set1_ps((float)(h->base[a] + h->lo[a]));
+    __m128 u = _mm_set1_ps((float)(h->base[a] + h->hi[a] + 1));
+    __m128 ta = _mm_mul_ps(_mm_sub_ps(l, o[a]), inv[a]);
+    __m128 tb = _mm_mul_ps(_mm_sub_ps(u, o[a]), inv[a]);
+    tmin[a] = _mm_min_ps(ta, tb);
+    t0 = _mm_max_ps(t0, tmin[a]);
+    t1 = _mm_min_ps(t1, _mm_max_ps(ta, tb));
+  }
+  __m128 pass = _mm_and_ps(live, _mm_cmple_ps(t0, t1));
+  /* Scalar lanes are decided there, slab included. */
+  unsigned slow = (unsigned)_mm_movemask_ps(_mm_and_ps(live, special));
+  unsigned fast = (unsigned)_mm_movemask_ps(_mm_andnot_ps(special, pass));
+  if (!(slow | fast)) return 0;
+  /* Entry cells: on the entry axis the near boundary cell, elsewhere the
+   * cell of the entry point (cell planes hit exactly go the scalar way). */
+  __m128i c[3];
+  __m128 entered = _mm_setzero_ps(); /* an earlier axis set t0 */
+  __m128 inside = _mm_cmpge_ps(_mm_loadu_ps(tnear), t0); /* t0 is tnear */
+  for (int a = 0; a < 3; ++a) {
+    __m128i lo = _mm_set1_epi32(h->lo[a]), hi = _mm_set1_epi32(h->hi[a]);
+    __m128 q = _mm_sub_ps(_mm_add_ps(o[a], _mm_mul_ps(t0, d[a])),
+                          _mm_set1_ps((float)h->base[a]));
+    __m128i ci = _mm_cvttps_epi32(q);
+    __m128 on_plane = _mm_cmpeq_ps(_mm_cvtepi32_ps(ci), q);
+    /* Clamp to [lo, hi] (SSE2 has no 32-bit min/max). */
+    __m128i below = _mm_cmplt_epi32(ci, lo), above = _mm_cmpgt_epi32(ci, hi);
+    ci = _mm_or_si128(_mm_andnot_si128(_mm_or_si128(below, above), ci),
+                      _mm_or_si128(_mm_and_si128(below, lo), _mm_and_si128(above, hi)));
+    /* The entry axis: the first axis whose near distance is t0 (as the
+     * scalar code picks it), unless the ray starts inside. */
+    __m128 is_entry = _mm_andnot_ps(_mm_or_ps(inside, entered), _mm_cmpeq_ps(tmin[a], t0));
+    entered = _mm_or_ps(entered, is_entry);
+    __m128i pos = _mm_castps_si128(_mm_cmpgt_ps(d[a], zero));
+    __m128i edge = _mm_or_si128(_mm_and_si128(pos, lo), _mm_andnot_si128(pos, hi));
+    __m128i ie = _mm_castps_si128(is_entry);
+    c[a] = _mm_or_si128(_mm_and_si128(ie, edge), _mm_andnot_si128(ie, ci));
+    slow |= (unsigned)_mm_movemask_ps(_mm_andnot_ps(is_entry, _mm_and_ps(on_plane, pass)));
+  }
+  fast &= ~slow;
+  float ft0[4], ft1[4], fo[3][4], fd[3][4], finv[3][4];
+  int fc[3][4];
+  _mm_storeu_ps(ft0, t0);
+  _mm_storeu_ps(ft1, t1);
+  for (int a = 0; a < 3; ++a) {
+    _mm_storeu_si128((__m128i *)fc[a], c[a]);
+    _mm_storeu_ps(fo[a], o[a]);
+    _mm_storeu_ps(fd[a], d[a]);
+    _mm_storeu_ps(finv[a], inv[a]);
+  }
+  unsigned hits = 0;
+  for (unsigned k = 0; k < 4; ++k) {
+    if (!((fast | slow) >> k & 1u)) continue;
+    if (fast >> k & 1u && brick_bit(rec, E, fc[0][k], fc[1][k], fc[2][k])) {
+      /* The common case: the cell the ray enters by is occupied. */
+      leaf_out[k] = h->first + brick_rank(rec, E, fc[0][k], fc[1][k], fc[2][k]);
+      t_out[k] = ft0[k];
+      hits |= 1u << k;
+      continue;
+    }
+    CellRay r;
+    for (int a = 0; a < 3; ++a) {
+      r.o[a] = fo[a][k];
+      r.d[a] = fd[a][k];
+      r.inv[a] = r.d[a] == 0.0f ? 0.0f : finv[a][k];
+    }
+    float t;
+    if (slow >> k & 1u) {
+      t = brick_walk(E, rec, &r, tnear[k], tfar[k], &leaf_out[k]);
+    } else {
+      int cc[3] = {fc[0][k], fc[1][k], fc[2][k]};
+      t = brick_dda(E, rec, h, &r, ft0[k], ft1[k], cc, -1, -1, &leaf_out[k]);
+    }
+    if (t != INFINITY) {
+      t_out[k] = t;
+      hits |= 1u << k;
+    }
+  }
+  return hits;
+}
+
+static void brick_bounds(const struct RTCBoundsFunctionArguments *args) {
+  const OmclBricks *b = (const OmclBricks *)args->geometryUserPtr;
+  const size_t words = b->edge == 8 ? OMCL_BRICK_WORDS_8 : OMCL_BRICK_WORDS_SMALL;
+  BrickHead h;
+  brick_head(b->data + words * (size_t)args->primID, &h);
+  /* Padded a little: the callback's exact test works in cell units, whose
+   * planes may round to either side of k * size, and Embree's box test
+   * culls rays lying exactly on a plane (see box_bounds). */
+  float lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    float l = (float)(h.base[a] + h.lo[a]) * b->size;
+    float u = (float)(h.base[a] + h.hi[a] + 1) * b->size;
+    lo[a] = l - (b->size * 1e-4f + fabsf(l) * 1e-6f);
+    hi[a] = u + (b->size * 1e-4f + fabsf(u) * 1e-6f);
+  }
+  struct RTCBounds *o = args->bounds_o;
+  o->lower_x = lo[0];
+  o->lower_y = lo[1];
+  o->lower_z = lo[2];
+  o->upper_x = hi[0];
+  o->upper_y = hi[1];
+  o->upper_z = hi[2];
+}
+
+ALWAYS_INLINE void brick_report(struct RTCRayHitN *rh, unsigned N, unsigned i, float t,
+                                 uint32_t leaf, unsigned geom, unsigned inst) {
+  float *hit = (float *)rh + 12 * N;
+  RAY_F(rh, N, TFAR, i) = t;
+  RAY_F(hit, N, NG_X, i) = 0.0f;
+  RAY_F(hit, N, NG_Y, i) = 0.0f;
+  RAY_F(hit, N, NG_Z, i) = 0.0f;
+  RAY_F(hit, N, HIT_U, i) = 0.0f;
+  RAY_F(hit, N, HIT_V, i) = 0.0f;
+  RAY_U(hit, N, PRIM_ID, i) = leaf;
+  RAY_U(hit, N, GEOM_ID, i) = geom;
+  RAY_U(hit, N, INST_ID, i) = inst;
+}
+
+/* One brick against the N rays of an Embree callback. `occluded` marks hits
+ * Embree's way for occlusion rays (tfar = -inf) instead of reporting them.
+ * Packets (N a multiple of 4) go four lanes at a time through SSE. */
+ALWAYS_INLINE void brick_rays(const OmclBricks *b, unsigned E, const uint64_t *rec,
+                              const int *valid, void *rays, unsigned N,
+                              const struct RTCIntersectContext *ctx, unsigned geom,
+                              int occluded) {
+  struct RTCRayHitN *rh = (struct RTCRayHitN *)rays;
+  if (N % 4 == 0) {
+    BrickHead h;
+    brick_head(rec, &h);
+    const OmclContext *oc = (const OmclContext *)ctx;
+    const float *soa = oc->soa && oc->width == N ? oc->soa : NULL;
+    for (unsigned i = 0; i < N; i += 4) {
+      const float *org[3] = {&RAY_F(rh, N, ORG_X, i), &RAY_F(rh, N, ORG_Y, i),
+                             &RAY_F(rh, N, ORG_Z, i)};
+      const float *dir[3] = {&RAY_F(rh, N, DIR_X, i), &RAY_F(rh, N, DIR_Y, i),
+                             &RAY_F(rh, N, DIR_Z, i)};
+      float t[4];
+      uint32_t leaf[4];
+      unsigned hits = brick_walk4(b, E, rec, &h, org, dir, soa ? soa + i : NULL, N,
+                                  &RAY_F(rh, N, TNEAR, i),
+                                  &RAY_F(rh, N, TFAR, i), valid + i, t, leaf);
+      for (unsigned k = 0; k < 4; ++k) {
+        if (!(hits >> k & 1u)) continue;
+        if (occluded) RAY_F(rh, N, TFAR, i + k) = -INFINITY;
+        else brick_report(rh, N, i + k, t[k], leaf[k], geom, ctx->instID[0]);
+      }
+    }
+    return;
+  }
+  CellRay own;
+  for (unsigned i = 0; i < N; ++i) {
+    if (!valid[i]) continue;
+    float org[3] = {RAY_F(rh, N, ORG_X, i), RAY_F(rh, N, ORG_Y, i), RAY_F(rh, N, ORG_Z, i)};
+    float dir[3] = {RAY_F(rh, N, DIR_X, i), RAY_F(rh, N, DIR_Y, i), RAY_F(rh, N, DIR_Z, i)};
+    const CellRay *cr = context_cell_ray(ctx, RAY_U(rh, N, ID, i), b->inv_size, org, dir, &own);
+    uint32_t leaf;
+    float t = brick_walk(E, rec, cr, RAY_F(rh, N, TNEAR, i), RAY_F(rh, N, TFAR, i), &leaf);
+    if (t == INFINITY) continue;
+    if (occluded) RAY_F(rh, N, TFAR, i) = -INFINITY;
+    else brick_report(rh, N, i, t, leaf, geom, ctx->instID[0]);
+  }
+}
+
+#define BRICK_CALLBACKS(E, WORDS)                                                     \
+  static void brick_intersect_##E(const struct RTCIntersectFunctionNArguments *args) { \
+    const OmclBricks *b = (const OmclBricks *)args->geometryUserPtr;                   \
+    brick_rays(b, E, b->data + (size_t)(WORDS) * args->primID, args->valid,            \
+               args->rayhit, args->N, args->context, args->geomID, 0);                 \
+  }                                                                                    \
+  static void brick_occluded_##E(const struct RTCOccludedFunctionNArguments *args) {   \
+    const OmclBricks *b = (const OmclBricks *)args->geometryUserPtr;                   \
+    brick_rays(b, E, b->data + (size_t)(WORDS) * args->primID, args->valid,            \
+               args->ray, args->N, args->context, args->geomID, 1);                    \
+  }
+
+BRICK_CALLBACKS(2, OMCL_BRICK_WORDS_SMALL)
+BRICK_CALLBACKS(4, OMCL_BRICK_WORDS_SMALL)
+BRICK_CALLBACKS(8, OMCL_BRICK_WORDS_8)
+
+int omcl_set_brick_callbacks(RTCGeometry geom, const OmclBricks *bricks) {
+  RTCIntersectFunctionN isect;
+  RTCOccludedFunctionN occl;
+  switch (bricks->edge) {
+    case 2: isect = brick_intersect_2; occl = brick_occluded_2; break;
+    case 4: isect = brick_intersect_4; occl = brick_occluded_4; break;
+    case 8: isect = brick_intersect_8; occl = brick_occluded_8; break;
+    default: return -1;
+  }
+  rtcSetGeometryUserPrimitiveCount(geom, bricks->count);
+  rtcSetGeometryUserData(geom, (void *)bricks);
+  rtcSetGeometryBoundsFunction(geom, brick_bounds, NULL);
+  rtcSetGeometryIntersectFunction(geom, isect);
+  rtcSetGeometryOccludedFunction(geom, occl);
+  return 0;
+}
+
 /* Mirrors Ray::is_valid on the Rust side: Embree asserts on rays with
  * coordinates beyond 1.8e18 or NaN bounds, so such rays are masked out. */
 static inline int ray_ok(const OmclRay *r) {
@@ -156,10 +593,20 @@ void omcl_set_ftz_daz(void) {
 }
 
 #define TRACE_PACKET(W, TYPE, FN)                                              \
-  static void trace_##W(RTCScene scene, struct RTCIntersectContext *ctx,      \
+  static void trace_##W(RTCScene scene, OmclContext *ctx, float inv_size,    \
                         const OmclRay *rays, OmclHit *hits, size_t n) {       \
+    /* The packet's cell rays in SoA form for the callbacks' SSE path. */  \
+    float soa[9 * W];                                                          \
+    ctx->cells = NULL;                                                         \
+    ctx->soa = inv_size != 0.0f ? soa : NULL;                                  \
+    ctx->width = W;                                                            \
     for (size_t s = 0; s < n; s += W) {                                        \
       size_t m = n - s < W ? n - s : W;                                        \
+      /* The ray array streams from memory: fetch two packets ahead. */       \
+      if (s + 3 * W <= n) {                                                    \
+        for (size_t b = 0; b < W * sizeof(OmclRay); b += 64)                   \
+          __builtin_prefetch((const char *)&rays[s + 2 * W] + b);              \
+      }                                                                        \
       TYPE p;                                                                  \
       const OmclRay safe_ray = {{0, 0, 0}, {1, 0, 0}, 0.0f, 0.0f};             \
       int valid[W];                                                            \
@@ -177,7 +624,19 @@ void omcl_set_ftz_daz(void) {
         p.hit.primID[i] = RTC_INVALID_GEOMETRY_ID;                             \
         p.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;                          \
       }                                                                        \
-      FN(valid, scene, ctx, &p);                                               \
+      if (inv_size != 0.0f) {                                                  \
+        const float *src[3] = {p.ray.org_x, p.ray.org_y, p.ray.org_z};         \
+        const float *dsrc[3] = {p.ray.dir_x, p.ray.dir_y, p.ray.dir_z};        \
+        for (int a = 0; a < 3; ++a) {                                          \
+          for (size_t i = 0; i < W; ++i) {                                     \
+            float d = dsrc[a][i] * inv_size;                                   \
+            soa[a * W + i] = src[a][i] * inv_size;                             \
+            soa[(3 + a) * W + i] = d;                                          \
+            soa[(6 + a) * W + i] = 1.0f / (d == 0.0f ? 1.0f : d);              \
+          }                                                                    \
+        }                                                                      \
+      }                                                                        \
+      FN(valid, scene, &ctx->ctx, &p);                                         \
       for (size_t i = 0; i < m; ++i) {                                         \
         OmclHit *h = &hits[s + i];                                             \
         if (p.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) {                      \
@@ -194,8 +653,11 @@ TRACE_PACKET(4, struct RTCRayHit4, rtcIntersect4)
 TRACE_PACKET(8, struct RTCRayHit8, rtcIntersect8)
 TRACE_PACKET(16, struct RTCRayHit16, rtcIntersect16)
 
-static void trace_1(RTCScene scene, struct RTCIntersectContext *ctx,
+static void trace_1(RTCScene scene, OmclContext *ctx, float inv_size,
                     const OmclRay *rays, OmclHit *hits, size_t n) {
+  CellRay cell;
+  ctx->cells = inv_size != 0.0f ? &cell : NULL;
+  ctx->count = 1;
   for (size_t s = 0; s < n; ++s) {
     const OmclRay *r = &rays[s];
     OmclHit *h = &hits[s];
@@ -211,7 +673,8 @@ static void trace_1(RTCScene scene, struct RTCIntersectContext *ctx,
     p.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     p.hit.primID = RTC_INVALID_GEOMETRY_ID;
     p.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(scene, ctx, &p);
+    if (inv_size != 0.0f) cell_ray(inv_size, r->org, r->dir, &cell);
+    rtcIntersect1(scene, &ctx->ctx, &p);
     if (p.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
       h->prim = OMCL_NO_HIT; h->geom = OMCL_NO_HIT; h->t = INFINITY;
     } else {
@@ -221,10 +684,13 @@ static void trace_1(RTCScene scene, struct RTCIntersectContext *ctx,
 }
 
 /* Ray streams: Embree regroups the rays itself (rtcIntersect1M). */
-static void trace_stream(RTCScene scene, struct RTCIntersectContext *ctx,
+static void trace_stream(RTCScene scene, OmclContext *ctx, float inv_size,
                          const OmclRay *rays, OmclHit *hits, size_t n) {
   enum { M = 256 };
   struct RTCRayHit buf[M];
+  CellRay cells[M];
+  ctx->cells = inv_size != 0.0f ? cells : NULL;
+  ctx->count = M;
   for (size_t s = 0; s < n; s += M) {
     size_t m = n - s < M ? n - s : M;
     for (size_t i = 0; i < m; ++i) {
@@ -241,8 +707,13 @@ static void trace_stream(RTCScene scene, struct RTCIntersectContext *ctx,
       p->hit.geomID = RTC_INVALID_GEOMETRY_ID;
       p->hit.primID = RTC_INVALID_GEOMETRY_ID;
       p->hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+      if (inv_size != 0.0f) {
+        const float o[3] = {p->ray.org_x, p->ray.org_y, p->ray.org_z};
+        const float d[3] = {p->ray.dir_x, p->ray.dir_y, p->ray.dir_z};
+        cell_ray(inv_size, o, d, &cells[i]);
+      }
     }
-    rtcIntersect1M(scene, ctx, buf, (unsigned)m, sizeof(struct RTCRayHit));
+    rtcIntersect1M(scene, &ctx->ctx, buf, (unsigned)m, sizeof(struct RTCRayHit));
     for (size_t i = 0; i < m; ++i) {
       OmclHit *h = &hits[s + i];
       if (buf[i].hit.geomID == RTC_INVALID_GEOMETRY_ID) {
@@ -255,16 +726,20 @@ static void trace_stream(RTCScene scene, struct RTCIntersectContext *ctx,
 }
 
 void omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
-                unsigned packet) {
+                unsigned packet, float inv_size) {
   omcl_set_ftz_daz();
-  struct RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
-  ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  OmclContext ctx;
+  rtcInitIntersectContext(&ctx.ctx);
+  ctx.ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  ctx.cells = NULL;
+  ctx.count = 0;
+  ctx.soa = NULL;
+  ctx.width = 0;
   switch (packet) {
-    case 16: trace_16(scene, &ctx, rays, hits, n); break;
-    case 8: trace_8(scene, &ctx, rays, hits, n); break;
-    case 4: trace_4(scene, &ctx, rays, hits, n); break;
-    case 0: trace_stream(scene, &ctx, rays, hits, n); break;
-    default: trace_1(scene, &ctx, rays, hits, n); break;
+    case 16: trace_16(scene, &ctx, inv_size, rays, hits, n); break;
+    case 8: trace_8(scene, &ctx, inv_size, rays, hits, n); break;
+    case 4: trace_4(scene, &ctx, inv_size, rays, hits, n); break;
+    case 0: trace_stream(scene, &ctx, inv_size, rays, hits, n); break;
+    default: trace_1(scene, &ctx, inv_size, rays, hits, n); break;
   }
 }

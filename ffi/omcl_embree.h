@@ -2,8 +2,9 @@
  *
  * bindgen reads this header: it pulls in Embree 3's public API (`rtc*`) and
  * declares the small shim below, compiled from omcl_embree.c by `cc`.
- * Voxels are axis-aligned cubes of edge `size` whose lower corners are given
- * in the map's grid frame (world minus map origin, metres, float).
+ * Voxels are axis-aligned cubes of edge `size` in the map's grid frame
+ * (world minus map origin, metres, float): either one user primitive each
+ * (OmclBoxes) or grouped into bricks (OmclBricks).
  */
 #ifndef OMCL_EMBREE_H
 #define OMCL_EMBREE_H
@@ -22,6 +23,39 @@ typedef struct OmclBoxes {
   uint32_t count;
   float size; /* edge length of every box */
 } OmclBoxes;
+
+/* Voxels grouped into bricks of edge x edge x edge cells (edge 2, 4 or 8),
+ * one user primitive per non-empty brick. Each brick is a record of
+ * omcl_brick_words(edge) 64-bit words (built on the Rust side, read with
+ * shifts so the layout does not depend on byte order):
+ *   word 0: base cell x (low 32 bits, int32), base cell y (high 32 bits);
+ *   word 1: base cell z (low), index into `leaves` of its first voxel (high);
+ *   word 2: tight bounds of the occupied cells inside the brick, one byte
+ *           each: lo x, lo y, lo z, hi x, hi y, hi z (inclusive);
+ *   then the occupancy mask, bit x + edge * (y + edge * z) of the brick's
+ *   cells (one word for edge 2 and 4, eight for edge 8: word z);
+ *   edge 8 only: one more pair of words holding eight 16-bit counts, the
+ *   occupied cells in mask words before word z (word 11 for z < 4, 12 after).
+ * The leaf slot of an occupied cell is first + rank, rank = the number of
+ * occupied cells with a smaller bit index; the caller keeps the table from
+ * slots to voxel indices. Owned by Rust; must outlive the geometry. */
+typedef struct OmclBricks {
+  const uint64_t *data; /* count records */
+  uint32_t count;
+  uint32_t edge; /* 2, 4 or 8 */
+  float size;     /* voxel edge length */
+  float inv_size; /* 1 / size: the callbacks work in cell units */
+} OmclBricks;
+
+/* 64-bit words of one brick record: 4 for edge 2 and 4, 13 for edge 8. */
+#define OMCL_BRICK_WORDS_SMALL 4
+#define OMCL_BRICK_WORDS_8 13
+
+/* Registers the brick callbacks on `geom` (an RTC_GEOMETRY_TYPE_USER
+ * geometry) with `bricks` as user data. Returns 0, or -1 for an edge other
+ * than 2, 4 or 8 (nothing registered). Hits report the leaf slot of the
+ * hit cell as primID. */
+int omcl_set_brick_callbacks(RTCGeometry geom, const OmclBricks *bricks);
 
 /* One ray in, one hit out (array-of-structs on the Rust side). */
 typedef struct OmclRay {
@@ -59,10 +93,11 @@ void omcl_install_memory_monitor(RTCDevice device, int64_t *counter);
 void omcl_set_ftz_daz(void);
 
 /* Traces n rays in packets of `packet` (1, 4, 8 or 16) consecutive rays, or
- * as Embree ray streams for packet 0;
- * sets FTZ/DAZ on the calling thread first. */
+ * as Embree ray streams for packet 0; sets FTZ/DAZ on the calling thread
+ * first. For a scene of bricks, inv_size is 1 / voxel size (the rays' cell
+ * form is computed once per ray and handed to the callbacks); 0 otherwise. */
 void omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
-                unsigned packet);
+                unsigned packet, float inv_size);
 
 #ifdef __cplusplus
 }

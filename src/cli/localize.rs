@@ -20,8 +20,8 @@ use omcl::io::{npy, rgbd};
 use omcl::map::{self, LanguageMap};
 use omcl::mcl::{
     self, Filter, FilterConfig, FloorParams, FrameFeatures, PromptParams, SamplingStrategy,
+    SensorModel,
 };
-use omcl::raycast::{EmbreeCaster, Packet};
 use omcl::trajectory::Trajectory;
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -365,9 +365,10 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         config.sharpen = s;
     }
     config.sensor.contrast = !a.no_contrast;
-    let caster = Arc::new(
-        EmbreeCaster::new(m.grid().resolution as f32, &m.cells())?.with_packet(Packet::Single),
-    );
+    let caster = Arc::new(SensorModel::embree_caster(
+        m.grid().resolution as f32,
+        &m.cells(),
+    )?);
     let mut filter = Filter::new(&m, caster, k, config, particles)?;
 
     let mut estimates = Vec::with_capacity(n);

@@ -11,7 +11,7 @@ use rand_distr::StandardNormal;
 use super::*;
 use crate::geometry::{Intrinsics, Pose, camera_ray, level_camera};
 use crate::map::{FeatureDb, GridSpec, LanguageMap};
-use crate::raycast::{EmbreeCaster, Packet, RayCaster};
+use crate::raycast::RayCaster;
 use crate::scene::{self, RoomsConfig, Scene};
 
 const DIM: usize = 32;
@@ -45,9 +45,7 @@ fn world() -> World {
             .zip(scene.labels.iter().copied()),
     )
     .expect("map");
-    let caster = EmbreeCaster::new(scene.resolution as f32, &map.cells())
-        .expect("embree")
-        .with_packet(Packet::Single);
+    let caster = SensorModel::embree_caster(scene.resolution as f32, &map.cells()).expect("embree");
     World {
         scene,
         map,

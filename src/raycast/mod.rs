@@ -7,14 +7,16 @@
 //! of `|dir|`; a ray that starts inside a voxel hits it at `t_min`. Ties
 //! (a ray through a shared edge or corner) may resolve to either voxel.
 //!
-//! Two backends: [`EmbreeCaster`] (Embree 3 user geometry, packet tracing;
-//! the fast one) and [`ReferenceCaster`] (a pure-Rust 3-D DDA; the
+//! Two backends: [`EmbreeCaster`] (Embree 3 user geometry of voxel bricks,
+//! packet tracing; the fast one) and [`ReferenceCaster`] (a pure-Rust 3-D DDA; the
 //! executable definition of the semantics).
 
+mod bricks;
 mod embree;
 mod reference;
 
-pub use embree::{BuildOptions, BuildQuality, EmbreeCaster, EmbreeError, Packet};
+pub use bricks::BrickEdge;
+pub use embree::{BuildOptions, BuildQuality, EmbreeCaster, EmbreeError, Geometry, Packet};
 pub use reference::ReferenceCaster;
 
 use crate::geometry::Ray;

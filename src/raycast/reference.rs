@@ -73,6 +73,10 @@ impl ReferenceCaster {
             return Hit::miss();
         }
         // The cell at the entry point, kept inside the box against rounding.
+        // A ray running inside a cell plane (zero direction component, origin
+        // exactly on the plane) touches the closed cubes on both sides:
+        // `graze` marks those axes, whose lower neighbour is looked up too.
+        let mut graze = [false; 3];
         let mut cell = [0i32; 3];
         let mut step = [0i32; 3];
         let mut t_next = [f64::INFINITY; 3];
@@ -84,6 +88,7 @@ impl ReferenceCaster {
             if d[a] < 0.0 && p == c as f64 * r {
                 c -= 1;
             }
+            graze[a] = d[a] == 0.0 && p == c as f64 * r && c > self.lo[a] && c <= self.hi[a];
             cell[a] = c.clamp(self.lo[a], self.hi[a]);
             if d[a] > 0.0 {
                 step[a] = 1;
@@ -97,7 +102,7 @@ impl ReferenceCaster {
         }
         let mut t = t0;
         loop {
-            if let Some(&leaf) = self.cells.get(&cell) {
+            if let Some(leaf) = self.touched(cell, graze) {
                 return Hit { leaf, t: t as f32 };
             }
             let a = if t_next[0] <= t_next[1] && t_next[0] <= t_next[2] {
@@ -118,6 +123,25 @@ impl ReferenceCaster {
             }
             t_next[a] += t_delta[a];
         }
+    }
+}
+
+impl ReferenceCaster {
+    /// The leaf at `cell`, or else at a cell across the grazed planes.
+    fn touched(&self, cell: Cell, graze: [bool; 3]) -> Option<u32> {
+        if let Some(&leaf) = self.cells.get(&cell) {
+            return Some(leaf);
+        }
+        if !graze.contains(&true) {
+            return None;
+        }
+        // The neighbours below along every non-empty subset of grazed axes.
+        (1..8u32)
+            .filter(|m| (0..3).all(|a| m & (1 << a) == 0 || graze[a]))
+            .find_map(|m| {
+                let c: Cell = std::array::from_fn(|a| cell[a] - ((m >> a) & 1) as i32);
+                self.cells.get(&c).copied()
+            })
     }
 }
 

@@ -6,27 +6,38 @@ use super::*;
 use crate::geometry::Ray;
 use crate::map::Cell;
 
-fn casters(res: f32, cells: &[Cell]) -> Vec<(&'static str, Box<dyn RayCaster>)> {
-    vec![
-        ("reference", Box::new(ReferenceCaster::new(res, cells))),
-        ("embree16", Box::new(EmbreeCaster::new(res, cells).unwrap())),
-        (
-            "embree1",
-            Box::new(
-                EmbreeCaster::new(res, cells)
-                    .unwrap()
-                    .with_packet(Packet::Single),
-            ),
-        ),
-        (
-            "embree8",
-            Box::new(
-                EmbreeCaster::new(res, cells)
-                    .unwrap()
-                    .with_packet(Packet::Eight),
-            ),
-        ),
-    ]
+/// Every Embree geometry.
+const GEOMETRIES: [Geometry; 4] = [
+    Geometry::Boxes,
+    Geometry::Bricks(BrickEdge::Two),
+    Geometry::Bricks(BrickEdge::Four),
+    Geometry::Bricks(BrickEdge::Eight),
+];
+
+fn embree(res: f32, cells: &[Cell], geometry: Geometry) -> EmbreeCaster {
+    let options = BuildOptions {
+        geometry,
+        ..BuildOptions::default()
+    };
+    EmbreeCaster::with_options(res, cells, options).unwrap()
+}
+
+/// The reference and every Embree geometry with single rays and 8- and
+/// 16-wide packets (the callbacks see N = 1, 8, 16).
+fn casters(res: f32, cells: &[Cell]) -> Vec<(String, Box<dyn RayCaster>)> {
+    let mut v: Vec<(String, Box<dyn RayCaster>)> = vec![(
+        "reference".into(),
+        Box::new(ReferenceCaster::new(res, cells)),
+    )];
+    for g in GEOMETRIES {
+        for p in [Packet::Single, Packet::Eight, Packet::Sixteen] {
+            v.push((
+                format!("embree {g:?} {p:?}"),
+                Box::new(embree(res, cells, g).with_packet(p)),
+            ));
+        }
+    }
+    v
 }
 
 fn ray(o: [f32; 3], d: [f32; 3]) -> Ray {
@@ -191,28 +202,231 @@ fn odd_ray_counts_fill_partial_packets() {
         .map(|i| ray([i as f32 * 0.25 + 0.1, 0.5, 3.0], [0.0, 0.0, -1.0]))
         .collect();
     let reference = ReferenceCaster::new(1.0, &cells).cast_vec(&rays);
-    for p in [
-        Packet::Single,
-        Packet::Four,
-        Packet::Eight,
-        Packet::Sixteen,
-        Packet::Stream,
-    ] {
-        let e = EmbreeCaster::new(1.0, &cells)
-            .unwrap()
-            .with_packet(p)
-            .cast_vec(&rays);
-        assert_eq!(e, reference, "{p:?}");
+    for g in GEOMETRIES {
+        for p in [
+            Packet::Single,
+            Packet::Four,
+            Packet::Eight,
+            Packet::Sixteen,
+            Packet::Stream,
+        ] {
+            let e = embree(1.0, &cells, g).with_packet(p).cast_vec(&rays);
+            assert_eq!(e, reference, "{g:?} {p:?}");
+        }
     }
     assert_eq!(reference.iter().filter(|h| h.is_hit()).count(), 37);
 }
 
+/// Casts `cases` (ray, expected leaves, expected t) with every caster; an
+/// empty leaf list expects a miss, several leaves accept any of them (a tie
+/// between voxels touched at the same distance).
+fn expect_all(res: f32, cells: &[Cell], cases: &[(&str, Ray, &[u32], f32)]) {
+    for (name, c) in casters(res, cells) {
+        for (case, r, leaves, t) in cases {
+            let h = c.cast_vec(&[*r])[0];
+            if leaves.is_empty() {
+                assert!(!h.is_hit(), "{name}: {case}: expected a miss, got {h:?}");
+            } else {
+                assert!(
+                    leaves.contains(&h.leaf),
+                    "{name}: {case}: expected one of {leaves:?}, got {h:?}"
+                );
+                assert!((h.t - t).abs() < 1e-5, "{name}: {case}: t {} != {t}", h.t);
+            }
+        }
+    }
+}
+
+fn bounded(o: [f32; 3], d: [f32; 3], t_min: f32, t_max: f32) -> Ray {
+    Ray {
+        t_min,
+        t_max,
+        ..ray(o, d)
+    }
+}
+
+#[test]
+fn rays_cross_several_bricks() {
+    // Targets far apart along a line, fillers beside the line so that the
+    // bricks in between are not empty and their cells are walked.
+    let cells = [
+        [9, 1, 1],
+        [-7, 1, 1],
+        [2, 6, 1],
+        [1, 0, 1],
+        [3, 2, 1],
+        [5, 0, 0],
+        [6, 2, 2],
+        [-2, 0, 1],
+        [-5, 2, 1],
+        [0, 4, 1],
+    ];
+    expect_all(
+        1.0,
+        &cells,
+        &[
+            ("+x", ray([0.5, 1.5, 1.5], [1.0, 0.0, 0.0]), &[0], 8.5),
+            ("-x", ray([0.5, 1.5, 1.5], [-1.0, 0.0, 0.0]), &[1], 6.5),
+            // x = 0.5 + t / 2, y = 1.5 + t: enters (2, 6, 1) through y = 6.
+            ("diagonal", ray([0.5, 1.5, 1.5], [0.5, 1.0, 0.0]), &[2], 4.5),
+        ],
+    );
+}
+
+#[test]
+fn rays_starting_inside_a_brick_or_a_voxel() {
+    let cells = [[1, 1, 1], [2, 2, 2]];
+    expect_all(
+        1.0,
+        &cells,
+        &[
+            (
+                "inside a voxel",
+                ray([1.5, 1.5, 1.5], [1.0, 0.0, 0.0]),
+                &[0],
+                0.0,
+            ),
+            (
+                "inside a voxel, t_min",
+                bounded([1.5, 1.5, 1.5], [-1.0, 0.0, 0.0], 0.25, f32::INFINITY),
+                &[0],
+                0.25,
+            ),
+            (
+                "in the brick, outside its bounds",
+                ray([0.5, 0.5, 0.5], [1.0, 1.0, 1.0]),
+                &[0],
+                0.5,
+            ),
+            // From the empty cell (2, 1, 1): y crosses 2 at t = 0.5, z at t = 1.
+            (
+                "inside the bounds, empty cell",
+                ray([2.5, 1.5, 1.5], [0.0, 1.0, 0.5]),
+                &[1],
+                1.0,
+            ),
+            (
+                "inside the bounds, leaving",
+                ray([2.5, 1.5, 1.5], [1.0, 0.0, 0.0]),
+                &[],
+                0.0,
+            ),
+        ],
+    );
+}
+
+#[test]
+fn voxels_on_brick_borders_and_negative_cells() {
+    // Planes x = 4 and x = 8 bound bricks of every edge (2, 4, 8).
+    let cells = [
+        [3, 0, 0],
+        [4, 0, 0],
+        [7, 0, 0],
+        [8, 0, 0],
+        [-1, -1, -1],
+        [-4, -1, -1],
+        [-5, -1, -1],
+        [-9, -1, -1],
+    ];
+    let x = |o: f32, d: f32| ray([o, 0.5, 0.5], [d, 0.0, 0.0]);
+    let nx = |o: f32, d: f32| ray([o, -0.5, -0.5], [d, 0.0, 0.0]);
+    expect_all(
+        1.0,
+        &cells,
+        &[
+            ("up to 3", x(0.5, 1.0), &[0], 2.5),
+            ("down to 8", x(12.5, -1.0), &[3], 3.5),
+            ("from 5 down to 4", x(5.5, -1.0), &[1], 0.5),
+            ("from 5 up to 7", x(5.5, 1.0), &[2], 1.5),
+            (
+                "down the shared face of 3 and 4",
+                ray([4.0, 0.5, 3.5], [0.0, 0.0, -1.0]),
+                &[0, 1],
+                2.5,
+            ),
+            ("to -1", nx(0.5, -1.0), &[4], 0.5),
+            ("from -2 to -4", nx(-1.5, -1.0), &[5], 1.5),
+            ("from -6 up to -5", nx(-5.5, 1.0), &[6], 0.5),
+            ("from -7 down to -9", nx(-6.5, -1.0), &[7], 1.5),
+            ("beyond -9", nx(-9.5, -1.0), &[], 0.0),
+        ],
+    );
+}
+
+#[test]
+fn grazing_rays_along_brick_and_cell_faces() {
+    // A ray inside a cell plane touches the closed cubes on both sides.
+    let along_y = |x: f32| ray([x, -5.0, 0.5], [0.0, 1.0, 0.0]);
+    // The plane x = 4 between bricks (every edge), the voxel on either side.
+    expect_all(
+        1.0,
+        &[[3, 2, 0]],
+        &[("x = 4, voxel below", along_y(4.0), &[0], 7.0)],
+    );
+    expect_all(
+        1.0,
+        &[[4, 2, 0]],
+        &[("x = 4, voxel above", along_y(4.0), &[0], 7.0)],
+    );
+    // The plane x = 2 inside a brick of edge 4 or 8 (the filler widens the
+    // brick's bounds past it), and past the filler's far side.
+    expect_all(
+        1.0,
+        &[[1, 2, 0], [3, 5, 0]],
+        &[
+            ("x = 2 inside a brick", along_y(2.0), &[0], 7.0),
+            ("x = 4, beside the filler", along_y(4.0), &[1], 10.0),
+            ("x = 2.5 misses", along_y(2.5), &[], 0.0),
+        ],
+    );
+    // Along the edge x = y = 2 of voxel (1, 1, 3).
+    expect_all(
+        1.0,
+        &[[1, 1, 3], [3, 3, 0]],
+        &[(
+            "along an edge",
+            ray([2.0, 2.0, -2.0], [0.0, 0.0, 1.0]),
+            &[0],
+            5.0,
+        )],
+    );
+}
+
+#[test]
+fn t_max_cuts_inside_a_brick() {
+    // The filler stretches the brick's bounds to x = 0: the ray enters at
+    // t = 0.5 and walks two empty cells before the voxel at t = 2.5.
+    let cells = [[2, 0, 0], [0, 3, 3]];
+    let r = |t_max: f32| bounded([-0.5, 0.5, 0.5], [1.0, 0.0, 0.0], 0.0, t_max);
+    expect_all(
+        1.0,
+        &cells,
+        &[
+            ("short", r(2.4), &[], 0.0),
+            ("exactly (closed cube)", r(2.5), &[0], 2.5),
+            ("long", r(2.6), &[0], 2.5),
+            (
+                "t_min beyond the voxel's start",
+                bounded([-0.5, 0.5, 0.5], [1.0, 0.0, 0.0], 2.7, 9.0),
+                &[0],
+                2.7,
+            ),
+            (
+                "t_min past the voxel",
+                bounded([-0.5, 0.5, 0.5], [1.0, 0.0, 0.0], 3.6, 9.0),
+                &[],
+                0.0,
+            ),
+        ],
+    );
+}
+
 /// Random scenes and rays: Embree agrees with the reference except where
 /// two voxels are hit at (numerically) the same distance.
-fn agree(cells: &[Cell], rays: &[Ray]) -> Result<(), TestCaseError> {
+fn agree(cells: &[Cell], rays: &[Ray], geometry: Geometry) -> Result<(), TestCaseError> {
     let res = 0.05;
     let r = ReferenceCaster::new(res, cells).cast_vec(rays);
-    let e = EmbreeCaster::new(res, cells).unwrap().cast_vec(rays);
+    let e = embree(res, cells, geometry).cast_vec(rays);
     let mut ties = 0;
     for (i, (a, b)) in r.iter().zip(&e).enumerate() {
         if a.leaf == b.leaf {
@@ -224,7 +438,7 @@ fn agree(cells: &[Cell], rays: &[Ray]) -> Result<(), TestCaseError> {
         // A tie: both hit, at the same distance within float error.
         prop_assert!(
             a.is_hit() && b.is_hit() && (a.t - b.t).abs() < 1e-4,
-            "ray {i} {:?}: reference {a:?}, embree {b:?}",
+            "ray {i} {:?}: reference {a:?}, embree {geometry:?} {b:?}",
             rays[i]
         );
         ties += 1;
@@ -235,6 +449,34 @@ fn agree(cells: &[Cell], rays: &[Ray]) -> Result<(), TestCaseError> {
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// Dense blocks of voxels (bricks well filled) and rays that start
+    /// among them, inside bricks and voxels.
+    #[test]
+    fn embree_agrees_with_reference_in_dense_blocks(
+        cells in prop::collection::vec((-8i32..8, -8i32..8, -8i32..8), 200..1500),
+        rays in prop::collection::vec(
+            ((-0.4f32..0.4, -0.4f32..0.4, -0.4f32..0.4), (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0)),
+            64..256,
+        ),
+    ) {
+        // Repeated cells would be ties for the boxes (two boxes in one
+        // place); keep the first of each.
+        let mut seen = std::collections::HashSet::new();
+        let cells: Vec<Cell> = cells
+            .into_iter()
+            .map(|(x, y, z)| [x, y, z])
+            .filter(|c| seen.insert(*c))
+            .collect();
+        let rays: Vec<Ray> = rays
+            .into_iter()
+            .filter(|(_, d)| d.0 * d.0 + d.1 * d.1 + d.2 * d.2 > 1e-4)
+            .map(|(o, d)| ray([o.0, o.1, o.2], [d.0, d.1, d.2]))
+            .collect();
+        for g in GEOMETRIES {
+            agree(&cells, &rays, g)?;
+        }
+    }
 
     #[test]
     fn embree_agrees_with_reference(
@@ -250,6 +492,8 @@ proptest! {
             .filter(|(_, d)| d.0 * d.0 + d.1 * d.1 + d.2 * d.2 > 1e-4)
             .map(|(o, d)| ray([o.0, o.1, o.2], [d.0, d.1, d.2]))
             .collect();
-        agree(&cells, &rays)?;
+        for g in GEOMETRIES {
+            agree(&cells, &rays, g)?;
+        }
     }
 }
