@@ -58,7 +58,8 @@ pub struct BenchArgs {
     /// Rays (sampled pixels before duplicates are dropped).
     #[arg(long, default_value_t = 2048)]
     pub rays: usize,
-    /// Only these variants (comma-separated names, e.g. OMCL_GT).
+    /// Only these variants (comma-separated: OMCL_GT, OMCL_LSeg,
+    /// OMCL_GT_exact; default all).
     #[arg(long)]
     pub variants: Option<String>,
     /// Localize (and score consistency) with these features instead of each
@@ -154,7 +155,10 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
                 .as_deref()
                 .is_none_or(|s| s.split(',').any(|n| n.trim() == v.name))
         })
-        .copied()
+        .map(|v| Variant {
+            localize: a.preset.unwrap_or(v.localize),
+            ..*v
+        })
         .collect();
     anyhow::ensure!(
         !variants.is_empty(),
