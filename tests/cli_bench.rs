@@ -40,6 +40,7 @@ fn table1_and_table2_write_tables_and_figures() {
         "figure4_OMCL_GT.png",
         "figure4_OMCL_GT.svg",
         "figure4_OMCL_LSeg.png",
+        "figure4_OMCL_GT_exact.png",
     ] {
         assert!(dir.path().join(f).exists(), "{f} missing\n{text}");
     }
@@ -47,7 +48,7 @@ fn table1_and_table2_write_tables_and_figures() {
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("table1.json")).unwrap())
             .unwrap();
     let rows = rows.as_array().unwrap();
-    assert_eq!(rows.len(), 2);
+    assert_eq!(rows.len(), 3);
     for r in rows {
         let runs = r["per_sequence"].as_array().unwrap();
         assert_eq!(runs.len(), 1);
@@ -64,10 +65,35 @@ fn table1_and_table2_write_tables_and_figures() {
     let rows: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("table2.json")).unwrap())
             .unwrap();
-    for r in rows.as_array().unwrap() {
-        let acc = r["mean"]["accuracy"].as_f64().unwrap();
-        assert!((0.5..=1.0).contains(&acc), "{r}");
-    }
+    let acc: Vec<f64> = rows
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["mean"]["accuracy"].as_f64().unwrap())
+        .collect();
+    assert!(acc.iter().all(|a| (0.5..=1.0).contains(a)), "{rows}");
+    // Same map, features with and without label bleed: exact labels agree
+    // with the map more often than the gt preset's (OMCL_GT vs _exact).
+    assert!(acc[2] > acc[0], "{rows}");
+
+    // --preset replaces a variant's features: gt features on the exact
+    // variant give the gt variant's consistency.
+    let (o, text) = bench(
+        &[
+            &["table2", "--variants", "OMCL_GT_exact", "--preset", "gt"],
+            &small[..],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{text}");
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("table2.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        rows[0]["mean"]["accuracy"].as_f64().unwrap(),
+        acc[0],
+        "{rows}"
+    );
 }
 
 #[test]
