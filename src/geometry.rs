@@ -97,6 +97,16 @@ impl Intrinsics {
         .normalize()
     }
 
+    /// The camera-frame point at z-depth `z` (metres) seen through the
+    /// centre of pixel `(u, v)`: the inverse of [`Intrinsics::project`].
+    pub fn back_project(&self, u: u32, v: u32, z: f64) -> Point3<f64> {
+        Point3::new(
+            (u as f64 + 0.5 - self.cx) / self.fx * z,
+            (v as f64 + 0.5 - self.cy) / self.fy * z,
+            z,
+        )
+    }
+
     /// Number of pixels.
     pub fn pixel_count(&self) -> usize {
         self.width as usize * self.height as usize
@@ -152,6 +162,18 @@ pub fn camera_ray(
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn back_project_inverts_project_at_pixel_centres() {
+        let k = Intrinsics::from_hfov(64, 48, 90.0);
+        for (u, v, z) in [(0, 0, 1.0), (31, 20, 2.5), (63, 47, 0.3)] {
+            let p = k.back_project(u, v, z);
+            assert_eq!(p.z, z);
+            let (x, y) = k.project(&p).unwrap();
+            assert!((x - (u as f64 + 0.5)).abs() < 1e-9 && (y - (v as f64 + 0.5)).abs() < 1e-9);
+        }
+    }
+
     use super::*;
     use nalgebra::{Translation3, UnitQuaternion};
 

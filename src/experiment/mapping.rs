@@ -6,7 +6,7 @@
 //! a recorded sequence are) and from a second camera path through the same
 //! world (another seed) that fills in what the first did not see.
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::Vector3;
 use rayon::prelude::*;
 
 use super::ExperimentError;
@@ -168,12 +168,7 @@ fn frame_points(
     px.par_iter()
         .filter_map(|&(u, v)| {
             let z = frame.depth[frame.index(u, v)] as f64;
-            let pc = Point3::new(
-                (u as f64 + 0.5 - k.cx) / k.fx * z,
-                (v as f64 + 0.5 - k.cy) / k.fy * z,
-                z,
-            );
-            let p: Vector3<f64> = (pose * pc).coords;
+            let p: Vector3<f64> = (pose * k.back_project(u, v, z)).coords;
             (p.z <= max_height).then(|| ([p.x, p.y, p.z], row_of(u, v)))
         })
         .unzip()

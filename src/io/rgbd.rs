@@ -267,9 +267,8 @@ pub fn backproject(
         if !(z > 0.0 && z.is_finite()) {
             continue;
         }
-        let (u, v) = ((i % w) as f64, (i / w) as f64);
-        let z = z as f64;
-        points.push([(u + 0.5 - k.cx) / k.fx * z, (v + 0.5 - k.cy) / k.fy * z, z]);
+        let p = k.back_project((i % w) as u32, (i / w) as u32, z as f64);
+        points.push([p.x, p.y, p.z]);
         pixels.push(i as u32);
     }
     Ok((points, pixels))

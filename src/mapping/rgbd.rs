@@ -1,6 +1,6 @@
 //! Input option 1: posed depth frames with per-pixel features into voxels.
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::Vector3;
 
 use super::{FrameFeatures, IntegrationStats};
 use crate::geometry::{Intrinsics, Pose};
@@ -51,12 +51,7 @@ pub fn integrate_frame(
                 continue;
             }
             let z = z as f64;
-            let p_camera = Point3::new(
-                (u as f64 + 0.5 - k.cx) / k.fx * z,
-                (v as f64 + 0.5 - k.cy) / k.fy * z,
-                z,
-            );
-            let p: Vector3<f64> = (world_from_camera * p_camera).coords;
+            let p: Vector3<f64> = (world_from_camera * k.back_project(u, v, z)).coords;
             if opt.max_height.is_some_and(|h| p.z > h) {
                 s.skipped += 1;
                 continue;
