@@ -41,6 +41,8 @@ fn table1_and_table2_write_tables_and_figures() {
         "figure4_OMCL_GT.svg",
         "figure4_OMCL_LSeg.png",
         "figure4_OMCL_GT_exact.png",
+        "figure4_OMCL_auto_LSeg.png",
+        "figure4_OMCL_Open_LSeg.png",
     ] {
         assert!(dir.path().join(f).exists(), "{f} missing\n{text}");
     }
@@ -48,8 +50,40 @@ fn table1_and_table2_write_tables_and_figures() {
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("table1.json")).unwrap())
             .unwrap();
     let rows = rows.as_array().unwrap();
-    assert_eq!(rows.len(), 3);
+    let names: Vec<&str> = rows
+        .iter()
+        .map(|r| r["variant"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "OMCL_GT",
+            "OMCL_LSeg",
+            "OMCL_auto_LSeg",
+            "OMCL_Open_LSeg",
+            "OMCL_GT_exact"
+        ]
+    );
+    let k: Vec<f64> = rows
+        .iter()
+        .map(|r| r["map_rows"].as_f64().unwrap())
+        .collect();
+    // Grounded maps hold at most the 29 class rows; the ungrounded "auto"
+    // map keeps its blended voxel means as rows of their own.
+    for (n, k) in names.iter().zip(&k) {
+        assert!(
+            *n == "OMCL_auto_LSeg" || (1.0..=29.0).contains(k),
+            "{n}: K = {k}"
+        );
+    }
+    assert!(k[2] > k[1], "auto K {} vs grounded {}", k[2], k[1]);
     for r in rows {
+        // The encoder's work comes on top of the filter's.
+        let (f, fe) = (
+            r["fps"].as_f64().unwrap(),
+            r["fps_with_encoder"].as_f64().unwrap(),
+        );
+        assert!(fe > 0.0 && fe < f, "{r}");
         let runs = r["per_sequence"].as_array().unwrap();
         assert_eq!(runs.len(), 1);
         assert_eq!(runs[0]["errors_m"].as_array().unwrap().len(), 6);
@@ -74,7 +108,7 @@ fn table1_and_table2_write_tables_and_figures() {
     assert!(acc.iter().all(|a| (0.5..=1.0).contains(a)), "{rows}");
     // Same map, features with and without label bleed: exact labels agree
     // with the map more often than the gt preset's (OMCL_GT vs _exact).
-    assert!(acc[2] > acc[0], "{rows}");
+    assert!(acc[4] > acc[0], "{rows}");
 
     // --preset replaces a variant's features: gt features on the exact
     // variant give the gt variant's consistency.

@@ -59,7 +59,7 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 2048)]
     pub rays: usize,
     /// Only these variants (comma-separated: OMCL_GT, OMCL_LSeg,
-    /// OMCL_GT_exact; default all).
+    /// OMCL_auto_LSeg, OMCL_Open_LSeg, OMCL_GT_exact; default all).
     #[arg(long)]
     pub variants: Option<String>,
     /// Localize (and score consistency) with these features instead of each
@@ -241,12 +241,15 @@ fn table1(
             )?;
             pb.finish_and_clear();
             eprintln!(
-                "{} sequence {s}: APE rmse {:.3} m, max {:.3}, completed {}, {:.1} steps/s",
+                "{} sequence {s}: APE rmse {:.3} m, max {:.3}, completed {}, {:.1} steps/s \
+                 ({:.1} with the simulated encoder), K = {}",
                 v.name,
                 r.stats.rmse,
                 r.stats.max,
                 r.completed,
-                r.fps()
+                r.fps(),
+                r.fps_with_encoder(),
+                r.map_rows
             );
             panels_data.push((
                 s,
@@ -285,14 +288,14 @@ fn table1(
 fn table1_markdown(rows: &[TrackingRow]) -> String {
     let mut s = String::from(
         "## Table I: APE of tracking (m), averaged over sequences\n\n\
-         | variant | RMSE | STD | Mean | Median | min RMSE | max RMSE | SSE (m^2) | completed | steps/s |\n\
-         |---|---|---|---|---|---|---|---|---|---|\n",
+         | variant | RMSE | STD | Mean | Median | min RMSE | max RMSE | SSE (m^2) | completed | steps/s | with encoder | K |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         if let Some(m) = &r.summary {
             let _ = writeln!(
                 s,
-                "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {}/{} | {:.1} |",
+                "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {}/{} | {:.1} | {:.1} | {:.0} |",
                 r.variant,
                 m.mean.rmse,
                 m.mean.std,
@@ -303,7 +306,9 @@ fn table1_markdown(rows: &[TrackingRow]) -> String {
                 m.mean.sse,
                 r.completed,
                 r.per_sequence.len(),
-                r.fps
+                r.fps,
+                r.fps_with_encoder,
+                r.map_rows
             );
         }
     }

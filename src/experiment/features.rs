@@ -2,7 +2,8 @@
 //! [`FrameFeatures`] interface: features are computed only at the pixels
 //! the filter asks for (the clustering grid and the sampled pixels), not
 //! for the whole image, as an encoder running at reduced resolution would
-//! not be either.
+//! not be either. [`GridFeatures`] computes them ahead of the filter step
+//! (the encoder's work, timed apart), [`SimFrameFeatures`] on demand.
 
 use crate::mcl::FrameFeatures;
 use crate::sim::features::{FeatureModel, Preset};
@@ -58,5 +59,126 @@ impl FrameFeatures for SimFrameFeatures<'_> {
         (l != NO_LABEL)
             .then(|| rows.get(l as usize).copied())
             .flatten()
+    }
+}
+
+/// A frame's features at the centres of the sampling grid (stride `s`:
+/// pixel `(gx s + s / 2, gy s + s / 2)`, clamped to the image), computed
+/// up front as an encoder producing a feature map at reduced resolution
+/// does, so the filter step that reads them does no encoder work. Pixels
+/// off the grid are computed on demand.
+pub struct GridFeatures<'a> {
+    inner: SimFrameFeatures<'a>,
+    stride: u32,
+    grid_w: u32,
+    features: Vec<f32>,
+}
+
+impl<'a> GridFeatures<'a> {
+    /// Computes `inner`'s features at every grid centre of stride `stride`
+    /// (in parallel).
+    pub fn new(inner: SimFrameFeatures<'a>, stride: u32) -> Self {
+        use rayon::prelude::*;
+        let s = stride.max(1);
+        let (w, h) = (inner.width(), inner.height());
+        let (gw, gh) = (w.div_ceil(s), h.div_ceil(s));
+        let dim = inner.dim();
+        let mut features = vec![0.0f32; gw as usize * gh as usize * dim];
+        features
+            .par_chunks_mut(dim)
+            .enumerate()
+            .for_each(|(i, out)| {
+                let (gx, gy) = (i as u32 % gw, i as u32 / gw);
+                let (u, v) = Self::centre(s, w, h, gx, gy);
+                inner.feature(u, v, out);
+            });
+        GridFeatures {
+            inner,
+            stride: s,
+            grid_w: gw,
+            features,
+        }
+    }
+
+    fn centre(s: u32, w: u32, h: u32, gx: u32, gy: u32) -> (u32, u32) {
+        ((gx * s + s / 2).min(w - 1), (gy * s + s / 2).min(h - 1))
+    }
+
+    /// The cached feature of `(u, v)` if it is a grid centre.
+    fn cached(&self, u: u32, v: u32) -> Option<&[f32]> {
+        let (gx, gy) = (u / self.stride, v / self.stride);
+        let (w, h) = (self.inner.width(), self.inner.height());
+        if Self::centre(self.stride, w, h, gx, gy) != (u, v) {
+            return None;
+        }
+        let dim = self.inner.dim();
+        let i = (gy * self.grid_w + gx) as usize * dim;
+        self.features.get(i..i + dim)
+    }
+}
+
+impl FrameFeatures for GridFeatures<'_> {
+    fn width(&self) -> u32 {
+        self.inner.width()
+    }
+    fn height(&self) -> u32 {
+        self.inner.height()
+    }
+    fn dim(&self) -> usize {
+        self.inner.dim()
+    }
+    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
+        match self.cached(u, v) {
+            Some(f) => out.copy_from_slice(f),
+            None => self.inner.feature(u, v, out),
+        }
+    }
+    fn nearest_row(&self, u: u32, v: u32) -> Option<u32> {
+        self.inner.nearest_row(u, v)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::features::Preset;
+
+    /// Cached and on-demand features agree at grid centres (the last
+    /// column and row clamped) and off the grid.
+    #[test]
+    fn grid_features_equal_on_demand_features() {
+        let t = crate::sim::files::builtin_table().unwrap();
+        let model = FeatureModel::preset(t, Preset::LsegLike, 3);
+        let (w, h) = (23u32, 10u32);
+        let labels: Vec<u16> = (0..w * h)
+            .map(|i| ((i % w) / 5 + i / w / 4) as u16)
+            .collect();
+        let n = labels.len();
+        let frame = Frame {
+            width: w,
+            height: h,
+            depth: vec![2.0; n],
+            labels,
+            leaves: vec![0; n],
+            incidence: vec![1.0; n],
+        };
+        let direct = SimFrameFeatures::new(&model, Preset::LsegLike, &frame, 4, &[]);
+        let grid = GridFeatures::new(
+            SimFrameFeatures::new(&model, Preset::LsegLike, &frame, 4, &[]),
+            4,
+        );
+        let (mut a, mut b) = (vec![0.0; model.dim()], vec![0.0; model.dim()]);
+        let mut cached = 0;
+        for v in 0..h {
+            for u in 0..w {
+                cached += usize::from(grid.cached(u, v).is_some());
+                direct.feature(u, v, &mut a);
+                grid.feature(u, v, &mut b);
+                assert_eq!(a, b, "pixel ({u}, {v})");
+            }
+        }
+        // 6 x 3 grid cells, each with one centre.
+        assert_eq!(cached, 18);
+        assert!(grid.cached(22, 9).is_some() && grid.cached(2, 2).is_some());
     }
 }

@@ -30,6 +30,16 @@ pub enum MapSource {
     /// that needs the whole feature stream in memory or a per-feature
     /// database search, so the experiment grounds first.)
     Features(Preset),
+    /// As [`MapSource::Features`], but the database is not grounded on the
+    /// class names: its rows are the admitted voxel means (the paper's
+    /// ungrounded OMCL^auto).
+    Auto(Preset),
+    /// A point cloud (the mapping frames' points fused in the world frame)
+    /// whose points a 3-D encoder labels ([`crate::sim::features::OPENSCENE_LIKE`],
+    /// [`FeatureModel::point_class`]), integrated as point-cloud maps are
+    /// ([`crate::mapping::cloud`]) and grounded: the paper's input option 2
+    /// (OpenScene).
+    PointCloud,
 }
 
 impl MapSource {
@@ -38,7 +48,14 @@ impl MapSource {
         match self {
             MapSource::Labels => "labels".into(),
             MapSource::Features(p) => format!("{}-features", p.name()),
+            MapSource::Auto(p) => format!("{}-features-auto", p.name()),
+            MapSource::PointCloud => "openscene-like-points".into(),
         }
+    }
+
+    /// Whether the finished map is grounded on the class names.
+    pub fn grounded(&self) -> bool {
+        !matches!(self, MapSource::Auto(_))
     }
 }
 
@@ -89,7 +106,8 @@ pub fn mapping_poses(seq: &SimSequence, frames: usize) -> Vec<Pose> {
 }
 
 /// Builds the map of `seq`'s world from `source`. `model` gives the
-/// features of [`MapSource::Features`] (its preset must match).
+/// features of every source but [`MapSource::Labels`] (the preset's model,
+/// or for [`MapSource::PointCloud`] the point encoder's).
 pub fn build_map(
     seq: &SimSequence,
     source: MapSource,
@@ -97,9 +115,7 @@ pub fn build_map(
     model: Option<&FeatureModel>,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<LanguageMap, ExperimentError> {
-    if let MapSource::Features(_) = source
-        && model.is_none()
-    {
+    if source != MapSource::Labels && model.is_none() {
         return Err(ExperimentError::Config(
             "a feature map needs a feature model".into(),
         ));
@@ -124,22 +140,27 @@ pub fn build_map(
         .collect();
     for (i, pose) in poses.iter().enumerate() {
         let frame = render::render_frame(&seq.scene.caster, &seq.scene.world.voxels, k, pose);
-        let (points, rows) = frame_points(&frame, k, pose, s, params.max_height, |u, v| {
+        let (points, rows) = frame_points(&frame, k, pose, s, params.max_height, |u, v, p| {
             let l = frame.labels[frame.index(u, v)];
             match (source, model) {
-                (MapSource::Features(_), Some(m)) => {
+                (MapSource::Features(_) | MapSource::Auto(_), Some(m)) => {
                     let ctx = m.context(&frame, u, v);
                     m.predicted_class(0x9a9_0000 + i as u64, u, v, &ctx)
                         .map(|c| c as u32)
                 }
+                (MapSource::PointCloud, Some(m)) => m.point_class(p, l).map(|c| c as u32),
                 _ => (l != NO_LABEL).then_some(l as u32),
             }
         });
-        integ.add_rows_batch(&points, &rows);
+        if source == MapSource::PointCloud {
+            crate::mapping::cloud::integrate_point_rows(&mut integ, &points, &rows);
+        } else {
+            integ.add_rows_batch(&points, &rows);
+        }
         progress(i + 1);
     }
     let mut map = integ.finish(source.name(), params.tau)?;
-    if params.ground {
+    if params.ground && source.grounded() {
         let prompts = FeatureDb::from_rows(table.dim, params.tau, table.rows.clone())?;
         crate::map::ground::ground(&mut map, &prompts, -1.0)?;
     }
@@ -147,14 +168,14 @@ pub fn build_map(
 }
 
 /// World points and rows of the used pixels of one frame (rows computed in
-/// parallel by `row_of`).
+/// parallel by `row_of(u, v, point)`).
 fn frame_points(
     frame: &Frame,
     k: &crate::geometry::Intrinsics,
     pose: &Pose,
     stride: u32,
     max_height: f64,
-    row_of: impl Fn(u32, u32) -> Option<u32> + Sync,
+    row_of: impl Fn(u32, u32, [f64; 3]) -> Option<u32> + Sync,
 ) -> (Vec<[f64; 3]>, Vec<Option<u32>>) {
     let px: Vec<(u32, u32)> = (0..frame.height)
         .step_by(stride as usize)
@@ -169,7 +190,8 @@ fn frame_points(
         .filter_map(|&(u, v)| {
             let z = frame.depth[frame.index(u, v)] as f64;
             let p: Vector3<f64> = (pose * k.back_project(u, v, z)).coords;
-            (p.z <= max_height).then(|| ([p.x, p.y, p.z], row_of(u, v)))
+            let p = [p.x, p.y, p.z];
+            (p[2] <= max_height).then(|| (p, row_of(u, v, p)))
         })
         .unzip()
 }

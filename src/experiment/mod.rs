@@ -17,7 +17,7 @@ pub mod run;
 pub mod sequence;
 pub mod tables;
 
-pub use features::SimFrameFeatures;
+pub use features::{GridFeatures, SimFrameFeatures};
 pub use mapping::{MapParams, MapSource, build_map, mapping_poses};
 pub use run::{RunResult, RunSpec, Start, class_rows, run};
 pub use sequence::SimSequence;

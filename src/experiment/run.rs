@@ -9,7 +9,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use super::ExperimentError;
-use super::features::SimFrameFeatures;
+use super::features::{GridFeatures, SimFrameFeatures};
 use super::sequence::SimSequence;
 use crate::eval::ErrorStats;
 use crate::eval::localization::CompletionRule;
@@ -65,18 +65,32 @@ pub struct RunResult {
     pub errors_m: Vec<f64>,
     pub stats: ErrorStats,
     pub completed: bool,
-    /// Filter time per step (features of the sampled pixels, predict,
-    /// weigh, resample, estimate; rendering excluded), seconds.
+    /// Filter time per step (pixel sampling and similarity table, predict,
+    /// weigh, resample, estimate; rendering and the encoder excluded),
+    /// seconds.
     pub step_seconds: Vec<f64>,
+    /// The (simulated) encoder's time per step: the features of the
+    /// sampling grid, computed before the step, seconds.
+    pub encoder_seconds: Vec<f64>,
     /// Distinct rays per particle, mean over steps.
     pub mean_rays: f64,
+    /// Rows of the map's feature database (K).
+    pub map_rows: usize,
 }
 
 impl RunResult {
-    /// Filter steps per second (mean step time).
+    /// Filter steps per second (mean step time), encoder excluded.
     pub fn fps(&self) -> f64 {
         let n = self.step_seconds.len().max(1) as f64;
         n / self.step_seconds.iter().sum::<f64>().max(1e-12)
+    }
+
+    /// Frames per second with the (simulated) encoder: filter and encoder
+    /// one after the other.
+    pub fn fps_with_encoder(&self) -> f64 {
+        let n = self.step_seconds.len().max(1) as f64;
+        let t: f64 = self.step_seconds.iter().chain(&self.encoder_seconds).sum();
+        n / t.max(1e-12)
     }
 }
 
@@ -147,10 +161,16 @@ pub fn run(
     let mut estimates = Vec::with_capacity(last - first);
     let mut errors = Vec::with_capacity(last - first);
     let mut step_seconds = Vec::with_capacity(last - first);
+    let mut encoder_seconds = Vec::with_capacity(last - first);
     let mut rays = 0usize;
     for i in first..last {
         let frame = seq.render(i);
-        let f = SimFrameFeatures::new(model, spec.preset, &frame, i as u64, &rows);
+        let t = Instant::now();
+        let f = GridFeatures::new(
+            SimFrameFeatures::new(model, spec.preset, &frame, i as u64, &rows),
+            spec.filter.sampling.stride,
+        );
+        encoder_seconds.push(t.elapsed().as_secs_f64());
         let inc = if i == first {
             Pose::identity()
         } else {
@@ -169,9 +189,11 @@ pub fn run(
     Ok(RunResult {
         completed: CompletionRule::default().is_completed(&errors),
         mean_rays: rays as f64 / estimates.len() as f64,
+        map_rows: map.db().len(),
         estimates,
         errors_m: errors,
         stats,
         step_seconds,
+        encoder_seconds,
     })
 }
