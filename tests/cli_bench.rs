@@ -151,3 +151,81 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
     assert!(!o.status.success());
     assert!(text.contains("invalid"), "{text}");
 }
+
+/// Table V and both ablations in one call (maps shared), on a tiny
+/// benchmark: one combined report, every JSON table with its cells and
+/// values in range, every figure.
+#[test]
+fn table5_and_ablations_write_tables_and_figures() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let (o, text) = bench(&[
+        "table5",
+        "particles-rays",
+        "sampling",
+        "--sequences",
+        "1",
+        "--ablation-sequences",
+        "1",
+        "--frames",
+        "8",
+        "--map-frames",
+        "20",
+        "--particles",
+        "64",
+        "--starts",
+        "1",
+        "--max-steps",
+        "4",
+        "-o",
+        out,
+    ]);
+    assert!(o.status.success(), "{text}");
+    let md = std::fs::read_to_string(dir.path().join("bench.md")).unwrap();
+    for h in ["Table V", "particles x rays", "ray sampling"] {
+        assert!(md.contains(h), "{h} missing in\n{md}");
+    }
+    for f in [
+        "ablation_particles_ape.png",
+        "ablation_particles_fps.svg",
+        "ablation_sampling.png",
+    ] {
+        assert!(dir.path().join(f).exists(), "{f} missing\n{text}");
+    }
+    let json = |f: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join(f)).unwrap()).unwrap()
+    };
+    let cells = json("ablation_particles_rays.json");
+    let cells = cells.as_array().unwrap();
+    assert_eq!(cells.len(), 16);
+    for c in cells {
+        let (rmse, fps) = (c["rmse"].as_f64().unwrap(), c["fps"].as_f64().unwrap());
+        assert!(rmse.is_finite() && rmse < 1.5 && fps > 0.0, "{c}");
+    }
+    // More particles cost time: 2048 particles step slower than 256.
+    let fps = |n: u64, r: u64| {
+        cells
+            .iter()
+            .find(|c| c["particles"] == n && c["rays"] == r)
+            .unwrap()["fps"]
+            .as_f64()
+            .unwrap()
+    };
+    assert!(fps(256, 4096) > fps(2048, 4096), "{cells:?}");
+    let sampling = json("ablation_sampling.json");
+    let sampling = sampling.as_array().unwrap();
+    assert_eq!(sampling.len(), 9);
+    assert!(
+        sampling
+            .iter()
+            .all(|c| c["rmse_mean"].as_f64().unwrap() < 1.5)
+    );
+    let t5 = json("table5.json");
+    let t5 = t5.as_array().unwrap();
+    assert_eq!(t5.len(), 2, "without and with a prompt");
+    for (t, prompt) in t5.iter().zip([false, true]) {
+        assert_eq!(t["prompt"], prompt);
+        assert_eq!(t["rows"].as_array().unwrap().len(), 5, "2 .. 0.1 m");
+        assert_eq!(t["runs"].as_array().unwrap().len(), 1);
+    }
+}

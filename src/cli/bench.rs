@@ -36,9 +36,10 @@ pub enum Experiment {
 
 #[derive(Debug, Args)]
 pub struct BenchArgs {
-    /// Which experiment.
-    #[arg(value_enum)]
-    pub experiment: Experiment,
+    /// Which experiments (one or more; maps built for one are reused by
+    /// the next, e.g. `omcl bench table1 table2`).
+    #[arg(value_enum, required = true, num_args = 1..)]
+    pub experiments: Vec<Experiment>,
     /// Number of sequences (seeds first-seed .. first-seed + n).
     #[arg(long, default_value_t = 10)]
     pub sequences: u64,
@@ -174,32 +175,36 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
                 a.ablation_variant
             )
         })?;
-    let e = a.experiment;
-    let all = e == Experiment::All;
+    let e = &a.experiments;
+    let all = e.contains(&Experiment::All);
+    let wants = |x: Experiment| all || e.contains(&x);
     let mut report = format!(
         "# omcl bench ({} sequences of {} frames, {} particles, {} rays)\n\n",
         a.sequences, a.frames, a.particles, a.rays
     );
-    if all || e == Experiment::Table1 {
+    if wants(Experiment::Table1) {
         report += &table1(&a, &mut bench, &variants, config)?;
     }
-    if all || e == Experiment::Table2 {
+    if wants(Experiment::Table2) {
         report += &table2(&a, &mut bench, &variants)?;
     }
-    if all || e == Experiment::Table5 {
+    if wants(Experiment::Table5) {
         report += &table5(&a, &mut bench, ablation, config)?;
     }
-    if all || e == Experiment::ParticlesRays {
+    if wants(Experiment::ParticlesRays) {
         report += &particles_rays(&a, &mut bench, ablation, config)?;
     }
-    if all || e == Experiment::Sampling {
+    if wants(Experiment::Sampling) {
         report += &sampling(&a, &mut bench, ablation, config)?;
     }
-    let name = format!(
-        "{}.md",
-        e.to_possible_value()
-            .map_or("bench".into(), |v| v.get_name().to_string())
-    );
+    let name = match e.as_slice() {
+        [one] => format!(
+            "{}.md",
+            one.to_possible_value()
+                .map_or("bench".into(), |v| v.get_name().to_string())
+        ),
+        _ => "bench.md".into(),
+    };
     write_text(&a.out.join(&name), &report)?;
     println!("{report}");
     println!("wrote {}", a.out.display());

@@ -305,18 +305,22 @@ pub struct GlobalRun {
     pub error: Option<String>,
 }
 
-/// 3 to 5 object classes (not walls, floor, ceiling...) with at least 20
-/// voxels within 2 m (horizontally) of the camera at frame `first`, drawn
-/// with `seed`; fewer if fewer are there.
+/// 3 to 5 object classes (not walls, floor, ceiling...) that the prompt
+/// initialization can find around the camera at frame `first`: each with
+/// at least the initialization's voxel count `k` (at the world's
+/// resolution) within its radius (horizontally) of the camera, drawn with
+/// `seed`; fewer if fewer are there.
 pub fn prompt_words(seq: &SimSequence, first: usize, seed: u64) -> Vec<String> {
     use rand::SeedableRng;
     use rand::seq::SliceRandom;
     let w = &seq.scene.world.voxels;
     let p = seq.poses()[first].translation.vector;
+    let prompt = crate::mcl::PromptParams::default();
+    let k = prompt.k_at(w.resolution);
     let mut counts = vec![0usize; w.classes.len()];
     for (c, &l) in w.cells.iter().zip(&w.labels) {
         let q = w.cell_centre(*c);
-        if (q.x - p.x).hypot(q.y - p.y) <= 2.0 {
+        if (q.x - p.x).hypot(q.y - p.y) <= prompt.radius {
             counts[l as usize] += 1;
         }
     }
@@ -324,7 +328,7 @@ pub fn prompt_words(seq: &SimSequence, first: usize, seed: u64) -> Vec<String> {
         .iter()
         .enumerate()
         .filter(|&(c, &n)| {
-            n >= 20
+            n as f64 >= k
                 && !crate::sim::features::STUFF_CLASSES
                     .iter()
                     .any(|s| s.eq_ignore_ascii_case(&w.classes[c]))
@@ -380,4 +384,47 @@ pub fn steps_rows(runs: &[GlobalRun]) -> Vec<StepsRow> {
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Prompt words are distinct object classes, each with at least the
+    /// prompt initialization's count `k` of voxels within its radius of the
+    /// camera, so the initialization can find the start.
+    #[test]
+    fn prompt_words_are_objects_the_initialization_can_find() {
+        let table = builtin_table().unwrap();
+        let seq = SimSequence::generate(3, 40, &table).unwrap();
+        let w = &seq.scene.world.voxels;
+        let prompt = crate::mcl::PromptParams::default();
+        let k = prompt.k_at(w.resolution);
+        let mut some = 0;
+        for first in [0, 13, 27, 39] {
+            let words = prompt_words(&seq, first, 0x5eed ^ first as u64);
+            assert!(words.len() <= 5);
+            some += words.len();
+            let p = seq.poses()[first].translation.vector;
+            for (i, word) in words.iter().enumerate() {
+                assert!(!words[..i].contains(word), "{words:?}");
+                assert!(
+                    !crate::sim::features::STUFF_CLASSES.contains(&word.as_str()),
+                    "{word}"
+                );
+                let c = w.classes.iter().position(|n| n == word).unwrap() as u16;
+                let n = w
+                    .cells
+                    .iter()
+                    .zip(&w.labels)
+                    .filter(|&(cell, &l)| {
+                        let q = w.cell_centre(*cell);
+                        l == c && (q.x - p.x).hypot(q.y - p.y) <= prompt.radius
+                    })
+                    .count();
+                assert!(n as f64 >= k, "{word}: {n} voxels < k = {k}");
+            }
+        }
+        assert!(some > 0, "no start had any prompt word");
+    }
 }
