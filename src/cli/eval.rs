@@ -448,16 +448,7 @@ fn write_json(
 ) -> anyhow::Result<()> {
     let Some(path) = path else { return Ok(()) };
     let text = serde_json::to_string_pretty(&value())?;
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let mut tmp = tempfile::NamedTempFile::new_in(dir)
-        .with_context(|| format!("creating a temporary file in {}", dir.display()))?;
-    tmp.write_all(text.as_bytes())
-        .and_then(|_| tmp.write_all(b"\n"))
-        .with_context(|| format!("writing {}", path.display()))?;
-    tmp.persist(path)
+    omcl::io::atomic::write(path, format!("{text}\n").as_bytes())
         .with_context(|| format!("writing {}", path.display()))?;
     emit(&format!("JSON written to {}\n", path.display()));
     Ok(())

@@ -1,6 +1,5 @@
 //! `omcl localize`: the particle filter over a recorded sequence.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -443,13 +442,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     let est = Trajectory::new(stamps, estimates)?;
     poses::write_poses(&a.out, &est, PoseFormat::Tum)?;
     if let Some(p) = &a.diagnostics {
-        let dir = p
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
-        tmp.write_all(diag.as_bytes())?;
-        tmp.persist(p)
+        omcl::io::atomic::write(p, diag.as_bytes())
             .with_context(|| format!("writing {}", p.display()))?;
     }
     print!("wrote {} ({n} frames)", a.out.display());

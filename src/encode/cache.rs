@@ -9,7 +9,6 @@
 //! Features computed by any external tool can be dropped in as `.npy` with
 //! a matching `.json`.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
@@ -115,12 +114,9 @@ impl FeatureCache {
             path: path.clone(),
             err,
         };
-        let mut tmp = tempfile::NamedTempFile::new_in(&self.dir).map_err(io)?;
         let text = serde_json::to_string_pretty(&meta)
             .map_err(|e| EncodeError::Input(format!("cache metadata: {e}")))?;
-        tmp.write_all(text.as_bytes()).map_err(io)?;
-        tmp.persist(&path).map_err(|e| io(e.error))?;
-        Ok(())
+        crate::io::atomic::write(&path, text.as_bytes()).map_err(io)
     }
 
     /// The cached map of `frame`, or `compute()`'s result, stored first.

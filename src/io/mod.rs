@@ -1,4 +1,5 @@
 //! Reading and writing files: parsing only, no math beyond it.
+pub mod atomic;
 pub mod npy;
 pub mod poses;
 pub mod rgb;

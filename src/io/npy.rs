@@ -5,7 +5,7 @@
 //! order and returns `f32`; writing produces little-endian `f4`.
 
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Write};
+use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use npyz::{DType, NpyFile, TypeChar, WriterBuilder};
@@ -114,26 +114,17 @@ pub fn write_npy(path: &Path, shape: &[usize], data: &[f32]) -> Result<(), NpyEr
             ),
         });
     }
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let tmp = tempfile::NamedTempFile::new_in(dir).map_err(io_err)?;
-    {
-        let mut buf = BufWriter::new(tmp.as_file());
+    crate::io::atomic::write_with(path, |buf| {
         let dims: Vec<u64> = shape.iter().map(|&d| d as u64).collect();
         let mut w = npyz::WriteOptions::new()
             .default_dtype()
             .shape(&dims)
-            .writer(&mut buf)
-            .begin_nd()
-            .map_err(io_err)?;
-        w.extend(data.iter().copied()).map_err(io_err)?;
-        w.finish().map_err(io_err)?;
-        buf.flush().map_err(io_err)?;
-    }
-    tmp.persist(path).map_err(|e| io_err(e.error))?;
-    Ok(())
+            .writer(buf)
+            .begin_nd()?;
+        w.extend(data.iter().copied())?;
+        w.finish()
+    })
+    .map_err(io_err)
 }
 
 #[cfg(test)]

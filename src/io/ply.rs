@@ -16,7 +16,7 @@
 //! Other properties are ignored.
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, BufWriter, Read, Write};
+use std::io::{BufRead, BufReader, Read, Write};
 use std::path::Path;
 
 use ply_rs_bw::parser::{Parser, Reader};
@@ -533,14 +533,7 @@ fn first_line(s: &str) -> String {
 /// file is written to a temporary file beside `path` and renamed into place.
 pub fn write_ply(path: &Path, cloud: &PointCloud) -> Result<(), CloudError> {
     cloud.validate(&path.display().to_string())?;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let io_err = |e| CloudError::io(path, e);
-    let tmp = tempfile::NamedTempFile::new_in(dir).map_err(io_err)?;
-    {
-        let mut w = BufWriter::with_capacity(1 << 20, tmp.as_file());
+    crate::io::atomic::write_with(path, |w| {
         let mut header = format!(
             "ply\nformat binary_little_endian 1.0\ncomment written by omcl\nelement vertex {}\n\
              property double x\nproperty double y\nproperty double z\n",
@@ -557,7 +550,7 @@ pub fn write_ply(path: &Path, cloud: &PointCloud) -> Result<(), CloudError> {
             header.push_str(&format!("property float f{k}\n"));
         }
         header.push_str("end_header\n");
-        w.write_all(header.as_bytes()).map_err(io_err)?;
+        w.write_all(header.as_bytes())?;
         let mut rec = Vec::with_capacity(24 + 3 + 4 + 4 * dim);
         for i in 0..cloud.len() {
             rec.clear();
@@ -575,13 +568,11 @@ pub fn write_ply(path: &Path, cloud: &PointCloud) -> Result<(), CloudError> {
                     rec.extend_from_slice(&v.to_le_bytes());
                 }
             }
-            w.write_all(&rec).map_err(io_err)?;
+            w.write_all(&rec)?;
         }
-        w.flush().map_err(io_err)?;
-    }
-    tmp.as_file().sync_all().map_err(io_err)?;
-    tmp.persist(path).map_err(|e| io_err(e.error))?;
-    Ok(())
+        Ok(())
+    })
+    .map_err(|e| CloudError::io(path, e))
 }
 
 #[cfg(test)]

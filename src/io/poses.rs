@@ -16,7 +16,6 @@
 //! place.
 
 use std::fmt::Write as _;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, Quaternion, Rotation3, Translation3, UnitQuaternion};
@@ -345,19 +344,10 @@ pub fn write_poses(
 
 /// Writes `bytes` to `path` through a temporary file renamed into place.
 pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), PosesError> {
-    let io_err = |source| PosesError::Io {
+    crate::io::atomic::write(path, bytes).map_err(|source| PosesError::Io {
         path: path.to_path_buf(),
         source,
-    };
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io_err)?;
-    tmp.write_all(bytes).map_err(io_err)?;
-    tmp.flush().map_err(io_err)?;
-    tmp.persist(path).map_err(|e| io_err(e.error))?;
-    Ok(())
+    })
 }
 
 #[cfg(test)]

@@ -137,20 +137,7 @@ pub fn save(map: &LanguageMap, path: &Path) -> Result<(), MapFileError> {
         path: path.to_path_buf(),
         source,
     };
-    let bytes = to_bytes(map);
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".omcl-map-")
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .map_err(io)?;
-    std::io::Write::write_all(&mut tmp, &bytes).map_err(io)?;
-    tmp.as_file().sync_all().map_err(io)?;
-    tmp.persist(path).map_err(|e| io(e.error))?;
-    Ok(())
+    crate::io::atomic::write(path, &to_bytes(map)).map_err(io)
 }
 
 /// Reads a map file.

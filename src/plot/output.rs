@@ -1,7 +1,6 @@
 //! From a figure to a file: the format from the extension, rendering into
 //! memory with the matching plotters backend, and the atomic write.
 
-use std::io::Write;
 use std::path::Path;
 
 use plotters::backend::RGBPixel;
@@ -126,25 +125,8 @@ fn encode_png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>, png::Encod
 /// Writes `bytes` to a temporary file in `path`'s directory and renames it
 /// onto `path`, so readers see either the old file or the whole new one.
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), PlotError> {
-    let io = |source| PlotError::Io {
+    crate::io::atomic::write(path, bytes).map_err(|source| PlotError::Io {
         path: path.to_path_buf(),
         source,
-    };
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io)?;
-    // Temporary files are created private (0600); a figure is for sharing.
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .map_err(io)?;
-    }
-    tmp.write_all(bytes).map_err(io)?;
-    tmp.as_file().sync_all().map_err(io)?;
-    tmp.persist(path).map_err(|e| io(e.error))?;
-    Ok(())
+    })
 }

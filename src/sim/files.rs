@@ -35,7 +35,6 @@
 //! plus `DIR/classes.txt`, `DIR/embeddings.npy`, `DIR/world/` and
 //! `DIR/sim.json` as above; `classes.txt` there lists SemanticKITTI ids.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, Quaternion, Rotation3, Translation3, UnitQuaternion, Vector3};
@@ -83,17 +82,7 @@ fn read_text(path: &Path) -> Result<String, SimIoError> {
 
 /// Writes `bytes` to `path` through a temporary file in the same directory.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SimIoError> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io_err(path))?;
-    tmp.write_all(bytes).map_err(io_err(path))?;
-    tmp.persist(path).map_err(|e| SimIoError::Io {
-        path: path.to_path_buf(),
-        source: e.error,
-    })?;
-    Ok(())
+    crate::io::atomic::write(path, bytes).map_err(io_err(path))
 }
 
 /// Creates a directory and its parents.
