@@ -561,10 +561,8 @@ fn sampling(
             c.sampling.strategy = st;
             let row = ablation_cell(a, bench, v, c, n)?;
             let rmses: Vec<f64> = row.per_sequence.iter().map(|r| r.stats.rmse).collect();
-            let mean = rmses.iter().sum::<f64>() / rmses.len().max(1) as f64;
-            let std = (rmses.iter().map(|x| (x - mean).powi(2)).sum::<f64>()
-                / rmses.len().max(1) as f64)
-                .sqrt();
+            let (mean, std) = omcl::eval::ErrorStats::from_errors(&rmses)
+                .map_or((f64::NAN, f64::NAN), |s| (s.mean, s.std));
             let _ = write!(
                 s,
                 " {mean:.3} ({}/{}) |",

@@ -370,13 +370,13 @@ pub fn steps_rows(runs: &[GlobalRun]) -> Vec<StepsRow> {
                 .iter()
                 .filter_map(|r| r.steps.get(t).copied().flatten())
                 .collect();
-            let n = s.len() as f64;
-            let mean = (!s.is_empty()).then(|| s.iter().sum::<usize>() as f64 / n);
+            let stats = crate::eval::ErrorStats::from_errors(
+                &s.iter().map(|&x| x as f64).collect::<Vec<_>>(),
+            );
             StepsRow {
                 threshold_m,
-                mean,
-                std: mean
-                    .map(|m| (s.iter().map(|&x| (x as f64 - m).powi(2)).sum::<f64>() / n).sqrt()),
+                mean: stats.map(|x| x.mean),
+                std: stats.map(|x| x.std),
                 min: s.iter().copied().min(),
                 max: s.iter().copied().max(),
                 reached: s.len(),
@@ -389,6 +389,36 @@ pub fn steps_rows(runs: &[GlobalRun]) -> Vec<StepsRow> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Table V's statistics by hand: steps 2, 4 and 9 at 2 m (mean 5,
+    /// population std sqrt(26 / 3)), one run of three at 0.1 m, none at 1 m.
+    #[test]
+    fn steps_rows_by_hand() {
+        let run = |steps: Vec<Option<usize>>| GlobalRun {
+            first: 0,
+            words: Vec::new(),
+            steps,
+            error: None,
+        };
+        let runs = [
+            run(vec![Some(2), None, None, None, None]),
+            run(vec![Some(4), None, Some(5), Some(6), Some(7)]),
+            run(vec![Some(9), None, None, None, None]),
+        ];
+        let rows = steps_rows(&runs);
+        assert_eq!(rows.len(), 5);
+        assert_eq!(rows[0].threshold_m, 2.0);
+        assert_eq!(rows[0].mean, Some(5.0));
+        assert!((rows[0].std.unwrap() - (26.0f64 / 3.0).sqrt()).abs() < 1e-12);
+        assert_eq!((rows[0].min, rows[0].max), (Some(2), Some(9)));
+        assert_eq!((rows[0].reached, rows[0].runs), (3, 3));
+        assert_eq!(
+            (rows[1].mean, rows[1].std, rows[1].reached),
+            (None, None, 0)
+        );
+        assert_eq!((rows[4].mean, rows[4].std), (Some(7.0), Some(0.0)));
+        assert_eq!(rows[4].reached, 1);
+    }
 
     /// Prompt words are distinct object classes, each with at least the
     /// prompt initialization's count `k` of voxels within its radius of the
