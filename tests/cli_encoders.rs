@@ -202,10 +202,26 @@ fn rgbd_mapping_with_an_image_encoder() {
         "32",
         "--init-sigma-m",
         "0.05",
+        "--diagnostics",
+        d.join("diag.csv").to_str().unwrap(),
         "-o",
         est.to_str().unwrap(),
     ]);
     assert!(ok, "{text}");
+    // Frame rates with and without the encoder; the encoder's time per
+    // frame in the diagnostics.
+    assert!(
+        text.contains("filter steps/s")
+            && text.contains("with reading the frames and the image encoder"),
+        "{text}"
+    );
+    let diag = std::fs::read_to_string(d.join("diag.csv")).unwrap();
+    let mut rows = diag.lines();
+    let header: Vec<&str> = rows.next().unwrap().split(',').collect();
+    let col = header.iter().position(|&c| c == "input_ms").unwrap();
+    let row: Vec<&str> = rows.next().unwrap().split(',').collect();
+    let input_ms: f64 = row[col].parse().unwrap();
+    assert!(input_ms > 0.0, "{diag}");
     let lines: Vec<String> = std::fs::read_to_string(&est)
         .unwrap()
         .lines()

@@ -371,7 +371,11 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     let mut filter = Filter::new(&m, caster, k, config, particles)?;
 
     let mut estimates = Vec::with_capacity(n);
-    let mut diag = String::from("frame,ess,spread_m,mean_likelihood,particles,rays,step_ms\n");
+    let mut diag =
+        String::from("frame,ess,spread_m,mean_likelihood,particles,rays,step_ms,input_ms\n");
+    // Filter time and input time (reading the frame and running the image
+    // encoder, if any), seconds, for the frame rates printed at the end.
+    let (mut filter_s, mut input_s) = (0.0f64, 0.0f64);
     let pb = super::progress::bar(n as u64, "localizing");
     for i in 0..n {
         let inc = if i == 0 {
@@ -380,9 +384,12 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             odom[i - 1].inverse() * odom[i]
         };
         let labels_frame = table.as_ref().filter(|_| !a.use_features);
+        let t_in = std::time::Instant::now();
+        let input: f64;
         let report = if let Some(src) = image.as_mut() {
             let p = d.join("rgb").join(format!("{i:06}.png"));
             let fm = src.encode(&p, i)?;
+            input = t_in.elapsed().as_secs_f64();
             let f = super::encoders::EncodedFrame {
                 map: &fm,
                 width: k.width,
@@ -394,6 +401,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         } else if let Some(t) = labels_frame {
             let p = d.join("labels").join(format!("{i:06}.png"));
             let (w, h, labels) = rgbd::read_label_png(&p)?;
+            input = t_in.elapsed().as_secs_f64();
             let f = LabelFrame {
                 width: w,
                 height: h,
@@ -407,6 +415,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         } else {
             let p = d.join("features").join(format!("{i:06}.npy"));
             let arr = npy::read_npy(&p)?;
+            input = t_in.elapsed().as_secs_f64();
             ensure!(
                 arr.shape.len() == 3,
                 "{}: expected h x w x F, got {:?}",
@@ -426,10 +435,18 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
                 .with_context(|| format!("frame {i} ({})", p.display()))?
         };
         let t = &report.timings;
-        let ms = 1e3 * (t.features + t.predict + t.weigh + t.update).as_secs_f64();
+        let step = (t.features + t.predict + t.weigh + t.update).as_secs_f64();
+        filter_s += step;
+        input_s += input;
         diag.push_str(&format!(
-            "{i},{:.1},{:.4},{:.4},{},{},{ms:.1}\n",
-            report.ess, report.spread, report.mean_likelihood, report.n_particles, report.n_rays
+            "{i},{:.1},{:.4},{:.4},{},{},{:.1},{:.1}\n",
+            report.ess,
+            report.spread,
+            report.mean_likelihood,
+            report.n_particles,
+            report.n_rays,
+            1e3 * step,
+            1e3 * input
         ));
         estimates.push(report.estimate);
         pb.inc(1);
@@ -445,6 +462,16 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         omcl::io::atomic::write(p, diag.as_bytes())
             .with_context(|| format!("writing {}", p.display()))?;
     }
+    println!(
+        "{:.1} filter steps/s; {:.1} frames/s with reading the frames{}",
+        n as f64 / filter_s.max(1e-12),
+        n as f64 / (filter_s + input_s).max(1e-12),
+        if image.is_some() {
+            " and the image encoder"
+        } else {
+            ""
+        }
+    );
     print!("wrote {} ({n} frames)", a.out.display());
     if let Some(g) = &gt {
         let reference = Trajectory::new(g.stamps()[..n].to_vec(), g.poses()[..n].to_vec())?;
