@@ -167,6 +167,56 @@ impl FeatureDb {
         best
     }
 
+    /// Dot products of `n` features with every row, fed to `f`: feature `j`
+    /// is written by `fill(j, buf)` into a zeroed buffer of the database's
+    /// dimension, and `f(feature, dots)` (dots: its K products with the rows,
+    /// in row order, free to modify) gives the `j`-th output. Features go in
+    /// blocks of 64, each block one matrix product (nalgebra's GEMM,
+    /// `matrixmultiply` underneath, with AVX/FMA where the CPU has them),
+    /// blocks in parallel with buffers reused per thread: several times
+    /// faster than one dot product at a time once K is more than a few rows.
+    pub fn map_dots<T: Send>(
+        &self,
+        n: usize,
+        fill: impl Fn(usize, &mut [f32]) + Sync,
+        f: impl Fn(&[f32], &mut [f32]) -> T + Sync,
+    ) -> Vec<T> {
+        use nalgebra::{DMatrixView, DMatrixViewMut};
+        use rayon::prelude::*;
+        const BLOCK: usize = 64;
+        let (dim, k) = (self.dim, self.len());
+        // Column-major views: the rows are a dim x K matrix, a block of m
+        // features a dim x m matrix, and the block's products (row-major
+        // m x K) a K x m matrix: rows^T features.
+        let rows_t = DMatrixView::from_slice(&self.rows, dim, k).transpose();
+        let blocks: Vec<Vec<T>> = (0..n.div_ceil(BLOCK))
+            .into_par_iter()
+            .map_init(
+                || (vec![0f32; BLOCK * dim], vec![0f32; BLOCK * k]),
+                |(fb, db), b| {
+                    let (j0, j1) = (b * BLOCK, ((b + 1) * BLOCK).min(n));
+                    let m = j1 - j0;
+                    let (fb, db) = (&mut fb[..m * dim], &mut db[..m * k]);
+                    fb.fill(0.0);
+                    for (j, buf) in (j0..j1).zip(fb.chunks_exact_mut(dim)) {
+                        fill(j, buf);
+                    }
+                    if k == 0 {
+                        return fb.chunks_exact(dim).map(|feat| f(feat, &mut [])).collect();
+                    }
+                    let fm = DMatrixView::from_slice(fb, dim, m);
+                    let mut om = DMatrixViewMut::from_slice(db, k, m);
+                    om.gemm(1.0, &rows_t, &fm, 0.0);
+                    fb.chunks_exact(dim)
+                        .zip(db.chunks_exact_mut(k))
+                        .map(|(feat, dots)| f(feat, dots))
+                        .collect()
+                },
+            )
+            .collect();
+        blocks.into_iter().flatten().collect()
+    }
+
     /// Cosine similarity of `f` to every row.
     pub fn similarities(&self, f: &[f32]) -> Result<Vec<f32>, FeatureDbError> {
         self.check(f)?;
@@ -207,6 +257,43 @@ impl FeatureDb {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The blocked products equal one dot product at a time (to
+    /// rounding), for counts that do and do not fill a block, and each
+    /// output sees its own feature.
+    #[test]
+    fn map_dots_equals_single_dots() {
+        let dim = 37;
+        let val = |i: usize| ((i * 7919 % 1000) as f32 / 500.0) - 1.0;
+        let rows: Vec<f32> = (0..23 * dim).map(|i| val(i + 5)).collect();
+        let db = FeatureDb::from_rows(dim, 0.0, rows).unwrap();
+        for n in [0, 1, 7, 64, 300] {
+            let feat = |j: usize, buf: &mut [f32]| {
+                for (i, x) in buf.iter_mut().enumerate() {
+                    *x = val(3 * (j * dim + i) + 1);
+                }
+            };
+            let out = db.map_dots(n, feat, |f, d| (f.to_vec(), d.to_vec()));
+            assert_eq!(out.len(), n);
+            for (j, (f, d)) in out.iter().enumerate() {
+                let mut want_f = vec![0.0; dim];
+                feat(j, &mut want_f);
+                assert_eq!(f, &want_f);
+                assert_eq!(d.len(), db.len());
+                for (k, &got) in d.iter().enumerate() {
+                    let want = dot(&want_f, db.row(k));
+                    assert!(
+                        (got - want).abs() <= 1e-4 * (1.0 + want.abs()),
+                        "{j} {k}: {got} vs {want}"
+                    );
+                }
+            }
+        }
+        // An empty database gives empty products.
+        let empty = FeatureDb::new(dim, 0.0).unwrap();
+        let out = empty.map_dots(3, |_, _| {}, |_, d| d.len());
+        assert_eq!(out, [0, 0, 0]);
+    }
 
     fn unit(angle_deg: f32) -> Vec<f32> {
         let a = angle_deg.to_radians();

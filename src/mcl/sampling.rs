@@ -13,7 +13,6 @@ use rand::seq::SliceRandom;
 
 use super::MclError;
 use crate::map::FeatureDb;
-use crate::map::features::dot;
 
 /// Per-pixel features of one image, in the map's feature space.
 pub trait FrameFeatures: Sync {
@@ -109,27 +108,32 @@ fn cluster_grid(
         .flat_map(|gy| (0..w.div_ceil(s)).map(move |gx| (gx, gy)))
         .map(|(gx, gy)| ((gx * s + s / 2).min(w - 1), (gy * s + s / 2).min(h - 1)))
         .collect();
-    let dim = db.dim();
-    let rows: Vec<u32> = px
+    // Rows the frame names itself (label images); the others by the
+    // nearest row of their feature, all features in one matrix product.
+    let mut rows: Vec<Option<u32>> = px
         .par_iter()
-        .map_init(
-            || vec![0f32; dim],
-            |buf, &(u, v)| {
-                if let Some(r) = frame.nearest_row(u, v) {
-                    return r;
-                }
-                frame.feature(u, v, buf);
+        .map(|&(u, v)| frame.nearest_row(u, v))
+        .collect();
+    let todo: Vec<usize> = (0..px.len()).filter(|&i| rows[i].is_none()).collect();
+    if !todo.is_empty() {
+        let nearest = db.map_dots(
+            todo.len(),
+            |j, buf| frame.feature(px[todo[j]].0, px[todo[j]].1, buf),
+            |_, dots| {
                 let mut best = (0u32, f32::NEG_INFINITY);
-                for (k, row) in db.rows().chunks_exact(dim).enumerate() {
-                    let s = dot(buf, row);
-                    if s > best.1 {
-                        best = (k as u32, s);
+                for (r, &x) in dots.iter().enumerate() {
+                    if x > best.1 {
+                        best = (r as u32, x);
                     }
                 }
                 best.0
             },
-        )
-        .collect();
+        );
+        for (&i, r) in todo.iter().zip(nearest) {
+            rows[i] = Some(r);
+        }
+    }
+    let rows = rows.into_iter().map(|r| r.unwrap_or(0)).collect();
     (px, rows)
 }
 

@@ -62,29 +62,29 @@ impl SimilarityTable {
                 got: frame.dim(),
             });
         }
-        let (k, dim) = (db.len(), db.dim());
-        let mut cos = vec![0f32; pixels.len() * k];
-        if k > 0 {
-            cos.par_chunks_mut(k).zip(pixels.par_iter()).for_each_init(
-                || vec![0f32; dim],
-                |buf, (out, &(u, v))| {
-                    frame.feature(u, v, buf);
-                    let n = dot(buf, buf).sqrt();
-                    if n.is_finite() && n > 0.0 {
-                        for (o, row) in out.iter_mut().zip(db.rows().chunks_exact(dim)) {
-                            *o = dot(buf, row) / n;
-                        }
-                        if contrast {
-                            let lo = out.iter().copied().fold(f32::INFINITY, f32::min);
-                            let hi = out.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-                            if hi > lo {
-                                out.iter_mut().for_each(|o| *o = (*o - lo) / (hi - lo));
-                            }
+        let k = db.len();
+        let cos: Vec<f32> = db
+            .map_dots(
+                pixels.len(),
+                |j, buf| frame.feature(pixels[j].0, pixels[j].1, buf),
+                |f, out| {
+                    let n = dot(f, f).sqrt();
+                    if !(n.is_finite() && n > 0.0) {
+                        out.fill(0.0);
+                        return out.to_vec();
+                    }
+                    out.iter_mut().for_each(|o| *o /= n);
+                    if contrast {
+                        let lo = out.iter().copied().fold(f32::INFINITY, f32::min);
+                        let hi = out.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+                        if hi > lo {
+                            out.iter_mut().for_each(|o| *o = (*o - lo) / (hi - lo));
                         }
                     }
+                    out.to_vec()
                 },
-            );
-        }
+            )
+            .concat();
         Ok(SimilarityTable { rows: k, cos })
     }
 
