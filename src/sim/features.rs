@@ -443,7 +443,7 @@ impl FeatureModel {
             },
         }
         if self.params.noise > 0.0 {
-            self.for_each_noise_term(frame, u, v, |idx, g| {
+            self.noise_terms(self.pixel_noise_hash(frame, u, v), |idx, g| {
                 for (o, b) in out.iter_mut().zip(&self.bank[idx * dim..(idx + 1) * dim]) {
                     *o += g * b;
                 }
@@ -469,14 +469,22 @@ impl FeatureModel {
             Some(x) => x,
             None => return Some(self.table.nearest(&self.miss).0),
         };
-        let mut scores: Vec<f32> = match blend {
+        let scores: Vec<f32> = match blend {
             Some((n, w)) => (0..k)
                 .map(|o| (1.0 - w) * self.class_cos[c * k + o] + w * self.class_cos[n * k + o])
                 .collect(),
             None => self.class_cos[c * k..(c + 1) * k].to_vec(),
         };
+        self.best_with_noise(scores, self.pixel_noise_hash(frame, u, v))
+    }
+
+    /// The class whose row is most similar to a feature whose cosines to
+    /// the class rows are `scores` before noise, once the noise terms drawn
+    /// from hash `h` are added.
+    fn best_with_noise(&self, mut scores: Vec<f32>, h: u64) -> Option<usize> {
+        let k = self.table.len();
         if self.params.noise > 0.0 {
-            self.for_each_noise_term(frame, u, v, |idx, g| {
+            self.noise_terms(h, |idx, g| {
                 for (s, b) in scores
                     .iter_mut()
                     .zip(&self.bank_cos[idx * k..(idx + 1) * k])
@@ -519,36 +527,24 @@ impl FeatureModel {
             let cdf = &self.confusion_cdf[class];
             class = cdf.iter().position(|&c| r2 <= c).unwrap_or(cdf.len() - 1);
         }
-        let mut scores = self.class_cos[class * k..(class + 1) * k].to_vec();
-        if self.params.noise > 0.0 {
-            // Noise keyed by the point's millimetre cell.
-            let mm = |x: f64| (x * 1000.0).round() as i64 as u64;
-            let (u, v) = (mm(p[0]) ^ mm(p[2]).rotate_left(32), mm(p[1]));
-            let mut h = hash(&[self.seed, u, v, 0x0153]);
-            let scale = self.params.noise / (BANK_TERMS as f32).sqrt();
-            for _ in 0..BANK_TERMS {
-                h = splitmix(h);
-                let idx = (h % BANK as u64) as usize;
-                h = splitmix(h);
-                let g = gaussian(h) * scale;
-                for (s, b) in scores
-                    .iter_mut()
-                    .zip(&self.bank_cos[idx * k..(idx + 1) * k])
-                {
-                    *s += g * b;
-                }
-            }
-        }
-        scores
-            .iter()
-            .enumerate()
-            .max_by(|a, b| a.1.total_cmp(b.1))
-            .map(|(i, _)| i)
+        // Noise keyed by the point's millimetre cell.
+        let mm = |x: f64| (x * 1000.0).round() as i64 as u64;
+        let h = hash(&[
+            self.seed,
+            mm(p[0]) ^ mm(p[2]).rotate_left(32),
+            mm(p[1]),
+            0x0153,
+        ]);
+        self.best_with_noise(self.class_cos[class * k..(class + 1) * k].to_vec(), h)
     }
 
-    /// Calls `f(bank index, weight)` for each noise term of pixel `(u, v)`.
-    fn for_each_noise_term(&self, frame: u64, u: u32, v: u32, mut f: impl FnMut(usize, f32)) {
-        let mut h = hash(&[self.seed, frame, u as u64, v as u64, 0x0153]);
+    /// The hash the noise terms of pixel `(u, v)` of frame `frame` start from.
+    fn pixel_noise_hash(&self, frame: u64, u: u32, v: u32) -> u64 {
+        hash(&[self.seed, frame, u as u64, v as u64, 0x0153])
+    }
+
+    /// Calls `f(bank index, weight)` for each noise term drawn from hash `h`.
+    fn noise_terms(&self, mut h: u64, mut f: impl FnMut(usize, f32)) {
         let scale = self.params.noise / (BANK_TERMS as f32).sqrt();
         for _ in 0..BANK_TERMS {
             h = splitmix(h);
