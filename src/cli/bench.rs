@@ -175,7 +175,9 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
                 a.ablation_variant
             )
         })?;
-    let e = &a.experiments;
+    let mut e = a.experiments.clone();
+    e.sort_by_key(|x| *x as u8);
+    e.dedup();
     let all = e.contains(&Experiment::All);
     let wants = |x: Experiment| all || e.contains(&x);
     let mut report = format!(
@@ -198,6 +200,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         report += &sampling(&a, &mut bench, ablation, config)?;
     }
     let name = match e.as_slice() {
+        _ if all => "all.md".into(),
         [one] => format!(
             "{}.md",
             one.to_possible_value()

@@ -31,7 +31,7 @@ pub fn write_with(
     }
     let tmp = builder.tempfile_in(dir)?;
     {
-        let mut w = BufWriter::with_capacity(1 << 20, tmp.as_file());
+        let mut w = BufWriter::with_capacity(1 << 16, tmp.as_file());
         fill(&mut w)?;
         w.flush()?;
     }

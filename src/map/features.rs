@@ -171,10 +171,11 @@ impl FeatureDb {
     /// is written by `fill(j, buf)` into a zeroed buffer of the database's
     /// dimension, and `f(feature, dots)` (dots: its K products with the rows,
     /// in row order, free to modify) gives the `j`-th output. Features go in
-    /// blocks of 64, each block one matrix product (nalgebra's GEMM,
-    /// `matrixmultiply` underneath, with AVX/FMA where the CPU has them),
-    /// blocks in parallel with buffers reused per thread: several times
-    /// faster than one dot product at a time once K is more than a few rows.
+    /// blocks of 64, each block one matrix product (nalgebra's GEMM, which
+    /// hands products of more than 5 rows and columns to `matrixmultiply`,
+    /// with AVX/FMA where the CPU has them), blocks in parallel with
+    /// buffers reused per thread: 2 times faster than one dot product at a
+    /// time with 29 rows, 5 times with 200.
     pub fn map_dots<T: Send>(
         &self,
         n: usize,
