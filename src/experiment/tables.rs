@@ -239,7 +239,7 @@ pub fn global_runs(
     for s in 0..starts {
         let first = s * span / starts.max(1);
         let words = if prompt {
-            prompt_words(seq, first, 0x5eed ^ s as u64)
+            prompt_words(seq, &map.map, first, 0x5eed ^ s as u64)
         } else {
             Vec::new()
         };
@@ -305,43 +305,71 @@ pub struct GlobalRun {
     pub error: Option<String>,
 }
 
-/// 3 to 5 object classes (not walls, floor, ceiling...) that the prompt
-/// initialization can find around the camera at frame `first`: each with
-/// at least the initialization's voxel count `k` (at the world's
-/// resolution) within its radius (horizontally) of the camera, drawn with
-/// `seed`; fewer if fewer are there.
-pub fn prompt_words(seq: &SimSequence, first: usize, seed: u64) -> Vec<String> {
+/// 3 to 5 object classes (not walls, floor, ceiling, doors, windows) that
+/// the prompt initialization finds together around the camera at frame
+/// `first` of `seq` in `map`: drawn in a random order (`seed`), a class is
+/// kept while some floor voxel within 0.5 m (horizontally) of the camera
+/// still matches every kept class by the initialization's rule (`k` map
+/// voxels matching the name within its radius); fewer if fewer are there.
+/// As the paper draws prompts from the words probable at each start: a user
+/// names objects the map holds near them (thin objects such as curtains and
+/// pictures often lose their voxels to the wall behind them).
+pub fn prompt_words(seq: &SimSequence, map: &LanguageMap, first: usize, seed: u64) -> Vec<String> {
     use rand::SeedableRng;
     use rand::seq::SliceRandom;
-    let w = &seq.scene.world.voxels;
-    let p = seq.poses()[first].translation.vector;
+    use std::collections::BTreeSet;
     let prompt = crate::mcl::PromptParams::default();
-    let k = prompt.k_at(w.resolution);
-    let mut counts = vec![0usize; w.classes.len()];
-    for (c, &l) in w.cells.iter().zip(&w.labels) {
-        let q = w.cell_centre(*c);
-        if (q.x - p.x).hypot(q.y - p.y) <= prompt.radius {
-            counts[l as usize] += 1;
-        }
-    }
-    let mut names: Vec<String> = counts
-        .iter()
-        .enumerate()
-        .filter(|&(c, &n)| {
-            n as f64 >= k
-                && !crate::sim::features::STUFF_CLASSES
-                    .iter()
-                    .any(|s| s.eq_ignore_ascii_case(&w.classes[c]))
-                && w.classes[c] != "door"
-                && w.classes[c] != "window"
+    let floor_rho = crate::mcl::FloorParams::default().rho;
+    let Some(floor) = seq.table.text_feature("floor") else {
+        return Vec::new();
+    };
+    let names = &seq.table.names;
+    let mut candidates: Vec<usize> = (0..names.len())
+        .filter(|&c| {
+            let n = names[c].as_str();
+            !crate::sim::features::STUFF_CLASSES
+                .iter()
+                .any(|s| s.eq_ignore_ascii_case(n))
+                && n != "door"
+                && n != "window"
         })
-        .map(|(c, _)| w.classes[c].clone())
         .collect();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    names.shuffle(&mut rng);
-    let n = 3 + (seed % 3) as usize;
-    names.truncate(n);
-    names
+    candidates.shuffle(&mut rng);
+    let want = 3 + (seed % 3) as usize;
+    let cam = seq.poses()[first].translation.vector;
+    let g = map.grid();
+    let near = |l: &usize| {
+        let c = crate::map::key::decode(map.codes()[*l]);
+        let q = g.origin
+            + nalgebra::Vector3::new(c[0] as f64 + 0.5, c[1] as f64 + 0.5, 0.0) * g.resolution;
+        (q.x - cam.x).hypot(q.y - cam.y) <= 0.5
+    };
+    let mut common: Option<BTreeSet<usize>> = None;
+    let mut words = Vec::new();
+    for c in candidates {
+        let Some(t) = seq.table.text_feature(&names[c]) else {
+            continue;
+        };
+        let Ok(leaves) =
+            crate::mcl::init::prompt_floor_voxels(map, floor, &[t.to_vec()], floor_rho, &prompt)
+        else {
+            continue;
+        };
+        let here: BTreeSet<usize> = leaves.into_iter().filter(near).collect();
+        let both: BTreeSet<usize> = match &common {
+            Some(s) => s.intersection(&here).copied().collect(),
+            None => here,
+        };
+        if !both.is_empty() {
+            common = Some(both);
+            words.push(names[c].clone());
+            if words.len() == want {
+                break;
+            }
+        }
+    }
+    words
 }
 
 /// Steps statistics of one threshold over runs (Table V's row).
@@ -420,41 +448,71 @@ mod tests {
         assert_eq!(rows[4].reached, 1);
     }
 
-    /// Prompt words are distinct object classes, each with at least the
-    /// prompt initialization's count `k` of voxels within its radius of the
-    /// camera, so the initialization can find the start.
+    /// Prompt words are distinct object classes, and on the sequence's own
+    /// map the prompt initialization places particles from them at every
+    /// start, near the camera (within the radius, plus a voxel).
     #[test]
-    fn prompt_words_are_objects_the_initialization_can_find() {
+    fn prompt_words_start_the_prompt_initialization() {
+        use rand::SeedableRng;
         let table = builtin_table().unwrap();
         let seq = SimSequence::generate(3, 40, &table).unwrap();
-        let w = &seq.scene.world.voxels;
+        let params = MapParams {
+            frames: 60,
+            ..MapParams::default()
+        };
+        let map = BenchMap::build(&seq, MapSource::Labels, &params, &|_| {}).unwrap();
+        let floor = seq.table.text_feature("floor").unwrap();
         let prompt = crate::mcl::PromptParams::default();
-        let k = prompt.k_at(w.resolution);
-        let mut some = 0;
+        let mut tried = 0;
         for first in [0, 13, 27, 39] {
-            let words = prompt_words(&seq, first, 0x5eed ^ first as u64);
+            let words = prompt_words(&seq, &map.map, first, 0x5eed ^ first as u64);
             assert!(words.len() <= 5);
-            some += words.len();
-            let p = seq.poses()[first].translation.vector;
             for (i, word) in words.iter().enumerate() {
                 assert!(!words[..i].contains(word), "{words:?}");
                 assert!(
                     !crate::sim::features::STUFF_CLASSES.contains(&word.as_str()),
                     "{word}"
                 );
-                let c = w.classes.iter().position(|n| n == word).unwrap() as u16;
-                let n = w
-                    .cells
-                    .iter()
-                    .zip(&w.labels)
-                    .filter(|&(cell, &l)| {
-                        let q = w.cell_centre(*cell);
-                        l == c && (q.x - p.x).hypot(q.y - p.y) <= prompt.radius
-                    })
-                    .count();
-                assert!(n as f64 >= k, "{word}: {n} voxels < k = {k}");
             }
+            if words.is_empty() {
+                continue;
+            }
+            tried += 1;
+            let w: Vec<Vec<f32>> = words
+                .iter()
+                .map(|n| seq.table.text_feature(n).unwrap().to_vec())
+                .collect();
+            let floor_rho = crate::mcl::FloorParams::default().rho;
+            let leaves =
+                crate::mcl::init::prompt_floor_voxels(&map.map, floor, &w, floor_rho, &prompt)
+                    .unwrap_or_else(|e| panic!("start {first}, {words:?}: {e}"));
+            // The floor under the camera is among the matches.
+            let cam = seq.poses()[first].translation.vector;
+            let g = map.map.grid();
+            let near = leaves.iter().any(|&l| {
+                let c = crate::map::key::decode(map.map.codes()[l]);
+                let q = g.origin
+                    + nalgebra::Vector3::new(c[0] as f64 + 0.5, c[1] as f64 + 0.5, 0.0)
+                        * g.resolution;
+                (q.x - cam.x).hypot(q.y - cam.y) <= 0.5
+            });
+            assert!(
+                near,
+                "start {first}: no matching floor voxel near the camera"
+            );
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(first as u64);
+            let ps = crate::mcl::prompt_init(
+                &map.map,
+                floor,
+                &w,
+                &crate::mcl::FloorParams::default(),
+                &prompt,
+                64,
+                &mut rng,
+            )
+            .unwrap();
+            assert_eq!(ps.len(), 64);
         }
-        assert!(some > 0, "no start had any prompt word");
+        assert!(tried >= 2, "only {tried} starts had prompt words");
     }
 }
