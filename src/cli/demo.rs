@@ -123,6 +123,8 @@ pub fn run(a: DemoArgs) -> anyhow::Result<()> {
             &[
                 "bench",
                 "table1",
+                "--variants",
+                "OMCL_GT,OMCL_LSeg,OMCL_Open_LSeg",
                 "--sequences",
                 &n,
                 "--frames",
