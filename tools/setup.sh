@@ -7,7 +7,14 @@ cd "$(dirname "$0")/.."
 
 need_apt=()
 [ -f /usr/include/embree3/rtcore.h ] || need_apt+=(libembree-dev)
-ls /usr/lib/llvm-*/lib/libclang*.so* >/dev/null 2>&1 || need_apt+=(libclang-dev)
+# bindgen loads libclang.so or libclang-N.so*; libclang-cpp (C++ API, on
+# some images by default) does not count.
+have_libclang=no
+for g in '/usr/lib/llvm-*/lib/libclang.so*' '/usr/lib/llvm-*/lib/libclang-[0-9]*.so*' \
+  '/usr/lib/*-linux-gnu/libclang-[0-9]*.so*'; do
+  compgen -G "$g" >/dev/null && have_libclang=yes
+done
+[ "$have_libclang" = yes ] || need_apt+=(libclang-dev)
 command -v cc >/dev/null 2>&1 || need_apt+=(gcc)
 command -v python3 >/dev/null 2>&1 || need_apt+=(python3 python3-pip)
 
