@@ -592,9 +592,28 @@ void omcl_set_ftz_daz(void) {
   _MM_SET_DENORMALS_ZERO_MODE(_MM_DENORMALS_ZERO_ON);
 }
 
+/* Where the trace functions put their results. */
+typedef struct HitOut {
+  OmclHit *hits;
+  const uint32_t *slots; /* leaf slot -> voxel index, or NULL */
+  size_t n_slots;
+} HitOut;
+
+ALWAYS_INLINE void put_hit(const HitOut *out, size_t i, unsigned geom, unsigned prim,
+                           float t) {
+  OmclHit *h = &out->hits[i];
+  uint32_t leaf = prim;
+  if (out->slots) leaf = prim < out->n_slots ? out->slots[prim] : OMCL_NO_HIT;
+  if (geom == RTC_INVALID_GEOMETRY_ID || leaf == OMCL_NO_HIT) {
+    h->leaf = OMCL_NO_HIT; h->t = INFINITY;
+  } else {
+    h->leaf = leaf; h->t = t;
+  }
+}
+
 #define TRACE_PACKET(W, TYPE, FN)                                              \
   static void trace_##W(RTCScene scene, OmclContext *ctx, float inv_size,    \
-                        const OmclRay *rays, OmclHit *hits, size_t n) {       \
+                        const OmclRay *rays, const HitOut *out, size_t n) {   \
     /* The packet's cell rays in SoA form for the callbacks' SSE path. */  \
     float soa[9 * W];                                                          \
     ctx->cells = NULL;                                                         \
@@ -637,15 +656,8 @@ void omcl_set_ftz_daz(void) {
         }                                                                      \
       }                                                                        \
       FN(valid, scene, &ctx->ctx, &p);                                         \
-      for (size_t i = 0; i < m; ++i) {                                         \
-        OmclHit *h = &hits[s + i];                                             \
-        if (p.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) {                      \
-          h->prim = OMCL_NO_HIT; h->geom = OMCL_NO_HIT; h->t = INFINITY;       \
-        } else {                                                               \
-          h->prim = p.hit.primID[i]; h->geom = p.hit.geomID[i];                \
-          h->t = p.ray.tfar[i];                                                \
-        }                                                                      \
-      }                                                                        \
+      for (size_t i = 0; i < m; ++i)                                           \
+        put_hit(out, s + i, p.hit.geomID[i], p.hit.primID[i], p.ray.tfar[i]);  \
     }                                                                          \
   }
 
@@ -654,15 +666,14 @@ TRACE_PACKET(8, struct RTCRayHit8, rtcIntersect8)
 TRACE_PACKET(16, struct RTCRayHit16, rtcIntersect16)
 
 static void trace_1(RTCScene scene, OmclContext *ctx, float inv_size,
-                    const OmclRay *rays, OmclHit *hits, size_t n) {
+                    const OmclRay *rays, const HitOut *out, size_t n) {
   CellRay cell;
   ctx->cells = inv_size != 0.0f ? &cell : NULL;
   ctx->count = 1;
   for (size_t s = 0; s < n; ++s) {
     const OmclRay *r = &rays[s];
-    OmclHit *h = &hits[s];
     if (!ray_ok(r)) {
-      h->prim = OMCL_NO_HIT; h->geom = OMCL_NO_HIT; h->t = INFINITY;
+      put_hit(out, s, RTC_INVALID_GEOMETRY_ID, 0, INFINITY);
       continue;
     }
     struct RTCRayHit p;
@@ -675,17 +686,13 @@ static void trace_1(RTCScene scene, OmclContext *ctx, float inv_size,
     p.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     if (inv_size != 0.0f) cell_ray(inv_size, r->org, r->dir, &cell);
     rtcIntersect1(scene, &ctx->ctx, &p);
-    if (p.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
-      h->prim = OMCL_NO_HIT; h->geom = OMCL_NO_HIT; h->t = INFINITY;
-    } else {
-      h->prim = p.hit.primID; h->geom = p.hit.geomID; h->t = p.ray.tfar;
-    }
+    put_hit(out, s, p.hit.geomID, p.hit.primID, p.ray.tfar);
   }
 }
 
 /* Ray streams: Embree regroups the rays itself (rtcIntersect1M). */
 static void trace_stream(RTCScene scene, OmclContext *ctx, float inv_size,
-                         const OmclRay *rays, OmclHit *hits, size_t n) {
+                         const OmclRay *rays, const HitOut *out, size_t n) {
   enum { M = 256 };
   struct RTCRayHit buf[M];
   CellRay cells[M];
@@ -714,20 +721,16 @@ static void trace_stream(RTCScene scene, OmclContext *ctx, float inv_size,
       }
     }
     rtcIntersect1M(scene, &ctx->ctx, buf, (unsigned)m, sizeof(struct RTCRayHit));
-    for (size_t i = 0; i < m; ++i) {
-      OmclHit *h = &hits[s + i];
-      if (buf[i].hit.geomID == RTC_INVALID_GEOMETRY_ID) {
-        h->prim = OMCL_NO_HIT; h->geom = OMCL_NO_HIT; h->t = INFINITY;
-      } else {
-        h->prim = buf[i].hit.primID; h->geom = buf[i].hit.geomID; h->t = buf[i].ray.tfar;
-      }
-    }
+    for (size_t i = 0; i < m; ++i)
+      put_hit(out, s + i, buf[i].hit.geomID, buf[i].hit.primID, buf[i].ray.tfar);
   }
 }
 
 void omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
-                unsigned packet, float inv_size) {
+                unsigned packet, float inv_size, const uint32_t *slots,
+                size_t n_slots) {
   omcl_set_ftz_daz();
+  const HitOut out = {hits, slots, n_slots};
   OmclContext ctx;
   rtcInitIntersectContext(&ctx.ctx);
   ctx.ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
@@ -736,10 +739,10 @@ void omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
   ctx.soa = NULL;
   ctx.width = 0;
   switch (packet) {
-    case 16: trace_16(scene, &ctx, inv_size, rays, hits, n); break;
-    case 8: trace_8(scene, &ctx, inv_size, rays, hits, n); break;
-    case 4: trace_4(scene, &ctx, inv_size, rays, hits, n); break;
-    case 0: trace_stream(scene, &ctx, inv_size, rays, hits, n); break;
-    default: trace_1(scene, &ctx, inv_size, rays, hits, n); break;
+    case 16: trace_16(scene, &ctx, inv_size, rays, &out, n); break;
+    case 8: trace_8(scene, &ctx, inv_size, rays, &out, n); break;
+    case 4: trace_4(scene, &ctx, inv_size, rays, &out, n); break;
+    case 0: trace_stream(scene, &ctx, inv_size, rays, &out, n); break;
+    default: trace_1(scene, &ctx, inv_size, rays, &out, n); break;
   }
 }

@@ -65,10 +65,10 @@ typedef struct OmclRay {
   float tfar;
 } OmclRay;
 
+/* The layout of the Rust side's Hit, written in place. */
 typedef struct OmclHit {
-  uint32_t prim; /* box index, or OMCL_NO_HIT */
-  uint32_t geom; /* geometry id, or OMCL_NO_HIT */
-  float t;       /* distance along dir (in units of |dir|) */
+  uint32_t leaf; /* voxel index, or OMCL_NO_HIT */
+  float t;       /* distance along dir (in units of |dir|); INFINITY on a miss */
 } OmclHit;
 
 #define OMCL_NO_HIT 0xFFFFFFFFu
@@ -95,9 +95,13 @@ void omcl_set_ftz_daz(void);
 /* Traces n rays in packets of `packet` (1, 4, 8 or 16) consecutive rays, or
  * as Embree ray streams for packet 0; sets FTZ/DAZ on the calling thread
  * first. For a scene of bricks, inv_size is 1 / voxel size (the rays' cell
- * form is computed once per ray and handed to the callbacks); 0 otherwise. */
+ * form is computed once per ray and handed to the callbacks) and slots maps
+ * a hit's leaf slot (primID) to its voxel index (n_slots entries; a slot
+ * beyond them is a miss); for boxes inv_size is 0 and slots NULL (primID is
+ * the voxel index). */
 void omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
-                unsigned packet, float inv_size);
+                unsigned packet, float inv_size, const uint32_t *slots,
+                size_t n_slots);
 
 #ifdef __cplusplus
 }

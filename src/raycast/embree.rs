@@ -15,10 +15,8 @@
 use std::ffi::CStr;
 use std::sync::atomic::{AtomicI64, Ordering};
 
-use rayon::prelude::*;
-
 use super::bricks::{BrickEdge, Bricks};
-use super::{CHUNK, Hit, RayCaster};
+use super::{Hit, RayCaster};
 use crate::geometry::Ray;
 use crate::map::Cell;
 
@@ -34,13 +32,19 @@ mod sys {
     include!(concat!(env!("OUT_DIR"), "/embree_bindings.rs"));
 }
 
-// `Ray` is passed to C as `OmclRay`: same fields, same order, both repr(C).
+// `Ray` and `Hit` are passed to C as `OmclRay` and `OmclHit`: same fields,
+// same order, all repr(C).
 const _: () = {
     assert!(std::mem::size_of::<Ray>() == std::mem::size_of::<sys::OmclRay>());
     assert!(std::mem::align_of::<Ray>() == std::mem::align_of::<sys::OmclRay>());
     assert!(std::mem::offset_of!(Ray, dir) == std::mem::offset_of!(sys::OmclRay, dir));
     assert!(std::mem::offset_of!(Ray, t_min) == std::mem::offset_of!(sys::OmclRay, tnear));
     assert!(std::mem::offset_of!(Ray, t_max) == std::mem::offset_of!(sys::OmclRay, tfar));
+    assert!(std::mem::size_of::<Hit>() == std::mem::size_of::<sys::OmclHit>());
+    assert!(std::mem::align_of::<Hit>() == std::mem::align_of::<sys::OmclHit>());
+    assert!(std::mem::offset_of!(Hit, leaf) == std::mem::offset_of!(sys::OmclHit, leaf));
+    assert!(std::mem::offset_of!(Hit, t) == std::mem::offset_of!(sys::OmclHit, t));
+    assert!(Hit::MISS == sys::OMCL_NO_HIT);
 };
 
 /// An error reported by Embree.
@@ -425,57 +429,42 @@ impl EmbreeCaster {
         self.embree_bytes.load(Ordering::Relaxed).max(0) as usize
     }
 
-    /// Traces one chunk on the calling thread.
+    /// Traces rays on the calling thread; the C side writes the hits in
+    /// place, brick slots already mapped to voxel indices.
     fn trace_chunk(&self, rays: &[Ray], hits: &mut [Hit]) {
-        let mut out = [sys::OmclHit {
-            prim: 0,
-            geom: 0,
-            t: 0.0,
-        }; CHUNK];
-        // Brick hits carry a leaf slot, mapped to the voxel index here.
+        assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
         let (inv_size, slots): (f32, &[u32]) = match &self.prims {
             Prims::Boxes { .. } => (0.0, &[]),
             Prims::Bricks { desc, bricks } => (desc.inv_size, &bricks.leaves),
         };
-        for (r, h) in rays.chunks(CHUNK).zip(hits.chunks_mut(CHUNK)) {
-            // SAFETY: `Ray` and `OmclRay` have the same layout (checked at
-            // compile time above); `out` has room for `r.len() <= CHUNK`
-            // hits; the scene is committed and shared read-only.
-            unsafe {
-                sys::omcl_trace(
-                    self.scene,
-                    r.as_ptr().cast::<sys::OmclRay>(),
-                    out.as_mut_ptr(),
-                    r.len(),
-                    self.packet.width(),
-                    inv_size,
-                );
-            }
-            for (o, h) in out.iter().zip(h.iter_mut()) {
-                *h = if o.prim == sys::OMCL_NO_HIT {
-                    Hit::miss()
-                } else if slots.is_empty() {
-                    Hit {
-                        leaf: o.prim,
-                        t: o.t,
-                    }
-                } else {
-                    match slots.get(o.prim as usize) {
-                        Some(&leaf) => Hit { leaf, t: o.t },
-                        None => Hit::miss(),
-                    }
-                };
-            }
+        let slots_ptr = if slots.is_empty() {
+            std::ptr::null()
+        } else {
+            slots.as_ptr()
+        };
+        // SAFETY: `Ray`/`OmclRay` and `Hit`/`OmclHit` have the same layouts
+        // (checked at compile time above); `hits` has room for `rays.len()`
+        // hits; `slots` is read only within its `slots.len()` entries; the
+        // scene is committed and shared read-only.
+        unsafe {
+            sys::omcl_trace(
+                self.scene,
+                rays.as_ptr().cast::<sys::OmclRay>(),
+                hits.as_mut_ptr().cast::<sys::OmclHit>(),
+                rays.len(),
+                self.packet.width(),
+                inv_size,
+                slots_ptr,
+                slots.len(),
+            );
         }
     }
 }
 
 impl RayCaster for EmbreeCaster {
-    fn cast(&self, rays: &[Ray], hits: &mut [Hit]) {
+    fn cast_serial(&self, rays: &[Ray], hits: &mut [Hit]) {
         assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
-        rays.par_chunks(CHUNK)
-            .zip(hits.par_chunks_mut(CHUNK))
-            .for_each(|(r, h)| self.trace_chunk(r, h));
+        self.trace_chunk(rays, hits);
     }
 
     fn len(&self) -> usize {

@@ -19,6 +19,8 @@ pub use bricks::BrickEdge;
 pub use embree::{BuildOptions, BuildQuality, EmbreeCaster, EmbreeError, Geometry, Packet};
 pub use reference::ReferenceCaster;
 
+use rayon::prelude::*;
+
 use crate::geometry::Ray;
 
 /// The result of casting one ray.
@@ -56,9 +58,21 @@ pub const CHUNK: usize = 1024;
 
 /// Casts batches of rays against a fixed set of voxels.
 pub trait RayCaster: Send + Sync {
+    /// Casts `rays` (grid frame) and writes one hit per ray into `hits`, on
+    /// the calling thread: for callers that parallelize at a coarser grain
+    /// (the filter casts each particle's rays inside its own parallel
+    /// task). Panics if the slices differ in length.
+    fn cast_serial(&self, rays: &[Ray], hits: &mut [Hit]);
+
     /// Casts `rays` (grid frame) and writes one hit per ray into `hits`,
-    /// in parallel with rayon. Panics if the slices differ in length.
-    fn cast(&self, rays: &[Ray], hits: &mut [Hit]);
+    /// in parallel with rayon, [`CHUNK`] rays a task. Panics if the slices
+    /// differ in length.
+    fn cast(&self, rays: &[Ray], hits: &mut [Hit]) {
+        assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
+        rays.par_chunks(CHUNK)
+            .zip(hits.par_chunks_mut(CHUNK))
+            .for_each(|(r, h)| self.cast_serial(r, h));
+    }
 
     /// Convenience form of [`RayCaster::cast`] that allocates the hits.
     fn cast_vec(&self, rays: &[Ray]) -> Vec<Hit> {

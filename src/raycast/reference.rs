@@ -4,10 +4,9 @@
 //! About 1 M rays/s a core: the executable definition of the casting
 //! semantics that tests hold Embree to, not the fast path.
 
-use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
-use super::{CHUNK, Hit, RayCaster};
+use super::{Hit, RayCaster};
 use crate::geometry::Ray;
 use crate::map::Cell;
 
@@ -146,15 +145,11 @@ impl ReferenceCaster {
 }
 
 impl RayCaster for ReferenceCaster {
-    fn cast(&self, rays: &[Ray], hits: &mut [Hit]) {
+    fn cast_serial(&self, rays: &[Ray], hits: &mut [Hit]) {
         assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
-        rays.par_chunks(CHUNK)
-            .zip(hits.par_chunks_mut(CHUNK))
-            .for_each(|(r, h)| {
-                for (ray, hit) in r.iter().zip(h) {
-                    *hit = self.cast_one(ray);
-                }
-            });
+        for (ray, hit) in rays.iter().zip(hits) {
+            *hit = self.cast_one(ray);
+        }
     }
 
     fn len(&self) -> usize {
