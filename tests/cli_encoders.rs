@@ -200,6 +200,8 @@ fn rgbd_mapping_with_an_image_encoder() {
         "16",
         "--rays",
         "32",
+        "--boundary-margin",
+        "1",
         "--init-sigma-m",
         "0.05",
         "--diagnostics",
