@@ -11,8 +11,47 @@ fn main() -> ExitCode {
     match cli::run(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", chain_message(&e));
             ExitCode::FAILURE
         }
+    }
+}
+
+/// The error and its causes joined by ": ", each cause left out when the
+/// message before it already ends with it: the library's errors name their
+/// file and include their source (for callers that print only the top
+/// error), which anyhow's `{:#}` would print twice.
+fn chain_message(e: &anyhow::Error) -> String {
+    let mut msg = String::new();
+    for cause in e.chain() {
+        let c = cause.to_string();
+        if msg.ends_with(&c) {
+            continue;
+        }
+        if !msg.is_empty() {
+            msg.push_str(": ");
+        }
+        msg.push_str(&c);
+    }
+    msg
+}
+
+#[cfg(test)]
+mod tests {
+    use super::chain_message;
+
+    #[test]
+    fn a_cause_already_in_the_message_is_printed_once() {
+        #[derive(Debug, thiserror::Error)]
+        #[error("data.npy: {source}")]
+        struct Named {
+            source: std::io::Error,
+        }
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file");
+        let e = anyhow::Error::new(Named { source: io }).context("frame 3");
+        assert_eq!(chain_message(&e), "frame 3: data.npy: No such file");
+        // A cause not yet in the message is kept.
+        let e = anyhow::anyhow!("disk full").context("writing out.tum");
+        assert_eq!(chain_message(&e), "writing out.tum: disk full");
     }
 }

@@ -192,6 +192,22 @@ impl FrameFeatures for NpyFrame {
     }
 }
 
+/// What to do when global or prompt initialization cannot place particles,
+/// in the command line's terms.
+fn init_advice(e: mcl::MclError) -> anyhow::Error {
+    let advice = match &e {
+        mcl::MclError::NoFloor { .. } => {
+            "particles start on floor voxels: use a map whose database has a \"floor\" row \
+             (e.g. grounded with it), or start from a known pose with --init local --init-pose"
+        }
+        mcl::MclError::NoPromptMatch { .. } => {
+            "try fewer or other words, --init global, or --init local --init-pose"
+        }
+        _ => return e.into(),
+    };
+    anyhow::Error::new(e).context(advice)
+}
+
 fn parse_pose(s: &str) -> anyhow::Result<Pose> {
     rgbd::parse_tum_pose(s).map_err(|e| anyhow::anyhow!("--init-pose {s:?}: {e}"))
 }
@@ -310,6 +326,19 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     };
     let n = odom.len().min(a.frames.unwrap_or(usize::MAX));
     ensure!(n > 0, "{}: the sequence has no frames", d.display());
+    // Checked before any work: the trajectory is evaluated against ground
+    // truth frame by frame, so a short poses.txt is an error up front, not
+    // after the output is written.
+    if let Some(g) = &gt {
+        ensure!(
+            g.len() >= n,
+            "{}: {} ground-truth poses for {n} frames of odometry; pass --frames {} or a \
+             complete poses.txt",
+            gt_path.display(),
+            g.len(),
+            g.len()
+        );
+    }
 
     let mut rng = ChaCha8Rng::seed_from_u64(a.seed);
     let floor_params = FloorParams::default();
@@ -335,7 +364,8 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             )
         }
         InitArg::Global => {
-            mcl::global_init(&m, &floor_feature()?, &floor_params, a.particles, &mut rng)?
+            mcl::global_init(&m, &floor_feature()?, &floor_params, a.particles, &mut rng)
+                .map_err(init_advice)?
         }
         InitArg::Prompt => {
             let words = a
@@ -355,6 +385,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
                 a.particles,
                 &mut rng,
             )
+            .map_err(init_advice)
             .with_context(|| format!("prompt {words:?}"))?
         }
     };
@@ -426,8 +457,8 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             let arr = npy::read_npy(&p)?;
             input = t_in.elapsed().as_secs_f64();
             ensure!(
-                arr.shape.len() == 3,
-                "{}: expected h x w x F, got {:?}",
+                arr.shape.len() == 3 && arr.shape.iter().all(|&x| x > 0),
+                "{}: expected h x w x F features with every size above 0, got shape {:?}",
                 p.display(),
                 arr.shape
             );
@@ -462,8 +493,8 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     }
     pb.finish_and_clear();
     let stamps: Vec<f64> = match &gt {
-        Some(g) if g.len() >= n => g.stamps()[..n].to_vec(),
-        _ => (0..n).map(|i| i as f64).collect(),
+        Some(g) => g.stamps()[..n].to_vec(),
+        None => (0..n).map(|i| i as f64).collect(),
     };
     let est = Trajectory::new(stamps, estimates)?;
     poses::write_poses(&a.out, &est, PoseFormat::Tum)?;
