@@ -106,12 +106,13 @@ fn table1_and_table2_write_tables_and_figures() {
         .map(|r| r["mean"]["accuracy"].as_f64().unwrap())
         .collect();
     assert!(acc.iter().all(|a| (0.5..=1.0).contains(a)), "{rows}");
-    // Same map, features with and without label bleed: exact labels agree
-    // with the map more often than the gt preset's (OMCL_GT vs _exact).
+    // Exact labels on a map of the true labels agree with it more often
+    // than bleeding ground-truth images with the map made of them
+    // (OMCL_GT_exact vs OMCL_GT).
     assert!(acc[4] > acc[0], "{rows}");
 
-    // --preset replaces a variant's features: gt features on the exact
-    // variant give the gt variant's consistency.
+    // --preset replaces a variant's features: the gt preset's bleeding
+    // labels on the exact variant's map agree with it less than exact ones.
     let (o, text) = bench(
         &[
             &["table2", "--variants", "OMCL_GT_exact", "--preset", "gt"],
@@ -123,10 +124,11 @@ fn table1_and_table2_write_tables_and_figures() {
     let rows: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("table2.json")).unwrap())
             .unwrap();
-    assert_eq!(
-        rows[0]["mean"]["accuracy"].as_f64().unwrap(),
-        acc[0],
-        "{rows}"
+    let bled = rows[0]["mean"]["accuracy"].as_f64().unwrap();
+    assert!(
+        (0.5..acc[4]).contains(&bled),
+        "{bled} vs {}\n{rows}",
+        acc[4]
     );
 }
 

@@ -21,7 +21,9 @@ use crate::sim::render::{self, Frame, NO_LABEL};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum MapSource {
     /// The true class of every back-projected pixel (a semantic mesh's
-    /// labels, as Matterport3D's ground truth): the "GT" map.
+    /// labels, free of the bleed ground-truth images have): the map of
+    /// OMCL_GT_exact. (The paper's OMCL_GT maps its ground-truth images:
+    /// `Features(Preset::Gt)`.)
     Labels,
     /// Each pixel's feature from the preset's model, assigned to its most
     /// similar class row (grounding per observation), then counted per

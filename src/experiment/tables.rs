@@ -71,19 +71,20 @@ pub struct Variant {
     pub localize: Preset,
 }
 
-/// The variants of Table I reproduced here: the paper's OMCL_GT (the
-/// simulator's `gt` preset: exact class embeddings with the label bleed of
-/// real ground-truth images, calibrated to Table II's GT row), OMCL_LSeg
+/// The variants of Table I reproduced here: the paper's OMCL_GT (ground-truth
+/// semantic images for both mapping and localization, as the paper defines
+/// it: the simulator's `gt` preset, exact class embeddings with the label
+/// bleed of real ground-truth images near boundaries), OMCL_LSeg
 /// (`lseg-like`), the ungrounded OMCL_auto_LSeg (the same map without
 /// grounding on the class names) and OMCL_Open_LSeg (a map from the fused
 /// point cloud labelled by an OpenScene-like point encoder, localized with
-/// `lseg-like` images), plus OMCL_GT_exact (every pixel's true class
-/// embedding, no error at all): the bound the sensor model reaches on these
-/// maps.
+/// `lseg-like` images), plus OMCL_GT_exact (a map of the world's true
+/// labels, as a semantic mesh gives them, localized with every pixel's true
+/// class embedding: no error at all, the bound the sensor model reaches).
 pub const TABLE1_VARIANTS: [Variant; 5] = [
     Variant {
         name: "OMCL_GT",
-        map: MapSource::Labels,
+        map: MapSource::Features(Preset::Gt),
         localize: Preset::Gt,
     },
     Variant {
