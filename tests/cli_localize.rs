@@ -313,6 +313,9 @@ fn a_missing_frame_is_an_error_naming_the_file() {
     let r = f.localize(&f.map, &seq, &out, &["--frames", "5", "--use-features"]);
     assert!(r.ok(), "{}", r.text());
     assert_eq!(read_tum(&out).len(), 5);
+    // Five frames are too few for the completion rule (it starts after
+    // frame 10): not judged, rather than called completed.
+    assert!(r.stdout.contains("completed: not judged"), "{}", r.text());
 }
 
 #[test]

@@ -129,6 +129,13 @@ impl Filter {
                 why: format!("must be finite and >= 0, got {}", config.sharpen),
             });
         }
+        let width = config.sampling.boundary_margin_width;
+        if !(width.is_finite() && width >= 0.0) {
+            return Err(MclError::BadParam {
+                name: "sampling.boundary_margin_width",
+                why: format!("must be finite and >= 0, got {width}"),
+            });
+        }
         if map.db().is_empty() {
             return Err(MclError::EmptyDb);
         }

@@ -88,19 +88,40 @@ pub struct SamplingParams {
     /// cells (Chebyshev distance, `stride` pixels a cell), so pixels near a
     /// label boundary, where encoders and annotations are least reliable,
     /// are avoided; a cluster with no such cell keeps all of its cells.
-    /// 0 (the default) samples every cell, as the paper does. On 3
-    /// benchmark sequences of 540 x 540 images (APE RMSE of OMCL_GT /
-    /// OMCL_LSeg) margin 0 gave 0.154 / 0.105 m, 1 gave 0.115 / 0.095, 2
-    /// gave 0.126 / 0.114; 3, 4 and 6 were worse than 0. It is not the
-    /// default because boundaries are where the pose information is: on
-    /// small images (96 x 72 in this module's tests) margin 1 leaves only
-    /// the insides of large regions, and poses 0.14 m apart score the same.
-    #[serde(default = "default_boundary_margin")]
-    pub boundary_margin: u32,
+    /// `Some(0)` samples every cell, as the paper does. `None` (the
+    /// default) takes [`SamplingParams::boundary_margin_width`] of the image
+    /// width instead, so the margin follows the resolution as boundary
+    /// errors do (encoders run at a fixed input size and are upsampled).
+    #[serde(default)]
+    pub boundary_margin: Option<u32>,
+    /// The margin, when `boundary_margin` is `None`, as a fraction of the
+    /// image width, rounded to whole cells: 0.0075 gives 1 cell on the
+    /// benchmark's 540 x 540 images (stride 4) and 0 below about 270
+    /// pixels. Over the 10 benchmark sequences (APE RMSE, 0 -> 1 cell)
+    /// OMCL_GT 0.098 -> 0.091 m, OMCL_LSeg 0.103 -> 0.094, OMCL_auto_LSeg
+    /// 0.096 -> 0.096, OMCL_Open_LSeg 0.165 -> 0.169, OMCL_GT_exact 0.091
+    /// -> 0.088; 2 cells and more were worse than 1 on 3 sequences. Small
+    /// images must not lose their boundaries: there they are most of the
+    /// pose information, and on the 96 x 72 frames of this module's tests
+    /// a margin of 1 cell leaves only the insides of large regions, so
+    /// poses 0.14 m apart score the same.
+    #[serde(default = "default_boundary_margin_width")]
+    pub boundary_margin_width: f32,
 }
 
-fn default_boundary_margin() -> u32 {
-    SamplingParams::default().boundary_margin
+fn default_boundary_margin_width() -> f32 {
+    SamplingParams::default().boundary_margin_width
+}
+
+impl SamplingParams {
+    /// The boundary margin in grid cells for an image `width` pixels wide.
+    pub fn margin_cells(&self, width: u32) -> u32 {
+        self.boundary_margin.unwrap_or_else(|| {
+            let cells = width.div_ceil(self.stride.max(1)) as f32;
+            // Non-finite or negative widths give 0 (the cast saturates).
+            (self.boundary_margin_width * cells).round() as u32
+        })
+    }
 }
 
 impl Default for SamplingParams {
@@ -109,7 +130,8 @@ impl Default for SamplingParams {
             strategy: SamplingStrategy::Stratified,
             rays: 2048,
             stride: 4,
-            boundary_margin: 0,
+            boundary_margin: None,
+            boundary_margin_width: 0.0075,
         }
     }
 }
@@ -211,13 +233,13 @@ pub fn sample_pixels<R: Rng>(
                 }
             }
             clusters.retain(|c| !c.is_empty());
-            if params.boundary_margin > 0 {
+            let m = params.margin_cells(frame.width()) as usize;
+            if m > 0 {
                 let s = params.stride.max(1);
                 let (gw, gh) = (
                     frame.width().div_ceil(s) as usize,
                     frame.height().div_ceil(s) as usize,
                 );
-                let m = params.boundary_margin as usize;
                 for c in clusters.iter_mut() {
                     let inner: Vec<usize> = c
                         .iter()
@@ -300,7 +322,8 @@ mod tests {
             strategy: SamplingStrategy::Stratified,
             rays: 40,
             stride: 1,
-            boundary_margin: 0,
+            boundary_margin: Some(0),
+            ..Default::default()
         };
         let px = sample_pixels(&f, &db, &p, &mut rng).unwrap();
         let small = px.iter().filter(|(u, _)| *u >= 60).count();
@@ -329,7 +352,8 @@ mod tests {
             strategy: SamplingStrategy::EqualWithDuplicates,
             rays: 600,
             stride: 2,
-            boundary_margin: 0,
+            boundary_margin: Some(0),
+            ..Default::default()
         };
         let px = sample_pixels(&f, &db, &p, &mut rng).unwrap();
         assert_eq!(px.len(), 600);
@@ -350,12 +374,13 @@ mod tests {
             strategy: SamplingStrategy::Stratified,
             rays: 2048,
             stride: 4,
-            boundary_margin: 0,
+            boundary_margin: Some(0),
+            ..Default::default()
         };
         let columns = |margin: u32| {
             let mut rng = ChaCha8Rng::seed_from_u64(8);
             let p = SamplingParams {
-                boundary_margin: margin,
+                boundary_margin: Some(margin),
                 ..p
             };
             let mut us: Vec<u32> = sample_pixels(&f, &db, &p, &mut rng)
@@ -374,6 +399,38 @@ mod tests {
         let mut want: Vec<u32> = (0..13).map(|x| 4 * x + 2).collect();
         want.push(62);
         assert_eq!(columns(2), want);
+    }
+
+    #[test]
+    fn the_default_margin_follows_the_image_width() {
+        let p = SamplingParams::default();
+        // 1 cell on the benchmark's 540 px images, none on small ones.
+        assert_eq!(p.margin_cells(540), 1);
+        assert_eq!(p.margin_cells(640), 1);
+        assert_eq!(p.margin_cells(96), 0);
+        assert_eq!(p.margin_cells(300), 1);
+        assert_eq!(p.margin_cells(260), 0);
+        assert_eq!(p.margin_cells(1241), 2);
+        // An explicit margin wins; a broken width fraction gives none.
+        let fixed = SamplingParams {
+            boundary_margin: Some(3),
+            ..p
+        };
+        assert_eq!(fixed.margin_cells(96), 3);
+        for w in [f32::NAN, -1.0] {
+            let bad = SamplingParams {
+                boundary_margin_width: w,
+                ..p
+            };
+            assert_eq!(bad.margin_cells(540), 0);
+        }
+        // Serialized configurations without the new fields read as the
+        // defaults; `null` is the automatic margin.
+        let old: SamplingParams =
+            serde_json::from_str(r#"{"strategy":"Stratified","rays":2048,"stride":4}"#).unwrap();
+        assert_eq!(old, p);
+        let json = serde_json::to_string(&p).unwrap();
+        assert!(json.contains("\"boundary_margin\":null"), "{json}");
     }
 
     #[test]

@@ -434,6 +434,21 @@ fn bad_input_gives_clear_errors() {
     )
     .unwrap();
     let before = f.particles().to_vec();
+    let mut config = FilterConfig::default();
+    config.sampling.boundary_margin_width = f32::NAN;
+    assert!(matches!(
+        Filter::new(
+            &w.map,
+            w.caster.clone(),
+            intrinsics(),
+            config,
+            before.clone()
+        ),
+        Err(MclError::BadParam {
+            name: "sampling.boundary_margin_width",
+            ..
+        })
+    ));
     let frame = render(&w, &truth, 0.5, &mut rng);
     let nan = Pose::from_parts(
         Translation3::new(0.0, f64::NAN, 0.0),
