@@ -431,7 +431,43 @@ fn prompt_initialization_explains_what_is_missing() {
     let floor_wall = f.dir.path().join("floor_wall.omcl");
     ground(&["floor", "wall"], &floor_wall);
     let r = prompt(&floor_wall, "bathtub");
-    assert_clean_failure(&r, &out, &["\"bathtub\"", "global"]);
+    assert_clean_failure(&r, &out, &["\"bathtub\"", "global", "--prompt-k"]);
+    // The options the message names reach the prompt matching: with k = 0
+    // every floor voxel matches, and the run goes through; a radius that is
+    // no distance is refused.
+    let r = f.localize(
+        &floor_wall,
+        &f.seq,
+        &out,
+        &[
+            "--frames",
+            "4",
+            "--init",
+            "prompt",
+            "--prompt",
+            "bathtub",
+            "--prompt-k",
+            "0",
+        ],
+    );
+    assert!(r.ok(), "{}", r.text());
+    assert_eq!(read_tum(&out).len(), 4);
+    std::fs::write(&out, OLD_OUT).unwrap();
+    let r = f.localize(
+        &floor_wall,
+        &f.seq,
+        &out,
+        &[
+            "--frames",
+            "4",
+            "--init",
+            "prompt",
+            "--prompt",
+            "bathtub",
+            "--prompt-radius=-1",
+        ],
+    );
+    assert_clean_failure(&r, &out, &["radius"]);
 
     // A map grounded without "floor": no particle can be placed. The error
     // must say so and point at an initialization that needs no floor.

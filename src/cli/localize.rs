@@ -78,6 +78,19 @@ pub struct LocalizeArgs {
     /// Prompt words for --init prompt, comma-separated ("toilet, sink").
     #[arg(long)]
     pub prompt: Option<String>,
+    /// --init prompt: horizontal radius around a floor voxel in which the
+    /// words' voxels are counted, metres (paper: 2).
+    #[arg(long, default_value_t = PromptParams::default().radius)]
+    pub prompt_radius: f64,
+    /// --init prompt: a voxel matches a word at this cosine similarity or
+    /// more (paper: 0.9).
+    #[arg(long, default_value_t = PromptParams::default().rho)]
+    pub prompt_rho: f32,
+    /// --init prompt: voxels each word needs within the radius, stated at
+    /// 2 cm voxels and scaled to the map's resolution (paper: 500; 80 at
+    /// 5 cm).
+    #[arg(long, default_value_t = PromptParams::default().k)]
+    pub prompt_k: f64,
     /// Number of particles (paper: 1024).
     #[arg(long, default_value_t = 1024)]
     pub particles: usize,
@@ -201,7 +214,8 @@ fn init_advice(e: mcl::MclError) -> anyhow::Error {
              (e.g. grounded with it), or start from a known pose with --init local --init-pose"
         }
         mcl::MclError::NoPromptMatch { .. } => {
-            "try fewer or other words, --init global, or --init local --init-pose"
+            "try fewer or other words, a lower --prompt-k or --prompt-rho, a larger \
+             --prompt-radius, --init global, or --init local --init-pose"
         }
         _ => return e.into(),
     };
@@ -381,7 +395,12 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
                 &floor_feature()?,
                 &w,
                 &floor_params,
-                &PromptParams::default(),
+                &PromptParams {
+                    radius: a.prompt_radius,
+                    rho: a.prompt_rho,
+                    k: a.prompt_k,
+                    ..PromptParams::default()
+                },
                 a.particles,
                 &mut rng,
             )
