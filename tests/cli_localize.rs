@@ -413,14 +413,16 @@ fn prompt_initialization_explains_what_is_missing() {
         let r = omcl(&args);
         assert!(r.ok(), "{}", r.text());
     };
-    let prompt = |map: &Path, words: &str| {
-        f.localize(
-            map,
-            &f.seq,
-            &out,
-            &["--frames", "4", "--init", "prompt", "--prompt", words],
-        )
+    // `--init prompt` with `words` and `extra` options.
+    let prompt_with = |map: &Path, words: &str, extra: &[&str]| {
+        let args = [
+            &["--frames", "4", "--init", "prompt", "--prompt", words][..],
+            extra,
+        ]
+        .concat();
+        f.localize(map, &f.seq, &out, &args)
     };
+    let prompt = |map: &Path, words: &str| prompt_with(map, words, &[]);
 
     // A word that is not in the class table: named, with the table.
     let r = prompt(&f.map, "unicorn");
@@ -435,38 +437,11 @@ fn prompt_initialization_explains_what_is_missing() {
     // The options the message names reach the prompt matching: with k = 0
     // every floor voxel matches, and the run goes through; a radius that is
     // no distance is refused.
-    let r = f.localize(
-        &floor_wall,
-        &f.seq,
-        &out,
-        &[
-            "--frames",
-            "4",
-            "--init",
-            "prompt",
-            "--prompt",
-            "bathtub",
-            "--prompt-k",
-            "0",
-        ],
-    );
+    let r = prompt_with(&floor_wall, "bathtub", &["--prompt-k", "0"]);
     assert!(r.ok(), "{}", r.text());
     assert_eq!(read_tum(&out).len(), 4);
     std::fs::write(&out, OLD_OUT).unwrap();
-    let r = f.localize(
-        &floor_wall,
-        &f.seq,
-        &out,
-        &[
-            "--frames",
-            "4",
-            "--init",
-            "prompt",
-            "--prompt",
-            "bathtub",
-            "--prompt-radius=-1",
-        ],
-    );
+    let r = prompt_with(&floor_wall, "bathtub", &["--prompt-radius=-1"]);
     assert_clean_failure(&r, &out, &["radius"]);
 
     // A map grounded without "floor": no particle can be placed. The error
