@@ -17,8 +17,8 @@ use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use omcl::geometry::{Intrinsics, Pose, camera_ray, level_camera};
 use omcl::map::{FeatureDb, GridSpec, LanguageMap};
 use omcl::mcl::{
-    Filter, FilterConfig, FloorParams, FrameFeatures, PromptParams, SensorModel, local_init,
-    prompt_init,
+    Filter, FilterConfig, FloorParams, FrameFeatures, PromptParams, RayOrder, SensorModel,
+    local_init, prompt_init,
 };
 use omcl::raycast::{Packet, RayCaster};
 use omcl::scene::{self, RoomsConfig, rooms};
@@ -150,6 +150,57 @@ fn bench(c: &mut Criterion) {
         rays_cast as f64 / steps as f64,
         rays_cast as f64 / cpu.max(1e-9) / 1e6,
     );
+
+    // The ray orders (RayOrder) on two particle clouds: the steady state
+    // reached above and the spread of local initialization. One step from
+    // the same cloud each time, the orders interleaved; median cast time.
+    let steady = filter.particles().to_vec();
+    let spread = local_init(&truth, 1024, 0.3, 17f64.to_radians(), &mut rng);
+    for (name, cloud) in [
+        ("steady state", &steady),
+        ("local init 0.3 m / 17 deg", &spread),
+    ] {
+        let orders = [
+            RayOrder::Auto,
+            RayOrder::ParticleMajor,
+            RayOrder::PixelMajor,
+        ];
+        let mut filters: Vec<Filter> = orders
+            .iter()
+            .map(|&o| {
+                Filter::new(&map, caster.clone(), k, config, cloud.clone())
+                    .expect("filter")
+                    .with_ray_order(o)
+            })
+            .collect();
+        let mut times = vec![Vec::new(); orders.len()];
+        let mut auto_pixel_major = 0;
+        let rounds = 9;
+        for round in 0..rounds {
+            // Each order leads a round in turn.
+            for i in (0..orders.len()).map(|i| (i + round) % orders.len()) {
+                let f = &mut filters[i];
+                f.reinitialize(cloud.clone()).expect("particles");
+                let r = f.step(&inc, &frame).expect("step");
+                times[i].push(1e3 * r.timings.cast.as_secs_f64());
+                if i == 0 && f.last_pixel_major() {
+                    auto_pixel_major += 1;
+                }
+            }
+        }
+        let row: Vec<String> = orders
+            .iter()
+            .zip(&mut times)
+            .map(|(o, t)| {
+                t.sort_by(f64::total_cmp);
+                format!("{o:?} {:.1} ms", t[t.len() / 2])
+            })
+            .collect();
+        println!(
+            "ray order, {name}: cast {} (median of {rounds}); Auto chose pixel-major {auto_pixel_major} of {rounds} times",
+            row.join(", ")
+        );
+    }
 
     // The same step with other packet widths, for the record.
     for packet in [Packet::Single, Packet::Sixteen] {

@@ -17,7 +17,7 @@ use super::particles::{Particle, ess, normalize, sort_spatially};
 use super::recovery::{Recovery, RecoveryParams};
 use super::resample::{ResamplePolicy, resample};
 use super::sampling::{FrameFeatures, SamplingParams, sample_pixels};
-use super::sensor::{SensorModel, SensorParams, SimilarityTable};
+use super::sensor::{RayOrder, SensorModel, SensorParams, SimilarityTable};
 use crate::geometry::{Intrinsics, Pose};
 use crate::map::{FeatureDb, LanguageMap};
 use crate::raycast::RayCaster;
@@ -168,6 +168,18 @@ impl Filter {
     pub fn with_injection(mut self, sampler: FloorSampler) -> Self {
         self.injection = Some(sampler);
         self
+    }
+
+    /// Sets the order in which the sensor model casts rays (speed only;
+    /// the default [`RayOrder::Auto`] picks per step).
+    pub fn with_ray_order(mut self, order: RayOrder) -> Self {
+        self.sensor = self.sensor.with_ray_order(order);
+        self
+    }
+
+    /// Whether the last step cast its rays pixel-major (see [`RayOrder`]).
+    pub fn last_pixel_major(&self) -> bool {
+        self.sensor.last_pixel_major()
     }
 
     /// The particles (normalized weights).

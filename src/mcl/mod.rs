@@ -58,7 +58,10 @@ pub use motion::{MotionMode, MotionModel};
 pub use particles::Particle;
 pub use resample::ResamplePolicy;
 pub use sampling::{DenseFeatures, FrameFeatures, SamplingParams, SamplingStrategy};
-pub use sensor::{SensorModel, SensorParams, SimilarityTable};
+pub use sensor::{
+    FOOTPRINT_DEPTH, RAY_GROUP, RayOrder, SensorModel, SensorParams, SimilarityTable,
+    pixel_major_pays,
+};
 
 /// Errors of the localization filter.
 #[derive(Debug, thiserror::Error, PartialEq)]

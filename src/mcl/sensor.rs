@@ -4,27 +4,29 @@
 //!
 //! Per frame, the cosines of the N sampled pixel features against the K
 //! database rows are computed once ([`SimilarityTable`], N x K); per ray the
-//! work is a cast and a table look-up. Rays are generated particle-major
-//! (each particle's rays through the sampled pixels, which the sampler
-//! orders so that neighbours are near in the image): consecutive rays share
-//! an origin and nearly a direction, so the caster's 8-wide packets are
-//! coherent. Measured on the 1 M-voxel rooms map with the default brick
-//! geometry, 1024 particles x 2048 pixels, rays per CPU-second in four
-//! interleaved runs on a shared machine (`OMCL_BENCH_GEOMETRIES=3 cargo
-//! bench --bench raycast`): particle-major in 8-wide packets 6.9 to 7.8 M,
-//! pixel-major (same pixel over nearby particles) in 8-wide packets 5.7 to
-//! 6.5 M, single rays 5.2 to 6.3 M in either order. With the old
-//! one-box-per-voxel geometry single rays pixel-major were best (5.3 to
-//! 6.2 M, against 2.8 to 3.2 M for particle-major packets), which is why the
-//! order was pixel-major before.
+//! work is a cast and a table look-up.
 //!
-//! Each particle is one parallel task that makes its rays, casts them on
-//! its thread and scores them while they are in cache (see
-//! [`SensorModel::likelihoods`]). Measured with `cargo bench --bench mcl`
-//! (1024 x 2048, interleaved runs on 2026-11-22): one ray array for all
-//! particles, cast in parallel chunks and scored afterwards, 114.9 to
-//! 115.5 ms a step; one task a particle 105.1 ms; with the sampler's
-//! Morton pixel order instead of 16 x 16 tiles 102.4 to 103.5 ms.
+//! Rays are cast in groups of [`RAY_GROUP`] particles, each group one
+//! parallel task that makes its rays, casts them on its thread and scores
+//! them while they are in cache (an np x nj ray array written, cast and
+//! read back was 10 % slower). Within a group the caster's 8-wide packets
+//! are runs of consecutive rays, so the order decides how coherent a
+//! packet is ([`RayOrder`]): particle-major, a packet is one particle's
+//! rays through neighbouring sampled pixels (the sampler orders them along
+//! a Morton curve), about 2 degrees apart; pixel-major, it is one pixel
+//! seen from eight neighbouring particles (the filter sorts them by
+//! position and heading). Once the particles have gathered the second is
+//! far narrower; while they are spread out, the first. [`RayOrder::Auto`]
+//! compares the two footprints every step ([`pixel_major_pays`]).
+//!
+//! Measured with `cargo bench --bench mcl` on the 1 M-voxel rooms map,
+//! 1024 particles x 2048 pixels (2026-11-23, AMD EPYC Zen 3, two runs,
+//! median cast time of nine interleaved steps from the same cloud):
+//!
+//! | cloud | particle-major | pixel-major | Auto |
+//! | --- | --- | --- | --- |
+//! | steady state (motion noise 0.10 m, 6 deg) | 122 / 144 ms | 92 / 113 ms | 90 / 115 ms (pixel-major) |
+//! | local init 0.3 m / 17 deg | 138 / 140 ms | 160 / 166 ms | 138 / 140 ms (particle-major) |
 
 use std::sync::Arc;
 
@@ -163,18 +165,97 @@ pub struct SensorModel {
     pub params: SensorParams,
     scores: Vec<f32>,
     last_cast: std::time::Duration,
+    ray_order: RayOrder,
+    last_pixel_major: bool,
+}
+
+/// In which order a group of particles' rays go to the caster, whose
+/// packets are runs of consecutive rays. The order changes only the speed:
+/// every ray is cast and every particle's scores are summed in pixel order
+/// either way, so the likelihoods are identical to the bit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum RayOrder {
+    /// Per step, the order whose packets are expected to be narrower (see
+    /// [`pixel_major_pays`]): pixel-major once the particles have gathered,
+    /// particle-major while they are spread out.
+    #[default]
+    Auto,
+    /// Each particle's rays through all sampled pixels in turn: a packet is
+    /// one origin and nearby pixels.
+    ParticleMajor,
+    /// Each pixel's rays from [`RAY_GROUP`] consecutive particles (the
+    /// filter keeps them sorted by position and heading) in turn: a packet
+    /// is one pixel seen from neighbouring poses.
+    PixelMajor,
+}
+
+/// Particles whose rays are made, cast and scored together in one parallel
+/// task. 16 x 2048 rays are 1 MB, which the caster reads once.
+pub const RAY_GROUP: usize = 16;
+
+/// Depth (metres) at which [`pixel_major_pays`] compares the spread of a
+/// packet's rays: a typical indoor range. Both spreads grow with the depth
+/// at the same rate once rotation dominates, so the choice depends on it
+/// only when particles differ mainly in position.
+pub const FOOTPRINT_DEPTH: f32 = 2.0;
+
+/// Whether pixel-major packets of `width` rays are expected to be narrower
+/// than particle-major ones for `particles` (in the filter's order) and
+/// the sampled pixels' camera-frame directions `dirs` (in sampling order).
+///
+/// A packet's footprint is estimated at [`FOOTPRINT_DEPTH`] `D`:
+/// particle-major, the mean over runs of `width` consecutive pixels of the
+/// largest `D * angle(d_0, d_i)`; pixel-major, the mean over runs of
+/// `width` consecutive particles of the largest `|t_i - t_0| + D *
+/// angle(R_0, R_i)`. Narrower packets hit fewer bricks and BVH nodes; the
+/// module documentation has the times of both orders on both kinds of
+/// cloud. Fewer than `width` particles or pixels: particle-major.
+pub fn pixel_major_pays(particles: &[Particle], dirs: &[Vector3<f32>], width: usize) -> bool {
+    let width = width.max(2);
+    let mean = |spans: Vec<f32>| -> Option<f32> {
+        (!spans.is_empty()).then(|| spans.iter().sum::<f32>() / spans.len() as f32)
+    };
+    let pixel = mean(
+        dirs.chunks_exact(width)
+            .map(|run| {
+                run[1..]
+                    .iter()
+                    .map(|d| run[0].angle(d))
+                    .fold(0.0f32, f32::max)
+                    * FOOTPRINT_DEPTH
+            })
+            .collect(),
+    );
+    let particle = mean(
+        particles
+            .chunks_exact(width)
+            .map(|run| {
+                let p0 = &run[0].pose;
+                run[1..]
+                    .iter()
+                    .map(|p| {
+                        let dt = (p.pose.translation.vector - p0.translation.vector).norm();
+                        dt as f32 + FOOTPRINT_DEPTH * p0.rotation.angle_to(&p.pose.rotation) as f32
+                    })
+                    .fold(0.0f32, f32::max)
+            })
+            .collect(),
+    );
+    matches!((particle, pixel), (Some(a), Some(b)) if a < b)
 }
 
 impl SensorModel {
     /// The Embree caster measured fastest for the filter's rays, over
     /// voxels of edge `resolution` (metres) at `cells` (grid frame): bricks
-    /// of edge 8 in 8-wide packets. Against the default edge 4 on the 1 M
-    /// voxel rooms map (1024 particles x 2048 pixels, particle-major), edge
-    /// 8 gave 3 to 20 % more rays per CPU-second in six interleaved runs
-    /// (its BVH is 1.4 MB instead of 7.5 MB; camera images prefer edge 4).
+    /// of edge 4 in 8-wide packets. With pixel-major packets (the steady
+    /// state), one step on the 1 M-voxel rooms map (1024 particles x 2048
+    /// pixels, `cargo bench --bench mcl`, five interleaved runs each,
+    /// 2026-11-23) took 107 to 124 ms (median 113) with edge 4, 121 to
+    /// 151 ms (median 146) with edge 8 and 133 to 158 ms with edge 2.
+    /// Particle-major packets, wider, had preferred edge 8 by 3 to 20 %.
     pub fn embree_caster(resolution: f32, cells: &[Cell]) -> Result<EmbreeCaster, EmbreeError> {
         let options = BuildOptions {
-            geometry: Geometry::Bricks(BrickEdge::Eight),
+            geometry: Geometry::Bricks(BrickEdge::Four),
             ..BuildOptions::default()
         };
         Ok(EmbreeCaster::with_options(resolution, cells, options)?.with_packet(Packet::Eight))
@@ -198,7 +279,22 @@ impl SensorModel {
             params,
             scores: Vec::new(),
             last_cast: std::time::Duration::ZERO,
+            ray_order: RayOrder::Auto,
+            last_pixel_major: false,
         }
+    }
+
+    /// The same model with another ray order (the default is
+    /// [`RayOrder::Auto`]); for benchmarks and tests.
+    pub fn with_ray_order(mut self, order: RayOrder) -> Self {
+        self.ray_order = order;
+        self
+    }
+
+    /// Whether the last call of [`SensorModel::likelihoods`] cast its rays
+    /// pixel-major.
+    pub fn last_pixel_major(&self) -> bool {
+        self.last_pixel_major
     }
 
     /// Wall-clock time of the per-particle pass (making the rays, casting
@@ -239,44 +335,78 @@ impl SensorModel {
         );
         let (k, cos) = (table.rows, &table.cos);
         let t0 = std::time::Instant::now();
-        // One task a particle: its rays are made, cast and scored while they
-        // are in cache, instead of an np x nj ray array (58 MB at 1024 x
-        // 1800) written, cast and read back.
+        let pixel_major = match self.ray_order {
+            RayOrder::Auto => pixel_major_pays(particles, &dirs, 8),
+            RayOrder::ParticleMajor => false,
+            RayOrder::PixelMajor => true,
+        };
+        self.last_pixel_major = pixel_major;
+        // One task a group of particles: their rays are made, cast and
+        // scored while they are in cache, instead of an np x nj ray array
+        // (58 MB at 1024 x 1800) written, cast and read back.
         self.scores
-            .par_iter_mut()
-            .zip(particles.par_iter())
+            .par_chunks_mut(RAY_GROUP)
+            .zip(particles.par_chunks(RAY_GROUP))
             .for_each_init(
-                || (Vec::with_capacity(nj), vec![Hit::miss(); nj]),
-                |(rays, hits), (out, p)| {
-                    let r: Matrix3<f32> = p
-                        .pose
-                        .rotation
-                        .to_rotation_matrix()
-                        .into_inner()
-                        .cast::<f32>();
-                    let o = p.pose.translation.vector - origin;
-                    let o = [o.x as f32, o.y as f32, o.z as f32];
-                    rays.clear();
-                    rays.extend(dirs.iter().map(|d| {
+                || {
+                    (
+                        Vec::with_capacity(nj * RAY_GROUP),
+                        vec![Hit::miss(); nj * RAY_GROUP],
+                    )
+                },
+                |(rays, hits), (out, group)| {
+                    let m = group.len();
+                    let frames: Vec<(Matrix3<f32>, [f32; 3])> = group
+                        .iter()
+                        .map(|p| {
+                            let r = p.pose.rotation.to_rotation_matrix().into_inner();
+                            let o = p.pose.translation.vector - origin;
+                            (r.cast::<f32>(), [o.x as f32, o.y as f32, o.z as f32])
+                        })
+                        .collect();
+                    let ray = |(r, o): &(Matrix3<f32>, [f32; 3]), d: &Vector3<f32>| {
                         let w = r * d;
                         Ray {
-                            origin: o,
+                            origin: *o,
                             dir: [w.x, w.y, w.z],
                             t_min: 0.0,
                             t_max,
                         }
-                    }));
-                    caster.cast_serial(rays, hits);
-                    let mut sum = 0.0f32;
-                    for (j, h) in hits.iter().enumerate() {
-                        sum += match rows.get(h.leaf as usize) {
-                            Some(&r) if (r as usize) < k => {
-                                cos.get(j * k + r as usize).copied().unwrap_or(miss)
-                            }
-                            _ => miss,
-                        };
+                    };
+                    rays.clear();
+                    if pixel_major {
+                        rays.extend(dirs.iter().flat_map(|d| frames.iter().map(|f| ray(f, d))));
+                    } else {
+                        rays.extend(frames.iter().flat_map(|f| dirs.iter().map(|d| ray(f, d))));
                     }
-                    *out = sum / nj as f32;
+                    let hits = &mut hits[..nj * m];
+                    caster.cast_serial(rays, hits);
+                    let score = |h: &Hit, j: usize| match rows.get(h.leaf as usize) {
+                        Some(&r) if (r as usize) < k => {
+                            cos.get(j * k + r as usize).copied().unwrap_or(miss)
+                        }
+                        _ => miss,
+                    };
+                    // Each particle sums its pixels in order in either
+                    // layout, so both give the same floats.
+                    out.fill(0.0);
+                    if pixel_major {
+                        for (j, row) in hits.chunks_exact(m).enumerate() {
+                            for (o, h) in out.iter_mut().zip(row) {
+                                *o += score(h, j);
+                            }
+                        }
+                    } else {
+                        for (o, row) in out.iter_mut().zip(hits.chunks_exact(nj)) {
+                            *o = row
+                                .iter()
+                                .enumerate()
+                                .fold(0.0, |a, (j, h)| a + score(h, j));
+                        }
+                    }
+                    for o in out.iter_mut() {
+                        *o /= nj as f32;
+                    }
                 },
             );
         self.last_cast = t0.elapsed();

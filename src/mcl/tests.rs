@@ -8,10 +8,11 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
+use super::particles::sort_spatially;
 use super::*;
 use crate::geometry::{Intrinsics, Pose, camera_ray, level_camera};
 use crate::map::{FeatureDb, GridSpec, LanguageMap};
-use crate::raycast::RayCaster;
+use crate::raycast::{RayCaster, ReferenceCaster};
 use crate::scene::{self, RoomsConfig, Scene};
 
 const DIM: usize = 32;
@@ -137,6 +138,106 @@ fn the_true_pose_scores_highest() {
     for (i, li) in l.iter().enumerate().skip(1) {
         assert!(l[0] > li + 0.01, "particle {i}: {li} vs truth {}", l[0]);
     }
+}
+
+#[test]
+fn every_ray_order_gives_the_same_likelihoods_to_the_bit() {
+    let w = world();
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let truth = start_pose(&w);
+    let frame = render(&w, &truth, 0.5, &mut rng);
+    let pixels = sampling::sample_pixels(
+        &frame,
+        w.map.db(),
+        &SamplingParams {
+            rays: 300,
+            ..Default::default()
+        },
+        &mut rng,
+    )
+    .unwrap();
+    let table = SimilarityTable::new(&frame, &pixels, w.map.db(), false).unwrap();
+    // 37 particles: two full groups of RAY_GROUP and a short one, some
+    // gathered near the truth and some far off.
+    let ps: Vec<Particle> = (0..37)
+        .map(|i| {
+            let s = if i % 3 == 0 { 0.8 } else { 0.05 };
+            let mut g = || rng.sample::<f64, _>(StandardNormal) * s;
+            let t = truth.translation.vector + Vector3::new(g(), g(), 0.0);
+            Particle::new(level_camera(t, 0.4 + g()), 1.0)
+        })
+        .collect();
+    let model = |order| {
+        SensorModel::new(
+            w.caster.clone(),
+            w.map.rows().into(),
+            w.map.grid().origin,
+            intrinsics(),
+            SensorParams::default(),
+        )
+        .with_ray_order(order)
+    };
+    let mut by_particle = model(RayOrder::ParticleMajor);
+    let mut by_pixel = model(RayOrder::PixelMajor);
+    let a = by_particle.likelihoods(&ps, &pixels, &table).to_vec();
+    let b = by_pixel.likelihoods(&ps, &pixels, &table).to_vec();
+    assert!(!by_particle.last_pixel_major() && by_pixel.last_pixel_major());
+    assert_eq!(a.len(), 37);
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&a), bits(&b));
+    // Not all alike: the far particles score lower than the near ones.
+    assert!(a[1] > a[0] + 0.05, "{a:?}");
+    // Single rays through the reference caster agree with the grouped cast.
+    let reference = SensorModel::new(
+        Arc::new(ReferenceCaster::new(
+            w.map.grid().resolution as f32,
+            &w.map.cells(),
+        )),
+        w.map.rows().into(),
+        w.map.grid().origin,
+        intrinsics(),
+        SensorParams::default(),
+    )
+    .with_ray_order(RayOrder::PixelMajor)
+    .likelihoods(&ps, &pixels, &table)
+    .to_vec();
+    // (Rays through a voxel edge may pick either voxel: a few of 300.)
+    for (x, y) in a.iter().zip(&reference) {
+        assert!((x - y).abs() < 0.01, "{a:?} vs {reference:?}");
+    }
+}
+
+#[test]
+fn pixel_major_is_chosen_for_gathered_particles_only() {
+    let k = intrinsics();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let dirs: Vec<Vector3<f32>> = {
+        let mut px: Vec<(u32, u32)> = (0..256)
+            .map(|_| (rng.random_range(0..k.width), rng.random_range(0..k.height)))
+            .collect();
+        px.sort_unstable_by_key(|&(u, v)| (v / 8, u / 8));
+        px.iter()
+            .map(|&(u, v)| k.pixel_dir(u, v).cast::<f32>())
+            .collect()
+    };
+    let cloud = |sxy: f64, syaw: f64, rng: &mut ChaCha8Rng| -> Vec<Particle> {
+        let mut ps: Vec<Particle> = (0..512)
+            .map(|_| {
+                let mut g = || rng.sample::<f64, _>(StandardNormal);
+                let t = Vector3::new(g() * sxy, g() * sxy, 1.5);
+                Particle::new(level_camera(t, g() * syaw), 1.0)
+            })
+            .collect();
+        sort_spatially(&mut ps, 0.05);
+        ps
+    };
+    let gathered = cloud(0.02, 1f64.to_radians(), &mut rng);
+    let spread = cloud(1.0, 60f64.to_radians(), &mut rng);
+    assert!(pixel_major_pays(&gathered, &dirs, 8));
+    assert!(!pixel_major_pays(&spread, &dirs, 8));
+    // Too few particles or pixels for one packet: particle-major.
+    assert!(!pixel_major_pays(&gathered[..7], &dirs, 8));
+    assert!(!pixel_major_pays(&gathered, &dirs[..7], 8));
 }
 
 /// A 60-frame path in the first room (0.13 m and 8 degrees a frame) and its
