@@ -59,7 +59,7 @@ pub use particles::Particle;
 pub use resample::ResamplePolicy;
 pub use sampling::{DenseFeatures, FrameFeatures, SamplingParams, SamplingStrategy};
 pub use sensor::{
-    FOOTPRINT_DEPTH, RAY_GROUP, RayOrder, SensorModel, SensorParams, SimilarityTable,
+    FOOTPRINT_DEPTH, RAY_GROUP, RayOrder, SensorModel, SensorParams, SimilarityTable, packet_order,
     pixel_major_pays,
 };
 
