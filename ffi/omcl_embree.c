@@ -1,7 +1,11 @@
 /* Brick and box user geometries for Embree 3, and packet tracing of ray
  * arrays. See omcl_embree.h. Every function here is total: no allocation,
  * no abort. Built for baseline x86-64 (SSE2): -march flags would tie the
- * binary to the build machine's CPU, and measured only 2-3 % here. */
+ * binary to the build machine's CPU, and measured only 2-3 % here. The one
+ * exception is the 8-lane brick test (brick_walk8), compiled for AVX2 with
+ * a target attribute and chosen at run time when the CPU has it: it made
+ * the filter's step about 20 % faster on a Zen 3 host (five interleaved
+ * runs each, median 92 against 124 ms). */
 #include "omcl_embree.h"
 
 #include <math.h>
@@ -11,6 +15,7 @@
 #include <xmmintrin.h>
 #include <pmmintrin.h>
 #include <emmintrin.h>
+#include <immintrin.h>
 
 /* Field offsets of RTCRayHitN / RTCHitN in SoA layout (rtcore_ray.h; the
  * accessor helpers there are C++ only). */
@@ -416,6 +421,98 @@ ALWAYS_INLINE unsigned brick_walk4(const OmclBricks *B, unsigned E, const uint64
   return hits;
 }
 
+/* brick_walk4 for eight lanes at once with AVX2, for CPUs that have it
+ * (chosen at run time in omcl_set_brick_callbacks; the rest of the shim
+ * stays baseline x86-64). The same arithmetic, lane for lane, as
+ * brick_walk4: no FMA (the target does not enable it), the same compare
+ * predicates (ordered, except the non-zero test), and the same scalar
+ * paths for the lanes it does not decide. Needs the packet's cell rays in
+ * SoA form (pre). */
+#define OMCL_AVX2 __attribute__((target("avx2,popcnt")))
+
+static inline __attribute__((always_inline)) OMCL_AVX2 unsigned
+brick_walk8(unsigned E, const uint64_t *rec, const BrickHead *h, const float *pre,
+            const float *tnear, const float *tfar, const int *valid, float t_out[8],
+            uint32_t leaf_out[8]) {
+  const __m256 zero = _mm256_setzero_ps();
+  __m256i vi = _mm256_loadu_si256((const __m256i *)valid);
+  __m256 live = _mm256_castsi256_ps(
+      _mm256_xor_si256(_mm256_cmpeq_epi32(vi, _mm256_setzero_si256()), _mm256_set1_epi32(-1)));
+  __m256 o[3], d[3], inv[3], tmin[3];
+  __m256 t0 = _mm256_loadu_ps(tnear), t1 = _mm256_loadu_ps(tfar);
+  __m256 special = zero;
+  for (int a = 0; a < 3; ++a) {
+    o[a] = _mm256_loadu_ps(pre + a * 8);
+    d[a] = _mm256_loadu_ps(pre + (3 + a) * 8);
+    inv[a] = _mm256_loadu_ps(pre + (6 + a) * 8);
+    special = _mm256_or_ps(special, _mm256_cmp_ps(d[a], zero, _CMP_EQ_OQ));
+    __m256 l = _mm256_set1_ps((float)(h->base[a] + h->lo[a]));
+    __m256 u = _mm256_set1_ps((float)(h->base[a] + h->hi[a] + 1));
+    __m256 ta = _mm256_mul_ps(_mm256_sub_ps(l, o[a]), inv[a]);
+    __m256 tb = _mm256_mul_ps(_mm256_sub_ps(u, o[a]), inv[a]);
+    tmin[a] = _mm256_min_ps(ta, tb);
+    t0 = _mm256_max_ps(t0, tmin[a]);
+    t1 = _mm256_min_ps(t1, _mm256_max_ps(ta, tb));
+  }
+  __m256 pass = _mm256_and_ps(live, _mm256_cmp_ps(t0, t1, _CMP_LE_OQ));
+  unsigned slow = (unsigned)_mm256_movemask_ps(_mm256_and_ps(live, special));
+  unsigned fast = (unsigned)_mm256_movemask_ps(_mm256_andnot_ps(special, pass));
+  if (!(slow | fast)) return 0;
+  __m256i c[3];
+  __m256 entered = zero;
+  __m256 inside = _mm256_cmp_ps(_mm256_loadu_ps(tnear), t0, _CMP_GE_OQ);
+  for (int a = 0; a < 3; ++a) {
+    __m256i lo = _mm256_set1_epi32(h->lo[a]), hi = _mm256_set1_epi32(h->hi[a]);
+    __m256 q = _mm256_sub_ps(_mm256_add_ps(o[a], _mm256_mul_ps(t0, d[a])),
+                             _mm256_set1_ps((float)h->base[a]));
+    __m256i ci = _mm256_cvttps_epi32(q);
+    __m256 on_plane = _mm256_cmp_ps(_mm256_cvtepi32_ps(ci), q, _CMP_EQ_OQ);
+    ci = _mm256_min_epi32(_mm256_max_epi32(ci, lo), hi);
+    __m256 is_entry = _mm256_andnot_ps(_mm256_or_ps(inside, entered),
+                                       _mm256_cmp_ps(tmin[a], t0, _CMP_EQ_OQ));
+    entered = _mm256_or_ps(entered, is_entry);
+    __m256i pos = _mm256_castps_si256(_mm256_cmp_ps(d[a], zero, _CMP_GT_OQ));
+    __m256i edge = _mm256_blendv_epi8(hi, lo, pos);
+    c[a] = _mm256_blendv_epi8(ci, edge, _mm256_castps_si256(is_entry));
+    slow |= (unsigned)_mm256_movemask_ps(
+        _mm256_andnot_ps(is_entry, _mm256_and_ps(on_plane, pass)));
+  }
+  fast &= ~slow;
+  float ft0[8], ft1[8];
+  int fc[3][8];
+  _mm256_storeu_ps(ft0, t0);
+  _mm256_storeu_ps(ft1, t1);
+  for (int a = 0; a < 3; ++a) _mm256_storeu_si256((__m256i *)fc[a], c[a]);
+  unsigned hits = 0;
+  for (unsigned todo = fast | slow; todo; todo &= todo - 1) {
+    unsigned k = (unsigned)__builtin_ctz(todo);
+    if (fast >> k & 1u && brick_bit(rec, E, fc[0][k], fc[1][k], fc[2][k])) {
+      leaf_out[k] = h->first + brick_rank(rec, E, fc[0][k], fc[1][k], fc[2][k]);
+      t_out[k] = ft0[k];
+      hits |= 1u << k;
+      continue;
+    }
+    CellRay r;
+    for (int a = 0; a < 3; ++a) {
+      r.o[a] = pre[a * 8 + k];
+      r.d[a] = pre[(3 + a) * 8 + k];
+      r.inv[a] = r.d[a] == 0.0f ? 0.0f : pre[(6 + a) * 8 + k];
+    }
+    float t;
+    if (slow >> k & 1u) {
+      t = brick_walk(E, rec, &r, tnear[k], tfar[k], &leaf_out[k]);
+    } else {
+      int cc[3] = {fc[0][k], fc[1][k], fc[2][k]};
+      t = brick_dda(E, rec, h, &r, ft0[k], ft1[k], cc, -1, -1, &leaf_out[k]);
+    }
+    if (t != INFINITY) {
+      t_out[k] = t;
+      hits |= 1u << k;
+    }
+  }
+  return hits;
+}
+
 static void brick_bounds(const struct RTCBoundsFunctionArguments *args) {
   const OmclBricks *b = (const OmclBricks *)args->geometryUserPtr;
   const size_t words = b->edge == 8 ? OMCL_BRICK_WORDS_8 : OMCL_BRICK_WORDS_SMALL;
@@ -499,6 +596,30 @@ ALWAYS_INLINE void brick_rays(const OmclBricks *b, unsigned E, const uint64_t *r
   }
 }
 
+/* brick_rays with 8-wide packets through brick_walk8 (AVX2). */
+static inline __attribute__((always_inline)) OMCL_AVX2 void
+brick_rays_avx2(const OmclBricks *b, unsigned E, const uint64_t *rec, const int *valid,
+                void *rays, unsigned N, const struct RTCIntersectContext *ctx, unsigned geom,
+                int occluded) {
+  const OmclContext *oc = (const OmclContext *)ctx;
+  if (N != 8 || !oc->soa || oc->width != 8) {
+    brick_rays(b, E, rec, valid, rays, N, ctx, geom, occluded);
+    return;
+  }
+  struct RTCRayHitN *rh = (struct RTCRayHitN *)rays;
+  BrickHead h;
+  brick_head(rec, &h);
+  float t[8];
+  uint32_t leaf[8];
+  unsigned hits = brick_walk8(E, rec, &h, oc->soa, &RAY_F(rh, 8, TNEAR, 0),
+                              &RAY_F(rh, 8, TFAR, 0), valid, t, leaf);
+  for (; hits; hits &= hits - 1) {
+    unsigned k = (unsigned)__builtin_ctz(hits);
+    if (occluded) RAY_F(rh, 8, TFAR, k) = -INFINITY;
+    else brick_report(rh, 8, k, t[k], leaf[k], geom, ctx->instID[0]);
+  }
+}
+
 #define BRICK_CALLBACKS(E, WORDS)                                                     \
   static void brick_intersect_##E(const struct RTCIntersectFunctionNArguments *args) { \
     const OmclBricks *b = (const OmclBricks *)args->geometryUserPtr;                   \
@@ -515,13 +636,41 @@ BRICK_CALLBACKS(2, OMCL_BRICK_WORDS_SMALL)
 BRICK_CALLBACKS(4, OMCL_BRICK_WORDS_SMALL)
 BRICK_CALLBACKS(8, OMCL_BRICK_WORDS_8)
 
+#define BRICK_CALLBACKS_AVX2(E, WORDS)                                                \
+  static OMCL_AVX2 void brick_intersect_avx2_##E(                                     \
+      const struct RTCIntersectFunctionNArguments *args) {                            \
+    const OmclBricks *b = (const OmclBricks *)args->geometryUserPtr;                  \
+    brick_rays_avx2(b, E, b->data + (size_t)(WORDS) * args->primID, args->valid,      \
+                    args->rayhit, args->N, args->context, args->geomID, 0);           \
+  }                                                                                   \
+  static OMCL_AVX2 void brick_occluded_avx2_##E(                                      \
+      const struct RTCOccludedFunctionNArguments *args) {                             \
+    const OmclBricks *b = (const OmclBricks *)args->geometryUserPtr;                  \
+    brick_rays_avx2(b, E, b->data + (size_t)(WORDS) * args->primID, args->valid,      \
+                    args->ray, args->N, args->context, args->geomID, 1);              \
+  }
+
+BRICK_CALLBACKS_AVX2(2, OMCL_BRICK_WORDS_SMALL)
+BRICK_CALLBACKS_AVX2(4, OMCL_BRICK_WORDS_SMALL)
+BRICK_CALLBACKS_AVX2(8, OMCL_BRICK_WORDS_8)
+
 int omcl_set_brick_callbacks(RTCGeometry geom, const OmclBricks *bricks) {
   RTCIntersectFunctionN isect;
   RTCOccludedFunctionN occl;
+  int wide = bricks->wide && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("popcnt");
   switch (bricks->edge) {
-    case 2: isect = brick_intersect_2; occl = brick_occluded_2; break;
-    case 4: isect = brick_intersect_4; occl = brick_occluded_4; break;
-    case 8: isect = brick_intersect_8; occl = brick_occluded_8; break;
+    case 2:
+      isect = wide ? brick_intersect_avx2_2 : brick_intersect_2;
+      occl = wide ? brick_occluded_avx2_2 : brick_occluded_2;
+      break;
+    case 4:
+      isect = wide ? brick_intersect_avx2_4 : brick_intersect_4;
+      occl = wide ? brick_occluded_avx2_4 : brick_occluded_4;
+      break;
+    case 8:
+      isect = wide ? brick_intersect_avx2_8 : brick_intersect_8;
+      occl = wide ? brick_occluded_avx2_8 : brick_occluded_8;
+      break;
     default: return -1;
   }
   rtcSetGeometryUserPrimitiveCount(geom, bricks->count);
@@ -529,7 +678,7 @@ int omcl_set_brick_callbacks(RTCGeometry geom, const OmclBricks *bricks) {
   rtcSetGeometryBoundsFunction(geom, brick_bounds, NULL);
   rtcSetGeometryIntersectFunction(geom, isect);
   rtcSetGeometryOccludedFunction(geom, occl);
-  return 0;
+  return wide ? 1 : 0;
 }
 
 /* Mirrors Ray::is_valid on the Rust side: Embree asserts on rays with

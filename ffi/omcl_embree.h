@@ -45,6 +45,8 @@ typedef struct OmclBricks {
   uint32_t edge; /* 2, 4 or 8 */
   float size;     /* voxel edge length */
   float inv_size; /* 1 / size: the callbacks work in cell units */
+  uint32_t wide;  /* nonzero: 8-wide packets take an AVX2 path where the CPU
+                     has AVX2 (same answers as the baseline path) */
 } OmclBricks;
 
 /* 64-bit words of one brick record: 4 for edge 2 and 4, 13 for edge 8. */
@@ -52,8 +54,9 @@ typedef struct OmclBricks {
 #define OMCL_BRICK_WORDS_8 13
 
 /* Registers the brick callbacks on `geom` (an RTC_GEOMETRY_TYPE_USER
- * geometry) with `bricks` as user data. Returns 0, or -1 for an edge other
- * than 2, 4 or 8 (nothing registered). Hits report the leaf slot of the
+ * geometry) with `bricks` as user data. Returns 0, 1 when the AVX2
+ * callbacks were chosen (bricks->wide and a CPU with AVX2 and POPCNT), or
+ * -1 for an edge other than 2, 4 or 8 (nothing registered). Hits report the leaf slot of the
  * hit cell as primID. */
 int omcl_set_brick_callbacks(RTCGeometry geom, const OmclBricks *bricks);
 

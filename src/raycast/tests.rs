@@ -23,7 +23,8 @@ fn embree(res: f32, cells: &[Cell], geometry: Geometry) -> EmbreeCaster {
 }
 
 /// The reference and every Embree geometry with single rays and 8- and
-/// 16-wide packets (the callbacks see N = 1, 8, 16).
+/// 16-wide packets (the callbacks see N = 1, 8, 16), and the bricks'
+/// 8-wide packets without their AVX2 path.
 fn casters(res: f32, cells: &[Cell]) -> Vec<(String, Box<dyn RayCaster>)> {
     let mut v: Vec<(String, Box<dyn RayCaster>)> = vec![(
         "reference".into(),
@@ -34,6 +35,17 @@ fn casters(res: f32, cells: &[Cell]) -> Vec<(String, Box<dyn RayCaster>)> {
             v.push((
                 format!("embree {g:?} {p:?}"),
                 Box::new(embree(res, cells, g).with_packet(p)),
+            ));
+        }
+        if matches!(g, Geometry::Bricks(_)) {
+            let options = BuildOptions {
+                geometry: g,
+                wide_simd: false,
+                ..BuildOptions::default()
+            };
+            v.push((
+                format!("embree {g:?} Eight, baseline SIMD"),
+                Box::new(EmbreeCaster::with_options(res, cells, options).unwrap()),
             ));
         }
     }
@@ -421,12 +433,42 @@ fn t_max_cuts_inside_a_brick() {
     );
 }
 
+#[test]
+fn the_avx2_path_is_taken_where_the_cpu_has_it() {
+    let cells: Vec<Cell> = (0..20).map(|i| [i, i % 3, 0]).collect();
+    let has = std::arch::is_x86_feature_detected!("avx2")
+        && std::arch::is_x86_feature_detected!("popcnt");
+    for edge in [BrickEdge::Two, BrickEdge::Four, BrickEdge::Eight] {
+        let e = embree(0.1, &cells, Geometry::Bricks(edge));
+        assert_eq!(e.wide_simd(), has, "{edge:?}");
+    }
+    assert!(!embree(0.1, &cells, Geometry::Boxes).wide_simd());
+}
+
 /// Random scenes and rays: Embree agrees with the reference except where
 /// two voxels are hit at (numerically) the same distance.
 fn agree(cells: &[Cell], rays: &[Ray], geometry: Geometry) -> Result<(), TestCaseError> {
     let res = 0.05;
     let r = ReferenceCaster::new(res, cells).cast_vec(rays);
     let e = embree(res, cells, geometry).cast_vec(rays);
+    // The AVX2 path of the brick callbacks (8-wide packets, the default)
+    // and the baseline path give the same hits to the bit.
+    if matches!(geometry, Geometry::Bricks(_)) {
+        let options = BuildOptions {
+            geometry,
+            wide_simd: false,
+            ..BuildOptions::default()
+        };
+        let base = EmbreeCaster::with_options(res, cells, options).unwrap();
+        prop_assert!(!base.wide_simd());
+        let b = base.cast_vec(rays);
+        for (i, (x, y)) in e.iter().zip(&b).enumerate() {
+            prop_assert!(
+                x.leaf == y.leaf && x.t.to_bits() == y.t.to_bits(),
+                "ray {i}: wide {x:?}, baseline {y:?}"
+            );
+        }
+    }
     let mut ties = 0;
     for (i, (a, b)) in r.iter().zip(&e).enumerate() {
         if a.leaf == b.leaf {
