@@ -814,6 +814,91 @@ TRACE_PACKET(4, struct RTCRayHit4, rtcIntersect4)
 TRACE_PACKET(8, struct RTCRayHit8, rtcIntersect8)
 TRACE_PACKET(16, struct RTCRayHit16, rtcIntersect16)
 
+/* trace_8 for bricks on CPUs with AVX2: each full packet's eight rays
+ * (OmclRay is eight floats) are transposed into SoA rows with AVX2, checked
+ * as ray_ok checks them, and turned into the callbacks' cell-unit rows in
+ * one go; the same values as trace_8, lane for lane. A partial last packet
+ * goes through trace_8. */
+static OMCL_AVX2 void trace_8_avx2(RTCScene scene, OmclContext *ctx, float inv_size,
+                                   const OmclRay *rays, const HitOut *out, size_t n) {
+  _Alignas(32) float soa[9 * 8];
+  ctx->cells = NULL;
+  ctx->soa = soa;
+  ctx->width = 8;
+  const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
+  const __m256 large = _mm256_set1_ps(1e18f);
+  const __m256 sign = _mm256_set1_ps(-0.0f);
+  const __m256 scale = _mm256_set1_ps(inv_size);
+  /* The safe ray of masked lanes, field by field: org 0, dir (1, 0, 0),
+   * tnear 0, tfar 0. */
+  const float safe[8] = {0, 0, 0, 1, 0, 0, 0, 0};
+  size_t s = 0;
+  for (; s + 8 <= n; s += 8) {
+    if (s + 24 <= n) {
+      for (size_t b = 0; b < 8 * sizeof(OmclRay); b += 64)
+        __builtin_prefetch((const char *)&rays[s + 16] + b);
+    }
+    __m256 r[8], t[8], u[8], row[8];
+    for (int i = 0; i < 8; ++i) r[i] = _mm256_loadu_ps((const float *)&rays[s + i]);
+    for (int i = 0; i < 8; i += 2) {
+      t[i] = _mm256_unpacklo_ps(r[i], r[i + 1]);
+      t[i + 1] = _mm256_unpackhi_ps(r[i], r[i + 1]);
+    }
+    for (int i = 0; i < 8; i += 4) {
+      u[i] = _mm256_shuffle_ps(t[i], t[i + 2], 0x44);
+      u[i + 1] = _mm256_shuffle_ps(t[i], t[i + 2], 0xEE);
+      u[i + 2] = _mm256_shuffle_ps(t[i + 1], t[i + 3], 0x44);
+      u[i + 3] = _mm256_shuffle_ps(t[i + 1], t[i + 3], 0xEE);
+    }
+    for (int i = 0; i < 4; ++i) {
+      row[i] = _mm256_permute2f128_ps(u[i], u[i + 4], 0x20);
+      row[i + 4] = _mm256_permute2f128_ps(u[i], u[i + 4], 0x31);
+    }
+    /* row 0-2: org, 3-5: dir, 6: tnear, 7: tfar. */
+    __m256 ok = _mm256_cmp_ps(row[6], row[7], _CMP_ORD_Q);
+    __m256 nonzero = zero;
+    for (int a = 0; a < 6; ++a)
+      ok = _mm256_and_ps(ok, _mm256_cmp_ps(_mm256_andnot_ps(sign, row[a]), large, _CMP_LE_OQ));
+    for (int a = 3; a < 6; ++a)
+      nonzero = _mm256_or_ps(nonzero, _mm256_cmp_ps(row[a], zero, _CMP_NEQ_UQ));
+    ok = _mm256_and_ps(ok, nonzero);
+    for (int f = 0; f < 8; ++f) row[f] = _mm256_blendv_ps(_mm256_set1_ps(safe[f]), row[f], ok);
+    struct RTCRayHit8 p;
+    _Alignas(32) int valid[8];
+    _mm256_store_si256((__m256i *)valid, _mm256_castps_si256(ok));
+    _mm256_storeu_ps(p.ray.org_x, row[0]);
+    _mm256_storeu_ps(p.ray.org_y, row[1]);
+    _mm256_storeu_ps(p.ray.org_z, row[2]);
+    _mm256_storeu_ps(p.ray.dir_x, row[3]);
+    _mm256_storeu_ps(p.ray.dir_y, row[4]);
+    _mm256_storeu_ps(p.ray.dir_z, row[5]);
+    _mm256_storeu_ps(p.ray.tnear, row[6]);
+    _mm256_storeu_ps(p.ray.tfar, row[7]);
+    _mm256_storeu_ps(p.ray.time, zero);
+    _mm256_storeu_si256((__m256i *)p.ray.mask, _mm256_set1_epi32(-1));
+    _mm256_storeu_si256((__m256i *)p.ray.id, _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    _mm256_storeu_si256((__m256i *)p.ray.flags, _mm256_setzero_si256());
+    const __m256i none = _mm256_set1_epi32((int)RTC_INVALID_GEOMETRY_ID);
+    _mm256_storeu_si256((__m256i *)p.hit.geomID, none);
+    _mm256_storeu_si256((__m256i *)p.hit.primID, none);
+    _mm256_storeu_si256((__m256i *)p.hit.instID[0], none);
+    for (int a = 0; a < 3; ++a) {
+      __m256 d = _mm256_mul_ps(row[3 + a], scale);
+      _mm256_store_ps(soa + a * 8, _mm256_mul_ps(row[a], scale));
+      _mm256_store_ps(soa + (3 + a) * 8, d);
+      __m256 dz = _mm256_cmp_ps(d, zero, _CMP_EQ_OQ);
+      _mm256_store_ps(soa + (6 + a) * 8, _mm256_div_ps(one, _mm256_blendv_ps(d, one, dz)));
+    }
+    rtcIntersect8(valid, scene, &ctx->ctx, &p);
+    for (size_t i = 0; i < 8; ++i)
+      put_hit(out, s + i, p.hit.geomID[i], p.hit.primID[i], p.ray.tfar[i]);
+  }
+  if (s < n) {
+    const HitOut rest = {out->hits + s, out->slots, out->n_slots};
+    trace_8(scene, ctx, inv_size, rays + s, &rest, n - s);
+  }
+}
+
 static void trace_1(RTCScene scene, OmclContext *ctx, float inv_size,
                     const OmclRay *rays, const HitOut *out, size_t n) {
   CellRay cell;
@@ -877,7 +962,7 @@ static void trace_stream(RTCScene scene, OmclContext *ctx, float inv_size,
 
 void omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
                 unsigned packet, float inv_size, const uint32_t *slots,
-                size_t n_slots) {
+                size_t n_slots, int wide) {
   omcl_set_ftz_daz();
   const HitOut out = {hits, slots, n_slots};
   OmclContext ctx;
@@ -889,7 +974,12 @@ void omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
   ctx.width = 0;
   switch (packet) {
     case 16: trace_16(scene, &ctx, inv_size, rays, &out, n); break;
-    case 8: trace_8(scene, &ctx, inv_size, rays, &out, n); break;
+    case 8:
+      if (wide && inv_size != 0.0f && __builtin_cpu_supports("avx2"))
+        trace_8_avx2(scene, &ctx, inv_size, rays, &out, n);
+      else
+        trace_8(scene, &ctx, inv_size, rays, &out, n);
+      break;
     case 4: trace_4(scene, &ctx, inv_size, rays, &out, n); break;
     case 0: trace_stream(scene, &ctx, inv_size, rays, &out, n); break;
     default: trace_1(scene, &ctx, inv_size, rays, &out, n); break;

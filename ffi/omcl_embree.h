@@ -101,10 +101,11 @@ void omcl_set_ftz_daz(void);
  * form is computed once per ray and handed to the callbacks) and slots maps
  * a hit's leaf slot (primID) to its voxel index (n_slots entries; a slot
  * beyond them is a miss); for boxes inv_size is 0 and slots NULL (primID is
- * the voxel index). */
+ * the voxel index). With `wide` nonzero (bricks whose callbacks took the
+ * AVX2 path), 8-wide packets are also assembled with AVX2. */
 void omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
                 unsigned packet, float inv_size, const uint32_t *slots,
-                size_t n_slots);
+                size_t n_slots, int wide);
 
 #ifdef __cplusplus
 }

@@ -445,11 +445,21 @@ impl SensorModel {
                             t_max,
                         }
                     };
-                    rays.clear();
+                    // Written in place (nested loops over exact slices), which
+                    // the compiler turns into tight code, unlike a flat_map.
+                    rays.resize(nj * m, Ray::new([0.0; 3], [1.0, 0.0, 0.0]));
                     if pixel_major {
-                        rays.extend(dirs.iter().flat_map(|d| frames.iter().map(|f| ray(f, d))));
+                        for (row, d) in rays.chunks_exact_mut(m).zip(&dirs) {
+                            for (r, f) in row.iter_mut().zip(&frames) {
+                                *r = ray(f, d);
+                            }
+                        }
                     } else {
-                        rays.extend(frames.iter().flat_map(|f| dirs.iter().map(|d| ray(f, d))));
+                        for (row, f) in rays.chunks_exact_mut(nj).zip(&frames) {
+                            for (r, d) in row.iter_mut().zip(&dirs) {
+                                *r = ray(f, d);
+                            }
+                        }
                     }
                     let hits = &mut hits[..nj * m];
                     caster.cast_serial(rays, hits);

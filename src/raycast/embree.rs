@@ -471,6 +471,7 @@ impl EmbreeCaster {
                 inv_size,
                 slots_ptr,
                 slots.len(),
+                self.wide_simd as i32,
             );
         }
     }
