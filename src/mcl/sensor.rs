@@ -246,6 +246,11 @@ pub enum RayOrder {
     PixelMajor,
 }
 
+/// Rays in one of the filter caster's packets ([`SensorModel::embree_caster`]
+/// traces 8-wide packets): the run length that [`packet_order`] and
+/// [`pixel_major_pays`] are asked for.
+const PACKET: usize = 8;
+
 /// Particles whose rays are made, cast and scored together in one parallel
 /// task. 16 x 2048 rays are 1 MB, which the caster reads once.
 pub const RAY_GROUP: usize = 16;
@@ -394,11 +399,12 @@ impl SensorModel {
         let (k, cos) = (table.rows, &table.cos);
         let t0 = std::time::Instant::now();
         // Pixel-major packets take the particles in packet order (compact
-        // runs of 8); the scores go back to the caller's order at the end.
-        let order = packet_order(particles, 8);
+        // runs of PACKET); the scores go back to the caller's order at the
+        // end.
+        let order = packet_order(particles, PACKET);
         let grouped: Vec<Particle> = order.iter().map(|&i| particles[i as usize]).collect();
         let pixel_major = match self.ray_order {
-            RayOrder::Auto => pixel_major_pays(&grouped, &dirs, 8),
+            RayOrder::Auto => pixel_major_pays(&grouped, &dirs, PACKET),
             RayOrder::ParticleMajor => false,
             RayOrder::PixelMajor => true,
         };
