@@ -94,23 +94,29 @@ fn start_pose(w: &World) -> Pose {
     level_camera(Vector3::new(x, y, 1.5), 0.4)
 }
 
+/// The start pose of `w`, `rays` pixels sampled from its rendered view
+/// (feature noise 0.5) and their similarity table.
+fn sampled_view(
+    w: &World,
+    rays: usize,
+    rng: &mut ChaCha8Rng,
+) -> (Pose, Vec<(u32, u32)>, SimilarityTable) {
+    let truth = start_pose(w);
+    let frame = render(w, &truth, 0.5, rng);
+    let params = SamplingParams {
+        rays,
+        ..Default::default()
+    };
+    let pixels = sampling::sample_pixels(&frame, w.map.db(), &params, rng).unwrap();
+    let table = SimilarityTable::new(&frame, &pixels, w.map.db(), false).unwrap();
+    (truth, pixels, table)
+}
+
 #[test]
 fn the_true_pose_scores_highest() {
     let w = world();
     let mut rng = ChaCha8Rng::seed_from_u64(1);
-    let truth = start_pose(&w);
-    let frame = render(&w, &truth, 0.5, &mut rng);
-    let pixels = sampling::sample_pixels(
-        &frame,
-        w.map.db(),
-        &SamplingParams {
-            rays: 512,
-            ..Default::default()
-        },
-        &mut rng,
-    )
-    .unwrap();
-    let table = SimilarityTable::new(&frame, &pixels, w.map.db(), false).unwrap();
+    let (truth, pixels, table) = sampled_view(&w, 512, &mut rng);
     let mut sensor = SensorModel::new(
         w.caster.clone(),
         w.map.rows().into(),
@@ -144,19 +150,7 @@ fn the_true_pose_scores_highest() {
 fn every_ray_order_gives_the_same_likelihoods_to_the_bit() {
     let w = world();
     let mut rng = ChaCha8Rng::seed_from_u64(4);
-    let truth = start_pose(&w);
-    let frame = render(&w, &truth, 0.5, &mut rng);
-    let pixels = sampling::sample_pixels(
-        &frame,
-        w.map.db(),
-        &SamplingParams {
-            rays: 300,
-            ..Default::default()
-        },
-        &mut rng,
-    )
-    .unwrap();
-    let table = SimilarityTable::new(&frame, &pixels, w.map.db(), false).unwrap();
+    let (truth, pixels, table) = sampled_view(&w, 300, &mut rng);
     // 37 particles: two full groups of RAY_GROUP and a short one, some
     // gathered near the truth and some far off.
     let ps: Vec<Particle> = (0..37)
