@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use clap::Parser;
 
 fn main() -> ExitCode {
+    quiet_contained_panics();
     let args = cli::Cli::parse();
     match cli::run(args) {
         Ok(()) => ExitCode::SUCCESS,
@@ -15,6 +16,22 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// The LAZ decoder (crate `laz`) asserts on some corrupt streams; the LAS
+/// reader catches that and reports the file as corrupt. Its panic message
+/// would only add noise before that error, so the hook drops it; every other
+/// panic is printed as usual.
+fn quiet_contained_panics() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let contained = info
+            .location()
+            .is_some_and(|l| l.file().contains("/laz-") || l.file().contains("\\laz-"));
+        if !contained {
+            default(info);
+        }
+    }));
 }
 
 /// The error and its causes joined by ": ", each cause left out when the

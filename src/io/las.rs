@@ -15,8 +15,16 @@ use las::{PointDataBuilder, Reader};
 
 use crate::io::cloud::{CloudError, PointCloud};
 
-/// Points decoded per batch: bounds the reader's byte buffer.
+/// Points decoded per batch, at most: bounds the reader's point buffer.
 const BATCH: u64 = 1 << 18;
+/// Bytes of raw point records decoded per batch, at most (a record may
+/// declare up to 65,535 bytes).
+const BATCH_BYTES: u64 = 16 << 20;
+/// Points a byte of LAZ data can hold, at most. LAZ stores the first point
+/// of every chunk raw and costs a fraction of a byte for each further
+/// point; real files hold 1 to 3 points a byte. A header that claims more
+/// is corrupt, and its count must not size memory.
+const LAZ_POINTS_PER_BYTE: u64 = 256;
 
 fn las_err(path: &Path, e: las::Error) -> CloudError {
     match e {
@@ -33,7 +41,8 @@ fn las_err(path: &Path, e: las::Error) -> CloudError {
 
 /// Checks the raw header against the file size so that a truncated or
 /// garbage file gets a precise message instead of a short read later.
-fn check_raw_header(path: &Path, file: &mut std::fs::File) -> Result<(), CloudError> {
+/// Returns the file's size and whether its points are LAZ-compressed.
+fn check_raw_header(path: &Path, file: &mut std::fs::File) -> Result<(u64, bool), CloudError> {
     let size = file.metadata().map_err(|e| CloudError::io(path, e))?.len();
     let raw = las::raw::Header::read_from(&mut *file).map_err(|e| {
         CloudError::format(
@@ -64,7 +73,19 @@ fn check_raw_header(path: &Path, file: &mut std::fs::File) -> Result<(), CloudEr
         ));
     }
     let need = (raw.point_data_record_length as u64).saturating_mul(n);
-    if !compressed && start.saturating_add(need) > size {
+    if compressed {
+        let data = size - start;
+        if n > data.saturating_mul(LAZ_POINTS_PER_BYTE) {
+            return Err(CloudError::format(
+                path,
+                format!(
+                    "corrupt LAZ header: it declares {n} points, more than {data} bytes of \
+                     compressed data can hold"
+                ),
+            ));
+        }
+        check_laz_chunk_table(path, file, start, size, raw.point_data_record_length)?;
+    } else if start.saturating_add(need) > size {
         return Err(CloudError::format(
             path,
             format!(
@@ -74,6 +95,56 @@ fn check_raw_header(path: &Path, file: &mut std::fs::File) -> Result<(), CloudEr
             ),
         ));
     }
+    Ok((size, compressed))
+}
+
+/// The LAZ chunk table's entry count sizes the decoder's table before any
+/// entry is read: check it against the data that could hold the chunks (each
+/// chunk stores its first point raw, so a chunk takes at least one record's
+/// bytes).
+fn check_laz_chunk_table(
+    path: &Path,
+    file: &mut std::fs::File,
+    start: u64,
+    size: u64,
+    record_length: u16,
+) -> Result<(), CloudError> {
+    use std::io::Read;
+    let mut read_u64_at = |at: u64| -> Option<u64> {
+        let mut b = [0u8; 8];
+        file.seek(SeekFrom::Start(at)).ok()?;
+        file.read_exact(&mut b).ok()?;
+        Some(u64::from_le_bytes(b))
+    };
+    // The first 8 bytes of the point data give the table's offset; -1 means
+    // "written at the end": the last 8 bytes of the file then give it.
+    let Some(mut table) = read_u64_at(start) else {
+        return Ok(());
+    };
+    if table as i64 == -1 && size >= 8 {
+        table = read_u64_at(size - 8).unwrap_or(0);
+    }
+    let result = if table > start && table.saturating_add(8) <= size {
+        read_u64_at(table).map(|v| (v >> 32) as u32 as u64)
+    } else {
+        // No table (the decoder then reads the points sequentially).
+        None
+    };
+    file.seek(SeekFrom::Start(0))
+        .map_err(|e| CloudError::io(path, e))?;
+    if let Some(chunks) = result {
+        let room = (table - start) / (record_length as u64).max(1);
+        if chunks > room {
+            return Err(CloudError::format(
+                path,
+                format!(
+                    "corrupt LAZ chunk table: {chunks} chunks declared, but the {} bytes of \
+                     point data hold at most {room}",
+                    table - start
+                ),
+            ));
+        }
+    }
     Ok(())
 }
 
@@ -81,13 +152,57 @@ fn check_raw_header(path: &Path, file: &mut std::fs::File) -> Result<(), CloudEr
 pub fn read_las(path: &Path) -> Result<PointCloud, CloudError> {
     // Open ourselves so a missing file is an I/O error, not a format error.
     let mut file = std::fs::File::open(path).map_err(|e| CloudError::io(path, e))?;
-    check_raw_header(path, &mut file)?;
+    let (size, compressed) = check_raw_header(path, &mut file)?;
+    // The `laz` decoder asserts (panics) on some corrupt streams instead of
+    // returning an error; such a file is reported like any other corrupt one.
+    // The binary's panic hook keeps the decoder's message off the terminal.
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        decode(path, file, size, compressed)
+    }))
+    .unwrap_or_else(|panic| {
+        let why = panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        Err(CloudError::format(
+            path,
+            format!("corrupt LAZ point data (the decoder stopped: {why})"),
+        ))
+    })
+}
+
+/// Decodes the points of a file whose header passed [`check_raw_header`].
+fn decode(
+    path: &Path,
+    file: std::fs::File,
+    size: u64,
+    compressed: bool,
+) -> Result<PointCloud, CloudError> {
     let mut reader = Reader::new(std::io::BufReader::with_capacity(1 << 20, file))
         .map_err(|e| las_err(path, e))?;
     let n = reader.header().number_of_points();
     let has_color = reader.header().point_format().has_color;
-    // The header's count is untrusted: cap the up-front reservation.
-    let cap = n.min(1 << 24) as usize;
+    let record = reader.header().point_format().len().max(1) as u64;
+    // The header's count was checked against the file's size above; cap the
+    // up-front reservation all the same (the points still arrive in full).
+    let cap = n.min(1 << 20) as usize;
+    let batch_points = BATCH.min(BATCH_BYTES / record).max(1);
+    // The crate's count (legacy or 64-bit field, by version) against the
+    // size once more: it is the one the loop below trusts.
+    let limit = if compressed {
+        size.saturating_mul(LAZ_POINTS_PER_BYTE)
+    } else {
+        size / record
+    };
+    if n > limit {
+        return Err(CloudError::format(
+            path,
+            format!(
+                "corrupt header: {n} points declared, the {size}-byte file holds at most {limit}"
+            ),
+        ));
+    }
     let mut points = Vec::with_capacity(cap);
     let mut labels = Vec::with_capacity(cap);
     let mut rgb16: Vec<[u16; 3]> = Vec::with_capacity(if has_color { cap } else { 0 });
@@ -95,7 +210,7 @@ pub fn read_las(path: &Path) -> Result<PointCloud, CloudError> {
     let mut read = 0u64;
     while read < n {
         let got = reader
-            .fill_points(BATCH.min(n - read), &mut batch)
+            .fill_points(batch_points.min(n - read), &mut batch)
             .map_err(|e| las_err(path, e))?;
         if got == 0 {
             return Err(CloudError::format(

@@ -4,11 +4,9 @@
 //! Reading accepts little- and big-endian `f2`, `f4` and `f8` arrays in C
 //! order and returns `f32`; writing produces little-endian `f4`.
 
-use std::fs::File;
-use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
-use npyz::{DType, NpyFile, TypeChar, WriterBuilder};
+use npyz::WriterBuilder;
 
 /// Errors of `.npy` reading and writing; each names the file.
 #[derive(Debug, thiserror::Error)]
@@ -44,7 +42,104 @@ impl NpyArray {
     }
 }
 
-/// Reads a floating-point `.npy` file as `f32`.
+/// The preamble of a `.npy` file, parsed strictly: magic, version, header
+/// length, and the header dictionary's `descr`, `fortran_order` and `shape`.
+#[derive(Debug, Clone, PartialEq)]
+struct Header {
+    /// Bytes before the data.
+    data_offset: usize,
+    little_endian: bool,
+    /// Bytes a value: 2, 4 or 8 (a float), else unsupported.
+    item: usize,
+    type_char: char,
+    fortran: bool,
+    shape: Vec<usize>,
+}
+
+/// Parses the preamble; `bytes` holds at least its first 12 bytes.
+fn parse_header(bytes: &[u8]) -> Result<Header, String> {
+    if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
+        return Err("no NUMPY magic".into());
+    }
+    let (len, start): (usize, usize) = match bytes[6] {
+        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
+        2 | 3 if bytes.len() >= 12 => (
+            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+            12,
+        ),
+        v => return Err(format!("format version {v} (expected 1, 2 or 3)")),
+    };
+    let end = start
+        .checked_add(len)
+        .filter(|&e| e <= bytes.len())
+        .ok_or_else(|| format!("header of {len} bytes runs past the end of the file"))?;
+    let text =
+        std::str::from_utf8(&bytes[start..end]).map_err(|_| "header is not text".to_string())?;
+    let value = |key: &str| -> Result<&str, String> {
+        let at = text
+            .find(&format!("'{key}'"))
+            .or_else(|| text.find(&format!("\"{key}\"")))
+            .ok_or_else(|| format!("header has no '{key}'"))?;
+        let rest = &text[at + key.len() + 2..];
+        let rest = rest.trim_start();
+        let rest = rest
+            .strip_prefix(':')
+            .ok_or_else(|| format!("header: no ':' after '{key}'"))?;
+        Ok(rest.trim_start())
+    };
+    let descr = value("descr")?;
+    let quote = descr.chars().next().filter(|c| *c == '\'' || *c == '"');
+    let descr = quote
+        .and_then(|q| descr[1..].split_once(q))
+        .map(|(d, _)| d)
+        .ok_or_else(|| {
+            "header: 'descr' is not a string (structured dtypes are unsupported)".to_string()
+        })?;
+    let fortran = match value("fortran_order")? {
+        v if v.starts_with("False") => false,
+        v if v.starts_with("True") => true,
+        v => {
+            return Err(format!(
+                "header: fortran_order is '{}'",
+                &v[..v.len().min(8)]
+            ));
+        }
+    };
+    let shape_text = value("shape")?;
+    let inner = shape_text
+        .strip_prefix('(')
+        .and_then(|r| r.split_once(')'))
+        .map(|(i, _)| i)
+        .ok_or_else(|| "header: shape is not a tuple".to_string())?;
+    let mut shape = Vec::new();
+    for part in inner.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+        let d = part.trim_end_matches('L');
+        shape.push(
+            d.parse::<usize>()
+                .map_err(|_| format!("header: shape entry '{part}' is not a size"))?,
+        );
+    }
+    let mut chars = descr.chars();
+    let order = chars.next().unwrap_or('?');
+    let little_endian = match order {
+        '<' | '|' | '=' => true,
+        '>' => false,
+        _ => return Err(format!("dtype '{descr}' has no byte order")),
+    };
+    let type_char = chars.next().unwrap_or('?');
+    let item = chars.as_str().parse::<usize>().unwrap_or(0);
+    Ok(Header {
+        data_offset: end,
+        little_endian,
+        item,
+        type_char,
+        fortran,
+        shape,
+    })
+}
+
+/// Reads a floating-point `.npy` file as `f32`. The shape's product is
+/// checked against the file's size before any memory is sized by it.
 pub fn read_npy(path: &Path) -> Result<NpyArray, NpyError> {
     let io_err = |source| NpyError::Io {
         path: path.to_path_buf(),
@@ -58,41 +153,71 @@ pub fn read_npy(path: &Path) -> Result<NpyArray, NpyError> {
         path: path.to_path_buf(),
         reason,
     };
-    let file = File::open(path).map_err(io_err)?;
-    let npy = NpyFile::new(BufReader::new(file)).map_err(|e| fmt(e.to_string()))?;
-    if npy.order() != npyz::Order::C {
+    let bytes = std::fs::read(path).map_err(io_err)?;
+    let h = parse_header(&bytes).map_err(fmt)?;
+    if h.fortran {
         return Err(unsupported(
             "Fortran order; save with np.ascontiguousarray".into(),
         ));
     }
-    let shape: Vec<usize> = npy.shape().iter().map(|&d| d as usize).collect();
-    let expected: usize = shape.iter().product();
-    let kind = match npy.dtype() {
-        DType::Plain(ts) if ts.type_char() == TypeChar::Float => ts.size_field(),
-        other => {
-            return Err(unsupported(format!(
-                "dtype {} (expected float16, float32 or float64)",
-                other.descr()
-            )));
-        }
-    };
-    let data: Vec<f32> = match kind {
-        2 => npy
-            .into_vec::<half::f16>()
-            .map(|v| v.into_iter().map(f32::from).collect()),
-        4 => npy.into_vec::<f32>(),
-        8 => npy
-            .into_vec::<f64>()
-            .map(|v| v.into_iter().map(|x| x as f32).collect()),
-        n => return Err(unsupported(format!("float of {n} bytes"))),
-    }
-    .map_err(|e| fmt(format!("truncated or corrupt data: {e}")))?;
-    if data.len() != expected {
-        return Err(fmt(format!(
-            "shape {shape:?} needs {expected} values, file holds {}",
-            data.len()
+    if h.type_char != 'f' || !matches!(h.item, 2 | 4 | 8) {
+        return Err(unsupported(format!(
+            "dtype {}{}{} (expected float16, float32 or float64)",
+            if h.little_endian { '<' } else { '>' },
+            h.type_char,
+            h.item
         )));
     }
+    let shape = h.shape;
+    let data_bytes = bytes.len() - h.data_offset;
+    let expected = shape
+        .iter()
+        .try_fold(1usize, |acc, &d| acc.checked_mul(d))
+        .filter(|n| n.checked_mul(h.item).is_some_and(|b| b <= data_bytes))
+        .ok_or_else(|| {
+            fmt(format!(
+                "truncated or corrupt data: shape {shape:?} of {}-byte values needs more than \
+                 the {data_bytes} bytes the file holds",
+                h.item
+            ))
+        })?;
+    let raw = &bytes[h.data_offset..h.data_offset + expected * h.item];
+    let le = h.little_endian;
+    let data: Vec<f32> = match h.item {
+        2 => raw
+            .chunks_exact(2)
+            .map(|b| {
+                let v = [b[0], b[1]];
+                f32::from(half::f16::from_bits(if le {
+                    u16::from_le_bytes(v)
+                } else {
+                    u16::from_be_bytes(v)
+                }))
+            })
+            .collect(),
+        4 => raw
+            .chunks_exact(4)
+            .map(|b| {
+                let v = [b[0], b[1], b[2], b[3]];
+                if le {
+                    f32::from_le_bytes(v)
+                } else {
+                    f32::from_be_bytes(v)
+                }
+            })
+            .collect(),
+        _ => raw
+            .chunks_exact(8)
+            .map(|b| {
+                let v: [u8; 8] = b.try_into().unwrap_or([0; 8]);
+                (if le {
+                    f64::from_le_bytes(v)
+                } else {
+                    f64::from_be_bytes(v)
+                }) as f32
+            })
+            .collect(),
+    };
     Ok(NpyArray { shape, data })
 }
 

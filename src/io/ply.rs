@@ -215,6 +215,7 @@ fn check_vertex_layout(path: &Path, def: &ElementDef) -> Result<Layout, CloudErr
 /// the file's frame, then validates it (finite points, non-negative labels).
 pub fn read_ply(path: &Path) -> Result<PointCloud, CloudError> {
     let file = File::open(path).map_err(|e| CloudError::io(path, e))?;
+    let file_len = file.metadata().map_err(|e| CloudError::io(path, e))?.len();
     let mut reader = Reader::new(BufReader::with_capacity(1 << 20, file));
     let parser = Parser::<Vertex>::new();
     let header = parser
@@ -245,9 +246,36 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, CloudError> {
             // Scalar-only binary vertices have a fixed record size: decode
             // them in bulk instead of one property call at a time.
             (Some(big), Some(rec)) => {
+                let need = (def.count as u64).saturating_mul(rec.len as u64);
+                if need > file_len {
+                    return Err(CloudError::format(
+                        path,
+                        format!(
+                            "truncated or corrupt: the header declares {} vertices of {} bytes \
+                             ({need} bytes), but the file has {file_len} bytes",
+                            def.count, rec.len
+                        ),
+                    ));
+                }
                 read_fixed_vertices(path, reader.get_mut(), def, &layout, &rec, big)?
             }
-            _ => read_vertices(path, &parser, &mut reader, def, header.encoding, &layout)?,
+            _ => {
+                // A vertex takes at least a byte a property (ASCII: a digit and
+                // a separator): the file's size bounds what the count may
+                // reserve; the records themselves still have to arrive.
+                let cap = usize::try_from(file_len / def.properties.len().max(1) as u64)
+                    .unwrap_or(usize::MAX)
+                    .min(def.count);
+                read_vertices(
+                    path,
+                    &parser,
+                    &mut reader,
+                    def,
+                    header.encoding,
+                    &layout,
+                    cap,
+                )?
+            }
         };
         break;
     }
@@ -304,9 +332,10 @@ fn read_vertices<R: BufRead>(
     def: &ElementDef,
     encoding: Encoding,
     layout: &Layout,
+    cap: usize,
 ) -> Result<PointCloud, CloudError> {
-    // The header's count is untrusted: cap the up-front reservation.
-    let cap = def.count.min(1 << 24);
+    // The header's count is untrusted: `cap` is what the file's size allows.
+    let cap = cap.min(1 << 24);
     let mut points = Vec::with_capacity(cap);
     let mut labels = layout.label.then(|| Vec::with_capacity(cap));
     let mut colors = layout.colors.then(|| Vec::with_capacity(cap));
@@ -460,6 +489,7 @@ fn read_fixed_vertices(
     big: bool,
 ) -> Result<PointCloud, CloudError> {
     let n = def.count;
+    // `n` records fit in the file (checked by the caller).
     let cap = n.min(1 << 24);
     let mut points = Vec::with_capacity(cap);
     let mut labels = layout.label.then(|| Vec::with_capacity(cap));
