@@ -702,6 +702,9 @@ void omcl_set_box_callbacks(RTCGeometry geom, const OmclBoxes *boxes) {
 }
 
 static _Thread_local int last_code = RTC_ERROR_NONE;
+/* Set by omcl_inject_trace_error (tests only): the next omcl_trace on this
+ * thread reports an error as Embree's callback would. */
+static _Thread_local int inject_trace_error = 0;
 static _Thread_local char last_msg[256];
 
 static void on_error(void *user, enum RTCError code, const char *msg) {
@@ -760,11 +763,15 @@ ALWAYS_INLINE void put_hit(const HitOut *out, size_t i, unsigned geom, unsigned 
   }
 }
 
+/* Packets whose valid mask was not aligned as Embree requires (checked on
+ * every packet; the tests hold it at zero). */
+static unsigned long misaligned_masks = 0;
+
 #define TRACE_PACKET(W, TYPE, FN)                                              \
   static void trace_##W(RTCScene scene, OmclContext *ctx, float inv_size,    \
                         const OmclRay *rays, const HitOut *out, size_t n) {   \
     /* The packet's cell rays in SoA form for the callbacks' SSE path. */  \
-    float soa[9 * W];                                                          \
+    _Alignas(64) float soa[9 * W];                                             \
     ctx->cells = NULL;                                                         \
     ctx->soa = inv_size != 0.0f ? soa : NULL;                                  \
     ctx->width = W;                                                            \
@@ -777,7 +784,11 @@ ALWAYS_INLINE void put_hit(const HitOut *out, size_t i, unsigned geom, unsigned 
       }                                                                        \
       TYPE p;                                                                  \
       const OmclRay safe_ray = {{0, 0, 0}, {1, 0, 0}, 0.0f, 0.0f};             \
-      int valid[W];                                                            \
+      /* Embree reads the mask with aligned vector loads: align it as the  \
+         packet (16/32/64 bytes for 4/8/16 lanes). */                        \
+      _Alignas(4 * W) int valid[W];                                            \
+      if ((uintptr_t)valid % (4 * W) != 0)                                     \
+        __atomic_fetch_add(&misaligned_masks, 1, __ATOMIC_RELAXED);            \
       for (size_t i = 0; i < W; ++i) {                                         \
         const OmclRay *r = &rays[s + (i < m ? i : 0)];                         \
         valid[i] = (i < m && ray_ok(r)) ? -1 : 0;                              \
@@ -960,10 +971,18 @@ static void trace_stream(RTCScene scene, OmclContext *ctx, float inv_size,
   }
 }
 
-void omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
-                unsigned packet, float inv_size, const uint32_t *slots,
-                size_t n_slots, int wide) {
+int omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
+               unsigned packet, float inv_size, const uint32_t *slots,
+               size_t n_slots, int wide) {
+  /* Flush-to-zero and denormals-are-zero for Embree's traversal, restored
+   * before returning: the calling thread (a rayon worker) goes on to run
+   * other Rust code that must see IEEE behaviour. */
+  const unsigned int saved_csr = _mm_getcsr();
   omcl_set_ftz_daz();
+  /* Errors raised while tracing reach on_error on this thread: start from a
+   * clean slate so that only this call's are reported. */
+  last_code = RTC_ERROR_NONE;
+  last_msg[0] = '\0';
   const HitOut out = {hits, slots, n_slots};
   OmclContext ctx;
   rtcInitIntersectContext(&ctx.ctx);
@@ -984,4 +1003,26 @@ void omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
     case 0: trace_stream(scene, &ctx, inv_size, rays, &out, n); break;
     default: trace_1(scene, &ctx, inv_size, rays, &out, n); break;
   }
+  if (inject_trace_error) {
+    inject_trace_error = 0;
+    on_error(NULL, RTC_ERROR_INVALID_OPERATION, "error injected by a test");
+  }
+  _mm_setcsr(saved_csr);
+  return last_code;
+}
+
+void omcl_inject_trace_error(void) { inject_trace_error = 1; }
+
+int omcl_raise_real_error(RTCDevice device) {
+  /* An invalid geometry type: Embree reports RTC_ERROR_INVALID_ARGUMENT
+   * through the device's error function and returns NULL. */
+  RTCGeometry g = rtcNewGeometry(device, (enum RTCGeometryType)12345);
+  if (g) rtcReleaseGeometry(g);
+  return g == NULL;
+}
+
+unsigned int omcl_get_csr(void) { return _mm_getcsr(); }
+
+unsigned long omcl_misaligned_masks(void) {
+  return __atomic_load_n(&misaligned_masks, __ATOMIC_RELAXED);
 }

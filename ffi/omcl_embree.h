@@ -102,10 +102,28 @@ void omcl_set_ftz_daz(void);
  * a hit's leaf slot (primID) to its voxel index (n_slots entries; a slot
  * beyond them is a miss); for boxes inv_size is 0 and slots NULL (primID is
  * the voxel index). With `wide` nonzero (bricks whose callbacks took the
- * AVX2 path), 8-wide packets are also assembled with AVX2. */
-void omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
-                unsigned packet, float inv_size, const uint32_t *slots,
-                size_t n_slots, int wide);
+ * AVX2 path), 8-wide packets are also assembled with AVX2.
+ * Flush-to-zero / denormals-are-zero hold during the call only (the caller's
+ * MXCSR is restored). Returns the RTCError code of the first error Embree
+ * raised on this thread during the call (0: none; the message is then
+ * available from omcl_take_error). */
+int omcl_trace(RTCScene scene, const OmclRay *rays, OmclHit *hits, size_t n,
+               unsigned packet, float inv_size, const uint32_t *slots,
+               size_t n_slots, int wide);
+
+/* The calling thread's MXCSR (for tests of the float mode after a cast). */
+unsigned int omcl_get_csr(void);
+
+/* Tests only: the next omcl_trace on this thread reports an error through
+ * the error callback, as Embree does for errors raised while tracing. */
+void omcl_inject_trace_error(void);
+
+/* Tests only: makes Embree itself raise an error on `device` (an invalid
+ * geometry type); returns 1 when the call failed as intended. */
+int omcl_raise_real_error(RTCDevice device);
+
+/* Packets traced so far whose valid mask was not aligned like the packet. */
+unsigned long omcl_misaligned_masks(void);
 
 #ifdef __cplusplus
 }

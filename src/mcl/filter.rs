@@ -139,6 +139,14 @@ impl Filter {
         if map.db().is_empty() {
             return Err(MclError::EmptyDb);
         }
+        if caster.len() != map.rows().len() {
+            // A caster of another map would return voxel indices into the
+            // wrong rows: every likelihood garbage, and no error.
+            return Err(MclError::CasterMismatch {
+                caster: caster.len(),
+                map: map.rows().len(),
+            });
+        }
         if particles.is_empty() {
             return Err(MclError::NoParticles);
         }
@@ -226,6 +234,8 @@ impl Filter {
         let pixels = sample_pixels(frame, &self.db, &self.config.sampling, &mut self.rng)?;
         let table = SimilarityTable::new(frame, &pixels, &self.db, self.config.sensor.contrast)?;
         let t1 = Instant::now();
+        // Kept so that a casting error leaves the particles as they were.
+        let before = self.particles.clone();
         self.config
             .motion
             .predict(&mut self.particles, increment, &mut self.rng)?;
@@ -236,6 +246,10 @@ impl Filter {
         let sharpen = self.config.sharpen;
         for (p, &li) in self.particles.iter_mut().zip(l) {
             p.weight *= (li.max(0.0) as f64).powf(sharpen);
+        }
+        if let Some(e) = self.sensor.take_cast_error() {
+            self.particles = before;
+            return Err(MclError::Cast(e));
         }
         // All-zero weights (every particle disagrees with the frame): keep
         // no information from this frame; `normalize` makes them uniform.

@@ -80,6 +80,13 @@ pub enum MclError {
     #[error("the map's database is empty: nothing to compare features with")]
     EmptyDb,
     #[error(
+        "the ray caster was built from {caster} voxels, the map has {map}: build the caster from \
+         this map"
+    )]
+    CasterMismatch { caster: usize, map: usize },
+    #[error("ray casting failed: {0}")]
+    Cast(String),
+    #[error(
         "no map voxel is similar enough to \"floor\" (similarity >= {rho}); cannot place particles"
     )]
     NoFloor { rho: f32 },

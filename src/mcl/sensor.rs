@@ -354,6 +354,12 @@ impl SensorModel {
         self
     }
 
+    /// The first error the caster raised since the last call (its rays came
+    /// back as misses, so the likelihoods since then are not to be used).
+    pub fn take_cast_error(&self) -> Option<String> {
+        self.caster.take_error()
+    }
+
     /// Whether the last call of [`SensorModel::likelihoods`] cast its rays
     /// pixel-major.
     pub fn last_pixel_major(&self) -> bool {

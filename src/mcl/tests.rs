@@ -561,6 +561,52 @@ fn prompt_counts_match_a_brute_force_count() {
 }
 
 #[test]
+fn a_caster_of_another_map_or_a_failed_cast_is_an_error() {
+    let w = world();
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let truth = start_pose(&w);
+    let init = local_init(&truth, 32, 0.3, 0.3, &mut rng);
+    // A caster built from other voxels (one fewer).
+    let cells = w.map.cells();
+    let other = SensorModel::embree_caster(w.scene.resolution as f32, &cells[1..]).unwrap();
+    let err = Filter::new(
+        &w.map,
+        Arc::new(other),
+        intrinsics(),
+        FilterConfig::default(),
+        init.clone(),
+    )
+    .err()
+    .expect("a mismatched caster is refused");
+    assert!(
+        matches!(err, MclError::CasterMismatch { caster, map } if caster + 1 == map),
+        "{err}"
+    );
+    // A cast that fails inside Embree: the step fails and the particles
+    // stay as they were.
+    let caster = Arc::new(SensorModel::embree_caster(w.scene.resolution as f32, &cells).unwrap());
+    let mut f = Filter::new(
+        &w.map,
+        caster.clone(),
+        intrinsics(),
+        FilterConfig::default(),
+        init,
+    )
+    .unwrap();
+    let before = f.particles().to_vec();
+    let frame = render(&w, &truth, 0.5, &mut rng);
+    caster.inject_trace_error_for_test();
+    let err = f.step(&Pose::identity(), &frame).unwrap_err();
+    assert!(
+        matches!(&err, MclError::Cast(m) if m.contains("injected")),
+        "{err}"
+    );
+    assert_eq!(f.particles(), &before[..]);
+    // The filter goes on.
+    assert!(f.step(&Pose::identity(), &frame).is_ok());
+}
+
+#[test]
 fn bad_input_gives_clear_errors() {
     let w = world();
     let mut rng = ChaCha8Rng::seed_from_u64(9);

@@ -169,6 +169,17 @@ fn code_name(code: sys::RTCError) -> &'static str {
     }
 }
 
+/// Forgets errors recorded on this thread before a sequence of calls, so
+/// that a stale one cannot surface later under another call's name.
+fn clear_errors(device: sys::RTCDevice) {
+    // SAFETY: a null buffer is allowed (the shim only resets its state);
+    // `rtcGetDeviceError` accepts any device handle and null.
+    unsafe {
+        sys::omcl_take_error(std::ptr::null_mut(), 0);
+        sys::rtcGetDeviceError(device);
+    }
+}
+
 /// Returns the error the device recorded on this thread since the last check.
 fn check(device: sys::RTCDevice, call: &'static str) -> Result<(), EmbreeError> {
     let mut buf = [0 as std::os::raw::c_char; 256];
@@ -208,6 +219,18 @@ fn check(device: sys::RTCDevice, call: &'static str) -> Result<(), EmbreeError> 
 }
 
 struct Device(sys::RTCDevice);
+
+/// A geometry handle released on every path, the error paths of `new`
+/// included.
+struct GeometryHandle(sys::RTCGeometry);
+
+impl Drop for GeometryHandle {
+    fn drop(&mut self) {
+        // SAFETY: the handle came from rtcNewGeometry and is released once
+        // (a scene it was attached to holds its own reference).
+        unsafe { sys::rtcReleaseGeometry(self.0) }
+    }
+}
 
 impl Drop for Device {
     fn drop(&mut self) {
@@ -288,6 +311,11 @@ pub struct EmbreeCaster {
     // Bytes Embree allocated, updated by the device's memory monitor; boxed
     // so its address is fixed, and dropped after the device.
     embree_bytes: Box<AtomicI64>,
+    // The first error Embree raised while tracing through the infallible
+    // `RayCaster` interface, kept for `take_error`.
+    trace_error: std::sync::Mutex<Option<EmbreeError>>,
+    // Tests only: the next cast (on whichever thread) reports an error.
+    inject_error: std::sync::atomic::AtomicBool,
 }
 
 // SAFETY: the scene is committed in `new` and never modified afterwards
@@ -328,6 +356,11 @@ impl EmbreeCaster {
         if cells.len() >= u32::MAX as usize - 1 {
             return Err(EmbreeError::TooManyVoxels(cells.len()));
         }
+        // Declared before the device, so that on every early return below
+        // the device (whose release reports freed bytes to the monitor) is
+        // dropped first and the counter after it.
+        let embree_bytes = Box::new(AtomicI64::new(0));
+        clear_errors(std::ptr::null_mut());
         // SAFETY: a null config string selects Embree's defaults.
         let raw = unsafe { sys::rtcNewDevice(std::ptr::null()) };
         check(std::ptr::null_mut(), "rtcNewDevice")?;
@@ -339,7 +372,6 @@ impl EmbreeCaster {
             });
         }
         let device = Device(raw);
-        let embree_bytes = Box::new(AtomicI64::new(0));
         // SAFETY: valid device; the error handler only writes thread-local
         // storage. The memory monitor adds atomically into `embree_bytes`,
         // an AtomicI64 (same layout as int64_t) at a fixed heap address that
@@ -362,6 +394,8 @@ impl EmbreeCaster {
             wide_simd: false,
             device,
             embree_bytes,
+            trace_error: std::sync::Mutex::new(None),
+            inject_error: std::sync::atomic::AtomicBool::new(false),
         };
         let d = caster.device.0;
         // SAFETY: `scene` is a fresh scene of `d`. The geometry's user data
@@ -386,8 +420,12 @@ impl EmbreeCaster {
             sys::rtcSetSceneBuildQuality(scene, quality);
             check(d, "rtcSetSceneFlags")?;
             if caster.prims.count() > 0 {
-                let geom = sys::rtcNewGeometry(d, sys::RTCGeometryType::RTC_GEOMETRY_TYPE_USER);
+                let handle = GeometryHandle(sys::rtcNewGeometry(
+                    d,
+                    sys::RTCGeometryType::RTC_GEOMETRY_TYPE_USER,
+                ));
                 check(d, "rtcNewGeometry")?;
+                let geom = handle.0;
                 match &caster.prims {
                     Prims::Boxes { desc, .. } => sys::omcl_set_box_callbacks(geom, &**desc),
                     Prims::Bricks { desc, .. } => {
@@ -400,8 +438,8 @@ impl EmbreeCaster {
                 sys::rtcCommitGeometry(geom);
                 check(d, "rtcCommitGeometry")?;
                 sys::rtcAttachGeometry(scene, geom);
-                sys::rtcReleaseGeometry(geom);
                 check(d, "rtcAttachGeometry")?;
+                drop(handle);
             }
             sys::rtcCommitScene(scene);
             check(d, "rtcCommitScene")?;
@@ -445,8 +483,10 @@ impl EmbreeCaster {
     }
 
     /// Traces rays on the calling thread; the C side writes the hits in
-    /// place, brick slots already mapped to voxel indices.
-    fn trace_chunk(&self, rays: &[Ray], hits: &mut [Hit]) {
+    /// place, brick slots already mapped to voxel indices. An error Embree
+    /// raises during the call is returned (the hits are then all misses).
+    /// Panics if the slices differ in length.
+    pub fn try_cast_serial(&self, rays: &[Ray], hits: &mut [Hit]) -> Result<(), EmbreeError> {
         assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
         let (inv_size, slots): (f32, &[u32]) = match &self.prims {
             Prims::Boxes { .. } => (0.0, &[]),
@@ -461,7 +501,14 @@ impl EmbreeCaster {
         // (checked at compile time above); `hits` has room for `rays.len()`
         // hits; `slots` is read only within its `slots.len()` entries; the
         // scene is committed and shared read-only.
-        unsafe {
+        if self.inject_error.load(Ordering::Relaxed)
+            && self.inject_error.swap(false, Ordering::SeqCst)
+        {
+            // SAFETY: sets a thread-local flag in the shim, read by the
+            // omcl_trace call below on this thread.
+            unsafe { sys::omcl_inject_trace_error() }
+        }
+        let code = unsafe {
             sys::omcl_trace(
                 self.scene,
                 rays.as_ptr().cast::<sys::OmclRay>(),
@@ -472,20 +519,87 @@ impl EmbreeCaster {
                 slots_ptr,
                 slots.len(),
                 self.wide_simd as i32,
-            );
+            )
+        };
+        if code == 0 {
+            return Ok(());
         }
+        hits.fill(Hit::miss());
+        // The shim kept the code and message on this thread; `check` takes
+        // both (and the device's own record).
+        check(self.device.0, "rtcIntersect").and(Err(EmbreeError::Api {
+            call: "rtcIntersect",
+            code: format!("error code {code}"),
+            message: String::new(),
+        }))
     }
 }
 
 impl RayCaster for EmbreeCaster {
     fn cast_serial(&self, rays: &[Ray], hits: &mut [Hit]) {
-        assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
-        self.trace_chunk(rays, hits);
+        if let Err(e) = self.try_cast_serial(rays, hits) {
+            let mut slot = self
+                .trace_error
+                .lock()
+                .unwrap_or_else(|poisoned| poisoned.into_inner());
+            slot.get_or_insert(e);
+        }
+    }
+
+    fn take_error(&self) -> Option<String> {
+        self.trace_error
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+            .take()
+            .map(|e| e.to_string())
     }
 
     fn len(&self) -> usize {
         self.len
     }
+}
+
+impl EmbreeCaster {
+    /// Tests only: the next cast of this caster (on whichever thread)
+    /// reports an error the way Embree's error callback does, to exercise
+    /// the error path.
+    #[doc(hidden)]
+    pub fn inject_trace_error_for_test(&self) {
+        self.inject_error.store(true, Ordering::SeqCst);
+    }
+
+    /// Tests only: makes Embree raise a real error on this caster's device
+    /// and returns what [`check`] reports for it.
+    #[doc(hidden)]
+    pub fn raise_real_error_for_test(&self) -> Result<(), EmbreeError> {
+        clear_errors(self.device.0);
+        // SAFETY: a valid device; the shim releases anything it creates.
+        let failed = unsafe { sys::omcl_raise_real_error(self.device.0) };
+        let reported = check(self.device.0, "rtcNewGeometry");
+        if failed == 1 && reported.is_ok() {
+            return Err(EmbreeError::Api {
+                call: "rtcNewGeometry",
+                code: "not reported".into(),
+                message: "Embree failed the call but no error reached the callback".into(),
+            });
+        }
+        reported
+    }
+}
+
+/// The calling thread's MXCSR (SSE control and status): tests check that a
+/// cast leaves the float mode as it found it.
+pub fn thread_float_mode() -> u32 {
+    // SAFETY: reads a register of the calling thread; no memory is touched.
+    unsafe { sys::omcl_get_csr() }
+}
+
+/// Packets traced so far (in this process) whose `valid` mask was not
+/// aligned like the packet, as Embree requires; zero unless the shim is
+/// broken.
+pub fn misaligned_masks() -> u64 {
+    // SAFETY: an atomic load of a counter in the shim.
+    unsafe { sys::omcl_misaligned_masks() as u64 }
 }
 
 impl Drop for EmbreeCaster {

@@ -16,7 +16,10 @@ mod embree;
 mod reference;
 
 pub use bricks::BrickEdge;
-pub use embree::{BuildOptions, BuildQuality, EmbreeCaster, EmbreeError, Geometry, Packet};
+pub use embree::{
+    BuildOptions, BuildQuality, EmbreeCaster, EmbreeError, Geometry, Packet, misaligned_masks,
+    thread_float_mode,
+};
 pub use reference::ReferenceCaster;
 
 use rayon::prelude::*;
@@ -63,6 +66,15 @@ pub trait RayCaster: Send + Sync {
     /// (the filter casts each particle's rays inside its own parallel
     /// task). Panics if the slices differ in length.
     fn cast_serial(&self, rays: &[Ray], hits: &mut [Hit]);
+
+    /// The first error the backend hit while casting since the last call
+    /// (its rays then came back as misses), taken: callers that cast
+    /// through this infallible interface check it once per batch (the
+    /// filter does after every step). Backends that cannot fail keep the
+    /// default, `None`.
+    fn take_error(&self) -> Option<String> {
+        None
+    }
 
     /// Casts `rays` (grid frame) and writes one hit per ray into `hits`,
     /// in parallel with rayon, [`CHUNK`] rays a task. Panics if the slices

@@ -445,6 +445,111 @@ fn the_avx2_path_is_taken_where_the_cpu_has_it() {
     assert!(!embree(0.1, &cells, Geometry::Boxes).wide_simd());
 }
 
+/// Rays through a small scene from several origins, some hitting.
+fn boundary_rays() -> Vec<Ray> {
+    (0..37)
+        .map(|i| {
+            let a = i as f32 * 0.17;
+            ray(
+                [-1.0, 0.05 + 0.01 * i as f32, 0.05],
+                [1.0, a.sin() * 0.1, 0.0],
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn a_cast_leaves_the_float_mode_as_it_found_it() {
+    // MXCSR bits: FTZ (15) and DAZ (6). The shim sets both while tracing.
+    const FTZ_DAZ: u32 = (1 << 15) | (1 << 6);
+    let cells: Vec<Cell> = (0..20).map(|i| [i, i % 3, 0]).collect();
+    let before = thread_float_mode();
+    assert_eq!(before & FTZ_DAZ, 0, "the test thread starts in IEEE mode");
+    for g in GEOMETRIES {
+        for p in [
+            Packet::Single,
+            Packet::Four,
+            Packet::Eight,
+            Packet::Sixteen,
+            Packet::Stream,
+        ] {
+            let e = embree(0.1, &cells, g).with_packet(p);
+            let rays = boundary_rays();
+            let mut hits = vec![Hit::miss(); rays.len()];
+            e.cast_serial(&rays, &mut hits);
+            assert!(hits.iter().any(|h| h.leaf != Hit::MISS), "{g:?} {p:?} hits");
+            assert_eq!(thread_float_mode(), before, "{g:?} {p:?}");
+        }
+    }
+    // A denormal survives arithmetic on this thread after the casts.
+    let tiny = std::hint::black_box(f32::MIN_POSITIVE);
+    assert!(std::hint::black_box(tiny / 4.0) > 0.0);
+}
+
+#[test]
+fn packet_masks_are_aligned_as_embree_requires() {
+    let cells: Vec<Cell> = (0..20).map(|i| [i, i % 3, 0]).collect();
+    for p in [Packet::Four, Packet::Eight, Packet::Sixteen] {
+        for g in GEOMETRIES {
+            let e = embree(0.1, &cells, g).with_packet(p);
+            let rays = boundary_rays();
+            let mut hits = vec![Hit::miss(); rays.len()];
+            e.cast_serial(&rays, &mut hits);
+        }
+    }
+    assert_eq!(misaligned_masks(), 0);
+}
+
+#[test]
+fn an_error_while_tracing_is_reported_once_and_hits_are_misses() {
+    let cells: Vec<Cell> = (0..20).map(|i| [i, i % 3, 0]).collect();
+    let e = embree(0.1, &cells, Geometry::default());
+    let rays = boundary_rays();
+    let mut hits = vec![Hit::miss(); rays.len()];
+    e.inject_trace_error_for_test();
+    let err = e.try_cast_serial(&rays, &mut hits).unwrap_err();
+    assert!(
+        err.to_string().contains("error injected by a test"),
+        "{err}"
+    );
+    assert!(hits.iter().all(|h| h.leaf == Hit::MISS));
+    // Through the infallible interface: kept for take_error, taken once.
+    e.inject_trace_error_for_test();
+    e.cast_serial(&rays, &mut hits);
+    let msg = e.take_error().expect("the error is kept");
+    assert!(msg.contains("invalid operation"), "{msg}");
+    assert_eq!(e.take_error(), None);
+    // The next cast is clean and hits again.
+    assert!(e.try_cast_serial(&rays, &mut hits).is_ok());
+    assert!(hits.iter().any(|h| h.leaf != Hit::MISS));
+}
+
+#[test]
+fn a_real_embree_error_is_named_and_does_not_go_stale() {
+    let cells: Vec<Cell> = (0..20).map(|i| [i, i % 3, 0]).collect();
+    let e = embree(0.1, &cells, Geometry::default());
+    let err = e.raise_real_error_for_test().unwrap_err();
+    match &err {
+        EmbreeError::Api {
+            call,
+            code,
+            message,
+        } => {
+            assert_eq!(*call, "rtcNewGeometry");
+            assert_ne!(code, "no error", "{err}");
+            assert!(message.contains("invalid geometry type"), "{err}");
+        }
+        other => panic!("unexpected {other:?}"),
+    }
+    // The error was taken: a caster built next on this thread and its casts
+    // see no stale error.
+    let f = embree(0.1, &cells, Geometry::Boxes);
+    let rays = boundary_rays();
+    let mut hits = vec![Hit::miss(); rays.len()];
+    assert!(f.try_cast_serial(&rays, &mut hits).is_ok());
+    assert_eq!(f.take_error(), None);
+}
+
 /// Random scenes and rays: Embree agrees with the reference except where
 /// two voxels are hit at (numerically) the same distance.
 fn agree(cells: &[Cell], rays: &[Ray], geometry: Geometry) -> Result<(), TestCaseError> {
