@@ -392,6 +392,29 @@ fn an_empty_feature_map_is_an_error_not_a_panic() {
 }
 
 #[test]
+fn map_rgbd_refuses_empty_feature_maps_naming_the_file() {
+    let f = Fixture::new();
+    let out = f.existing_out("map.omcl");
+    let seq = f.copy_seq("empty_features_map");
+    let bad = seq.join("features").join("000001.npy");
+    // 0 x W x F and H x 0 x F: the right dimension, no pixels.
+    for shape in [[0, WIDTH / 4, MAP_DIM], [HEIGHT / 4, 0, MAP_DIM]] {
+        npy::write_npy(&bad, &shape, &[]).unwrap();
+        let r = omcl(&[
+            "map",
+            "rgbd",
+            s(&seq),
+            "-o",
+            s(&out),
+            "--resolution",
+            "0.1",
+            "--use-features",
+        ]);
+        assert_clean_failure(&r, &out, &[s(&bad), "every extent must be at least 1"]);
+    }
+}
+
+#[test]
 fn prompt_initialization_explains_what_is_missing() {
     let f = Fixture::new();
     let out = f.existing_out("est.txt");

@@ -25,6 +25,18 @@ pub enum MapCommand {
     Query(QueryArgs),
     /// Write a PLY of the voxels coloured by feature row.
     Export(ExportArgs),
+    /// Convert a map file of an older format version (1: checksum over the
+    /// data only) into the current one (2: header values checksummed too).
+    Upgrade(UpgradeArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct UpgradeArgs {
+    /// The old map file; it is read and checked, never changed.
+    pub file: PathBuf,
+    /// Where to write the upgraded map (written atomically).
+    #[arg(long, short)]
+    pub out: PathBuf,
 }
 
 #[derive(Debug, Args)]
@@ -47,6 +59,23 @@ pub fn run(cmd: MapCommand) -> anyhow::Result<()> {
         MapCommand::Ground(a) => super::map_build::ground(&a),
         MapCommand::Query(a) => super::map_build::query(&a),
         MapCommand::Export(a) => super::map_build::export(&a),
+        MapCommand::Upgrade(a) => {
+            anyhow::ensure!(
+                a.file != a.out,
+                "--out must differ from the input: {} is kept as it is",
+                a.file.display()
+            );
+            let map = file::upgrade(&a.file, &a.out)?;
+            println!(
+                "{} -> {} (format version {}, {} voxels, {} rows)",
+                a.file.display(),
+                a.out.display(),
+                file::VERSION,
+                map.len(),
+                map.db().len()
+            );
+            Ok(())
+        }
     }
 }
 

@@ -407,14 +407,15 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
                 p.display(),
                 integ.observation_db().dim()
             );
-            let fm = FeatureMap {
-                h: arr.shape[0] as u32,
-                w: arr.shape[1] as u32,
+            let fm = FeatureMap::new(
+                u32::try_from(arr.shape[0]).unwrap_or(u32::MAX),
+                u32::try_from(arr.shape[1]).unwrap_or(u32::MAX),
                 dim,
-                data: &arr.data,
-                width: k.width,
-                height: k.height,
-            };
+                &arr.data,
+                k.width,
+                k.height,
+            )
+            .with_context(|| p.display().to_string())?;
             mapping::rgbd::integrate_frame(&mut integ, &k, &depth.depth, pose, &fm, &opt)
                 .with_context(|| p.display().to_string())?
         };

@@ -5,8 +5,11 @@
 //! Header metadata (strings): `format` = `omcl-language-map`, `version`,
 //! `resolution` (m), `origin_x`/`origin_y`/`origin_z` (m, world frame),
 //! `feature_dim`, `tau`, `encoder`, `leaves`, `rows`, and `crc32`: the
-//! CRC-32 (IEEE) of the three tensors' bytes in that order, so corruption
-//! of the data is caught as well as corruption of the header.
+//! CRC-32 (IEEE) of the header values (each of [`CHECKED_FIELDS`] as a
+//! `name=value` line, in that order) followed by the three tensors' bytes in
+//! order, so a flipped digit in the resolution or origin is caught as well as
+//! a flipped byte in the data. Version 1 files (CRC over the tensors only)
+//! are refused with a message naming [`upgrade`] (`omcl map upgrade`).
 //!
 //! Python reads it with `safetensors.numpy.load_file(path)` and the header
 //! with `safetensors.safe_open(path, "np").metadata()`.
@@ -26,8 +29,42 @@ use super::octree::{LanguageMap, MapError};
 
 /// Value of the `format` field.
 pub const FORMAT: &str = "omcl-language-map";
-/// Version this build writes and reads.
-pub const VERSION: u32 = 1;
+/// Version this build writes and reads. Version 2 put the header values
+/// under the checksum.
+pub const VERSION: u32 = 2;
+
+/// Header fields covered by the checksum (version 2), in checksum order.
+/// `writer` (informational) and `crc32` itself are not.
+pub const CHECKED_FIELDS: [&str; 11] = [
+    "format",
+    "version",
+    "resolution",
+    "origin_x",
+    "origin_y",
+    "origin_z",
+    "feature_dim",
+    "tau",
+    "encoder",
+    "leaves",
+    "rows",
+];
+
+/// The checksum of a map file: header values, then tensor bytes.
+fn checksum(meta: &HashMap<String, String>, tensors: [&[u8]; 3], with_header: bool) -> u32 {
+    let mut crc = crc32fast::Hasher::new();
+    if with_header {
+        for name in CHECKED_FIELDS {
+            crc.update(name.as_bytes());
+            crc.update(b"=");
+            crc.update(meta.get(name).map_or(&b""[..], |v| v.as_bytes()));
+            crc.update(b"\n");
+        }
+    }
+    for t in tensors {
+        crc.update(t);
+    }
+    crc.finalize()
+}
 
 /// Errors reading or writing a map file; each names the file.
 #[derive(Debug, thiserror::Error)]
@@ -48,6 +85,11 @@ pub enum MapFileError {
         "{path}: map format version {found} is not supported (this build reads version {VERSION})"
     )]
     Version { path: PathBuf, found: String },
+    #[error(
+        "{path}: map format version 1 (its checksum does not cover the header values); \
+         convert it with `omcl map upgrade {path} -o NEW.omcl`, or rebuild the map"
+    )]
+    OldVersion { path: PathBuf },
     #[error("{path}: header field `{field}` is missing")]
     MissingField { path: PathBuf, field: &'static str },
     #[error("{path}: header field `{field}` = {value:?} is not valid: {expected}")]
@@ -90,12 +132,8 @@ pub fn to_bytes(map: &LanguageMap) -> Vec<u8> {
     let codes = le_bytes_u64(map.codes());
     let rows = le_bytes_u32(map.rows());
     let features = le_bytes_f32(map.db().rows());
-    let mut crc = crc32fast::Hasher::new();
-    crc.update(&codes);
-    crc.update(&rows);
-    crc.update(&features);
     let g = map.grid();
-    let meta: HashMap<String, String> = [
+    let mut meta: HashMap<String, String> = [
         ("format", FORMAT.to_string()),
         ("version", VERSION.to_string()),
         ("resolution", format!("{:?}", g.resolution)),
@@ -107,12 +145,13 @@ pub fn to_bytes(map: &LanguageMap) -> Vec<u8> {
         ("encoder", map.encoder().to_string()),
         ("leaves", map.len().to_string()),
         ("rows", map.db().len().to_string()),
-        ("crc32", format!("{:08x}", crc.finalize())),
         ("writer", format!("omcl {}", env!("CARGO_PKG_VERSION"))),
     ]
     .into_iter()
     .map(|(k, v)| (k.to_string(), v))
     .collect();
+    let crc = checksum(&meta, [&codes, &rows, &features], true);
+    meta.insert("crc32".into(), format!("{crc:08x}"));
     let l = map.len();
     let views = [
         ("codes", TensorView::new(Dtype::U64, vec![l], &codes)),
@@ -165,6 +204,22 @@ pub fn read_header(path: &Path) -> Result<HashMap<String, String>, MapFileError>
 
 /// Parses the bytes of a map file; `path` names it in errors.
 pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<LanguageMap, MapFileError> {
+    parse_map(bytes, path, false)
+}
+
+/// Reads a map file of version 1 or 2 (each checked by its own checksum
+/// rule) and writes it as the current version to `out`, atomically.
+pub fn upgrade(path: &Path, out: &Path) -> Result<LanguageMap, MapFileError> {
+    let bytes = std::fs::read(path).map_err(|source| MapFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let map = parse_map(&bytes, path, true)?;
+    save(&map, out)?;
+    Ok(map)
+}
+
+fn parse_map(bytes: &[u8], path: &Path, accept_v1: bool) -> Result<LanguageMap, MapFileError> {
     let p = || path.to_path_buf();
     let st = SafeTensors::deserialize(bytes).map_err(|e| MapFileError::NotSafetensors {
         path: p(),
@@ -190,12 +245,17 @@ pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<LanguageMap, MapFileError
         })
     };
     let version = field("version")?;
-    if version.parse::<u32>() != Ok(VERSION) {
-        return Err(MapFileError::Version {
-            path: p(),
-            found: version.clone(),
-        });
-    }
+    let header_checked = match version.parse::<u32>() {
+        Ok(VERSION) => true,
+        Ok(1) if accept_v1 => false,
+        Ok(1) => return Err(MapFileError::OldVersion { path: p() }),
+        _ => {
+            return Err(MapFileError::Version {
+                path: p(),
+                found: version.clone(),
+            });
+        }
+    };
     fn parse<T: std::str::FromStr>(
         path: &Path,
         name: &'static str,
@@ -291,11 +351,7 @@ pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<LanguageMap, MapFileError
     let codes_b = tensor("codes", Dtype::U64, vec![leaves])?;
     let rows_b = tensor("rows", Dtype::U32, vec![leaves])?;
     let feat_b = tensor("features", Dtype::F32, vec![nrows, dim])?;
-    let mut crc = crc32fast::Hasher::new();
-    crc.update(codes_b);
-    crc.update(rows_b);
-    crc.update(feat_b);
-    let computed = crc.finalize();
+    let computed = checksum(&meta, [codes_b, rows_b, feat_b], header_checked);
     if computed != stored {
         return Err(MapFileError::Checksum {
             path: p(),
@@ -417,7 +473,7 @@ mod tests {
     fn wrong_version_and_foreign_files_are_named() {
         let bytes = to_bytes(&sample());
         // Same-length edit of the version inside the JSON header.
-        let needle = b"\"version\":\"1\"";
+        let needle = b"\"version\":\"2\"";
         let at = bytes
             .windows(needle.len())
             .position(|w| w == needle)
@@ -442,6 +498,95 @@ mod tests {
         let e = from_bytes(b"ply\nformat ascii 1.0\n", Path::new("cloud.ply")).unwrap_err();
         assert!(matches!(e, MapFileError::NotSafetensors { .. }), "{e}");
         assert!(e.to_string().contains("cloud.ply"));
+    }
+
+    /// `bytes` with the first occurrence of `from` replaced by `to` (same
+    /// length, so the safetensors layout stays valid).
+    fn edit(bytes: &[u8], from: &str, to: &str) -> Vec<u8> {
+        assert_eq!(from.len(), to.len());
+        let at = bytes
+            .windows(from.len())
+            .position(|w| w == from.as_bytes())
+            .unwrap_or_else(|| panic!("{from} not in the file"));
+        let mut out = bytes.to_vec();
+        out[at..at + to.len()].copy_from_slice(to.as_bytes());
+        out
+    }
+
+    #[test]
+    fn a_changed_header_value_fails_the_checksum() {
+        let bytes = to_bytes(&sample());
+        // resolution 0.05 -> 0.06; origin_y 0.1 -> 0.2; tau 0.05 -> 0.07;
+        // the encoder's name; every one a valid value, so only the checksum
+        // can tell.
+        for (from, to) in [
+            ("\"resolution\":\"0.05\"", "\"resolution\":\"0.06\""),
+            ("\"origin_y\":\"0.1\"", "\"origin_y\":\"0.2\""),
+            ("\"tau\":\"0.05\"", "\"tau\":\"0.07\""),
+            ("clip-vit-b32", "clip-vit-b16"),
+        ] {
+            let e = from_bytes(&edit(&bytes, from, to), Path::new("h.omcl")).unwrap_err();
+            assert!(matches!(e, MapFileError::Checksum { .. }), "{to}: {e}");
+        }
+        // The informational writer field is not covered.
+        let w = format!("omcl {}", env!("CARGO_PKG_VERSION"));
+        let other = format!("omcX {}", env!("CARGO_PKG_VERSION"));
+        assert!(from_bytes(&edit(&bytes, &w, &other), Path::new("h.omcl")).is_ok());
+    }
+
+    /// A version-1 file of `map`: the old checksum over the tensors only.
+    fn version_1_bytes(map: &LanguageMap) -> Vec<u8> {
+        let codes = le_bytes_u64(map.codes());
+        let rows = le_bytes_u32(map.rows());
+        let features = le_bytes_f32(map.db().rows());
+        let (_, header) = SafeTensors::read_metadata(&to_bytes(map)).unwrap();
+        let mut meta = header.metadata().clone().unwrap();
+        meta.insert("version".into(), "1".into());
+        let crc = checksum(&meta, [&codes, &rows, &features], false);
+        meta.insert("crc32".into(), format!("{crc:08x}"));
+        let l = map.len();
+        let views = [
+            (
+                "codes",
+                TensorView::new(Dtype::U64, vec![l], &codes).unwrap(),
+            ),
+            ("rows", TensorView::new(Dtype::U32, vec![l], &rows).unwrap()),
+            (
+                "features",
+                TensorView::new(Dtype::F32, vec![map.db().len(), map.db().dim()], &features)
+                    .unwrap(),
+            ),
+        ];
+        safetensors::serialize(views, Some(meta)).unwrap()
+    }
+
+    #[test]
+    fn version_1_files_are_refused_with_the_way_out_and_upgrade() {
+        let dir = tempfile::tempdir().unwrap();
+        let old = dir.path().join("old.omcl");
+        let new = dir.path().join("new.omcl");
+        let m = sample();
+        std::fs::write(&old, version_1_bytes(&m)).unwrap();
+        let e = load(&old).unwrap_err();
+        assert!(matches!(e, MapFileError::OldVersion { .. }), "{e}");
+        let msg = e.to_string();
+        assert!(
+            msg.contains("old.omcl") && msg.contains("omcl map upgrade"),
+            "{msg}"
+        );
+        let up = upgrade(&old, &new).unwrap();
+        assert_eq!(up, m);
+        assert_eq!(load(&new).unwrap(), m);
+        assert_eq!(read_header(&new).unwrap()["version"], VERSION.to_string());
+        // A version-1 file with a flipped tensor byte is still caught.
+        let mut bad = version_1_bytes(&m);
+        let last = bad.len() - 1;
+        bad[last] ^= 1;
+        std::fs::write(&old, bad).unwrap();
+        assert!(matches!(
+            upgrade(&old, &new),
+            Err(MapFileError::Checksum { .. })
+        ));
     }
 
     #[test]

@@ -15,6 +15,33 @@ pub mod cloud;
 pub mod colors;
 pub mod rgbd;
 
+/// Errors of the mapping front doors: inputs whose sizes disagree, and the
+/// feature database's own errors.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum MappingError {
+    #[error(transparent)]
+    Db(#[from] crate::map::FeatureDbError),
+    #[error("depth image has {got} values, the intrinsics say {width} x {height} = {want}")]
+    DepthSize {
+        got: usize,
+        want: usize,
+        width: u32,
+        height: u32,
+    },
+    #[error("feature map is {h} x {w} x {dim}: every extent must be at least 1")]
+    EmptyFeatureMap { h: u32, w: u32, dim: usize },
+    #[error("feature map of {h} x {w} x {dim} needs {want} values, got {got}")]
+    FeatureMapSize {
+        h: u32,
+        w: u32,
+        dim: usize,
+        want: usize,
+        got: usize,
+    },
+    #[error("image size {width} x {height}: both must be at least 1")]
+    EmptyImage { width: u32, height: u32 },
+}
+
 /// The feature of one pixel or point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Feature<'a> {
@@ -64,10 +91,56 @@ pub struct FeatureMap<'a> {
     pub height: u32,
 }
 
+impl<'a> FeatureMap<'a> {
+    /// A feature map of `h x w x dim` values describing a `width x height`
+    /// image; every extent must be at least 1 and `data` hold exactly the
+    /// map's values.
+    pub fn new(
+        h: u32,
+        w: u32,
+        dim: usize,
+        data: &'a [f32],
+        width: u32,
+        height: u32,
+    ) -> Result<Self, MappingError> {
+        if h == 0 || w == 0 || dim == 0 {
+            return Err(MappingError::EmptyFeatureMap { h, w, dim });
+        }
+        if width == 0 || height == 0 {
+            return Err(MappingError::EmptyImage { width, height });
+        }
+        let want = (h as usize)
+            .checked_mul(w as usize)
+            .and_then(|n| n.checked_mul(dim));
+        if want != Some(data.len()) {
+            return Err(MappingError::FeatureMapSize {
+                h,
+                w,
+                dim,
+                want: want.unwrap_or(usize::MAX),
+                got: data.len(),
+            });
+        }
+        Ok(FeatureMap {
+            h,
+            w,
+            dim,
+            data,
+            width,
+            height,
+        })
+    }
+}
+
 impl FrameFeatures for FeatureMap<'_> {
     fn at(&self, u: u32, v: u32) -> Feature<'_> {
-        let fu = ((u as u64 * 2 + 1) * self.w as u64 / (2 * self.width as u64)) as usize;
-        let fv = ((v as u64 * 2 + 1) * self.h as u64 / (2 * self.height as u64)) as usize;
+        // The fields are public: a map built without `new` (zero extents)
+        // reads nothing rather than wrapping around.
+        let fu = ((u as u64 * 2 + 1) * self.w as u64 / (2 * self.width.max(1) as u64)) as usize;
+        let fv = ((v as u64 * 2 + 1) * self.h as u64 / (2 * self.height.max(1) as u64)) as usize;
+        if self.h == 0 || self.w == 0 {
+            return Feature::Unknown;
+        }
         let i = (fv.min(self.h as usize - 1) * self.w as usize + fu.min(self.w as usize - 1))
             * self.dim;
         match self.data.get(i..i + self.dim) {

@@ -2,9 +2,9 @@
 
 use nalgebra::Vector3;
 
-use super::{FrameFeatures, IntegrationStats};
+use super::{FrameFeatures, IntegrationStats, MappingError};
 use crate::geometry::{Intrinsics, Pose};
-use crate::map::{FeatureDbError, Integrator};
+use crate::map::Integrator;
 
 /// Which pixels of a frame are used.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -31,7 +31,8 @@ impl Default for FrameOptions {
 }
 
 /// Back-projects a z-depth image (`k.width x k.height`, metres, 0 invalid)
-/// seen from `world_from_camera` and adds each used pixel's feature.
+/// seen from `world_from_camera` and adds each used pixel's feature. A depth
+/// image of another size than the intrinsics' is an error.
 pub fn integrate_frame(
     integ: &mut Integrator,
     k: &Intrinsics,
@@ -39,7 +40,16 @@ pub fn integrate_frame(
     world_from_camera: &Pose,
     features: &dyn FrameFeatures,
     opt: &FrameOptions,
-) -> Result<IntegrationStats, FeatureDbError> {
+) -> Result<IntegrationStats, MappingError> {
+    let want = k.width as usize * k.height as usize;
+    if depth.len() != want {
+        return Err(MappingError::DepthSize {
+            got: depth.len(),
+            want,
+            width: k.width,
+            height: k.height,
+        });
+    }
     let mut s = IntegrationStats::default();
     let stride = opt.stride.max(1);
     for v in (0..k.height).step_by(stride as usize) {
@@ -195,5 +205,77 @@ mod tests {
         assert_eq!(s.offered, 8);
         // 3 valid pixels of row 0 are above 1 m, 1 is too far; row 1 has a hole.
         assert_eq!((s.integrated, s.skipped), (3, 5));
+    }
+
+    #[test]
+    fn wrong_depth_length_and_empty_feature_maps_are_errors() {
+        use crate::mapping::{FeatureMap, MappingError};
+        let k = Intrinsics::from_hfov(4, 2, 90.0);
+        let db = FeatureDb::new(2, 0.05).unwrap();
+        let grid = GridSpec {
+            resolution: 0.1,
+            origin: Vector3::zeros(),
+        };
+        let mut integ = Integrator::new(grid, db).unwrap();
+        let pose = level_camera(Vector3::new(0.0, 0.0, 1.0), 0.0);
+        let data = [1.0f32, 0.0];
+        let fm = FeatureMap::new(1, 1, 2, &data, 4, 2).unwrap();
+        // Seven depth values for a 4 x 2 image: an error, nothing added.
+        let err = integrate_frame(
+            &mut integ,
+            &k,
+            &[1.0; 7],
+            &pose,
+            &fm,
+            &FrameOptions::default(),
+        )
+        .unwrap_err();
+        assert_eq!(
+            err,
+            MappingError::DepthSize {
+                got: 7,
+                want: 8,
+                width: 4,
+                height: 2
+            }
+        );
+        let s = integrate_frame(
+            &mut integ,
+            &k,
+            &[1.0; 8],
+            &pose,
+            &fm,
+            &FrameOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(s.integrated, 8);
+        for (h, w, dim) in [(0, 3, 2), (3, 0, 2), (3, 3, 0)] {
+            assert_eq!(
+                FeatureMap::new(h, w, dim, &[], 4, 2).err(),
+                Some(MappingError::EmptyFeatureMap { h, w, dim })
+            );
+        }
+        assert!(matches!(
+            FeatureMap::new(2, 2, 2, &data, 4, 2),
+            Err(MappingError::FeatureMapSize {
+                want: 8,
+                got: 2,
+                ..
+            })
+        ));
+        // Built by hand with zero extents, it reads nothing instead of
+        // wrapping around.
+        let raw = FeatureMap {
+            h: 0,
+            w: 3,
+            dim: 2,
+            data: &[],
+            width: 4,
+            height: 2,
+        };
+        assert_eq!(
+            crate::mapping::FrameFeatures::at(&raw, 1, 1),
+            crate::mapping::Feature::Unknown
+        );
     }
 }
