@@ -134,7 +134,7 @@ fn huge_declared_counts_fail_fast_with_the_file_named() {
     let mut npy = b"\x93NUMPY\x01\x00".to_vec();
     let mut dict =
         "{'descr': '<f4', 'fortran_order': False, 'shape': (4000000000, 512), }".to_string();
-    while (10 + dict.len() + 1) % 64 != 0 {
+    while !(10 + dict.len() + 1).is_multiple_of(64) {
         dict.push(' ');
     }
     dict.push('\n');

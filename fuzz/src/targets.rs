@@ -332,7 +332,7 @@ pub fn npy_from(data: &[u8]) -> Vec<u8> {
     };
     let order = if d.byte() % 8 == 0 { "True" } else { "False" };
     let mut dict = format!("{{'descr': '{dtype}', 'fortran_order': {order}, 'shape': {shape}, }}");
-    while (10 + dict.len() + 1) % 64 != 0 {
+    while !(10 + dict.len() + 1).is_multiple_of(64) {
         dict.push(' ');
     }
     dict.push('\n');
