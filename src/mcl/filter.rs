@@ -89,6 +89,12 @@ pub struct StepReport {
     /// Mean likelihood `L` over the particles (the frame's agreement with
     /// the map; a sudden drop suggests track loss).
     pub mean_likelihood: f64,
+    /// Confidence in `[0, 1]`: the short-term over the long-term average of
+    /// the mean likelihood (augmented MCL's `w_fast / w_slow`, capped at 1).
+    /// Near 1 while the frames agree with the map as well as they have;
+    /// it falls when they suddenly agree less (track loss, a kidnapped
+    /// camera) and returns once the filter has found the camera again.
+    pub confidence: f64,
     /// Particles after this step.
     pub n_particles: usize,
     /// Rays cast per particle (distinct sampled pixels).
@@ -257,10 +263,15 @@ impl Filter {
         let t3 = Instant::now();
         let est = estimate(&self.particles, &self.config.estimate).ok_or(MclError::NoParticles)?;
         let ess_now = ess(&self.particles);
+        // The averages run whether or not injection is on: they give the
+        // step's confidence.
+        let rates = self.config.recovery.unwrap_or_default();
+        let fraction = self.recovery.update(mean_l, &rates);
         let inject = match (&self.config.recovery, &self.injection) {
-            (Some(p), Some(_)) => self.recovery.update(mean_l, p),
+            (Some(_), Some(_)) => fraction,
             _ => 0.0,
         };
+        let confidence = self.recovery.confidence();
         let n_next = match &self.config.kld {
             Some(p) => particle_count(&self.particles, p, &mut self.rng),
             None => self.particles.len(),
@@ -278,14 +289,30 @@ impl Filter {
         }
         let mut injected = 0;
         if let Some(sampler) = self.injection.as_ref().filter(|_| inject > 0.0) {
-            let w = 1.0 / self.particles.len() as f64;
-            for p in self.particles.iter_mut() {
-                if self.rng.random::<f64>() < inject
-                    && let Some(pose) = sampler.sample(&mut self.rng)
-                {
-                    *p = Particle::new(pose, w);
-                    injected += 1;
+            let slots: Vec<usize> = (0..self.particles.len())
+                .filter(|_| self.rng.random::<f64>() < inject)
+                .collect();
+            let per = rates.candidates.max(1);
+            let mut candidates: Vec<Particle> = (0..slots.len() * per)
+                .filter_map(|_| sampler.sample(&mut self.rng))
+                .map(|pose| Particle::new(pose, 1.0))
+                .collect();
+            if per > 1 && !candidates.is_empty() {
+                // Keep the candidates this frame agrees with most.
+                let l = self.sensor.likelihoods(&candidates, &pixels, &table);
+                let mut order: Vec<usize> = (0..candidates.len()).collect();
+                order.sort_by(|&a, &b| l[b].total_cmp(&l[a]).then(a.cmp(&b)));
+                order.truncate(slots.len());
+                candidates = order.into_iter().map(|i| candidates[i]).collect();
+                if let Some(e) = self.sensor.take_cast_error() {
+                    self.particles = before;
+                    return Err(MclError::Cast(e));
                 }
+            }
+            let w = 1.0 / self.particles.len() as f64;
+            for (&slot, c) in slots.iter().zip(candidates) {
+                self.particles[slot] = Particle::new(c.pose, w);
+                injected += 1;
             }
             normalize(&mut self.particles);
         }
@@ -295,6 +322,7 @@ impl Filter {
             ess: ess_now,
             spread: est.spread,
             mean_likelihood: mean_l,
+            confidence,
             n_particles: self.particles.len(),
             n_rays: pixels.len(),
             resampled,

@@ -12,14 +12,26 @@ pub struct RecoveryParams {
     pub alpha_fast: f64,
     /// Largest fraction of particles replaced in one step.
     pub max_fraction: f64,
+    /// Candidates drawn for each injected particle; the best-scoring on the
+    /// current frame are injected (sensor-resetting localization, Lenser
+    /// and Veloso, ICRA 2000). 1 is plain augmented MCL; more costs that
+    /// many extra particle evaluations while the filter is injecting, and
+    /// nothing while it tracks.
+    #[serde(default = "default_candidates")]
+    pub candidates: usize,
+}
+
+fn default_candidates() -> usize {
+    8
 }
 
 impl Default for RecoveryParams {
     fn default() -> Self {
         RecoveryParams {
-            alpha_slow: 0.001,
-            alpha_fast: 0.1,
-            max_fraction: 0.2,
+            alpha_slow: 0.01,
+            alpha_fast: 0.3,
+            max_fraction: 0.3,
+            candidates: default_candidates(),
         }
     }
 }
@@ -32,6 +44,15 @@ pub struct Recovery {
 }
 
 impl Recovery {
+    /// `w_fast / w_slow` capped to `[0, 1]` (1 before any update).
+    pub fn confidence(&self) -> f64 {
+        if self.w_slow > 0.0 {
+            (self.w_fast / self.w_slow).clamp(0.0, 1.0)
+        } else {
+            1.0
+        }
+    }
+
     /// Updates the averages with this step's mean likelihood and returns
     /// the fraction of particles to replace.
     pub fn update(&mut self, mean_likelihood: f64, p: &RecoveryParams) -> f64 {
