@@ -264,6 +264,7 @@ fn localizes_the_synthetic_sequence_near_ground_truth() {
             "ess",
             "spread_m",
             "mean_likelihood",
+            "confidence",
             "particles",
             "rays",
             "step_ms",
@@ -278,7 +279,9 @@ fn localizes_the_synthetic_sequence_near_ground_truth() {
         assert_eq!(row.len(), header.len(), "row {i}: {row:?}");
         assert!(row.iter().all(|x| x.is_finite()), "row {i}: {row:?}");
         assert_eq!(row[0], i as f64, "row {i}: {row:?}");
-        let (ess, spread, lik, particles, rays) = (row[1], row[2], row[3], row[4], row[5]);
+        let (ess, spread, lik, conf, particles, rays) =
+            (row[1], row[2], row[3], row[4], row[5], row[6]);
+        assert!((0.0..=1.0).contains(&conf), "row {i}: {row:?}");
         assert!(particles >= 1.0, "row {i}: {row:?}");
         // ESS is printed to 0.1.
         assert!((0.95..=particles + 0.05).contains(&ess), "row {i}: {row:?}");
@@ -286,6 +289,25 @@ fn localizes_the_synthetic_sequence_near_ground_truth() {
         assert!((0.0..=1.0).contains(&lik), "row {i}: {row:?}");
         assert!((1.0..=128.0).contains(&rays), "row {i}: {row:?}");
     }
+}
+
+#[test]
+fn recovery_tracks_like_the_plain_filter() {
+    let f = Fixture::new();
+    let out = f.dir.path().join("est.txt");
+    let frames = FRAMES.to_string();
+    let r = f.localize(&f.map, &f.seq, &out, &["--frames", &frames, "--recovery"]);
+    assert!(r.ok(), "{}", r.text());
+    let est = read_tum(&out);
+    let gt = read_tum(&f.seq.join("poses.txt"));
+    let errors: Vec<f64> = est
+        .iter()
+        .zip(&gt)
+        .map(|((_, e), (_, g))| distance(e, g))
+        .collect();
+    assert_eq!(errors.len(), FRAMES);
+    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+    assert!(mean < 0.5, "mean error {mean:.3} m: {errors:.3?}");
 }
 
 #[test]

@@ -18,8 +18,8 @@ use omcl::io::poses::{self, PoseFormat};
 use omcl::io::{npy, rgbd};
 use omcl::map::{self, LanguageMap};
 use omcl::mcl::{
-    self, Filter, FilterConfig, FloorParams, FrameFeatures, PromptParams, SamplingStrategy,
-    SensorModel,
+    self, Filter, FilterConfig, FloorParams, FloorSampler, FrameFeatures, PromptParams,
+    SamplingStrategy, SensorModel,
 };
 use omcl::trajectory::Trajectory;
 
@@ -133,9 +133,16 @@ pub struct LocalizeArgs {
     /// Figure 4). Needs poses.txt.
     #[arg(long)]
     pub plot: Option<PathBuf>,
-    /// Per-frame diagnostics (CSV: ESS, spread, likelihood, time).
+    /// Per-frame diagnostics (CSV: ESS, spread, likelihood, confidence,
+    /// time).
     #[arg(long)]
     pub diagnostics: Option<PathBuf>,
+    /// Recover from track loss (a lost or kidnapped camera): when the frames
+    /// suddenly agree less with the map, inject the best-scoring of fresh
+    /// floor poses (augmented MCL with sensor resetting). Needs "floor" in
+    /// the class table, like --init global.
+    #[arg(long)]
+    pub recovery: bool,
     #[command(flatten)]
     pub encoder: super::encoders::EncoderArgs,
     /// Text encoder for --prompt and "floor" (default: the sequence's
@@ -423,15 +430,25 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         config.sharpen = s;
     }
     config.sensor.contrast = !a.no_contrast;
+    if a.recovery {
+        config.recovery = Some(mcl::recovery::RecoveryParams::default());
+    }
     let caster = Arc::new(SensorModel::embree_caster(
         m.grid().resolution as f32,
         &m.cells(),
     )?);
     let mut filter = Filter::new(&m, caster, k, config, particles)?;
+    if a.recovery {
+        let floor = mcl::init::floor_voxels(&m, &floor_feature()?, floor_params.rho)
+            .map_err(init_advice)
+            .context("--recovery injects poses over the floor")?;
+        filter = filter.with_injection(FloorSampler::new(&m, &floor, floor_params));
+    }
 
     let mut estimates = Vec::with_capacity(n);
-    let mut diag =
-        String::from("frame,ess,spread_m,mean_likelihood,particles,rays,step_ms,input_ms\n");
+    let mut diag = String::from(
+        "frame,ess,spread_m,mean_likelihood,confidence,particles,rays,step_ms,input_ms\n",
+    );
     // Filter time and input time (reading the frame and running the image
     // encoder, if any), seconds, for the frame rates printed at the end.
     let (mut filter_s, mut input_s) = (0.0f64, 0.0f64);
@@ -498,10 +515,11 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         filter_s += step;
         input_s += input;
         diag.push_str(&format!(
-            "{i},{:.1},{:.4},{:.4},{},{},{:.1},{:.1}\n",
+            "{i},{:.1},{:.4},{:.4},{:.3},{},{},{:.1},{:.1}\n",
             report.ess,
             report.spread,
             report.mean_likelihood,
+            report.confidence,
             report.n_particles,
             report.n_rays,
             1e3 * step,
