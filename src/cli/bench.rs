@@ -210,11 +210,12 @@ pub fn run_with_progress(
             Ok(e) => describe(e, results),
             Err(_) => String::new(),
         };
-        match r {
-            Ok(RunStatus::Ran) => pb.println(format!("[{k}/{n}] run {i}{what}")),
-            Ok(RunStatus::Skipped) => pb.println(format!("[{k}/{n}] run {i}{what} (result there)")),
-            Err(e) => pb.println(format!("[{k}/{n}] run {i} failed: {e}")),
-        }
+        // (A hidden bar's println prints nothing; suspend prints always.)
+        pb.suspend(|| match r {
+            Ok(RunStatus::Ran) => eprintln!("[{k}/{n}] run {i}{what}"),
+            Ok(RunStatus::Skipped) => eprintln!("[{k}/{n}] run {i}{what} (result there)"),
+            Err(e) => eprintln!("[{k}/{n}] run {i} failed: {e}"),
+        });
     });
     pb.finish_and_clear();
     failures

@@ -897,8 +897,9 @@ pub fn run_entry(
             Ok(RunStatus::Ran)
         }
         Err(e) => {
-            // The run's error is the one to report; a failure to note it
-            // is secondary.
+            // The run's error is the one to report; failing to note it (or
+            // to remove a corrupt result it was to replace) is secondary.
+            let _ = std::fs::remove_file(results.result_path(&entry.id));
             let _ = results.write_failure(&entry.id, &e.to_string());
             Err(e)
         }
