@@ -183,3 +183,56 @@ fn runs_are_idempotent_and_bad_input_names_the_run_and_file() {
         "{text}"
     );
 }
+
+/// `omcl bench` starts afresh unless `--resume`, which reuses the runs
+/// already in `<out>/sweep/`.
+#[test]
+fn bench_resumes_only_when_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let args = |resume: bool| {
+        let mut v = vec![
+            "bench",
+            "table1",
+            "--variants",
+            "OMCL_GT_exact",
+            "--sequences",
+            "1",
+            "--first-seed",
+            "1000",
+            "--frames",
+            "6",
+            "--map-frames",
+            "20",
+            "--particles",
+            "64",
+            "--rays",
+            "128",
+            "-o",
+            out,
+        ];
+        if resume {
+            v.push("--resume");
+        }
+        v
+    };
+    let (o, text) = omcl(&args(false));
+    assert!(o.status.success(), "{text}");
+    assert!(!text.contains("(result there)"), "{text}");
+    let table = std::fs::read_to_string(dir.path().join("table1.json")).unwrap();
+    let (o, text) = omcl(&args(true));
+    assert!(o.status.success(), "{text}");
+    assert!(
+        text.contains("[1/1] run 0 (table1 OMCL_GT_exact) sequence 1000"),
+        "{text}"
+    );
+    assert!(text.contains("(result there)"), "{text}");
+    // The same result file, so the same table, speeds included.
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("table1.json")).unwrap(),
+        table
+    );
+    let (o, text) = omcl(&args(false));
+    assert!(o.status.success(), "{text}");
+    assert!(!text.contains("(result there)"), "{text}");
+}

@@ -164,10 +164,14 @@ pub struct BenchArgs {
     /// Print the filter configuration as JSON and exit.
     #[arg(long)]
     pub show_config: bool,
-    /// Output folder (created if missing). Results already in its
-    /// `sweep/results/` are reused, not computed again.
+    /// Output folder (created if missing).
     #[arg(long, short, default_value = "bench-out")]
     pub out: PathBuf,
+    /// Reuse the results and maps of an earlier bench in `<out>/sweep/`
+    /// (only with the same build: run ids know the omcl version, not the
+    /// code). Without it they are deleted first.
+    #[arg(long)]
+    pub resume: bool,
 }
 
 pub fn run(a: BenchArgs) -> anyhow::Result<()> {
@@ -177,6 +181,13 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     }
     let bench = a.plan.bench_plan()?;
     let dir = a.out.join("sweep");
+    if !a.resume {
+        for d in [dir.join("results"), dir.join("cache")] {
+            if d.exists() {
+                std::fs::remove_dir_all(&d).with_context(|| format!("removing {}", d.display()))?;
+            }
+        }
+    }
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let manifest_path = dir.join("manifest.jsonl");
     let entries = sweep::plan(&bench)?;
