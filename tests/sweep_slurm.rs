@@ -3,7 +3,8 @@
 //! by hand). Twenty short runs (Table I and II, two variants, five
 //! sequences) go through `omcl sweep slurm --submit`; the collected tables
 //! must equal the local path's (`omcl bench`) bit for bit, except the
-//! measured speeds (steps/s and step times), which no two runs share. A
+//! measured speeds (steps/s and step times), which no two runs share. The
+//! test cluster's MaxArraySize is 8, so the 20 runs go as three arrays. A
 //! second submission is cancelled with `scancel` halfway, re-submitted
 //! (only the missing runs), and must end identical to the first.
 //!
@@ -14,6 +15,8 @@ use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
 const RUNS: usize = 20;
+/// The test cluster's MaxArraySize: 20 runs need three arrays (ids 0 to 7).
+const MAX_ARRAY: usize = 8;
 /// Longest wait for an array to finish (a stuck cluster, not a speed
 /// check: the arrays take well under a minute here).
 const PATIENCE: Duration = Duration::from_secs(900);
@@ -75,6 +78,7 @@ fn diagnostics(logs: &Path) -> String {
 fn start_cluster() {
     let o = Command::new("bash")
         .arg(repo().join("tools/slurm/start.sh"))
+        .env("OMCL_SLURM_MAX_ARRAY", MAX_ARRAY.to_string())
         .output()
         .expect("running tools/slurm/start.sh");
     assert!(
@@ -122,14 +126,27 @@ fn submit(m: &str, results: &Path, cache: &Path, logs: &Path, concurrency: &str)
         "00:10:00",
     ]);
     assert!(o.status.success(), "{text}\n{}", diagnostics(logs));
+    let arrays = text
+        .lines()
+        .find_map(|l| {
+            l.split(" in ")
+                .nth(1)?
+                .split(" array")
+                .next()?
+                .parse::<usize>()
+                .ok()
+        })
+        .unwrap_or_else(|| panic!("no array count:\n{text}"));
     let line = text
         .lines()
         .find(|l| l.starts_with("submitted job(s) "))
         .unwrap_or_else(|| panic!("no job submitted:\n{text}"));
-    line["submitted job(s) ".len()..]
+    let jobs: Vec<String> = line["submitted job(s) ".len()..]
         .split_whitespace()
         .map(String::from)
-        .collect()
+        .collect();
+    assert_eq!(jobs.len(), arrays, "{text}");
+    jobs
 }
 
 fn queued(jobs: &[String]) -> bool {
@@ -245,6 +262,7 @@ fn a_sweep_through_a_slurm_job_array_equals_the_local_path() {
     let (cache, logs) = (d.join("cache"), d.join("logs"));
     let results = d.join("results");
     let jobs = submit(ms, &results, &cache, &logs, "2");
+    assert_eq!(jobs.len(), RUNS.div_ceil(MAX_ARRAY), "one array per chunk");
     wait_jobs(&jobs, &logs);
     assert_eq!(status(ms, &results), (RUNS, 0, 0), "{}", diagnostics(&logs));
     let cluster = d.join("cluster");
@@ -274,7 +292,8 @@ fn a_sweep_through_a_slurm_job_array_equals_the_local_path() {
         assert!(t.elapsed() < PATIENCE, "{}", diagnostics(&logs2));
         std::thread::sleep(Duration::from_millis(200));
     }
-    let out = sh("scancel", &[&jobs[0]]);
+    let ids: Vec<&str> = jobs.iter().map(String::as_str).collect();
+    let out = sh("scancel", &ids);
     assert!(out.trim().is_empty(), "scancel: {out}");
     wait_jobs(&jobs, &logs2);
     let (done, failed, missing) = status(ms, &results2);
