@@ -741,6 +741,7 @@ pub struct Cache {
     build: bool,
     sequences: Mutex<HashMap<(u64, usize), Arc<SimSequence>>>,
     maps: Mutex<HashMap<PathBuf, Arc<BenchMap>>>,
+    built: std::sync::atomic::AtomicUsize,
 }
 
 /// Maps kept in memory by a [`Cache`] before it drops them all.
@@ -758,12 +759,18 @@ impl Cache {
             build,
             sequences: Mutex::new(HashMap::new()),
             maps: Mutex::new(HashMap::new()),
+            built: std::sync::atomic::AtomicUsize::new(0),
         })
     }
 
     /// The cache folder.
     pub fn dir(&self) -> &Path {
         &self.dir
+    }
+
+    /// Maps this cache has built (not loaded).
+    pub fn maps_built(&self) -> usize {
+        self.built.load(std::sync::atomic::Ordering::Relaxed)
     }
 
     /// The map file of `task`'s world and map.
@@ -816,6 +823,8 @@ impl Cache {
                 path: path.clone(),
                 reason: e.to_string(),
             })?;
+            self.built
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
         drop(lock_file);
         let map = crate::map::file::load(&path).map_err(|e| SweepError::BadMap {
@@ -1102,6 +1111,50 @@ mod tests {
             max_steps: 60,
             filter: FilterConfig::default(),
         }
+    }
+
+    /// Two caches on one folder (two processes, as far as the lock is
+    /// concerned) asking for the same map at once: one builds it, the
+    /// other waits and loads it; both get the same map, and a third cache
+    /// finds it. A corrupt map file is an error naming the run and file.
+    #[test]
+    fn a_map_is_built_once_under_the_lock() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut b = small_plan();
+        b.variants = vec!["OMCL_GT_exact".into()];
+        b.experiments = vec![Experiment::Table1];
+        b.sequences = 1;
+        let e = plan(&b).unwrap().remove(0);
+        let caches: Vec<Cache> = (0..2)
+            .map(|_| Cache::new(dir.path(), true).unwrap())
+            .collect();
+        let maps: Vec<Arc<BenchMap>> = std::thread::scope(|s| {
+            let h: Vec<_> = caches
+                .iter()
+                .map(|c| {
+                    s.spawn(|| {
+                        let seq = c.sequence(e.task.seed, e.task.frames).unwrap();
+                        c.map(&e.id, &e.task, &seq).unwrap()
+                    })
+                })
+                .collect();
+            h.into_iter().map(|h| h.join().unwrap()).collect()
+        });
+        assert_eq!(caches.iter().map(Cache::maps_built).sum::<usize>(), 1);
+        assert_eq!(maps[0].map.codes(), maps[1].map.codes());
+        assert_eq!(maps[0].map.rows(), maps[1].map.rows());
+        let third = Cache::new(dir.path(), false).unwrap();
+        let seq = third.sequence(e.task.seed, e.task.frames).unwrap();
+        third.map(&e.id, &e.task, &seq).unwrap();
+        assert_eq!(third.maps_built(), 0);
+
+        std::fs::write(third.map_path(&e.task), b"not a map").unwrap();
+        let fourth = Cache::new(dir.path(), true).unwrap();
+        let Err(err) = fourth.map(&e.id, &e.task, &seq) else {
+            panic!("a corrupt map file was loaded");
+        };
+        let err = err.to_string();
+        assert!(err.contains(&e.id) && err.contains(".omcl"), "{err}");
     }
 
     /// FNV-1a 64 of "a" is 0xaf63dc4c8601ec8c (the reference value).
