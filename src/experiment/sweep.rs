@@ -85,6 +85,8 @@ pub enum SweepError {
     },
     #[error("run {id}: {source}")]
     Run { id: String, source: ExperimentError },
+    #[error("{path}: {reason}")]
+    BadResult { path: PathBuf, reason: String },
     #[error("{0}")]
     Plan(String),
     #[error("{path}: {source}")]
@@ -677,9 +679,8 @@ impl ResultDir {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
             Err(e) => return Err(io_err(&path)(e)),
         };
-        let bad = |reason: String| SweepError::Manifest {
+        let bad = |reason: String| SweepError::BadResult {
             path: path.clone(),
-            line: 1,
             reason,
         };
         let r: RunRecord = serde_json::from_slice(&bytes)
