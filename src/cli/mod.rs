@@ -11,6 +11,7 @@ pub mod map;
 pub mod map_build;
 pub mod progress;
 pub mod sim;
+pub mod sweep;
 
 use clap::{Parser, Subcommand};
 
@@ -43,6 +44,9 @@ pub enum Command {
     /// Synthetic worlds and sensor data in real datasets' layouts.
     #[command(subcommand)]
     Sim(sim::SimCommand),
+    /// Experiment sweeps as independent runs: plan, run, collect, Slurm.
+    #[command(subcommand)]
+    Sweep(sweep::SweepCommand),
 }
 
 /// Runs a parsed command line.
@@ -55,5 +59,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Eval(cmd) => eval::run(cmd),
         Command::Localize(a) => localize::run(a),
         Command::Sim(cmd) => sim::run(cmd),
+        Command::Sweep(cmd) => sweep::run(cmd),
     }
 }

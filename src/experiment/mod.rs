@@ -13,8 +13,11 @@
 pub mod consistency;
 pub mod features;
 pub mod mapping;
+pub mod report;
 pub mod run;
 pub mod sequence;
+pub mod slurm;
+pub mod sweep;
 pub mod tables;
 
 pub use features::{GridFeatures, SimFrameFeatures};

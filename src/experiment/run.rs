@@ -56,7 +56,7 @@ pub struct RunSpec {
 }
 
 /// The outcome of a run.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct RunResult {
     /// Estimated `world_from_camera` per frame.
     #[serde(skip)]

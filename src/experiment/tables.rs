@@ -41,6 +41,11 @@ impl BenchMap {
             MapSource::Labels => None,
         };
         let map = build_map(seq, source, params, model.as_ref(), progress)?;
+        Self::from_map(source, map)
+    }
+
+    /// A built (or loaded) map of `source` with its ray caster.
+    pub fn from_map(source: MapSource, map: LanguageMap) -> Result<Self, ExperimentError> {
         let caster = Arc::new(SensorModel::embree_caster(
             map.grid().resolution as f32,
             &map.cells(),
@@ -294,7 +299,7 @@ pub struct GlobalSpec {
 }
 
 /// One global-localization run.
-#[derive(Debug, Clone, serde::Serialize)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct GlobalRun {
     /// Start frame.
     pub first: usize,

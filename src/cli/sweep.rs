@@ -1,0 +1,293 @@
+//! `omcl sweep`: `omcl bench` split into plan, run and collect, for running
+//! a sweep's runs anywhere (Slurm job arrays, Ray, Dask, a shell loop).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use clap::{Args, Subcommand};
+
+use omcl::experiment::report;
+use omcl::experiment::slurm::{self, SlurmOptions};
+use omcl::experiment::sweep::{self, Cache, Manifest, ResultDir};
+
+use super::bench::{PlanArgs, finish, run_with_progress};
+
+#[derive(Debug, Subcommand)]
+pub enum SweepCommand {
+    /// Expand experiments x variants x parameters x seeds into a manifest
+    /// (JSON lines: a header, then one run a line).
+    Plan(PlanCmd),
+    /// Execute runs of a manifest (all, one, or a stride); a run whose
+    /// result exists is skipped.
+    Run(RunCmd),
+    /// Which runs are done, failed or missing.
+    Status(StatusCmd),
+    /// Write the tables and figures of `omcl bench` from the results.
+    Collect(CollectCmd),
+    /// Write (and with --submit submit) sbatch job arrays for the runs
+    /// still to do.
+    Slurm(SlurmCmd),
+}
+
+#[derive(Debug, Args)]
+pub struct PlanCmd {
+    #[command(flatten)]
+    pub plan: PlanArgs,
+    /// The manifest to write.
+    #[arg(long, short)]
+    pub out: PathBuf,
+}
+
+/// Where results and maps are (default: beside the manifest).
+#[derive(Debug, Args)]
+pub struct Dirs {
+    /// Result folder [default: MANIFEST's folder/results].
+    #[arg(long)]
+    pub results: Option<PathBuf>,
+    /// Map cache folder [default: MANIFEST's folder/cache].
+    #[arg(long)]
+    pub cache: Option<PathBuf>,
+}
+
+impl Dirs {
+    fn results(&self, manifest: &Path) -> PathBuf {
+        self.results
+            .clone()
+            .unwrap_or_else(|| beside(manifest, "results"))
+    }
+    fn cache(&self, manifest: &Path) -> PathBuf {
+        self.cache
+            .clone()
+            .unwrap_or_else(|| beside(manifest, "cache"))
+    }
+}
+
+fn beside(manifest: &Path, name: &str) -> PathBuf {
+    manifest
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+        .join(name)
+}
+
+#[derive(Debug, Args)]
+pub struct RunCmd {
+    pub manifest: PathBuf,
+    /// Run this entry (0-based; line INDEX + 2 of the manifest); with
+    /// --stride, the entries INDEX, INDEX + STRIDE, ... [default: all].
+    #[arg(long)]
+    pub index: Option<usize>,
+    /// Step between the entries run (with --index).
+    #[arg(long, requires = "index")]
+    pub stride: Option<usize>,
+    #[command(flatten)]
+    pub dirs: Dirs,
+    /// Runs computed at once.
+    #[arg(long, default_value_t = 1)]
+    pub jobs: usize,
+    /// Fail a run whose map is not in the cache instead of building it.
+    #[arg(long)]
+    pub no_build_maps: bool,
+}
+
+#[derive(Debug, Args)]
+pub struct StatusCmd {
+    pub manifest: PathBuf,
+    /// Result folder [default: MANIFEST's folder/results].
+    #[arg(long)]
+    pub results: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+pub struct CollectCmd {
+    pub manifest: PathBuf,
+    #[command(flatten)]
+    pub dirs: Dirs,
+    /// Output folder of the tables and figures.
+    #[arg(long, short)]
+    pub out: PathBuf,
+}
+
+#[derive(Debug, Args)]
+pub struct SlurmCmd {
+    pub manifest: PathBuf,
+    #[command(flatten)]
+    pub dirs: Dirs,
+    /// Per-task logs [default: MANIFEST's folder/logs].
+    #[arg(long)]
+    pub logs: Option<PathBuf>,
+    /// The batch script to write [default: MANIFEST's folder/sweep.sbatch];
+    /// `submit.sh` beside it holds the sbatch commands.
+    #[arg(long)]
+    pub script: Option<PathBuf>,
+    /// Submit the arrays (else only write the scripts).
+    #[arg(long)]
+    pub submit: bool,
+    /// The omcl binary the tasks run [default: this one].
+    #[arg(long)]
+    pub omcl: Option<PathBuf>,
+    #[arg(long, default_value_t = 2)]
+    pub cpus_per_task: u32,
+    /// Memory per task, MB.
+    #[arg(long, default_value_t = 2000)]
+    pub mem_mb: u64,
+    /// Time limit per task.
+    #[arg(long, default_value = "01:00:00")]
+    pub time: String,
+    #[arg(long)]
+    pub partition: Option<String>,
+    /// At most this many tasks of each array at once (`%P`).
+    #[arg(long)]
+    pub concurrency: Option<u32>,
+    /// Array ids stay below this [default: the cluster's MaxArraySize with
+    /// --submit, else 1001, Slurm's default].
+    #[arg(long)]
+    pub max_array_size: Option<usize>,
+    /// Requeues of a failed task.
+    #[arg(long, default_value_t = 2)]
+    pub retries: u32,
+    #[arg(long, default_value = "omcl-sweep")]
+    pub job_name: String,
+}
+
+pub fn run(cmd: SweepCommand) -> anyhow::Result<()> {
+    match cmd {
+        SweepCommand::Plan(c) => plan(c),
+        SweepCommand::Run(c) => run_entries(c),
+        SweepCommand::Status(c) => status(c),
+        SweepCommand::Collect(c) => collect(c),
+        SweepCommand::Slurm(c) => slurm_cmd(c),
+    }
+}
+
+fn plan(c: PlanCmd) -> anyhow::Result<()> {
+    let bench = c.plan.bench_plan()?;
+    let entries = sweep::plan(&bench)?;
+    sweep::write_manifest(&c.out, &bench, &entries)?;
+    println!("planned {} runs into {}", entries.len(), c.out.display());
+    Ok(())
+}
+
+fn run_entries(c: RunCmd) -> anyhow::Result<()> {
+    let manifest = Manifest::read(&c.manifest)?;
+    let indices: Vec<usize> = match (c.index, c.stride) {
+        (Some(i), None) => vec![i],
+        (Some(i), Some(s)) => {
+            anyhow::ensure!(s > 0, "--stride must be at least 1");
+            (i..manifest.len().max(i + 1)).step_by(s).collect()
+        }
+        _ => (0..manifest.len()).collect(),
+    };
+    let results = ResultDir::new(c.dirs.results(&c.manifest));
+    let cache = Cache::new(c.dirs.cache(&c.manifest), !c.no_build_maps)?;
+    let failures = run_with_progress(&manifest, &indices, &results, &cache, c.jobs);
+    if let Some((i, e)) = failures.first() {
+        anyhow::bail!(
+            "{} of {} runs failed; the first, run {i}: {e}",
+            failures.len(),
+            indices.len()
+        );
+    }
+    Ok(())
+}
+
+fn status(c: StatusCmd) -> anyhow::Result<()> {
+    let manifest = Manifest::read(&c.manifest)?;
+    let results = ResultDir::new(c.results.unwrap_or_else(|| beside(&c.manifest, "results")));
+    let s = sweep::status(&manifest, &results);
+    println!(
+        "{} runs: {} done, {} failed, {} missing",
+        manifest.len(),
+        s.done.len(),
+        s.failed.len(),
+        s.missing.len()
+    );
+    for (i, why) in &s.failed {
+        println!("failed run {i}: {why}");
+    }
+    if !s.missing.is_empty() {
+        println!("missing runs: {}", slurm::ranges(&s.missing));
+    }
+    Ok(())
+}
+
+fn collect(c: CollectCmd) -> anyhow::Result<()> {
+    let manifest = Manifest::read(&c.manifest)?;
+    let results = ResultDir::new(c.dirs.results(&c.manifest));
+    let cache = c.dirs.cache(&c.manifest);
+    let r = report::collect(&manifest, &results, Some(&cache), &c.out)?;
+    println!("{}", r.markdown);
+    println!("wrote {}", c.out.display());
+    finish(&r, 0)
+}
+
+fn absolute(p: &Path) -> anyhow::Result<PathBuf> {
+    std::path::absolute(p)
+        .with_context(|| format!("{}: cannot make the path absolute", p.display()))
+}
+
+fn slurm_cmd(c: SlurmCmd) -> anyhow::Result<()> {
+    let manifest = Manifest::read(&c.manifest)?;
+    let results = c.dirs.results(&c.manifest);
+    let logs = c
+        .logs
+        .clone()
+        .unwrap_or_else(|| beside(&c.manifest, "logs"));
+    let script = c
+        .script
+        .clone()
+        .unwrap_or_else(|| beside(&c.manifest, "sweep.sbatch"));
+    for d in [&results, &logs] {
+        std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
+    }
+    let omcl = match &c.omcl {
+        Some(p) => p.clone(),
+        None => std::env::current_exe().context("locating this omcl binary")?,
+    };
+    let max_array_size = match c.max_array_size {
+        Some(n) => n,
+        None if c.submit => slurm::max_array_size()?,
+        None => 1001,
+    };
+    let o = SlurmOptions {
+        omcl: absolute(&omcl)?,
+        manifest: absolute(&c.manifest)?,
+        results: absolute(&results)?,
+        cache: absolute(&c.dirs.cache(&c.manifest))?,
+        logs: absolute(&logs)?,
+        job_name: c.job_name,
+        cpus_per_task: c.cpus_per_task,
+        mem_mb: c.mem_mb,
+        time: c.time,
+        partition: c.partition,
+        concurrency: c.concurrency,
+        max_array_size,
+        retries: c.retries,
+    };
+    let s = sweep::status(&manifest, &ResultDir::new(&results));
+    let to_do = s.to_do();
+    let chunks = slurm::chunks(&to_do, max_array_size);
+    let script = absolute(&script)?;
+    omcl::io::atomic::write(&script, slurm::script(&o).as_bytes())
+        .with_context(|| format!("writing {}", script.display()))?;
+    let submit_sh = beside(&script, "submit.sh");
+    omcl::io::atomic::write(
+        &submit_sh,
+        slurm::submit_script(&chunks, &o, &script).as_bytes(),
+    )
+    .with_context(|| format!("writing {}", submit_sh.display()))?;
+    println!(
+        "{} runs: {} done, {} to do in {} array(s); wrote {} and {}",
+        manifest.len(),
+        s.done.len(),
+        to_do.len(),
+        chunks.len(),
+        script.display(),
+        submit_sh.display()
+    );
+    if c.submit && !chunks.is_empty() {
+        let jobs = slurm::submit(&chunks, &o, &script)?;
+        println!("submitted job(s) {}", jobs.join(" "));
+    }
+    Ok(())
+}

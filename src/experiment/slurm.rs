@@ -1,0 +1,300 @@
+//! A sweep as Slurm job arrays: one `sbatch` script whose array task `t`
+//! runs manifest entry `OMCL_SWEEP_OFFSET + t` with `omcl sweep run`, and
+//! the submissions that cover the runs still to do: chunks of at most the
+//! cluster's `MaxArraySize` indices, each with a `%P` concurrency limit.
+//! A task whose run fails requeues itself (up to `retries` times); a
+//! re-submission after cancellation or failures covers only the runs
+//! without a result ([`super::sweep::status`]).
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use super::sweep::SweepError;
+
+/// What the array tasks ask for and where they write.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SlurmOptions {
+    /// The omcl binary the tasks run (absolute path on the shared file system).
+    pub omcl: PathBuf,
+    pub manifest: PathBuf,
+    pub results: PathBuf,
+    pub cache: PathBuf,
+    /// Per-task logs: `<logs>/<job>_<task>.log`.
+    pub logs: PathBuf,
+    pub job_name: String,
+    pub cpus_per_task: u32,
+    /// Memory per task, MB.
+    pub mem_mb: u64,
+    /// Time limit per task (`sbatch --time`, e.g. `00:30:00`).
+    pub time: String,
+    pub partition: Option<String>,
+    /// At most this many tasks of an array at once (`%P`).
+    pub concurrency: Option<u32>,
+    /// The cluster's `MaxArraySize`: array indices stay below it.
+    pub max_array_size: usize,
+    /// Requeues of a failed task before it stays failed.
+    pub retries: u32,
+}
+
+/// One `sbatch` submission: runs `offset + t` for every `t` in `array`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Chunk {
+    pub offset: usize,
+    /// Task ids relative to `offset`, all below the array size limit.
+    pub tasks: Vec<usize>,
+}
+
+impl Chunk {
+    /// The `--array` value: ranges `a-b`, single ids, and `%P`.
+    pub fn array_spec(&self, concurrency: Option<u32>) -> String {
+        let mut s = ranges(&self.tasks);
+        if let Some(p) = concurrency {
+            let _ = write!(s, "%{p}");
+        }
+        s
+    }
+}
+
+/// Splits run indices (sorted or not) into chunks of array ids below
+/// `max_array_size` (Slurm's limit is exclusive: ids 0 ..= size - 1).
+pub fn chunks(indices: &[usize], max_array_size: usize) -> Vec<Chunk> {
+    let size = max_array_size.max(1);
+    let mut sorted = indices.to_vec();
+    sorted.sort_unstable();
+    sorted.dedup();
+    let mut out: Vec<Chunk> = Vec::new();
+    for i in sorted {
+        let offset = i / size * size;
+        match out.last_mut() {
+            Some(c) if c.offset == offset => c.tasks.push(i - offset),
+            _ => out.push(Chunk {
+                offset,
+                tasks: vec![i - offset],
+            }),
+        }
+    }
+    out
+}
+
+/// Sorted distinct ids as `0-3,7,9-10`.
+pub fn ranges(ids: &[usize]) -> String {
+    let mut s = String::new();
+    let mut i = 0;
+    while i < ids.len() {
+        let mut j = i;
+        while j + 1 < ids.len() && ids[j + 1] == ids[j] + 1 {
+            j += 1;
+        }
+        if !s.is_empty() {
+            s.push(',');
+        }
+        if j == i {
+            let _ = write!(s, "{}", ids[i]);
+        } else {
+            let _ = write!(s, "{}-{}", ids[i], ids[j]);
+        }
+        i = j + 1;
+    }
+    s
+}
+
+fn quote(p: &Path) -> String {
+    format!("'{}'", p.display().to_string().replace('\'', r"'\''"))
+}
+
+/// The batch script every chunk submits (the array and the offset are
+/// given at submission).
+pub fn script(o: &SlurmOptions) -> String {
+    let mut s = String::from("#!/bin/bash\n");
+    let _ = writeln!(s, "#SBATCH --job-name={}", o.job_name);
+    let _ = writeln!(s, "#SBATCH --cpus-per-task={}", o.cpus_per_task);
+    let _ = writeln!(s, "#SBATCH --mem={}M", o.mem_mb);
+    let _ = writeln!(s, "#SBATCH --time={}", o.time);
+    if let Some(p) = &o.partition {
+        let _ = writeln!(s, "#SBATCH --partition={p}");
+    }
+    let _ = writeln!(s, "#SBATCH --output={}/%A_%a.log", o.logs.display());
+    s += "#SBATCH --open-mode=append\n#SBATCH --requeue\n";
+    let _ = write!(
+        s,
+        r#"# omcl sweep: array task t runs manifest entry OMCL_SWEEP_OFFSET + t.
+# Submitted by `omcl sweep slurm --submit` (or submit.sh beside this file).
+set -u
+index=$(( SLURM_ARRAY_TASK_ID + ${{OMCL_SWEEP_OFFSET:-0}} ))
+export RAYON_NUM_THREADS="${{SLURM_CPUS_PER_TASK:-1}}"
+echo "omcl sweep: job ${{SLURM_ARRAY_JOB_ID:-?}}_${{SLURM_ARRAY_TASK_ID}} run $index on $(hostname -s), restart ${{SLURM_RESTART_COUNT:-0}}"
+{omcl} sweep run {manifest} --index "$index" --results {results} --cache {cache}
+rc=$?
+if [ "$rc" -ne 0 ] && [ "${{SLURM_RESTART_COUNT:-0}}" -lt {retries} ]; then
+  echo "omcl sweep: run $index failed (exit $rc); requeueing" >&2
+  scontrol requeue "${{SLURM_ARRAY_JOB_ID}}_${{SLURM_ARRAY_TASK_ID}}"
+fi
+exit "$rc"
+"#,
+        omcl = quote(&o.omcl),
+        manifest = quote(&o.manifest),
+        results = quote(&o.results),
+        cache = quote(&o.cache),
+        retries = o.retries,
+    );
+    s
+}
+
+/// The `sbatch` arguments of one chunk's submission (script path last).
+pub fn sbatch_args(chunk: &Chunk, o: &SlurmOptions, script: &Path) -> Vec<String> {
+    vec![
+        "--parsable".into(),
+        format!("--array={}", chunk.array_spec(o.concurrency)),
+        format!("--export=ALL,OMCL_SWEEP_OFFSET={}", chunk.offset),
+        script.display().to_string(),
+    ]
+}
+
+/// A shell script with the `sbatch` command of every chunk.
+pub fn submit_script(chunks: &[Chunk], o: &SlurmOptions, script: &Path) -> String {
+    let mut s =
+        String::from("#!/bin/bash\n# Submits the runs still to do, chunk by chunk.\nset -e\n");
+    for c in chunks {
+        let args: Vec<String> = sbatch_args(c, o, script)
+            .iter()
+            .map(|a| format!("'{}'", a.replace('\'', r"'\''")))
+            .collect();
+        let _ = writeln!(s, "sbatch {}", args.join(" "));
+    }
+    s
+}
+
+/// The cluster's `MaxArraySize` (`scontrol show config`).
+pub fn max_array_size() -> Result<usize, SweepError> {
+    let out = run_tool(Command::new("scontrol").args(["show", "config"]))?;
+    out.lines()
+        .find_map(|l| {
+            let (k, v) = l.split_once('=')?;
+            (k.trim() == "MaxArraySize").then(|| v.trim().parse().ok())?
+        })
+        .ok_or_else(|| SweepError::Plan("scontrol show config: no MaxArraySize".into()))
+}
+
+/// Submits every chunk; returns the job ids.
+pub fn submit(
+    chunks: &[Chunk],
+    o: &SlurmOptions,
+    script: &Path,
+) -> Result<Vec<String>, SweepError> {
+    chunks
+        .iter()
+        .map(|c| {
+            let out = run_tool(Command::new("sbatch").args(sbatch_args(c, o, script)))?;
+            Ok(out.trim().split(';').next().unwrap_or("").to_string())
+        })
+        .collect()
+}
+
+fn run_tool(cmd: &mut Command) -> Result<String, SweepError> {
+    let name = format!("{cmd:?}");
+    let out = cmd.output().map_err(|source| SweepError::Io {
+        path: PathBuf::from(cmd.get_program()),
+        source,
+    })?;
+    if !out.status.success() {
+        return Err(SweepError::Plan(format!(
+            "{name} failed ({}): {}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr).trim()
+        )));
+    }
+    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_by_hand() {
+        assert_eq!(ranges(&[]), "");
+        assert_eq!(ranges(&[4]), "4");
+        assert_eq!(ranges(&[0, 1, 2, 3, 7, 9, 10]), "0-3,7,9-10");
+    }
+
+    /// 2,500 runs with MaxArraySize 1001: ids 0..=1000 per chunk, three
+    /// chunks at offsets 0, 1001, 2002; missing runs only where asked.
+    #[test]
+    fn chunks_stay_below_the_array_limit() {
+        let all: Vec<usize> = (0..2500).collect();
+        let c = chunks(&all, 1001);
+        assert_eq!(
+            c.iter().map(|c| c.offset).collect::<Vec<_>>(),
+            [0, 1001, 2002]
+        );
+        assert_eq!(c[0].tasks.len(), 1001);
+        assert_eq!(*c[0].tasks.last().unwrap(), 1000);
+        assert_eq!(c[2].tasks, (0..498).collect::<Vec<_>>());
+        assert_eq!(c[0].array_spec(Some(8)), "0-1000%8");
+        let c = chunks(&[1005, 3, 4, 2003, 5], 1001);
+        assert_eq!(
+            c,
+            [
+                Chunk {
+                    offset: 0,
+                    tasks: vec![3, 4, 5]
+                },
+                Chunk {
+                    offset: 1001,
+                    tasks: vec![4]
+                },
+                Chunk {
+                    offset: 2002,
+                    tasks: vec![1]
+                },
+            ]
+        );
+        assert_eq!(c[0].array_spec(None), "3-5");
+    }
+
+    #[test]
+    fn the_script_runs_the_offset_entry_and_requeues() {
+        let o = SlurmOptions {
+            omcl: "/opt/omcl it's".into(),
+            manifest: "/s/m.jsonl".into(),
+            results: "/s/r".into(),
+            cache: "/s/c".into(),
+            logs: "/s/logs".into(),
+            job_name: "omcl-sweep".into(),
+            cpus_per_task: 2,
+            mem_mb: 1500,
+            time: "00:30:00".into(),
+            partition: None,
+            concurrency: Some(4),
+            max_array_size: 1001,
+            retries: 2,
+        };
+        let s = script(&o);
+        assert!(s.contains("#SBATCH --mem=1500M\n"), "{s}");
+        assert!(s.contains("#SBATCH --output=/s/logs/%A_%a.log\n"), "{s}");
+        assert!(s.contains("index=$(( SLURM_ARRAY_TASK_ID + ${OMCL_SWEEP_OFFSET:-0} ))"));
+        assert!(
+            s.contains(r"'/opt/omcl it'\''s' sweep run '/s/m.jsonl' --index"),
+            "{s}"
+        );
+        assert!(s.contains("-lt 2 ]"), "{s}");
+        let a = sbatch_args(
+            &Chunk {
+                offset: 1001,
+                tasks: vec![0, 1, 5],
+            },
+            &o,
+            Path::new("/s/j.sh"),
+        );
+        assert_eq!(
+            a,
+            [
+                "--parsable",
+                "--array=0-1,5%4",
+                "--export=ALL,OMCL_SWEEP_OFFSET=1001",
+                "/s/j.sh"
+            ]
+        );
+    }
+}

@@ -1,0 +1,238 @@
+//! `omcl sweep` on the local path: plan, run (idempotent), status and
+//! collect, and what bad input does: a manifest line from another omcl
+//! version, a corrupt result file and a missing map each give an error
+//! naming the run and the file, and collect still writes the rest.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn omcl(args: &[&str]) -> (Output, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(args)
+        .output()
+        .unwrap();
+    let text =
+        String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
+    (o, text)
+}
+
+/// Three tiny Table I runs of OMCL_GT_exact (seeds 1000 to 1002).
+fn plan(dir: &Path) -> String {
+    let m = dir.join("m.jsonl");
+    let m = m.to_str().unwrap();
+    let (o, text) = omcl(&[
+        "sweep",
+        "plan",
+        "table1",
+        "--variants",
+        "OMCL_GT_exact",
+        "--sequences",
+        "3",
+        "--first-seed",
+        "1000",
+        "--frames",
+        "6",
+        "--map-frames",
+        "20",
+        "--particles",
+        "64",
+        "--rays",
+        "128",
+        "-o",
+        m,
+    ]);
+    assert!(o.status.success(), "{text}");
+    assert!(text.contains("planned 3 runs"), "{text}");
+    m.to_string()
+}
+
+fn ids(manifest: &str) -> Vec<String> {
+    std::fs::read_to_string(manifest)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let v: serde_json::Value = serde_json::from_str(l).unwrap();
+            v["id"].as_str().unwrap().to_string()
+        })
+        .collect()
+}
+
+fn result_file(dir: &Path, id: &str) -> std::path::PathBuf {
+    dir.join("results")
+        .join(&id[..2])
+        .join(format!("{id}.json"))
+}
+
+#[test]
+fn runs_are_idempotent_and_bad_input_names_the_run_and_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = plan(dir.path());
+    let ids = ids(&m);
+    assert_eq!(ids.len(), 3);
+
+    let (o, text) = omcl(&["sweep", "status", &m]);
+    assert!(o.status.success(), "{text}");
+    assert!(
+        text.contains("3 runs: 0 done, 0 failed, 3 missing"),
+        "{text}"
+    );
+    assert!(text.contains("missing runs: 0-2"), "{text}");
+
+    // One run by index, then all: the first is not computed again.
+    let (o, text) = omcl(&["sweep", "run", &m, "--index", "1"]);
+    assert!(o.status.success(), "{text}");
+    let first = std::fs::read(result_file(dir.path(), &ids[1])).unwrap();
+    let (o, text) = omcl(&["sweep", "run", &m, "--jobs", "2"]);
+    assert!(o.status.success(), "{text}");
+    assert!(
+        text.contains("run 1 (table1 OMCL_GT_exact) sequence 1001"),
+        "{text}"
+    );
+    assert!(text.contains("(result there)"), "{text}");
+    assert_eq!(
+        std::fs::read(result_file(dir.path(), &ids[1])).unwrap(),
+        first
+    );
+    let (_, text) = omcl(&["sweep", "status", &m]);
+    assert!(
+        text.contains("3 runs: 3 done, 0 failed, 0 missing"),
+        "{text}"
+    );
+    // One map per world, built once, in the cache beside the manifest.
+    let maps = std::fs::read_dir(dir.path().join("cache"))
+        .unwrap()
+        .filter(|e| e.as_ref().unwrap().path().extension() == Some("omcl".as_ref()))
+        .count();
+    assert_eq!(maps, 3);
+
+    let out = dir.path().join("tables");
+    let (o, text) = omcl(&["sweep", "collect", &m, "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{text}");
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("table1.json")).unwrap()).unwrap();
+    assert_eq!(rows[0]["per_sequence"].as_array().unwrap().len(), 3);
+    assert!(out.join("figure4_OMCL_GT_exact.png").exists());
+
+    // Corrupt run 0's result; make run 2's manifest line another version's.
+    let bad_result = result_file(dir.path(), &ids[0]);
+    std::fs::write(&bad_result, b"{\"id\": \"trunc").unwrap();
+    let text_m = std::fs::read_to_string(&m).unwrap();
+    let version = env!("CARGO_PKG_VERSION");
+    let mut lines: Vec<String> = text_m.lines().map(String::from).collect();
+    lines[3] = lines[3].replace(&format!("\"omcl\":\"{version}\""), "\"omcl\":\"0.0.1-old\"");
+    std::fs::write(&m, lines.join("\n") + "\n").unwrap();
+
+    let (o, text) = omcl(&["sweep", "status", &m]);
+    assert!(o.status.success(), "{text}");
+    assert!(
+        text.contains("3 runs: 1 done, 2 failed, 0 missing"),
+        "{text}"
+    );
+
+    let out2 = dir.path().join("tables2");
+    let (o, text) = omcl(&["sweep", "collect", &m, "-o", out2.to_str().unwrap()]);
+    assert!(!o.status.success(), "{text}");
+    assert!(
+        text.contains(&ids[0]) && text.contains("corrupt result file"),
+        "{text}"
+    );
+    assert!(text.contains(bad_result.to_str().unwrap()), "{text}");
+    assert!(
+        text.contains(&ids[2]) && text.contains("omcl 0.0.1-old") && text.contains("line 4"),
+        "{text}"
+    );
+    assert!(text.contains("2 of 3 runs have no result"), "{text}");
+    // The rest of the table is written: run 1 alone, equal to before.
+    let rows2: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out2.join("table1.json")).unwrap()).unwrap();
+    let per = rows2[0]["per_sequence"].as_array().unwrap();
+    assert_eq!(per.len(), 1);
+    assert_eq!(per[0]["errors_m"], rows[0]["per_sequence"][1]["errors_m"]);
+    let md = std::fs::read_to_string(out2.join("table1.md")).unwrap();
+    assert!(md.contains("## Failed runs (2 of 3"), "{md}");
+
+    // Running the other version's line is an error naming line and run.
+    let (o, text) = omcl(&["sweep", "run", &m, "--index", "2"]);
+    assert!(!o.status.success(), "{text}");
+    assert!(text.contains("line 4") && text.contains(&ids[2]), "{text}");
+
+    // A missing map with --no-build-maps: the run and the map file named,
+    // a failure note left, no result.
+    let empty = dir.path().join("no-maps");
+    let (o, text) = omcl(&[
+        "sweep",
+        "run",
+        &m,
+        "--index",
+        "0",
+        "--no-build-maps",
+        "--cache",
+        empty.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success(), "{text}");
+    assert!(
+        text.contains(&format!("run {}: map file", ids[0]))
+            && text.contains(empty.to_str().unwrap())
+            && text.contains("is missing"),
+        "{text}"
+    );
+    let (_, text) = omcl(&["sweep", "status", &m]);
+    assert!(
+        text.contains(".failed") && text.contains("is missing"),
+        "{text}"
+    );
+}
+
+/// `omcl bench` starts afresh unless `--resume`, which reuses the runs
+/// already in `<out>/sweep/`.
+#[test]
+fn bench_resumes_only_when_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let args = |resume: bool| {
+        let mut v = vec![
+            "bench",
+            "table1",
+            "--variants",
+            "OMCL_GT_exact",
+            "--sequences",
+            "1",
+            "--first-seed",
+            "1000",
+            "--frames",
+            "6",
+            "--map-frames",
+            "20",
+            "--particles",
+            "64",
+            "--rays",
+            "128",
+            "-o",
+            out,
+        ];
+        if resume {
+            v.push("--resume");
+        }
+        v
+    };
+    let (o, text) = omcl(&args(false));
+    assert!(o.status.success(), "{text}");
+    assert!(!text.contains("(result there)"), "{text}");
+    let table = std::fs::read_to_string(dir.path().join("table1.json")).unwrap();
+    let (o, text) = omcl(&args(true));
+    assert!(o.status.success(), "{text}");
+    assert!(
+        text.contains("[1/1] run 0 (table1 OMCL_GT_exact) sequence 1000"),
+        "{text}"
+    );
+    assert!(text.contains("(result there)"), "{text}");
+    // The same result file, so the same table, speeds included.
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("table1.json")).unwrap(),
+        table
+    );
+    let (o, text) = omcl(&args(false));
+    assert!(o.status.success(), "{text}");
+    assert!(!text.contains("(result there)"), "{text}");
+}
