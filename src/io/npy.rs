@@ -99,10 +99,9 @@ fn parse_header(bytes: &[u8]) -> Result<Header, String> {
         v if v.starts_with("False") => false,
         v if v.starts_with("True") => true,
         v => {
-            return Err(format!(
-                "header: fortran_order is '{}'",
-                &v[..v.len().min(8)]
-            ));
+            // Characters, not bytes: the header may hold any UTF-8.
+            let head: String = v.chars().take(8).collect();
+            return Err(format!("header: fortran_order is '{head}'"));
         }
     };
     let shape_text = value("shape")?;
@@ -255,6 +254,75 @@ pub fn write_npy(path: &Path, shape: &[usize], data: &[f32]) -> Result<(), NpyEr
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Found by the fuzzer: a multi-byte character where the error message
+    /// cut the header.
+    #[test]
+    fn a_header_with_non_ascii_text_is_an_error_not_a_panic() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("u.npy");
+        let mut dict = "{'descr': '<f4', 'fortran_order': Tru\u{b4}e, 'shape': (2,), }".to_string();
+        while !(10 + dict.len() + 1).is_multiple_of(64) {
+            dict.push(' ');
+        }
+        dict.push('\n');
+        let mut b = b"\x93NUMPY\x01\x00".to_vec();
+        b.extend_from_slice(&(dict.len() as u16).to_le_bytes());
+        b.extend_from_slice(dict.as_bytes());
+        b.extend_from_slice(&[0u8; 8]);
+        std::fs::write(&p, b).unwrap();
+        let e = read_npy(&p).unwrap_err().to_string();
+        assert!(e.contains("u.npy") && e.contains("fortran_order"), "{e}");
+    }
+
+    #[test]
+    fn shapes_whose_product_overflows_or_exceeds_the_file_are_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("big.npy");
+        for shape in ["(4611686019492773631, 7, 2)", "(4000000000, 512)", "(3, 3)"] {
+            let mut dict = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape}, }}");
+            while !(10 + dict.len() + 1).is_multiple_of(64) {
+                dict.push(' ');
+            }
+            dict.push('\n');
+            let mut b = b"\x93NUMPY\x01\x00".to_vec();
+            b.extend_from_slice(&(dict.len() as u16).to_le_bytes());
+            b.extend_from_slice(dict.as_bytes());
+            b.extend_from_slice(&[0u8; 16]);
+            std::fs::write(&p, b).unwrap();
+            let e = read_npy(&p).unwrap_err().to_string();
+            assert!(e.contains("big.npy") && e.contains("needs more than"), "{shape}: {e}");
+        }
+    }
+
+    #[test]
+    fn big_endian_half_and_double_arrays_read_as_f32() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("e.npy");
+        let write = |descr: &str, data: &[u8]| {
+            let mut dict =
+                format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': (2,), }}");
+            while !(10 + dict.len() + 1).is_multiple_of(64) {
+                dict.push(' ');
+            }
+            dict.push('\n');
+            let mut b = b"\x93NUMPY\x01\x00".to_vec();
+            b.extend_from_slice(&(dict.len() as u16).to_le_bytes());
+            b.extend_from_slice(dict.as_bytes());
+            b.extend_from_slice(data);
+            std::fs::write(&p, b).unwrap();
+            read_npy(&p).unwrap().data
+        };
+        let be: Vec<u8> = [1.5f32, -2.0].iter().flat_map(|v| v.to_be_bytes()).collect();
+        assert_eq!(write(">f4", &be), vec![1.5, -2.0]);
+        let f8: Vec<u8> = [0.25f64, 3.0].iter().flat_map(|v| v.to_le_bytes()).collect();
+        assert_eq!(write("<f8", &f8), vec![0.25, 3.0]);
+        let f2: Vec<u8> = [half::f16::from_f32(0.5), half::f16::from_f32(-1.0)]
+            .iter()
+            .flat_map(|v| v.to_bits().to_le_bytes())
+            .collect();
+        assert_eq!(write("<f2", &f2), vec![0.5, -1.0]);
+    }
 
     #[test]
     fn round_trip_keeps_shape_and_values() {
