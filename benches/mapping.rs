@@ -1,6 +1,7 @@
 //! Mapping throughput and memory (issue 4 targets): option 2 (points into
 //! voxels) in points/s, option 1 (540 x 540 RGB-D frames) in frames/s, and
-//! the memory of a ~1 M-voxel map while integrating and when finished.
+//! the memory of a ~1 M-voxel map while integrating and when finished; and
+//! `omcl map query`'s work on that map (issue 21: under 1 s).
 //!
 //! Run: `cargo bench --bench mapping`.
 
@@ -129,6 +130,47 @@ fn bench(c: &mut Criterion) {
         })
     });
     g.finish();
+
+    // `omcl map query` on the ~1 M-voxel map: every voxel's best similarity
+    // to two words, the count near the best, and the heat-map PLY.
+    let map = omcl::map::LanguageMap::from_cells(
+        grid,
+        db.clone(),
+        "bench",
+        s.cells.iter().copied().zip(s.labels.iter().copied()),
+    )
+    .expect("map");
+    let words = FeatureDb::from_rows(512, 0.02, [db.row(3), db.row(7)].concat()).expect("words");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("heat.ply");
+    let mut g = c.benchmark_group("map_query_1m");
+    g.sample_size(10);
+    g.bench_function("scores", |b| {
+        b.iter(|| {
+            let best = omcl::map::query::best_similarity(&map, black_box(&words)).expect("query");
+            omcl::map::query::count_near_best(&best, 0.9)
+        })
+    });
+    g.bench_function("scores_and_ply", |b| {
+        b.iter(|| {
+            let best = omcl::map::query::best_similarity(&map, black_box(&words)).expect("query");
+            let heat = omcl::mapping::colors::normalize_range(&best);
+            let g = map.grid();
+            let mut cloud = omcl::io::cloud::PointCloud::from_points(
+                map.cells().iter().map(|&c| g.center(c).into()).collect(),
+            );
+            cloud.colors = Some(
+                heat.iter()
+                    .map(|&t| omcl::mapping::colors::heat_color(t))
+                    .collect(),
+            );
+            cloud.labels = Some(map.rows().to_vec());
+            omcl::io::ply::write_ply(&out, &cloud).expect("ply");
+            omcl::map::query::count_near_best(&best, 0.9)
+        })
+    });
+    g.finish();
+    println!("map_query_1m: {} voxels", map.len());
 }
 
 criterion_group!(benches, bench);

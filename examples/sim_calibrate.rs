@@ -33,7 +33,13 @@ fn main() -> anyhow::Result<()> {
     }
     let params: FeatureParams = serde_json::from_value(params)?;
     let mut total = [0.0f64; 4];
+    // Calibration looks at tuning seeds only (omcl::experiment::seeds).
     let seeds = [0u64, 1, 2];
+    assert!(
+        seeds
+            .iter()
+            .all(|s| omcl::experiment::seeds::TUNING.contains(s))
+    );
     for &seed in &seeds {
         let world = generate(&IndoorConfig {
             seed,

@@ -591,19 +591,11 @@ pub fn query(a: &QueryArgs) -> anyhow::Result<()> {
     let m = map::load(&a.map)?;
     let words = parse_words(&a.words, None)?;
     let prompts = a.source.features(&words, m.db().dim())?;
-    let mut best = vec![f32::NEG_INFINITY; m.len()];
-    for w in 0..prompts.len() {
-        for (b, s) in best.iter_mut().zip(m.similarity(prompts.row(w))?) {
-            *b = b.max(s);
-        }
-    }
+    let best = map::query::best_similarity(&m, &prompts)?;
     let heat = colors::normalize_range(&best);
     let cols = heat.iter().map(|&t| colors::heat_color(t)).collect();
     ply::write_ply(&a.out, &voxel_cloud(&m, cols))?;
-    let hot = best
-        .iter()
-        .filter(|&&s| s > 0.9 * best.iter().copied().fold(f32::MIN, f32::max))
-        .count();
+    let hot = map::query::count_near_best(&best, 0.9);
     println!(
         "wrote {}: {} voxels coloured by similarity to {words:?} ({hot} within 10 % of the best)",
         a.out.display(),

@@ -8,13 +8,15 @@
 //! seed `s` (five rooms, 29 classes, 5 cm voxels) and a camera path of the
 //! paper's motion (0.13 m and 8 degrees a frame on average), with odometry
 //! perturbed by the paper's noise (0.10 m and 6 degrees a step). The map is
-//! built from a second path through the same apartment.
+//! built from a second path through the same apartment. Seeds: tuning on
+//! [`seeds::TUNING`], reporting from [`seeds::FIRST_REPORTING`] up.
 
 pub mod consistency;
 pub mod features;
 pub mod mapping;
 pub mod report;
 pub mod run;
+pub mod seeds;
 pub mod sequence;
 pub mod slurm;
 pub mod sweep;

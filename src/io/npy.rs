@@ -280,7 +280,8 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("big.npy");
         for shape in ["(4611686019492773631, 7, 2)", "(4000000000, 512)", "(3, 3)"] {
-            let mut dict = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape}, }}");
+            let mut dict =
+                format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape}, }}");
             while !(10 + dict.len() + 1).is_multiple_of(64) {
                 dict.push(' ');
             }
@@ -291,7 +292,10 @@ mod tests {
             b.extend_from_slice(&[0u8; 16]);
             std::fs::write(&p, b).unwrap();
             let e = read_npy(&p).unwrap_err().to_string();
-            assert!(e.contains("big.npy") && e.contains("needs more than"), "{shape}: {e}");
+            assert!(
+                e.contains("big.npy") && e.contains("needs more than"),
+                "{shape}: {e}"
+            );
         }
     }
 
@@ -313,9 +317,15 @@ mod tests {
             std::fs::write(&p, b).unwrap();
             read_npy(&p).unwrap().data
         };
-        let be: Vec<u8> = [1.5f32, -2.0].iter().flat_map(|v| v.to_be_bytes()).collect();
+        let be: Vec<u8> = [1.5f32, -2.0]
+            .iter()
+            .flat_map(|v| v.to_be_bytes())
+            .collect();
         assert_eq!(write(">f4", &be), vec![1.5, -2.0]);
-        let f8: Vec<u8> = [0.25f64, 3.0].iter().flat_map(|v| v.to_le_bytes()).collect();
+        let f8: Vec<u8> = [0.25f64, 3.0]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
         assert_eq!(write("<f8", &f8), vec![0.25, 3.0]);
         let f2: Vec<u8> = [half::f16::from_f32(0.5), half::f16::from_f32(-1.0)]
             .iter()

@@ -1,11 +1,13 @@
 //! The Octree Language Map: voxel keys, the feature database, the sorted
-//! leaves, integration of observations, grounding, and the file format.
+//! leaves, integration of observations, grounding, queries, and the file
+//! format.
 pub mod features;
 pub mod file;
 pub mod ground;
 pub mod integrate;
 pub mod key;
 pub mod octree;
+pub mod query;
 
 pub use features::{FeatureDb, FeatureDbError};
 pub use file::{MapFileError, load, save};
