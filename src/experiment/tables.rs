@@ -245,7 +245,7 @@ pub fn global_runs(
     for s in 0..starts {
         let first = s * span / starts.max(1);
         let words = if prompt {
-            prompt_words(seq, &map.map, first, 0x5eed ^ s as u64)
+            prompt_words(seq, first, 0x5eed ^ s as u64)
         } else {
             Vec::new()
         };
@@ -311,71 +311,45 @@ pub struct GlobalRun {
     pub error: Option<String>,
 }
 
-/// 3 to 5 object classes (not walls, floor, ceiling, doors, windows) that
-/// the prompt initialization finds together around the camera at frame
-/// `first` of `seq` in `map`: drawn in a random order (`seed`), a class is
-/// kept while some floor voxel within 0.5 m (horizontally) of the camera
-/// still matches every kept class by the initialization's rule (`k` map
-/// voxels matching the name within its radius); fewer if fewer are there.
-/// As the paper draws prompts from the words probable at each start: a user
-/// names objects the map holds near them (thin objects such as curtains and
-/// pictures often lose their voxels to the wall behind them).
-pub fn prompt_words(seq: &SimSequence, map: &LanguageMap, first: usize, seed: u64) -> Vec<String> {
+/// A prompt as the paper draws them: 3 to 5 words (`seed` picks how many
+/// and which) drawn at random from the probable words of the start, frame
+/// `first` of `seq`: the object classes (not walls, floor, ceiling, doors,
+/// windows) that the world's ground truth has within the prompt radius R
+/// (the paper's 2 m, horizontally) of the camera, whether or not the map
+/// holds them or the initialization finds them. Fewer when fewer are
+/// there; empty when none are (the run then reports that the prompt could
+/// not place particles). No map is consulted.
+pub fn prompt_words(seq: &SimSequence, first: usize, seed: u64) -> Vec<String> {
     use rand::SeedableRng;
     use rand::seq::SliceRandom;
     use std::collections::BTreeSet;
-    let prompt = crate::mcl::PromptParams::default();
-    let floor_rho = crate::mcl::FloorParams::default().rho;
-    let Some(floor) = seq.table.text_feature("floor") else {
-        return Vec::new();
-    };
-    let names = &seq.table.names;
-    let mut candidates: Vec<usize> = (0..names.len())
-        .filter(|&c| {
-            let n = names[c].as_str();
+    let radius = crate::mcl::PromptParams::default().radius;
+    let world = &seq.scene.world.voxels;
+    let cam = seq.poses()[first].translation.vector;
+    let mut present: BTreeSet<u16> = BTreeSet::new();
+    for (c, &l) in world.cells.iter().zip(&world.labels) {
+        let p = world.cell_centre(*c);
+        if (p.x - cam.x).hypot(p.y - cam.y) <= radius {
+            present.insert(l);
+        }
+    }
+    let mut candidates: Vec<String> = present
+        .into_iter()
+        .filter_map(|l| world.classes.get(l as usize))
+        .filter(|n| {
             !crate::sim::features::STUFF_CLASSES
                 .iter()
                 .any(|s| s.eq_ignore_ascii_case(n))
-                && n != "door"
-                && n != "window"
+                && *n != "door"
+                && *n != "window"
+                && seq.table.text_feature(n).is_some()
         })
+        .cloned()
         .collect();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     candidates.shuffle(&mut rng);
-    let want = 3 + (seed % 3) as usize;
-    let cam = seq.poses()[first].translation.vector;
-    let g = map.grid();
-    let near = |l: &usize| {
-        let c = crate::map::key::decode(map.codes()[*l]);
-        let q = g.origin
-            + nalgebra::Vector3::new(c[0] as f64 + 0.5, c[1] as f64 + 0.5, 0.0) * g.resolution;
-        (q.x - cam.x).hypot(q.y - cam.y) <= 0.5
-    };
-    let mut common: Option<BTreeSet<usize>> = None;
-    let mut words = Vec::new();
-    for c in candidates {
-        let Some(t) = seq.table.text_feature(&names[c]) else {
-            continue;
-        };
-        let Ok(leaves) =
-            crate::mcl::init::prompt_floor_voxels(map, floor, &[t.to_vec()], floor_rho, &prompt)
-        else {
-            continue;
-        };
-        let here: BTreeSet<usize> = leaves.into_iter().filter(near).collect();
-        let both: BTreeSet<usize> = match &common {
-            Some(s) => s.intersection(&here).copied().collect(),
-            None => here,
-        };
-        if !both.is_empty() {
-            common = Some(both);
-            words.push(names[c].clone());
-            if words.len() == want {
-                break;
-            }
-        }
-    }
-    words
+    candidates.truncate(3 + (seed % 3) as usize);
+    candidates
 }
 
 /// Steps statistics of one threshold over runs (Table V's row).
@@ -454,71 +428,41 @@ mod tests {
         assert_eq!(rows[4].reached, 1);
     }
 
-    /// Prompt words are distinct object classes, and on the sequence's own
-    /// map the prompt initialization places particles from them at every
-    /// start, near the camera (within the radius, plus a voxel).
+    /// Prompt words are 3 to 5 distinct object classes that the ground
+    /// truth has within the prompt radius of the start, chosen without the
+    /// map; where the map and the initialization agree with the words, the
+    /// initialization places particles.
     #[test]
-    fn prompt_words_start_the_prompt_initialization() {
-        use rand::SeedableRng;
+    fn prompt_words_come_from_the_ground_truth_around_the_start() {
         let table = builtin_table().unwrap();
         let seq = SimSequence::generate(3, 40, &table).unwrap();
-        let params = MapParams {
-            frames: 60,
-            ..MapParams::default()
-        };
-        let map = BenchMap::build(&seq, MapSource::Labels, &params, &|_| {}).unwrap();
-        let floor = seq.table.text_feature("floor").unwrap();
-        let prompt = crate::mcl::PromptParams::default();
-        let mut tried = 0;
+        let world = &seq.scene.world.voxels;
+        let radius = crate::mcl::PromptParams::default().radius;
+        let mut nonempty = 0;
         for first in [0, 13, 27, 39] {
-            let words = prompt_words(&seq, &map.map, first, 0x5eed ^ first as u64);
-            assert!(words.len() <= 5);
-            for (i, word) in words.iter().enumerate() {
-                assert!(!words[..i].contains(word), "{words:?}");
-                assert!(
-                    !crate::sim::features::STUFF_CLASSES.contains(&word.as_str()),
-                    "{word}"
-                );
-            }
-            if words.is_empty() {
-                continue;
-            }
-            tried += 1;
-            let w: Vec<Vec<f32>> = words
-                .iter()
-                .map(|n| seq.table.text_feature(n).unwrap().to_vec())
-                .collect();
-            let floor_rho = crate::mcl::FloorParams::default().rho;
-            let leaves =
-                crate::mcl::init::prompt_floor_voxels(&map.map, floor, &w, floor_rho, &prompt)
-                    .unwrap_or_else(|e| panic!("start {first}, {words:?}: {e}"));
-            // The floor under the camera is among the matches.
             let cam = seq.poses()[first].translation.vector;
-            let g = map.map.grid();
-            let near = leaves.iter().any(|&l| {
-                let c = crate::map::key::decode(map.map.codes()[l]);
-                let q = g.origin
-                    + nalgebra::Vector3::new(c[0] as f64 + 0.5, c[1] as f64 + 0.5, 0.0)
-                        * g.resolution;
-                (q.x - cam.x).hypot(q.y - cam.y) <= 0.5
-            });
-            assert!(
-                near,
-                "start {first}: no matching floor voxel near the camera"
-            );
-            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(first as u64);
-            let ps = crate::mcl::prompt_init(
-                &map.map,
-                floor,
-                &w,
-                &crate::mcl::FloorParams::default(),
-                &prompt,
-                64,
-                &mut rng,
-            )
-            .unwrap();
-            assert_eq!(ps.len(), 64);
+            for seed in 0..6u64 {
+                let words = prompt_words(&seq, first, seed);
+                assert!(words.len() <= 3 + (seed % 3) as usize, "{words:?}");
+                for (i, word) in words.iter().enumerate() {
+                    assert!(!words[..i].contains(word), "{words:?}");
+                    assert!(
+                        !crate::sim::features::STUFF_CLASSES.contains(&word.as_str()),
+                        "{word}"
+                    );
+                    // Some voxel of the class lies within R of the camera.
+                    let id = world.classes.iter().position(|n| n == word).unwrap() as u16;
+                    let near = world.cells.iter().zip(&world.labels).any(|(c, &l)| {
+                        let p = world.cell_centre(*c);
+                        l == id && (p.x - cam.x).hypot(p.y - cam.y) <= radius
+                    });
+                    assert!(near, "start {first}: {word} is not within {radius} m");
+                }
+                // The same seed draws the same prompt.
+                assert_eq!(words, prompt_words(&seq, first, seed));
+                nonempty += usize::from(!words.is_empty());
+            }
         }
-        assert!(tried >= 2, "only {tried} starts had prompt words");
+        assert!(nonempty >= 12, "only {nonempty} of 24 prompts have words");
     }
 }
