@@ -120,6 +120,16 @@ fn huge_declared_counts_fail_fast_with_the_file_named() {
     let count = 4_000_000_000u32.to_le_bytes();
     clouds.push(put("huge.las", &patched("laspy_pf3_rgb.las", 107, &count)));
     clouds.push(put("huge.laz", &patched("laspy_pf3_rgb.laz", 107, &count)));
+    // LAS 1.4 with one extended VLR (at byte 400) whose 64-bit length is
+    // 2^60 (found by AFL++: the las crate sized a buffer from it).
+    let mut evlr = patched(
+        "laspy_14_pf6_extended_class.las",
+        235,
+        &400u64.to_le_bytes(),
+    );
+    evlr[243..247].copy_from_slice(&1u32.to_le_bytes());
+    evlr[420..428].copy_from_slice(&(1u64 << 60).to_le_bytes());
+    clouds.push(put("huge_evlr.las", &evlr));
     for c in &clouds {
         refused(&omcl(&["map", "cloud", s(c), "-o", s(&out)]), c, Some(&out));
     }

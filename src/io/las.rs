@@ -72,6 +72,7 @@ fn check_raw_header(path: &Path, file: &mut std::fs::File) -> Result<(u64, bool)
             format!("point data offset {start} lies beyond the end of the {size}-byte file"),
         ));
     }
+    check_vlrs(path, file, &raw, size)?;
     let need = (raw.point_data_record_length as u64).saturating_mul(n);
     if compressed {
         let data = size - start;
@@ -96,6 +97,71 @@ fn check_raw_header(path: &Path, file: &mut std::fs::File) -> Result<(u64, bool)
         ));
     }
     Ok((size, compressed))
+}
+
+/// Walks the variable-length records (54-byte headers, 16-bit lengths, after
+/// the public header) and the extended ones (60-byte headers, 64-bit
+/// lengths, from `start_of_first_evlr`): the `las` crate sizes a buffer from
+/// each length before reading it, so every record must lie inside the file.
+fn check_vlrs(
+    path: &Path,
+    file: &mut std::fs::File,
+    raw: &las::raw::Header,
+    size: u64,
+) -> Result<(), CloudError> {
+    use std::io::Read;
+    let mut at_len = |at: u64, wide: bool| -> Option<u64> {
+        let mut b = [0u8; 8];
+        file.seek(SeekFrom::Start(at + 20)).ok()?;
+        if wide {
+            file.read_exact(&mut b).ok()?;
+            Some(u64::from_le_bytes(b))
+        } else {
+            file.read_exact(&mut b[..2]).ok()?;
+            Some(u16::from_le_bytes([b[0], b[1]]) as u64)
+        }
+    };
+    let mut walk = |what: &str, mut at: u64, count: u64, head: u64, wide: bool| {
+        for i in 0..count {
+            let len = at
+                .checked_add(head)
+                .filter(|&end| end <= size)
+                .and_then(|_| at_len(at, wide));
+            let end = len.and_then(|l| at.checked_add(head)?.checked_add(l));
+            match end {
+                Some(end) if end <= size => at = end,
+                _ => {
+                    return Err(CloudError::format(
+                        path,
+                        format!(
+                            "corrupt header: {what} {i} of {count} at byte {at} runs past the end \
+                             of the {size}-byte file"
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    };
+    walk(
+        "variable-length record",
+        raw.header_size as u64,
+        raw.number_of_variable_length_records as u64,
+        54,
+        false,
+    )?;
+    if let Some(e) = &raw.evlr {
+        walk(
+            "extended variable-length record",
+            e.start_of_first_evlr,
+            e.number_of_evlrs as u64,
+            60,
+            true,
+        )?;
+    }
+    file.seek(SeekFrom::Start(0))
+        .map_err(|e| CloudError::io(path, e))?;
+    Ok(())
 }
 
 /// The LAZ chunk table's entry count sizes the decoder's table before any
