@@ -232,11 +232,15 @@ fn localizes_the_synthetic_sequence_near_ground_truth() {
         let qn = (e[3] * e[3] + e[4] * e[4] + e[5] * e[5] + e[6] * e[6]).sqrt();
         assert!((qn - 1.0).abs() < 1e-6, "frame {i}: |q| = {qn}");
         let d = distance(e, g);
-        assert!(d < 1.0, "frame {i}: {d:.3} m from ground truth");
+        // Measured on this small fixture (64 x 48 px, 64 particles, 128
+        // rays): at most
+        // 0.40 m, mean 0.20 m.
+        assert!(d < 0.6, "frame {i}: {d:.3} m from ground truth");
         errors.push(d);
     }
     let mean = errors.iter().sum::<f64>() / errors.len() as f64;
-    assert!(mean < 0.5, "mean error {mean:.3} m: {errors:.3?}");
+    println!("errors: {errors:.3?}, mean {mean:.3}");
+    assert!(mean < 0.3, "mean error {mean:.3} m: {errors:.3?}");
 
     // The printed APE (no alignment, paired by index) is the RMSE of these
     // distances.
@@ -543,11 +547,14 @@ fn ground_truth_shorter_than_the_odometry_does_not_panic() {
     let short: String = gt.lines().take(3).map(|l| format!("{l}\n")).collect();
     std::fs::write(seq.join("poses.txt"), short).unwrap();
     let r = f.localize(&f.map, &seq, &out, &["--frames", "6"]);
-    assert!(!r.stderr.contains("panicked"), "panicked:\n{}", r.text());
-    if r.ok() {
-        // Evaluated on the frames that have ground truth.
-        assert_eq!(read_tum(&out).len(), 6, "{}", r.text());
-    } else {
-        assert_clean_failure(&r, &out, &["poses.txt"]);
-    }
+    // Refused before any output, naming the file and the counts.
+    assert_clean_failure(
+        &r,
+        &out,
+        &[
+            "poses.txt",
+            "3 ground-truth poses for 6 frames",
+            "--frames 3",
+        ],
+    );
 }
