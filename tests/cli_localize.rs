@@ -233,8 +233,7 @@ fn localizes_the_synthetic_sequence_near_ground_truth() {
         assert!((qn - 1.0).abs() < 1e-6, "frame {i}: |q| = {qn}");
         let d = distance(e, g);
         // Measured on this small fixture (64 x 48 px, 64 particles, 128
-        // rays): at most
-        // 0.40 m, mean 0.20 m.
+        // rays): at most 0.40 m, mean 0.20 m.
         assert!(d < 0.6, "frame {i}: {d:.3} m from ground truth");
         errors.push(d);
     }
