@@ -196,6 +196,20 @@ fn main() -> Result<()> {
         &std::fs::read("tests/data/encode/tiny_image_input.png")?,
     )?;
 
+    // png_header: 8 x 6 grey 8-bit, not interlaced, then 6 rows of a filter
+    // byte and 8 pixels; and a 4 x 2 RGB 8-bit.
+    let mut b = vec![0u8, 7, 0, 5, 0, 0, 0];
+    for r in 0..6u8 {
+        b.push(0);
+        b.extend((0..8u8).map(|x| x * 10 + r));
+    }
+    out("png_header", "grey8_8x6", &b)?;
+    let mut b = vec![0u8, 3, 0, 1, 0, 1, 0];
+    for r in 0..2u8 {
+        b.push(0);
+        b.extend((0..12u8).map(|x| x * 7 + r));
+    }
+    out("png_header", "rgb8_4x2", &b)?;
     out(
         "intrinsics",
         "plain.txt",

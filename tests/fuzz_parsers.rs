@@ -265,6 +265,7 @@ fuzz_tests! {
     fuzz_png_depth => Target::PngDepth,
     fuzz_png_label => Target::PngLabel,
     fuzz_png_rgb => Target::PngRgb,
+    fuzz_png_header => Target::PngHeader,
     fuzz_intrinsics => Target::Intrinsics,
     fuzz_model_card => Target::ModelCard,
     fuzz_class_table => Target::ClassTable,

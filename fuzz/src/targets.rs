@@ -35,6 +35,7 @@ pub enum Target {
     PngDepth,
     PngLabel,
     PngRgb,
+    PngHeader,
     Intrinsics,
     ModelCard,
     ClassTable,
@@ -43,7 +44,7 @@ pub enum Target {
 
 impl Target {
     /// All targets, in the order the in-suite run takes them.
-    pub const ALL: [Target; 21] = [
+    pub const ALL: [Target; 22] = [
         Target::Ply,
         Target::PlyHeader,
         Target::Las,
@@ -61,6 +62,7 @@ impl Target {
         Target::PngDepth,
         Target::PngLabel,
         Target::PngRgb,
+        Target::PngHeader,
         Target::Intrinsics,
         Target::ModelCard,
         Target::ClassTable,
@@ -87,6 +89,7 @@ impl Target {
             Target::PngDepth => "png_depth",
             Target::PngLabel => "png_label",
             Target::PngRgb => "png_rgb",
+            Target::PngHeader => "png_header",
             Target::Intrinsics => "intrinsics",
             Target::ModelCard => "model_card",
             Target::ClassTable => "class_table",
@@ -164,6 +167,14 @@ pub fn run(target: Target, data: &[u8]) -> bool {
         Target::PngDepth => io::rgbd::read_depth_png(&put("d.png", data), 1000.0).is_ok(),
         Target::PngLabel => io::rgbd::read_label_png(&put("l.png", data)).is_ok(),
         Target::PngRgb => io::rgbd::read_rgb_png(&put("c.png", data)).is_ok(),
+        Target::PngHeader => {
+            // Every reader of PNGs on one well-formed file.
+            let p = put("h.png", &png_from(data));
+            let d = io::rgbd::read_depth_png(&p, 1000.0).is_ok();
+            let l = io::rgbd::read_label_png(&p).is_ok();
+            let c = io::rgbd::read_rgb_png(&p).is_ok();
+            d || l || c
+        }
         Target::Intrinsics => io::rgbd::read_intrinsics(&put("intrinsics.txt", data)).is_ok(),
         Target::ModelCard => {
             let text = String::from_utf8_lossy(data);
@@ -310,6 +321,65 @@ pub fn las_from(data: &[u8]) -> Vec<u8> {
     }
     h.extend_from_slice(d.0);
     h
+}
+
+/// A PNG whose chunks are well formed (right lengths and CRCs) but whose
+/// IHDR fields (width, height, bit depth, colour type, interlace) come from
+/// the bytes; the remaining bytes, zlib-stored, are its IDAT.
+pub fn png_from(data: &[u8]) -> Vec<u8> {
+    let mut d = Draw(data);
+    let width = match d.byte() % 4 {
+        0 => 1 + d.byte() as u32 % 16,
+        1 => d.u32(),
+        2 => 100_000,
+        _ => 1 + d.byte() as u32,
+    };
+    let height = match d.byte() % 4 {
+        0 => 1 + d.byte() as u32 % 16,
+        1 => d.u32(),
+        2 => 100_000,
+        _ => 1 + d.byte() as u32,
+    };
+    let depth = [8u8, 16, 1, 2, 4][d.byte() as usize % 5];
+    let color = [0u8, 2, 3, 4, 6][d.byte() as usize % 5];
+    let interlace = d.byte() % 2;
+    let mut ihdr = Vec::new();
+    ihdr.extend_from_slice(&width.to_be_bytes());
+    ihdr.extend_from_slice(&height.to_be_bytes());
+    ihdr.extend_from_slice(&[depth, color, 0, 0, interlace]);
+    // zlib "stored" blocks of the rest: a valid stream of those bytes.
+    let body = d.0;
+    let mut z = vec![0x78, 0x01];
+    let mut chunks = body.chunks(65_535).peekable();
+    if chunks.peek().is_none() {
+        z.extend_from_slice(&[1, 0, 0, 0xff, 0xff]);
+    }
+    while let Some(c) = chunks.next() {
+        z.push(u8::from(chunks.peek().is_none()));
+        let n = c.len() as u16;
+        z.extend_from_slice(&n.to_le_bytes());
+        z.extend_from_slice(&(!n).to_le_bytes());
+        z.extend_from_slice(c);
+    }
+    let adler = {
+        let (mut a, mut b) = (1u32, 0u32);
+        for &x in body {
+            a = (a + x as u32) % 65_521;
+            b = (b + a) % 65_521;
+        }
+        (b << 16) | a
+    };
+    z.extend_from_slice(&adler.to_be_bytes());
+    let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+    for (kind, payload) in [(&b"IHDR"[..], &ihdr[..]), (b"IDAT", &z), (b"IEND", &[])] {
+        out.extend_from_slice(&(payload.len() as u32).to_be_bytes());
+        let start = out.len();
+        out.extend_from_slice(kind);
+        out.extend_from_slice(payload);
+        let crc = crc32fast::hash(&out[start..]);
+        out.extend_from_slice(&crc.to_be_bytes());
+    }
+    out
 }
 
 /// A `.npy` file with a well-formed preamble whose dtype and shape come from
