@@ -15,12 +15,14 @@ pub mod features;
 pub mod mapping;
 pub mod run;
 pub mod sequence;
+pub mod street;
 pub mod tables;
 
 pub use features::{GridFeatures, SimFrameFeatures};
 pub use mapping::{MapParams, MapSource, build_map, mapping_poses};
 pub use run::{RunResult, RunSpec, Start, class_rows, run};
-pub use sequence::SimSequence;
+pub use sequence::{BenchSequence, SimSequence};
+pub use street::{StreetOdometry, StreetSequence};
 
 /// Errors of an experiment.
 #[derive(Debug, thiserror::Error)]
