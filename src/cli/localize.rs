@@ -38,6 +38,7 @@ pub enum InitArg {
 pub enum MotionArg {
     Planar,
     Full,
+    Road,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -84,9 +85,11 @@ pub struct LocalizeArgs {
     #[arg(long)]
     pub odom_noise_deg: Option<f64>,
     /// Motion model of the particles: planar (x, y, yaw; height, roll and
-    /// pitch follow the odometry) or full (6-DoF noise in the camera frame).
-    #[arg(long, value_enum, default_value = "planar")]
-    pub motion: MotionArg,
+    /// pitch follow the odometry), full (6-DoF noise in the camera frame)
+    /// or road (planar plus a little height, pitch and roll noise). Default
+    /// planar; road for a KITTI sequence.
+    #[arg(long, value_enum)]
+    pub motion: Option<MotionArg>,
     /// Particle motion noise per step: metres (paper 0.10).
     #[arg(long)]
     pub motion_sigma_m: Option<f64>,
@@ -566,9 +569,15 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         SamplingArg::Uniform => SamplingStrategy::Uniform,
         SamplingArg::Equal => SamplingStrategy::EqualWithDuplicates,
     };
-    config.motion.mode = match a.motion {
+    let motion = a.motion.unwrap_or(if is_kitti {
+        MotionArg::Road
+    } else {
+        MotionArg::Planar
+    });
+    config.motion.mode = match motion {
         MotionArg::Planar => MotionMode::Planar,
         MotionArg::Full => MotionMode::Full,
+        MotionArg::Road => MotionMode::Road,
     };
     if let Some(v) = a.motion_sigma_m {
         config.motion.sigma_translation = v;
