@@ -198,12 +198,12 @@ fn a_short_street_localizes_in_kitti_layout() {
     let r_mean = m["rotation_deg"]["mean"].as_f64().unwrap();
     eprintln!("translation mean {t_mean} m, rotation mean {r_mean} deg, direct {direct} m");
     assert!(
-        t_mean < 0.5,
+        t_mean < 0.6,
         "translation error mean {t_mean} m\n{}",
         r.text()
     );
     assert!(
-        r_mean < 3.0,
+        r_mean < 2.5,
         "rotation error mean {r_mean} deg\n{}",
         r.text()
     );
