@@ -154,8 +154,9 @@ pub struct LocalizeArgs {
     /// Use at most this many frames.
     #[arg(long)]
     pub frames: Option<usize>,
-    /// Take pixel features from features/NNNNNN.npy even if labels/ exists
-    /// (e.g. the simulator's noisy "lseg-like" features).
+    /// Take pixel features from features/NNNNNN.npy (KITTI: features_2/)
+    /// even if labels exist (e.g. the simulator's noisy "lseg-like"
+    /// features).
     #[arg(long)]
     pub use_features: bool,
     /// Estimated trajectory, written atomically: TUM in the map frame for
