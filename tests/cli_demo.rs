@@ -17,6 +17,10 @@ fn demo_runs_end_to_end() {
             // The closing `omcl bench` step is tested in cli_bench.rs.
             "--bench-sequences",
             "0",
+            // A short street: the KITTI-layout run is tested at length in
+            // cli_localize_kitti.rs.
+            "--street-frames",
+            "15",
         ])
         .output()
         .unwrap();
@@ -30,6 +34,11 @@ fn demo_runs_end_to_end() {
         "toilet_heat.ply",
         "trajectory.png",
         "apartment/poses.txt",
+        "street.omcl",
+        "street_estimate.txt",
+        "street_metrics.json",
+        "street_trajectory.png",
+        "street/sequences/00/labels_2/000014.png",
     ] {
         assert!(out.join(f).exists(), "{f} missing\n{text}");
     }

@@ -8,8 +8,8 @@ use std::path::Path;
 use io_common::{assert_err_names, shared, truncated_copy};
 use omcl::io::cloud::PointCloud;
 use omcl::io::kitti::{
-    AggregateOptions, KittiSequence, read_calib, read_kitti_poses, read_label_file,
-    read_velodyne_bin,
+    AggregateOptions, KITTI_IMAGE_SIZE, KittiSequence, read_calib, read_kitti_poses,
+    read_label_file, read_velodyne_bin,
 };
 use omcl::io::labels::is_dropped_semantic_kitti;
 
@@ -321,4 +321,65 @@ fn per_scan_features_stay_with_their_points() {
         &d.path().join("000000.npy"),
         "feature rows for a cloud of 124668",
     );
+}
+
+/// Camera 2 of the real KITTI 00 calibration, against values computed by
+/// hand from its `P2` line (fx = P2[0][0] = 718.856, cx = 607.1928 + 0.5,
+/// cy = 185.2157 + 0.5, offset -45.38225 / 718.856 = -0.0631312 m along
+/// camera-0 x). Reads the shared data directly: a missing file fails.
+#[test]
+fn real_calibration_gives_camera_2_and_its_offset_from_camera_0() {
+    let path = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared/data/semantickitti/sequences/00/calib.txt"
+    ));
+    let calib = read_calib(path).unwrap();
+    let (w, h) = KITTI_IMAGE_SIZE;
+    assert_eq!((w, h), (1241, 376));
+    let cam = calib.camera("P2", w, h, path).unwrap();
+    let k = cam.intrinsics;
+    assert_eq!((k.fx, k.fy), (718.856, 718.856));
+    assert!((k.cx - 607.6928).abs() < 1e-9, "{}", k.cx);
+    assert!((k.cy - 185.7157).abs() < 1e-9, "{}", k.cy);
+    assert_eq!((k.width, k.height), (1241, 376));
+    let t = cam.camera0_from_camera.translation.vector;
+    assert!((t.x + 0.063_131_2).abs() < 1e-6, "{t:?}");
+    assert_eq!((t.y, t.z), (0.0, 0.0));
+    assert_eq!(cam.camera0_from_camera.rotation.angle(), 0.0);
+    // Camera 0 is itself; camera 3 sits 0.469 m right of camera 2.
+    let c0 = calib.camera("P0", w, h, path).unwrap();
+    assert_eq!(c0.camera0_from_camera.translation.vector.norm(), 0.0);
+    let c3 = calib.camera("P3", w, h, path).unwrap();
+    let x3 = c3.camera0_from_camera.translation.vector.x;
+    assert!((x3 - 337.2877 / 718.856).abs() < 1e-9, "{x3}");
+    // A point 10 m ahead of camera 2 on its axis projects to its
+    // principal point, in camera 0 it lies 6.3 cm to the left.
+    let p0 = cam.camera0_from_camera * nalgebra::Point3::new(0.0, 0.0, 10.0);
+    assert!((p0.x + 0.0631312).abs() < 1e-6);
+}
+
+#[test]
+fn calibration_without_p2_or_with_a_skewed_p2_is_named() {
+    let d = tempfile::tempdir().unwrap();
+    let tr = "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n";
+    let p = d.path().join("calib_no_p2.txt");
+    std::fs::write(&p, format!("P0: 700 0 600 0 0 700 180 0 0 0 1 0\n{tr}")).unwrap();
+    let calib = read_calib(&p).unwrap();
+    let e = calib.camera("P2", 1241, 376, &p).unwrap_err();
+    assert_err_names(&e, &p, "no 'P2:' line");
+    assert!(e.to_string().contains("has P0"), "{e}");
+    let p = d.path().join("calib_skew.txt");
+    std::fs::write(&p, format!("P2: 700 3 600 0 0 700 180 0 0 0 1 0\n{tr}")).unwrap();
+    let e = read_calib(&p)
+        .unwrap()
+        .camera("P2", 1241, 376, &p)
+        .unwrap_err();
+    assert_err_names(&e, &p, "not a rectified projection");
+    let p = d.path().join("calib_zero_f.txt");
+    std::fs::write(&p, format!("P2: 0 0 600 0 0 700 180 0 0 0 1 0\n{tr}")).unwrap();
+    let e = read_calib(&p)
+        .unwrap()
+        .camera("P2", 1241, 376, &p)
+        .unwrap_err();
+    assert_err_names(&e, &p, "must be positive");
 }

@@ -225,3 +225,73 @@ fn real_drift_comes_from_kitti_orb_against_ground_truth() {
     assert!(mean_r > 1e-4 && mean_r < 2.0, "{mean_r}");
     eprintln!("KITTI 00 ORB drift: {mean_t:.4} m, {mean_r:.4} deg per frame");
 }
+
+/// Camera 2 of the street world: label images of KITTI's size with the
+/// SemanticKITTI ids of the class table written beside them, features on
+/// request, and the LiDAR's labelled points, projected into camera 2
+/// through calib.txt (Tr, P2), land on pixels of their own label.
+#[test]
+fn outdoor_camera_2_labels_agree_with_the_lidar_labels() {
+    use omcl::io::kitti::{KITTI_IMAGE_SIZE, read_calib};
+    use omcl::io::labels::EmbeddingTable;
+    let k_from_w = world_from_kitti().inverse();
+    let path: Vec<_> = (0..40)
+        .map(|i| k_from_w * level_camera(Vector3::new(i as f64, 0.0, 0.0), 0.0))
+        .collect();
+    let mut cfg = OutdoorDatasetConfig::new(5);
+    cfg.world.frames = 2;
+    cfg.lidar.azimuth_steps = 360;
+    cfg.lidar.range_noise = 0.0;
+    cfg.features = true;
+    cfg.feature_stride = 16;
+    let dir = tempfile::tempdir().unwrap();
+    let table = builtin_table().unwrap();
+    write_outdoor(dir.path(), &cfg, &path, &table, &|_| {}).unwrap();
+    let seq_dir = dir.path().join("sequences/00");
+    let classes = EmbeddingTable::read(
+        &seq_dir.join("classes.txt"),
+        &seq_dir.join("embeddings.npy"),
+    )
+    .unwrap();
+    assert_eq!(classes.ids, SEMANTIC_KITTI_IDS.to_vec());
+    assert_eq!(classes.dim, 512);
+    let (w, h, labels) = read_png_gray16(&seq_dir.join("labels_2/000000.png")).unwrap();
+    assert_eq!((w, h), KITTI_IMAGE_SIZE);
+    // Road straight below the camera, sky (0) somewhere above the street.
+    assert_eq!(labels[(h as usize - 4) * w as usize + w as usize / 2], 40);
+    assert!(labels.contains(&0));
+    assert!(
+        labels
+            .iter()
+            .all(|l| *l == 0 || SEMANTIC_KITTI_IDS.contains(&(*l as u32)))
+    );
+    let f = read_npy(&seq_dir.join("features_2/000001.npy")).unwrap();
+    assert_eq!(f.shape, vec![376 / 16, 1241 / 16, 512]);
+    // Project frame 0's labelled LiDAR points into camera 2.
+    let calib = read_calib(&seq_dir.join("calib.txt")).unwrap();
+    let cam = calib
+        .camera("P2", w, h, &seq_dir.join("calib.txt"))
+        .unwrap();
+    let cam2_from_lidar = cam.camera0_from_camera.inverse() * calib.camera_from_lidar;
+    let seq = KittiSequence::open(&seq_dir).unwrap();
+    let scan = omcl::io::kitti::read_velodyne_bin(&seq.scan_path(0)).unwrap();
+    let point_labels =
+        omcl::io::kitti::read_label_file(&seq.label_path(0), scan.points.len()).unwrap();
+    let k = cam.intrinsics;
+    let (mut seen, mut agree) = (0usize, 0usize);
+    for (p, &l) in scan.points.iter().zip(&point_labels) {
+        let q = cam2_from_lidar * Point3::from(*p);
+        if q.z < 2.0 {
+            continue;
+        }
+        let (u, v) = (k.fx * q.x / q.z + k.cx, k.fy * q.y / q.z + k.cy);
+        if u < 0.0 || v < 0.0 || u >= w as f64 || v >= h as f64 {
+            continue;
+        }
+        seen += 1;
+        agree += usize::from(labels[v as usize * w as usize + u as usize] as u32 == l);
+    }
+    assert!(seen > 2000, "{seen}");
+    // The two sensors see from 0.33 m apart: occlusion edges differ.
+    assert!(agree as f64 > 0.95 * seen as f64, "{agree} of {seen}");
+}

@@ -9,8 +9,8 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::{Args, ValueEnum};
 
-use omcl::experiment::report;
 use omcl::experiment::sweep::{self, BenchPlan, Cache, Manifest, ResultDir, RunStatus};
+use omcl::experiment::{report, tables};
 use omcl::mcl::FilterConfig;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -27,20 +27,28 @@ pub enum Experiment {
     ParticlesRays,
     /// Figure: stratified against equal and uniform ray sampling.
     Sampling,
-    /// Everything above.
+    /// Table IV: camera 2 on the street world along the real KITTI 00
+    /// path (--street-*), the odometry variants of --odometry; translation
+    /// and rotation error, completion, filter steps/s, and the estimated
+    /// path over the map. Runs in this process (not planned as a sweep);
+    /// not part of `all`.
+    Table4,
+    /// Everything above but table4.
     All,
 }
 
 impl Experiment {
-    fn to_library(self) -> sweep::Experiment {
-        match self {
+    /// The sweep's experiment; `None` for table4, which runs on its own.
+    fn to_library(self) -> Option<sweep::Experiment> {
+        Some(match self {
             Experiment::Table1 => sweep::Experiment::Table1,
             Experiment::Table2 => sweep::Experiment::Table2,
             Experiment::Table5 => sweep::Experiment::Table5,
             Experiment::ParticlesRays => sweep::Experiment::ParticlesRays,
             Experiment::Sampling => sweep::Experiment::Sampling,
             Experiment::All => sweep::Experiment::All,
-        }
+            Experiment::Table4 => return None,
+        })
     }
 }
 
@@ -67,12 +75,13 @@ pub struct PlanArgs {
     /// and of the sequence is mapped.
     #[arg(long, default_value_t = 300)]
     pub map_frames: usize,
-    /// Particles.
-    #[arg(long, default_value_t = 1024)]
-    pub particles: usize,
-    /// Rays (sampled pixels before duplicates are dropped).
-    #[arg(long, default_value_t = 2048)]
-    pub rays: usize,
+    /// Particles (default 1024; table4: 512, the paper's outdoor setting).
+    #[arg(long)]
+    pub particles: Option<usize>,
+    /// Rays, sampled pixels before duplicates are dropped (default 2048;
+    /// table4: 4096).
+    #[arg(long)]
+    pub rays: Option<usize>,
     /// Only these variants (comma-separated: OMCL_GT, OMCL_LSeg,
     /// OMCL_auto_LSeg, OMCL_Open_LSeg, OMCL_GT_exact; default all).
     #[arg(long)]
@@ -104,7 +113,7 @@ impl PlanArgs {
     /// The filter configuration: defaults, `--rays`, then `--set`.
     pub fn filter(&self) -> anyhow::Result<FilterConfig> {
         let mut config = FilterConfig::default();
-        config.sampling.rays = self.rays;
+        config.sampling.rays = self.rays.unwrap_or(2048);
         apply_overrides(config, &self.set)
     }
 
@@ -127,8 +136,11 @@ impl PlanArgs {
             self.ablation_variant
         );
         anyhow::ensure!(self.sequences > 0, "--sequences must be at least 1");
-        let mut experiments: Vec<sweep::Experiment> =
-            self.experiments.iter().map(|e| e.to_library()).collect();
+        let mut experiments: Vec<sweep::Experiment> = self
+            .experiments
+            .iter()
+            .filter_map(|e| e.to_library())
+            .collect();
         experiments.sort();
         experiments.dedup();
         Ok(BenchPlan {
@@ -137,8 +149,8 @@ impl PlanArgs {
             first_seed: self.first_seed,
             frames: self.frames,
             map_frames: self.map_frames,
-            particles: self.particles,
-            rays: self.rays,
+            particles: self.particles.unwrap_or(1024),
+            rays: self.rays.unwrap_or(2048),
             variants,
             preset: self.preset,
             ablation_variant: self.ablation_variant.clone(),
@@ -155,10 +167,39 @@ const TABLE_VARIANT_NAMES: [&str; 5] = {
     [v[0].name, v[1].name, v[2].name, v[3].name, v[4].name]
 };
 
+/// Table IV's street (`omcl bench table4`).
+#[derive(Debug, Args)]
+pub struct StreetArgs {
+    /// table4: first frame of KITTI 00 the street starts at.
+    #[arg(long, default_value_t = 0)]
+    pub street_start: usize,
+    /// table4: frames of the street (KITTI 00 has 4541, 3.7 km; 300 are
+    /// the first 226 m).
+    #[arg(long, default_value_t = 300)]
+    pub street_frames: usize,
+    /// table4: voxel edge of the street world and of its LiDAR map, metres
+    /// (the authors' configuration for sequence 00: 0.1).
+    #[arg(long, default_value_t = 0.1)]
+    pub street_resolution: f64,
+    /// table4: odometry variants, comma-separated: `noise` (ground truth
+    /// plus the authors' 0.1 m on camera x and z and 0.1 rad yaw a frame),
+    /// `orb` (the frame-to-frame motion of the real ORB-SLAM2 estimate of
+    /// KITTI 00 replayed from the first true pose; stands in for the
+    /// paper's Stereo DSO).
+    #[arg(long, default_value = "noise,orb")]
+    pub odometry: String,
+    /// table4: folder with KITTI_00_gt.txt and KITTI_00_ORB.txt (default:
+    /// the shared data beside the source tree).
+    #[arg(long)]
+    pub trajectories: Option<PathBuf>,
+}
+
 #[derive(Debug, Args)]
 pub struct BenchArgs {
     #[command(flatten)]
     pub plan: PlanArgs,
+    #[command(flatten)]
+    pub street: StreetArgs,
     /// Runs computed at once (each also uses every core for its rays; more
     /// than one makes the measured steps/s smaller).
     #[arg(long, default_value_t = 1)]
@@ -179,6 +220,14 @@ pub struct BenchArgs {
 pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     if a.show_config {
         println!("{}", serde_json::to_string_pretty(&a.plan.filter()?)?);
+        return Ok(());
+    }
+    let table4 = a.plan.experiments.contains(&Experiment::Table4);
+    let sweep_wanted = a.plan.experiments.iter().any(|e| e.to_library().is_some());
+    if table4 && !sweep_wanted {
+        let report = super::bench_table4::table4(&a, &tables::builtin_table()?)?;
+        println!("{report}");
+        println!("wrote {}", a.out.display());
         return Ok(());
     }
     let bench = a.plan.bench_plan()?;
@@ -202,6 +251,10 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     let c = report::collect(&manifest, &results, Some(cache.dir()), &a.out)?;
     println!("{}", c.markdown);
     println!("wrote {}", a.out.display());
+    if table4 {
+        let report = super::bench_table4::table4(&a, &tables::builtin_table()?)?;
+        println!("{report}");
+    }
     finish(&c, failures.len())
 }
 

@@ -4,8 +4,11 @@
 //! apartment and an RGB-D sequence (`omcl sim indoor`), build a map from it
 //! (`omcl map rgbd`), inspect it (`omcl map info`), localize the sequence in
 //! it with the particle filter (`omcl localize`), evaluate the trajectory
-//! (`omcl eval ape`), write a heat map of a word (`omcl map query`), and
-//! reproduce Table I with its figures on fresh apartments (`omcl bench`).
+//! (`omcl eval ape`), write a heat map of a word (`omcl map query`), then
+//! outdoors: a street along the real KITTI 00 path (`omcl sim outdoor`),
+//! its LiDAR map (`omcl map cloud`) and camera 2 localized in it from the
+//! KITTI folder as it is (`omcl localize`); and reproduce Table I with its
+//! figures on fresh apartments (`omcl bench`).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -28,6 +31,11 @@ pub struct DemoArgs {
     /// Sequences of the closing Table I run (0 skips it).
     #[arg(long, default_value_t = 2)]
     pub bench_sequences: u64,
+    /// Frames of the outdoor part: a street along the real KITTI 00 path
+    /// (300 frames: its first 216 m), camera 2 localized in the map of its
+    /// LiDAR scans (0 skips it).
+    #[arg(long, default_value_t = 300)]
+    pub street_frames: usize,
 }
 
 fn step(title: &str, args: &[&str]) -> anyhow::Result<()> {
@@ -117,6 +125,9 @@ pub fn run(a: DemoArgs) -> anyhow::Result<()> {
             &s(&a.out.join("toilet_heat.ply")),
         ],
     )?;
+    if a.street_frames > 0 {
+        outdoor(&a)?;
+    }
     if a.bench_sequences > 0 {
         let n = a.bench_sequences.to_string();
         step(
@@ -143,4 +154,77 @@ pub fn run(a: DemoArgs) -> anyhow::Result<()> {
         a.out.display()
     );
     Ok(())
+}
+
+/// The outdoor part: street, LiDAR map, camera-2 localization.
+fn outdoor(a: &DemoArgs) -> anyhow::Result<()> {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/trajectories/KITTI_00_gt.txt");
+    if !path.exists() {
+        println!(
+            "\n== outdoor part skipped: the KITTI 00 path {} is not here",
+            path.display()
+        );
+        return Ok(());
+    }
+    let street = a.out.join("street");
+    let seq = street.join("sequences").join("00");
+    let map = a.out.join("street.omcl");
+    let (seed, frames) = (a.seed.to_string(), a.street_frames.to_string());
+    step(
+        "outdoor 1/3 a street along the real KITTI 00 path: LiDAR scans, camera-2 labels",
+        &[
+            "sim",
+            "outdoor",
+            "--out",
+            &s(&street),
+            "--seed",
+            &seed,
+            "--frames",
+            &frames,
+            "--resolution",
+            "0.1",
+            "--path",
+            &s(&path),
+        ],
+    )?;
+    step(
+        "outdoor 2/3 a map from the street's labelled LiDAR scans",
+        &[
+            "map",
+            "cloud",
+            &s(&seq),
+            "--classes",
+            &s(&street.join("semantickitti_ids.txt")),
+            "--embeddings",
+            &s(&street.join("embeddings.npy")),
+            "-o",
+            &s(&map),
+            "--resolution",
+            "0.1",
+        ],
+    )?;
+    step(
+        "outdoor 3/3 camera 2 localized from the KITTI folder as it is \
+         (512 particles x 4096 rays, the authors' odometry noise)",
+        &[
+            "localize",
+            "--map",
+            &s(&map),
+            "--sequence",
+            &s(&seq),
+            "-o",
+            &s(&a.out.join("street_estimate.txt")),
+            "--particles",
+            "512",
+            "--rays",
+            "4096",
+            "--seed",
+            &seed,
+            "--metrics",
+            &s(&a.out.join("street_metrics.json")),
+            "--plot",
+            &s(&a.out.join("street_trajectory.png")),
+        ],
+    )
 }

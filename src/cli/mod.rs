@@ -2,6 +2,7 @@
 //! the library. Errors are `anyhow` here, `thiserror` in the library.
 
 pub mod bench;
+pub mod bench_table4;
 pub mod demo;
 pub mod encode;
 pub mod encoders;
@@ -40,7 +41,7 @@ pub enum Command {
     #[command(subcommand)]
     Eval(eval::EvalCommand),
     /// Localize a camera sequence in a map with the particle filter.
-    Localize(localize::LocalizeArgs),
+    Localize(Box<localize::LocalizeArgs>),
     /// Synthetic worlds and sensor data in real datasets' layouts.
     #[command(subcommand)]
     Sim(sim::SimCommand),
@@ -57,7 +58,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Demo(args) => demo::run(args),
         Command::Encode(cmd) => encode::run(cmd),
         Command::Eval(cmd) => eval::run(cmd),
-        Command::Localize(a) => localize::run(a),
+        Command::Localize(a) => localize::run(*a),
         Command::Sim(cmd) => sim::run(cmd),
         Command::Sweep(cmd) => sweep::run(cmd),
     }

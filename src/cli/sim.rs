@@ -83,9 +83,19 @@ pub enum SimCommand {
         /// LiDAR directions per revolution (64 beams each).
         #[arg(long, default_value_t = 2048)]
         azimuth_steps: u32,
-        /// Skip the camera-2 images.
+        /// Skip camera 2 (its images, label images and features).
         #[arg(long)]
         no_images: bool,
+        /// Write camera 2's per-pixel features (features_2/NNNNNN.npy;
+        /// 15 MB of float32 a 1241 x 376 frame at stride 8).
+        #[arg(long, conflicts_with = "no_images")]
+        features: bool,
+        /// Feature preset of --features: exact, gt or lseg-like.
+        #[arg(long, default_value = "gt")]
+        preset: Preset,
+        /// Pixel stride of the written features.
+        #[arg(long, default_value_t = 8)]
+        feature_stride: u32,
         /// Embedding table folder (classes.txt + embeddings.npy); default built in.
         #[arg(long)]
         table: Option<PathBuf>,
@@ -201,6 +211,9 @@ pub fn run(cmd: SimCommand) -> anyhow::Result<()> {
             resolution,
             azimuth_steps,
             no_images,
+            features,
+            preset,
+            feature_stride,
             table,
         } => {
             anyhow::ensure!(
@@ -225,6 +238,9 @@ pub fn run(cmd: SimCommand) -> anyhow::Result<()> {
             cfg.world.resolution = resolution;
             cfg.lidar.azimuth_steps = azimuth_steps.max(1);
             cfg.images = !no_images;
+            cfg.features = features;
+            cfg.preset = preset;
+            cfg.feature_stride = feature_stride.max(1);
             let table = load_table(table.as_deref())?;
             let pb = progress_bar(frames.min(gt.len() - start));
             pb.set_message("scanning");

@@ -10,6 +10,7 @@ pub mod associate;
 pub mod consistency;
 pub mod kitti_metric;
 pub mod localization;
+pub mod outdoor;
 pub mod rpe;
 pub mod stats;
 
@@ -21,6 +22,7 @@ pub use consistency::{
 };
 pub use kitti_metric::{KittiMetric, kitti_metric};
 pub use localization::{CompletionRule, SequenceSummary, steps_to_reach, summarize_sequences};
+pub use outdoor::{OutdoorMetric, outdoor_metric};
 pub use rpe::{Delta, RpeOptions, rpe};
 pub use stats::ErrorStats;
 

@@ -19,13 +19,15 @@ pub mod run;
 pub mod seeds;
 pub mod sequence;
 pub mod slurm;
+pub mod street;
 pub mod sweep;
 pub mod tables;
 
 pub use features::{GridFeatures, SimFrameFeatures};
 pub use mapping::{MapParams, MapSource, build_map, mapping_poses};
 pub use run::{RunResult, RunSpec, Start, class_rows, run};
-pub use sequence::SimSequence;
+pub use sequence::{BenchSequence, SimSequence};
+pub use street::{StreetOdometry, StreetSequence};
 
 /// Errors of an experiment.
 #[derive(Debug, thiserror::Error)]

@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::ExperimentError;
 use super::features::{GridFeatures, SimFrameFeatures};
-use super::sequence::SimSequence;
+use super::sequence::BenchSequence;
 use crate::eval::ErrorStats;
 use crate::eval::localization::CompletionRule;
 use crate::geometry::Pose;
@@ -95,20 +95,12 @@ impl RunResult {
 }
 
 /// The map row most similar to each class of the sequence's table.
-pub fn class_rows(seq: &SimSequence, map: &LanguageMap) -> Vec<u32> {
-    (0..seq.table.len())
-        .map(|c| {
-            map.db()
-                .nearest(seq.table.row(c))
-                .ok()
-                .flatten()
-                .map_or(0, |(r, _)| r as u32)
-        })
-        .collect()
+pub fn class_rows(seq: &dyn BenchSequence, map: &LanguageMap) -> Vec<u32> {
+    seq.class_rows(map)
 }
 
-fn text(seq: &SimSequence, name: &str) -> Result<Vec<f32>, ExperimentError> {
-    seq.table
+fn text(seq: &dyn BenchSequence, name: &str) -> Result<Vec<f32>, ExperimentError> {
+    seq.table()
         .text_feature(name)
         .map(<[f32]>::to_vec)
         .ok_or_else(|| ExperimentError::Config(format!("class {name:?} is not in the table")))
@@ -116,14 +108,14 @@ fn text(seq: &SimSequence, name: &str) -> Result<Vec<f32>, ExperimentError> {
 
 /// Runs the filter over `seq` in `map` (whose leaves `caster` indexes).
 pub fn run(
-    seq: &SimSequence,
+    seq: &dyn BenchSequence,
     map: &LanguageMap,
     caster: Arc<dyn RayCaster>,
     model: &FeatureModel,
     spec: &RunSpec,
 ) -> Result<RunResult, ExperimentError> {
-    let first = spec.first.min(seq.len().saturating_sub(1));
-    let last = (first + spec.frames).min(seq.len());
+    let first = spec.first.min(seq.frames().saturating_sub(1));
+    let last = (first + spec.frames).min(seq.frames());
     if last <= first {
         return Err(ExperimentError::Config("the run has no frames".into()));
     }
@@ -157,7 +149,7 @@ pub fn run(
         }
     };
     let rows = class_rows(seq, map);
-    let mut filter = Filter::new(map, caster, seq.intrinsics, spec.filter, particles)?;
+    let mut filter = Filter::new(map, caster, seq.intrinsics(), spec.filter, particles)?;
     let mut estimates = Vec::with_capacity(last - first);
     let mut errors = Vec::with_capacity(last - first);
     let mut step_seconds = Vec::with_capacity(last - first);

@@ -3,6 +3,7 @@
 //! on demand (a 540 x 540 frame is 2 MB; a sequence is not kept rendered).
 
 use crate::geometry::{Intrinsics, Pose};
+use crate::map::LanguageMap;
 use crate::sim::dataset::{IndoorDatasetConfig, IndoorScene, SimError, indoor_scene};
 use crate::sim::embeddings::ClassEmbeddings;
 use crate::sim::indoor::INDOOR_CLASSES;
@@ -72,5 +73,56 @@ impl SimSequence {
         } else {
             self.odometry[i - 1].inverse() * self.odometry[i]
         }
+    }
+}
+
+/// What a localization run needs of a benchmark sequence, indoor
+/// ([`SimSequence`]) or outdoor ([`super::street::StreetSequence`]).
+pub trait BenchSequence {
+    /// Ground-truth `world_from_camera` of every frame.
+    fn poses(&self) -> &[Pose];
+    /// Renders frame `i` (panics if `i` is past the last frame).
+    fn render(&self, i: usize) -> Frame;
+    /// The odometry increment `prev_camera_from_camera` of frame `i`
+    /// (identity at frame 0).
+    fn increment(&self, i: usize) -> Pose;
+    /// The camera.
+    fn intrinsics(&self) -> Intrinsics;
+    /// Class embeddings, rows in class-id order.
+    fn table(&self) -> &ClassEmbeddings;
+    /// Number of frames.
+    fn frames(&self) -> usize {
+        self.poses().len()
+    }
+    /// The map row most similar to each class of the table.
+    fn class_rows(&self, map: &LanguageMap) -> Vec<u32> {
+        let t = self.table();
+        (0..t.len())
+            .map(|c| {
+                map.db()
+                    .nearest(t.row(c))
+                    .ok()
+                    .flatten()
+                    .map_or(0, |(r, _)| r as u32)
+            })
+            .collect()
+    }
+}
+
+impl BenchSequence for SimSequence {
+    fn poses(&self) -> &[Pose] {
+        SimSequence::poses(self)
+    }
+    fn render(&self, i: usize) -> Frame {
+        SimSequence::render(self, i)
+    }
+    fn increment(&self, i: usize) -> Pose {
+        SimSequence::increment(self, i)
+    }
+    fn intrinsics(&self) -> Intrinsics {
+        self.intrinsics
+    }
+    fn table(&self) -> &ClassEmbeddings {
+        &self.table
     }
 }

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, Matrix3x4, Translation3, UnitQuaternion, Vector3};
 
-use crate::geometry::Pose;
+use crate::geometry::{Intrinsics, Pose};
 use crate::io::cloud::{CloudError, PointCloud, voxel_downsample};
 use crate::io::labels::{is_dropped_semantic_kitti, semantic_id};
 use crate::io::poses::{PoseFormat, read_poses_in};
@@ -128,6 +128,11 @@ pub struct KittiCalib {
 /// Reads `calib.txt` (`KEY: 12 numbers` lines; `Tr` required).
 pub fn read_calib(path: &Path) -> Result<KittiCalib, CloudError> {
     let text = std::fs::read_to_string(path).map_err(|e| CloudError::io(path, e))?;
+    parse_calib(&text, path)
+}
+
+/// Parses the text of a `calib.txt`; `path` names it in errors.
+pub fn parse_calib(text: &str, path: &Path) -> Result<KittiCalib, CloudError> {
     let mut projections = BTreeMap::new();
     let mut tr = None;
     for (i, line) in text.lines().enumerate() {
@@ -164,6 +169,88 @@ pub fn read_calib(path: &Path) -> Result<KittiCalib, CloudError> {
         projections,
         camera_from_lidar,
     })
+}
+
+/// Image size of KITTI odometry sequences 00 to 02 (camera 2), pixels.
+pub const KITTI_IMAGE_SIZE: (u32, u32) = (1241, 376);
+
+/// One rectified KITTI camera: its intrinsics and where it sits relative
+/// to camera 0.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KittiCamera {
+    /// Pinhole intrinsics in this project's convention (pixel centres at
+    /// `u + 0.5`): `cx` and `cy` are `P[0][2] + 0.5` and `P[1][2] + 0.5`,
+    /// since KITTI (like OpenCV) puts pixel centres at integers.
+    pub intrinsics: Intrinsics,
+    /// `camera0_from_camera`: a pure translation along camera-0 x by
+    /// `-P[0][3] / P[0][0]` metres (KITTI camera 2: about 6 cm to the left,
+    /// -0.0631 m). The rectified cameras share camera 0's orientation. The
+    /// small y and z terms of `K^-1 P[:, 3]` (about 1 mm and 4 mm for
+    /// camera 2) are ignored, as the KITTI devkit and pykitti do.
+    pub camera0_from_camera: Pose,
+}
+
+impl KittiCalib {
+    /// Camera `key` (`"P2"` for the left colour camera) of an image of
+    /// `width x height` pixels. `path` names the calibration in errors: a
+    /// missing key, a zero or negative focal length, a non-zero skew or a
+    /// third row other than `(0, 0, 1, t)` is refused.
+    pub fn camera(
+        &self,
+        key: &str,
+        width: u32,
+        height: u32,
+        path: &Path,
+    ) -> Result<KittiCamera, CloudError> {
+        let Some(p) = self.projections.get(key) else {
+            let have: Vec<&str> = self.projections.keys().map(String::as_str).collect();
+            return Err(CloudError::format(
+                path,
+                format!(
+                    "no '{key}:' line (the camera's 3x4 projection matrix); the file has {}",
+                    if have.is_empty() {
+                        "no projection matrices".to_string()
+                    } else {
+                        have.join(", ")
+                    }
+                ),
+            ));
+        };
+        let (fx, fy) = (p[(0, 0)], p[(1, 1)]);
+        if !(fx > 0.0 && fy > 0.0) {
+            return Err(CloudError::format(
+                path,
+                format!("{key}: focal lengths {fx} and {fy} must be positive"),
+            ));
+        }
+        let row3_ok = p[(2, 0)] == 0.0 && p[(2, 1)] == 0.0 && p[(2, 2)] == 1.0;
+        if p[(0, 1)] != 0.0 || p[(1, 0)] != 0.0 || !row3_ok {
+            return Err(CloudError::format(
+                path,
+                format!(
+                    "{key}: not a rectified projection [fx 0 cx tx; 0 fy cy ty; 0 0 1 tz] \
+                     (skew or third row differ)"
+                ),
+            ));
+        }
+        if width == 0 || height == 0 {
+            return Err(CloudError::format(
+                path,
+                format!("{key}: image size {width}x{height} must be positive"),
+            ));
+        }
+        Ok(KittiCamera {
+            intrinsics: Intrinsics {
+                fx,
+                fy,
+                cx: p[(0, 2)] + 0.5,
+                cy: p[(1, 2)] + 0.5,
+                width,
+                height,
+            },
+            camera0_from_camera: Pose::translation(-p[(0, 3)] / fx, 0.0, 0.0),
+        })
+    }
 }
 
 /// Reads a KITTI pose file (one row-major 3x4 `world_from_camera` a line)

@@ -7,6 +7,7 @@ pub mod rgb;
 // Point clouds and RGB-D (helper `cloud`).
 pub mod cloud;
 pub mod kitti;
+pub mod kitti_camera;
 pub mod labels;
 pub mod las;
 pub mod ply;

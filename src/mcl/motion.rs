@@ -23,7 +23,22 @@ pub enum MotionMode {
     Planar,
     /// Noise on all six degrees of freedom, in the camera frame.
     Full,
+    /// Cars on sloped roads: the planar noise (x, y in the heading frame,
+    /// yaw about world z) plus small noise on height
+    /// ([`ROAD_VERTICAL_FRACTION`] of the translation sigma) and on pitch
+    /// and roll about the camera's x and z axes ([`ROAD_TILT_FRACTION`] of
+    /// the rotation sigma), so the filter can follow a road that climbs and
+    /// pitches (KITTI 00) without spending particles on free 6-DoF noise.
+    Road,
 }
+
+/// Height noise of [`MotionMode::Road`] as a fraction of
+/// `sigma_translation` (0.02 m at the paper's 0.10 m).
+pub const ROAD_VERTICAL_FRACTION: f64 = 0.2;
+
+/// Pitch and roll noise of [`MotionMode::Road`] as a fraction of
+/// `sigma_rotation` (0.6 degrees at the paper's 6).
+pub const ROAD_TILT_FRACTION: f64 = 0.1;
 
 /// Odometry composition with Gaussian noise per step.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -107,20 +122,31 @@ impl MotionModel {
                 let r = Vector3::new(g(), g(), g()) * self.sigma_rotation;
                 moved * Pose::from_parts(Translation3::from(t), UnitQuaternion::from_scaled_axis(r))
             }
-            MotionMode::Planar => {
+            MotionMode::Planar | MotionMode::Road => {
                 let (dx, dy, dyaw) = (
                     g() * self.sigma_translation,
                     g() * self.sigma_translation,
                     g() * self.sigma_rotation,
                 );
+                let (dz, tilt) = if self.mode == MotionMode::Road {
+                    let t = ROAD_TILT_FRACTION * self.sigma_rotation;
+                    (
+                        g() * ROAD_VERTICAL_FRACTION * self.sigma_translation,
+                        Vector3::new(g() * t, 0.0, g() * t),
+                    )
+                } else {
+                    (0.0, Vector3::zeros())
+                };
                 let yaw = super::particles::yaw(&moved);
                 let (s, c) = yaw.sin_cos();
                 // Forward/left noise in the heading frame, expressed in world.
-                let offset = Vector3::new(c * dx - s * dy, s * dx + c * dy, 0.0);
+                let offset = Vector3::new(c * dx - s * dy, s * dx + c * dy, dz);
                 let spin = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), dyaw);
+                // Pitch and roll in the camera frame (camera x and z).
+                let tilt = UnitQuaternion::from_scaled_axis(tilt);
                 Pose::from_parts(
                     Translation3::from(moved.translation.vector + offset),
-                    spin * moved.rotation,
+                    spin * moved.rotation * tilt,
                 )
             }
         }
@@ -148,7 +174,7 @@ mod tests {
             UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 0.2),
         );
         let mut rng = ChaCha8Rng::seed_from_u64(1);
-        for mode in [MotionMode::Planar, MotionMode::Full] {
+        for mode in [MotionMode::Planar, MotionMode::Full, MotionMode::Road] {
             let m = MotionModel { mode, ..m };
             let p = m.sample(&start, &inc, &mut rng);
             let want = start * inc;
@@ -180,6 +206,33 @@ mod tests {
         let sd = |s: f64| (s / n as f64).sqrt();
         assert!((sd(sx) - 0.10).abs() < 0.004, "{}", sd(sx));
         assert!((sd(sy) - 0.10).abs() < 0.004, "{}", sd(sy));
+        assert!((sd(syaw) - 6f64.to_radians()).abs() < 0.004);
+    }
+
+    #[test]
+    fn road_noise_adds_small_height_and_tilt_noise_to_planar() {
+        let m = MotionModel {
+            mode: MotionMode::Road,
+            ..Default::default()
+        };
+        let start = level_camera(Vector3::new(0.0, 0.0, 1.5), 1.0);
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let n = 20000;
+        let (mut sx, mut sz, mut spitch, mut syaw) = (0.0, 0.0, 0.0, 0.0);
+        for _ in 0..n {
+            let p = m.sample(&start, &Pose::identity(), &mut rng);
+            sx += p.translation.x.powi(2);
+            sz += (p.translation.z - 1.5).powi(2);
+            // Pitch: elevation of the optical axis.
+            spitch += (p.rotation * Vector3::z()).z.asin().powi(2);
+            let dyaw = super::super::particles::yaw(&p) - 1.0;
+            syaw += dyaw.powi(2);
+        }
+        let sd = |s: f64| (s / n as f64).sqrt();
+        assert!((sd(sx) - 0.10).abs() < 0.004, "{}", sd(sx));
+        assert!((sd(sz) - 0.02).abs() < 0.001, "{}", sd(sz));
+        let tilt = 0.6f64.to_radians();
+        assert!((sd(spitch) - tilt).abs() < 0.05 * tilt, "{}", sd(spitch));
         assert!((sd(syaw) - 6f64.to_radians()).abs() < 0.004);
     }
 

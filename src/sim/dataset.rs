@@ -17,6 +17,7 @@ use super::outdoor::{self, OUTDOOR_CLASSES, OutdoorConfig, SEMANTIC_KITTI_IDS};
 use super::paths::{self, IndoorPathConfig, OdometryConfig};
 use super::render::{self, Frame, NO_LABEL};
 use crate::geometry::{Intrinsics, Pose};
+use crate::io::kitti::{KITTI_IMAGE_SIZE, KittiCamera, parse_calib};
 use crate::raycast::{EmbreeCaster, EmbreeError};
 
 /// Errors of dataset generation.
@@ -317,22 +318,14 @@ pub fn kitti00_camera_from_velodyne() -> Pose {
     )
 }
 
-/// The intrinsics of KITTI 00's camera 2 (1241 x 376) and its offset from
-/// camera 0 (`camera0_from_camera2`, from P2's fourth column).
-pub fn kitti00_camera2() -> (Intrinsics, Pose) {
-    let (fx, cx, cy) = (7.188560000000e+02, 6.071928000000e+02, 1.852157000000e+02);
-    let k = Intrinsics {
-        fx,
-        fy: fx,
-        cx,
-        cy,
-        width: 1241,
-        height: 376,
-    };
-    // P2 = K [I | t] with t = (4.538225e+01 / fx, -1.130887e-01 / fy, 3.779761e-03) roughly;
-    // the camera centre is -t.
-    let t = nalgebra::Vector3::new(4.538225000000e+01 / fx, 0.0, 0.0);
-    (k, Pose::translation(-t.x, -t.y, -t.z))
+/// KITTI 00's camera 2 (1241 x 376) as [`KITTI00_CALIB`]'s `P2` gives it:
+/// intrinsics and `camera0_from_camera2` (about 6 cm to the left).
+pub fn kitti00_camera2() -> Result<KittiCamera, SimError> {
+    let name = Path::new("<built-in KITTI 00 calib.txt>");
+    let (w, h) = KITTI_IMAGE_SIZE;
+    parse_calib(KITTI00_CALIB, name)
+        .and_then(|c| c.camera("P2", w, h, name))
+        .map_err(|e| SimError::Config(e.to_string()))
 }
 
 /// Everything that decides an outdoor dataset.
@@ -341,8 +334,15 @@ pub struct OutdoorDatasetConfig {
     pub seed: u64,
     pub world: OutdoorConfig,
     pub lidar: LidarConfig,
-    /// Render `image_2` PNGs.
+    /// Render camera 2: `image_2/` RGB PNGs and `labels_2/` label PNGs.
     pub images: bool,
+    /// Also write per-pixel features of camera 2 (`features_2/NNNNNN.npy`,
+    /// `H/s x W/s x F` f32 at stride `feature_stride`) from `preset`.
+    pub features: bool,
+    /// Feature model preset of the written features.
+    pub preset: Preset,
+    /// Pixel stride of the written features.
+    pub feature_stride: u32,
 }
 
 impl OutdoorDatasetConfig {
@@ -356,13 +356,25 @@ impl OutdoorDatasetConfig {
             },
             lidar: LidarConfig::default(),
             images: true,
+            features: false,
+            preset: Preset::Gt,
+            feature_stride: 8,
         }
     }
 }
 
+/// Label of a camera-2 pixel that sees nothing (sky): SemanticKITTI's
+/// "unlabeled".
+pub const CAMERA_NO_LABEL: u16 = 0;
+
 /// Generates an outdoor dataset along `kitti_gt` (KITTI 00 ground-truth
 /// camera poses) into `dir`: `dir/sequences/00/...` in the SemanticKITTI
-/// layout plus classes, embeddings, world and sim.json beside it.
+/// layout plus classes, embeddings, world and sim.json beside it. Camera 2
+/// (when `cfg.images`) gets `image_2/` (RGB), `labels_2/` (16-bit
+/// SemanticKITTI ids of the voxel each pixel sees, the ids its LiDAR labels
+/// use; [`CAMERA_NO_LABEL`] for sky) and, with `cfg.features`,
+/// `features_2/`; the sequence folder gets the class table the labels index
+/// (`classes.txt` with `<id> <name>` lines, `embeddings.npy`).
 pub fn write_outdoor(
     dir: &Path,
     cfg: &OutdoorDatasetConfig,
@@ -378,8 +390,14 @@ pub fn write_outdoor(
     let world = outdoor::generate(&cfg.world, kitti_gt);
     let caster = EmbreeCaster::new(world.voxels.resolution as f32, &world.voxels.cells)?;
     let seq = dir.join("sequences").join("00");
-    for sub in ["velodyne", "labels", "image_2"] {
-        files::create_dir(&seq.join(sub))?;
+    files::create_dir(&seq.join("velodyne"))?;
+    files::create_dir(&seq.join("labels"))?;
+    if cfg.images {
+        files::create_dir(&seq.join("image_2"))?;
+        files::create_dir(&seq.join("labels_2"))?;
+    }
+    if cfg.images && cfg.features {
+        files::create_dir(&seq.join("features_2"))?;
     }
     files::create_dir(&dir.join("world"))?;
     files::write_atomic(&seq.join("calib.txt"), KITTI00_CALIB.as_bytes())?;
@@ -398,9 +416,21 @@ pub fn write_outdoor(
         .map(|(n, id)| format!("{id} {n}\n"))
         .collect();
     files::write_atomic(&dir.join("semantickitti_ids.txt"), ids.as_bytes())?;
+    // The camera labels' table, in the sequence folder as `omcl localize`
+    // reads it: SemanticKITTI ids, rows in OUTDOOR_CLASSES order.
+    files::write_atomic(&seq.join("classes.txt"), ids.as_bytes())?;
+    crate::io::npy::write_npy(
+        &seq.join("embeddings.npy"),
+        &[table.len(), table.dim],
+        &table.rows,
+    )
+    .map_err(SimIoError::from)?;
+    let model = (cfg.images && cfg.features)
+        .then(|| FeatureModel::preset(table.clone(), cfg.preset, cfg.seed.wrapping_add(3)));
     files::write_world(&dir.join("world"), &world.voxels)?;
     let cam_from_velo = kitti00_camera_from_velodyne();
-    let (k2, cam0_from_cam2) = kitti00_camera2();
+    let cam2 = kitti00_camera2()?;
+    let (k2, cam0_from_cam2) = (cam2.intrinsics, cam2.camera0_from_camera);
     let done = std::sync::atomic::AtomicUsize::new(0);
     for (i, pose) in world.poses.iter().enumerate() {
         let world_from_lidar = pose * cam_from_velo;
@@ -437,6 +467,21 @@ pub fn write_outdoor(
                 f.height,
                 &rgb,
             )?;
+            files::write_png_gray16(
+                &seq.join("labels_2").join(format!("{name}.png")),
+                f.width,
+                f.height,
+                &camera_labels(&f.labels),
+            )?;
+            if let Some(m) = &model {
+                let (feat, w, h) = m.image_features(i as u64, &f, cfg.feature_stride);
+                crate::io::npy::write_npy(
+                    &seq.join("features_2").join(format!("{name}.npy")),
+                    &[h as usize, w as usize, m.dim()],
+                    &feat,
+                )
+                .map_err(SimIoError::from)?;
+            }
         }
         progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
     }
@@ -457,8 +502,27 @@ pub fn write_outdoor(
         "config": cfg,
         "path": "KITTI odometry 00 ground truth (CC BY-NC-SA 3.0, Geiger et al.)",
         "world_from_kitti_camera0": "x = z_cam, y = -x_cam, z = -y_cam",
+        "camera_2": {
+            "intrinsics": k2,
+            "labels_2": "16-bit SemanticKITTI ids (sequences/00/classes.txt), 0 = sky",
+            "features_2": cfg.features.then_some(cfg.preset.name()),
+            "feature_stride": cfg.feature_stride,
+        },
         "summary": summary,
     });
     files::write_json(&dir.join("sim.json"), &meta)?;
     Ok(summary)
+}
+
+/// World class ids of a rendered frame as SemanticKITTI ids
+/// ([`SEMANTIC_KITTI_IDS`]); misses become [`CAMERA_NO_LABEL`].
+pub fn camera_labels(labels: &[u16]) -> Vec<u16> {
+    labels
+        .iter()
+        .map(|&l| {
+            SEMANTIC_KITTI_IDS
+                .get(l as usize)
+                .map_or(CAMERA_NO_LABEL, |&id| id as u16)
+        })
+        .collect()
 }

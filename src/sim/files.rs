@@ -31,9 +31,14 @@
 //! `DIR/sequences/00/` with `velodyne/NNNNNN.bin` (float32 x y z
 //! reflectance, LiDAR frame), `labels/NNNNNN.label` (uint32, SemanticKITTI
 //! class in the low 16 bits), `calib.txt` (P0..P3, Tr), `poses.txt` (KITTI
-//! 3x4 camera-0 poses relative to the first camera), `image_2/NNNNNN.png`,
-//! plus `DIR/classes.txt`, `DIR/embeddings.npy`, `DIR/world/` and
-//! `DIR/sim.json` as above; `classes.txt` there lists SemanticKITTI ids.
+//! 3x4 camera-0 poses relative to the first camera), `times.txt`, and for
+//! camera 2 `image_2/NNNNNN.png` (RGB, 1241 x 376), `labels_2/NNNNNN.png`
+//! (16-bit SemanticKITTI ids of the surface each pixel sees, 0 = sky),
+//! optional `features_2/NNNNNN.npy` (`--features`: f32, H' x W' x F at
+//! every stride-th pixel), `classes.txt` (`<id> <name>`, SemanticKITTI ids)
+//! and `embeddings.npy` (the rows of those classes); plus
+//! `DIR/classes.txt`, `DIR/embeddings.npy`, `DIR/semantickitti_ids.txt`,
+//! `DIR/world/` and `DIR/sim.json` as above.
 
 use std::path::{Path, PathBuf};
 

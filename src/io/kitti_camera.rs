@@ -1,0 +1,253 @@
+//! A KITTI odometry sequence as camera 2 sees it, read as it is on disk:
+//! `calib.txt` (camera 2 from `P2`, `Tr`), `poses.txt` (camera 0, KITTI
+//! camera frame, relative to the first camera), optional `times.txt`, and
+//! one input a frame in one of
+//!
+//! ```text
+//! labels_2/NNNNNN.png    16-bit class ids (ground-truth mode), with
+//!                        classes.txt (`<id> <name>` or one name a line)
+//!                        and embeddings.npy (K x F) in the sequence folder
+//! features_2/NNNNNN.npy  f32 h x w x F per-pixel features (any h x w; a
+//!                        pixel takes the nearest cell)
+//! image_2/NNNNNN.png     RGB, for an image encoder
+//! ```
+//!
+//! Frames: the map of a SemanticKITTI sequence (`omcl map cloud` of the
+//! folder) lives in the first LiDAR frame, `world = Tr^-1 * cam0_world`, so
+//! camera 2 of frame `i` sits at `world_from_cam2_i = Tr^-1 * P_i * C` with
+//! `C = camera0_from_camera2` (a 6 cm shift along camera-0 x).
+
+use std::path::{Path, PathBuf};
+
+use super::cloud::CloudError;
+use super::kitti::{KITTI_IMAGE_SIZE, KittiCalib, KittiCamera, read_calib, read_kitti_poses};
+use super::poses::read_times;
+use super::rgbd::{read_label_png, read_rgb_png};
+use crate::geometry::Pose;
+
+/// What camera 2 gives the localizer per frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CameraInput {
+    /// `labels_2/NNNNNN.png` with the sequence's class table.
+    Labels,
+    /// `features_2/NNNNNN.npy`.
+    Features,
+    /// `image_2/NNNNNN.png` (an image encoder turns them into features).
+    Images,
+}
+
+impl CameraInput {
+    /// The folder of the input, inside the sequence folder.
+    pub fn folder(self) -> &'static str {
+        match self {
+            CameraInput::Labels => "labels_2",
+            CameraInput::Features => "features_2",
+            CameraInput::Images => "image_2",
+        }
+    }
+
+    fn extension(self) -> &'static str {
+        match self {
+            CameraInput::Features => "npy",
+            CameraInput::Labels | CameraInput::Images => "png",
+        }
+    }
+}
+
+/// One KITTI odometry sequence folder for camera-2 localization.
+#[derive(Debug, Clone)]
+pub struct KittiCameraSequence {
+    pub dir: PathBuf,
+    pub calib: KittiCalib,
+    /// Camera 2: intrinsics (image size from frame 0's image, else
+    /// [`KITTI_IMAGE_SIZE`]) and `camera0_from_camera2`.
+    pub camera: KittiCamera,
+    /// `poses.txt`: camera 0 of every frame, KITTI camera frame.
+    pub camera0_poses: Vec<Pose>,
+    /// `times.txt` (seconds), or `0.1 s` a frame when it is missing.
+    pub times: Vec<f64>,
+    pub input: CameraInput,
+}
+
+impl KittiCameraSequence {
+    /// Opens `dir` for `input`: reads the calibration (a missing `P2` is
+    /// an error naming `calib.txt`), the poses and times, and checks that
+    /// the input folder holds exactly frames `000000` to the last pose
+    /// (a different count is an error naming both).
+    pub fn open(dir: &Path, input: CameraInput) -> Result<Self, CloudError> {
+        let calib_path = dir.join("calib.txt");
+        let calib = read_calib(&calib_path)?;
+        let poses_path = dir.join("poses.txt");
+        let camera0_poses = read_kitti_poses(&poses_path)?;
+        let n = camera0_poses.len();
+        let times_path = dir.join("times.txt");
+        let times = if times_path.exists() {
+            let t = read_times(&times_path)?;
+            if t.len() != n {
+                return Err(CloudError::mismatch(
+                    &times_path,
+                    format!(
+                        "{} time stamps for {n} poses in {}",
+                        t.len(),
+                        poses_path.display()
+                    ),
+                ));
+            }
+            t
+        } else {
+            (0..n).map(|i| i as f64 * 0.1).collect()
+        };
+        let folder = dir.join(input.folder());
+        let count = count_frames(&folder, input.extension())?;
+        if count != n {
+            return Err(CloudError::mismatch(
+                &folder,
+                format!(
+                    "{count} frames (NNNNNN.{}) for {n} poses in {}: a pose for every frame needed",
+                    input.extension(),
+                    poses_path.display()
+                ),
+            ));
+        }
+        let first = folder.join(format!("000000.{}", input.extension()));
+        let (w, h) = match input {
+            CameraInput::Labels => {
+                let (w, h, _) = read_label_png(&first)?;
+                (w, h)
+            }
+            CameraInput::Images => {
+                let img = read_rgb_png(&first)?;
+                (img.width, img.height)
+            }
+            CameraInput::Features => KITTI_IMAGE_SIZE,
+        };
+        let camera = calib.camera("P2", w, h, &calib_path)?;
+        Ok(KittiCameraSequence {
+            dir: dir.to_path_buf(),
+            calib,
+            camera,
+            camera0_poses,
+            times,
+            input,
+        })
+    }
+
+    /// Number of frames.
+    pub fn len(&self) -> usize {
+        self.camera0_poses.len()
+    }
+
+    /// Whether the sequence has no frames.
+    pub fn is_empty(&self) -> bool {
+        self.camera0_poses.is_empty()
+    }
+
+    /// The input file of frame `i`.
+    pub fn frame_path(&self, i: usize) -> PathBuf {
+        self.dir
+            .join(self.input.folder())
+            .join(format!("{i:06}.{}", self.input.extension()))
+    }
+
+    /// KITTI camera-0 poses (`poses.txt`'s frame) as camera-2 poses in the
+    /// map frame: `Tr^-1 * P_i * C`.
+    pub fn camera2_in_map(&self, camera0_poses: &[Pose]) -> Vec<Pose> {
+        let map_from_kitti = self.calib.camera_from_lidar.inverse();
+        let c = self.camera.camera0_from_camera;
+        camera0_poses
+            .iter()
+            .map(|p| map_from_kitti * p * c)
+            .collect()
+    }
+
+    /// The inverse of [`Self::camera2_in_map`]: camera-2 poses in the map
+    /// frame as KITTI camera-0 poses (to write results `poses.txt` compares
+    /// with, e.g. in evo).
+    pub fn camera0_in_kitti(&self, camera2_in_map: &[Pose]) -> Vec<Pose> {
+        let kitti_from_map = self.calib.camera_from_lidar;
+        let c_inv = self.camera.camera0_from_camera.inverse();
+        camera2_in_map
+            .iter()
+            .map(|p| kitti_from_map * p * c_inv)
+            .collect()
+    }
+
+    /// Ground truth: camera 2 of every frame in the map frame.
+    pub fn ground_truth(&self) -> Vec<Pose> {
+        self.camera2_in_map(&self.camera0_poses)
+    }
+}
+
+/// Number of `NNNNNN.ext` files in `folder`, which must be `000000` to
+/// `count - 1` without gaps.
+fn count_frames(folder: &Path, ext: &str) -> Result<usize, CloudError> {
+    let entries = std::fs::read_dir(folder).map_err(|e| CloudError::io(folder, e))?;
+    let mut frames = Vec::new();
+    for entry in entries {
+        let p = entry.map_err(|e| CloudError::io(folder, e))?.path();
+        if p.extension().and_then(|e| e.to_str()) != Some(ext) {
+            continue;
+        }
+        let frame = p
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .and_then(|s| s.parse::<usize>().ok())
+            .ok_or_else(|| {
+                CloudError::format(
+                    &p,
+                    format!("file name is not a frame number (NNNNNN.{ext})"),
+                )
+            })?;
+        frames.push(frame);
+    }
+    frames.sort_unstable();
+    if let Some((i, f)) = frames.iter().enumerate().find(|(i, f)| *i != **f) {
+        return Err(CloudError::format(
+            folder,
+            format!("frames are not numbered 0, 1, 2, ...: frame {i} is missing (next is {f})"),
+        ));
+    }
+    Ok(frames.len())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Translation3, UnitQuaternion};
+
+    #[test]
+    fn map_and_kitti_frames_round_trip() {
+        let calib = super::super::kitti::parse_calib(
+            crate::sim::dataset::KITTI00_CALIB,
+            Path::new("calib.txt"),
+        )
+        .unwrap();
+        let camera = calib
+            .camera("P2", 1241, 376, Path::new("calib.txt"))
+            .unwrap();
+        let seq = KittiCameraSequence {
+            dir: PathBuf::new(),
+            calib,
+            camera,
+            camera0_poses: vec![Pose::identity()],
+            times: vec![0.0],
+            input: CameraInput::Labels,
+        };
+        // Frame 0: camera 0 at the KITTI origin; the map origin is the first
+        // LiDAR frame, so camera 2 sits at Tr^-1 applied to (-0.063, 0, 0).
+        let g = seq.ground_truth()[0];
+        let expect =
+            seq.calib.camera_from_lidar.inverse() * nalgebra::Point3::new(-0.063_131_211, 0.0, 0.0);
+        assert!((g.translation.vector - expect.coords).norm() < 1e-8);
+        // Camera 2 looks along LiDAR x (forward), its y points down (-z).
+        let fwd = g.rotation * nalgebra::Vector3::z();
+        assert!((fwd - nalgebra::Vector3::x()).norm() < 0.02, "{fwd:?}");
+        let p = Pose::from_parts(
+            Translation3::new(1.0, -0.2, 30.0),
+            UnitQuaternion::from_euler_angles(0.01, 0.3, -0.02),
+        );
+        let back = seq.camera0_in_kitti(&seq.camera2_in_map(&[p]))[0];
+        assert!((back.translation.vector - p.translation.vector).norm() < 1e-9);
+        assert!(back.rotation.angle_to(&p.rotation) < 1e-9);
+    }
+}
