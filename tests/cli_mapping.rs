@@ -354,3 +354,101 @@ fn bad_input_fails_clearly_and_writes_nothing() {
     ]);
     assert!(!ok && text.contains("--resolution"), "{text}");
 }
+
+/// A single real SemanticKITTI scan maps with its labels found beside it,
+/// in the dataset's own `../labels/` folder, or named by `--labels`: the
+/// same map each time. Without labels it is refused, and a label file of
+/// another scan (another point count) is named.
+#[test]
+fn a_single_kitti_scan_reads_the_labels_beside_it() {
+    let Some(seq) = shared("semantickitti/sequences/00") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let ids: Vec<(u32, &str)> = labels::SEMANTIC_KITTI_CLASSES
+        .iter()
+        .map(|&(id, name)| (id, name))
+        .collect();
+    let (classes, emb) = one_hot_table(dir.path(), &ids);
+    let scan = seq.join("velodyne/000000.bin");
+    let label = seq.join("labels/000000.label");
+    let map_of = |input: &Path, extra: &[&str], out: &Path| {
+        let args = [
+            &[
+                "map",
+                "cloud",
+                input.to_str().unwrap(),
+                "--format",
+                "kitti",
+                "--resolution",
+                "0.2",
+                "--classes",
+                classes.to_str().unwrap(),
+                "--embeddings",
+                emb.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+            ][..],
+            extra,
+        ]
+        .concat();
+        omcl(&args)
+    };
+    // The dataset's layout: velodyne/000000.bin with labels/000000.label.
+    let a = dir.path().join("a.omcl");
+    let (ok, text) = map_of(&scan, &[], &a);
+    assert!(ok, "{text}");
+    // Copied alone with its label file beside it.
+    let alone = dir.path().join("alone");
+    std::fs::create_dir_all(&alone).unwrap();
+    std::fs::copy(&scan, alone.join("000000.bin")).unwrap();
+    std::fs::copy(&label, alone.join("000000.label")).unwrap();
+    let b = dir.path().join("b.omcl");
+    let (ok, text) = map_of(&alone.join("000000.bin"), &[], &b);
+    assert!(ok, "{text}");
+    // Named explicitly.
+    let bare = dir.path().join("bare");
+    std::fs::create_dir_all(&bare).unwrap();
+    std::fs::copy(&scan, bare.join("000000.bin")).unwrap();
+    let c = dir.path().join("c.omcl");
+    let (ok, text) = map_of(
+        &bare.join("000000.bin"),
+        &["--labels", label.to_str().unwrap()],
+        &c,
+    );
+    assert!(ok, "{text}");
+    let (ma, mb, mc) = (
+        map::load(&a).unwrap(),
+        map::load(&b).unwrap(),
+        map::load(&c).unwrap(),
+    );
+    assert!(ma.len() > 5_000, "{} voxels", ma.len());
+    assert_eq!(ma, mb);
+    assert_eq!(ma, mc);
+    // Road voxels (class 40) are there, below the sensor.
+    let road = ids.iter().position(|&(i, _)| i == 40).unwrap();
+    let road_voxels = ma
+        .rows()
+        .iter()
+        .filter(|&&r| ma.db().row(r as usize)[road] > 0.5)
+        .count();
+    assert!(road_voxels > 500, "{road_voxels} road voxels");
+
+    // No labels anywhere: refused, nothing written.
+    let d = dir.path().join("d.omcl");
+    let (ok, text) = map_of(&bare.join("000000.bin"), &[], &d);
+    assert!(
+        !ok && text.contains("neither features nor labels"),
+        "{text}"
+    );
+    assert!(!d.exists());
+    // Another scan's labels: the count differs, the file is named.
+    let other = seq.join("labels/000001.label");
+    let (ok, text) = map_of(
+        &bare.join("000000.bin"),
+        &["--labels", other.to_str().unwrap()],
+        &d,
+    );
+    assert!(!ok && text.contains("000001.label"), "{text}");
+    assert!(!d.exists());
+}

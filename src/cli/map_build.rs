@@ -117,6 +117,10 @@ pub struct CloudArgs {
     /// Per-point features (`N x F` .npy, e.g. OpenScene run elsewhere).
     #[arg(long)]
     pub features: Option<PathBuf>,
+    /// A single KITTI scan's SemanticKITTI `.label` file (default: the
+    /// scan's name with `.label` beside it, or in `../labels/`).
+    #[arg(long)]
+    pub labels: Option<PathBuf>,
     /// Sequence folders: use at most this many scans from the start.
     #[arg(long)]
     pub frames: Option<usize>,
@@ -165,9 +169,26 @@ fn load_cloud(a: &CloudArgs) -> anyhow::Result<PointCloud> {
         FormatArg::Kitti => CloudFormat::KittiBin,
         FormatArg::Scannet => CloudFormat::ScannetBin,
     });
-    let mut c = read_point_cloud(&a.input, format)?;
+    let kitti_scan = format == Some(CloudFormat::KittiBin);
+    ensure!(
+        a.labels.is_none() || kitti_scan,
+        "--labels is for a single KITTI scan (--format kitti); other formats carry their labels"
+    );
+    let mut c = if kitti_scan {
+        omcl::io::kitti::read_labelled_scan(&a.input, a.labels.as_deref())?
+    } else {
+        read_point_cloud(&a.input, format)?
+    };
     if let Some(f) = &a.features {
         c.attach_features_npy(f)?;
+    }
+    // After the features are attached, so their rows stay with their
+    // points.
+    if kitti_scan && !a.keep_all {
+        // As for sequences: unlabeled, outlier and moving points are dropped.
+        if let Some(labels) = c.labels.clone() {
+            c.retain_indices(|i| !omcl::io::labels::is_dropped_semantic_kitti(labels[i]));
+        }
     }
     let is_las = matches!(
         format.or_else(|| CloudFormat::from_path(&a.input)),

@@ -116,6 +116,41 @@ fn parse_12(path: &Path, lineno: usize, fields: &[&str]) -> Result<[f64; 12], Cl
     Ok(out)
 }
 
+/// The SemanticKITTI label file of a single scan `NNNNNN.bin`: `labels`
+/// when given, else `NNNNNN.label` beside the scan, else
+/// `../labels/NNNNNN.label` (the dataset's own layout, the scan in
+/// `velodyne/`); `None` when there is none.
+pub fn label_path_for_scan(scan: &Path, labels: Option<&Path>) -> Option<PathBuf> {
+    if let Some(l) = labels {
+        return Some(l.to_path_buf());
+    }
+    let beside = scan.with_extension("label");
+    if beside.is_file() {
+        return Some(beside);
+    }
+    let name = scan.file_stem()?;
+    let layout = scan
+        .parent()?
+        .parent()?
+        .join("labels")
+        .join(name)
+        .with_extension("label");
+    layout.is_file().then_some(layout)
+}
+
+/// Reads a single scan with its SemanticKITTI labels (see
+/// [`label_path_for_scan`]): semantic ids (the low 16 bits) as the cloud's
+/// labels, checked one a point. Without a label file the cloud has no
+/// labels.
+pub fn read_labelled_scan(scan: &Path, labels: Option<&Path>) -> Result<PointCloud, CloudError> {
+    let mut cloud = read_velodyne_bin(scan)?;
+    if let Some(lp) = label_path_for_scan(scan, labels) {
+        let raw = read_label_file(&lp, cloud.len())?;
+        cloud.labels = Some(raw.into_iter().map(semantic_id).collect());
+    }
+    Ok(cloud)
+}
+
 /// KITTI `calib.txt`: projection matrices and the LiDAR-to-camera transform.
 #[derive(Debug, Clone, PartialEq)]
 pub struct KittiCalib {
