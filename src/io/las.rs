@@ -50,8 +50,6 @@ fn check_raw_header(path: &Path, file: &mut std::fs::File) -> Result<(u64, bool)
             format!("not a LAS/LAZ file, or its header is truncated ({e})"),
         )
     })?;
-    file.seek(SeekFrom::Start(0))
-        .map_err(|e| CloudError::io(path, e))?;
     if &raw.file_signature != b"LASF" {
         return Err(CloudError::format(
             path,
@@ -96,7 +94,17 @@ fn check_raw_header(path: &Path, file: &mut std::fs::File) -> Result<(u64, bool)
             ),
         ));
     }
+    // The checks above moved the cursor: the decoder starts at byte 0.
+    file.seek(SeekFrom::Start(0))
+        .map_err(|e| CloudError::io(path, e))?;
     Ok((size, compressed))
+}
+
+/// Reads `buf.len()` bytes at byte `at` of `file` (`None` past the end).
+fn read_at(file: &mut std::fs::File, at: u64, buf: &mut [u8]) -> Option<()> {
+    use std::io::Read;
+    file.seek(SeekFrom::Start(at)).ok()?;
+    file.read_exact(buf).ok()
 }
 
 /// Walks the variable-length records (54-byte headers, 16-bit lengths, after
@@ -109,17 +117,12 @@ fn check_vlrs(
     raw: &las::raw::Header,
     size: u64,
 ) -> Result<(), CloudError> {
-    use std::io::Read;
+    // A record's length field sits 20 bytes into its header.
     let mut at_len = |at: u64, wide: bool| -> Option<u64> {
         let mut b = [0u8; 8];
-        file.seek(SeekFrom::Start(at + 20)).ok()?;
-        if wide {
-            file.read_exact(&mut b).ok()?;
-            Some(u64::from_le_bytes(b))
-        } else {
-            file.read_exact(&mut b[..2]).ok()?;
-            Some(u16::from_le_bytes([b[0], b[1]]) as u64)
-        }
+        let n = if wide { 8 } else { 2 };
+        read_at(file, at + 20, &mut b[..n])?;
+        Some(u64::from_le_bytes(b))
     };
     let mut walk = |what: &str, mut at: u64, count: u64, head: u64, wide: bool| {
         for i in 0..count {
@@ -159,8 +162,6 @@ fn check_vlrs(
             true,
         )?;
     }
-    file.seek(SeekFrom::Start(0))
-        .map_err(|e| CloudError::io(path, e))?;
     Ok(())
 }
 
@@ -175,11 +176,9 @@ fn check_laz_chunk_table(
     size: u64,
     record_length: u16,
 ) -> Result<(), CloudError> {
-    use std::io::Read;
     let mut read_u64_at = |at: u64| -> Option<u64> {
         let mut b = [0u8; 8];
-        file.seek(SeekFrom::Start(at)).ok()?;
-        file.read_exact(&mut b).ok()?;
+        read_at(file, at, &mut b)?;
         Some(u64::from_le_bytes(b))
     };
     // The first 8 bytes of the point data give the table's offset; -1 means
@@ -196,8 +195,6 @@ fn check_laz_chunk_table(
         // No table (the decoder then reads the points sequentially).
         None
     };
-    file.seek(SeekFrom::Start(0))
-        .map_err(|e| CloudError::io(path, e))?;
     if let Some(chunks) = result {
         let room = (table - start) / (record_length as u64).max(1);
         if chunks > room {

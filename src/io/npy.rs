@@ -255,13 +255,10 @@ pub fn write_npy(path: &Path, shape: &[usize], data: &[f32]) -> Result<(), NpyEr
 mod tests {
     use super::*;
 
-    /// Found by the fuzzer: a multi-byte character where the error message
-    /// cut the header.
-    #[test]
-    fn a_header_with_non_ascii_text_is_an_error_not_a_panic() {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("u.npy");
-        let mut dict = "{'descr': '<f4', 'fortran_order': Tru\u{b4}e, 'shape': (2,), }".to_string();
+    /// A version-1 `.npy` file: the header dictionary `dict` (padded as
+    /// NumPy pads it) followed by `data`.
+    fn npy_bytes(dict: &str, data: &[u8]) -> Vec<u8> {
+        let mut dict = dict.to_string();
         while !(10 + dict.len() + 1).is_multiple_of(64) {
             dict.push(' ');
         }
@@ -269,8 +266,18 @@ mod tests {
         let mut b = b"\x93NUMPY\x01\x00".to_vec();
         b.extend_from_slice(&(dict.len() as u16).to_le_bytes());
         b.extend_from_slice(dict.as_bytes());
-        b.extend_from_slice(&[0u8; 8]);
-        std::fs::write(&p, b).unwrap();
+        b.extend_from_slice(data);
+        b
+    }
+
+    /// Found by the fuzzer: a multi-byte character where the error message
+    /// cut the header.
+    #[test]
+    fn a_header_with_non_ascii_text_is_an_error_not_a_panic() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("u.npy");
+        let dict = "{'descr': '<f4', 'fortran_order': Tru\u{b4}e, 'shape': (2,), }";
+        std::fs::write(&p, npy_bytes(dict, &[0u8; 8])).unwrap();
         let e = read_npy(&p).unwrap_err().to_string();
         assert!(e.contains("u.npy") && e.contains("fortran_order"), "{e}");
     }
@@ -280,17 +287,8 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("big.npy");
         for shape in ["(4611686019492773631, 7, 2)", "(4000000000, 512)", "(3, 3)"] {
-            let mut dict =
-                format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape}, }}");
-            while !(10 + dict.len() + 1).is_multiple_of(64) {
-                dict.push(' ');
-            }
-            dict.push('\n');
-            let mut b = b"\x93NUMPY\x01\x00".to_vec();
-            b.extend_from_slice(&(dict.len() as u16).to_le_bytes());
-            b.extend_from_slice(dict.as_bytes());
-            b.extend_from_slice(&[0u8; 16]);
-            std::fs::write(&p, b).unwrap();
+            let dict = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {shape}, }}");
+            std::fs::write(&p, npy_bytes(&dict, &[0u8; 16])).unwrap();
             let e = read_npy(&p).unwrap_err().to_string();
             assert!(
                 e.contains("big.npy") && e.contains("needs more than"),
@@ -304,17 +302,8 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("e.npy");
         let write = |descr: &str, data: &[u8]| {
-            let mut dict =
-                format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': (2,), }}");
-            while !(10 + dict.len() + 1).is_multiple_of(64) {
-                dict.push(' ');
-            }
-            dict.push('\n');
-            let mut b = b"\x93NUMPY\x01\x00".to_vec();
-            b.extend_from_slice(&(dict.len() as u16).to_le_bytes());
-            b.extend_from_slice(dict.as_bytes());
-            b.extend_from_slice(data);
-            std::fs::write(&p, b).unwrap();
+            let dict = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': (2,), }}");
+            std::fs::write(&p, npy_bytes(&dict, data)).unwrap();
             read_npy(&p).unwrap().data
         };
         let be: Vec<u8> = [1.5f32, -2.0]

@@ -116,6 +116,12 @@ pub struct Filter {
     sort_cell: f64,
     recovery: Recovery,
     injection: Option<FloorSampler>,
+    /// Whether the last step's own cast (not the scoring of injection
+    /// candidates) went pixel-major.
+    pixel_major: bool,
+    /// The particles before this step's motion, for undoing the step on a
+    /// casting error (kept across steps so it is not allocated each time).
+    undo: Vec<Particle>,
 }
 
 impl Filter {
@@ -172,6 +178,8 @@ impl Filter {
             sort_cell: map.grid().resolution.max(0.05),
             recovery: Recovery::default(),
             injection: None,
+            pixel_major: false,
+            undo: Vec::new(),
         };
         normalize(&mut f.particles);
         Ok(f)
@@ -193,7 +201,7 @@ impl Filter {
 
     /// Whether the last step cast its rays pixel-major (see [`RayOrder`]).
     pub fn last_pixel_major(&self) -> bool {
-        self.sensor.last_pixel_major()
+        self.pixel_major
     }
 
     /// The particles (normalized weights).
@@ -241,7 +249,7 @@ impl Filter {
         let table = SimilarityTable::new(frame, &pixels, &self.db, self.config.sensor.contrast)?;
         let t1 = Instant::now();
         // Kept so that a casting error leaves the particles as they were.
-        let before = self.particles.clone();
+        self.undo.clone_from(&self.particles);
         self.config
             .motion
             .predict(&mut self.particles, increment, &mut self.rng)?;
@@ -254,9 +262,12 @@ impl Filter {
             p.weight *= (li.max(0.0) as f64).powf(sharpen);
         }
         if let Some(e) = self.sensor.take_cast_error() {
-            self.particles = before;
+            std::mem::swap(&mut self.particles, &mut self.undo);
             return Err(MclError::Cast(e));
         }
+        // Read now: scoring injection candidates below casts again.
+        let cast = self.sensor.last_cast();
+        self.pixel_major = self.sensor.last_pixel_major();
         // All-zero weights (every particle disagrees with the frame): keep
         // no information from this frame; `normalize` makes them uniform.
         normalize(&mut self.particles);
@@ -305,7 +316,7 @@ impl Filter {
                 order.truncate(slots.len());
                 candidates = order.into_iter().map(|i| candidates[i]).collect();
                 if let Some(e) = self.sensor.take_cast_error() {
-                    self.particles = before;
+                    std::mem::swap(&mut self.particles, &mut self.undo);
                     return Err(MclError::Cast(e));
                 }
             }
@@ -331,7 +342,7 @@ impl Filter {
                 features: t1 - t0,
                 predict: t2 - t1,
                 weigh: t3 - t2,
-                cast: self.sensor.last_cast(),
+                cast,
                 update: t4 - t3,
             },
         })
