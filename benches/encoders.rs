@@ -4,6 +4,7 @@
 //! Models: the tiny test models of tests/data/encode/ and the real MNIST CNN
 //! of ../shared/data/onnx/. Run: `cargo bench --bench encoders`.
 
+use omcl::encode::Encoder as _;
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::time::Duration;

@@ -7,6 +7,7 @@ pub mod io;
 pub mod map;
 pub mod mapping;
 pub mod mcl;
+pub mod morton;
 pub mod plot;
 pub mod raycast;
 pub mod scene;

@@ -1,6 +1,7 @@
 //! The map commands with ONNX encoders as feature sources (real inference
 //! through ONNX Runtime on the committed tiny models).
 
+use omcl::encode::Encoder as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -2,6 +2,7 @@
 //! a trained model nobody here made, and tiny models from
 //! tools/make_encoder_testdata.py whose expected outputs numpy computed.
 
+use omcl::encode::Encoder as _;
 use std::path::{Path, PathBuf};
 
 use omcl::encode::card::ModelCard;

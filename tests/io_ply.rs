@@ -197,7 +197,7 @@ fn features_attach_from_npy_with_dimension_checks() {
 
 #[test]
 fn format_dispatch_by_extension() {
-    use omcl::io::cloud::{CloudFormat, read_point_cloud};
+    use omcl::io::formats::{CloudFormat, read_point_cloud};
     let ply = read_point_cloud(&local("plyfile_ascii_rgb_label.ply"), None).unwrap();
     assert_eq!(ply.len(), 37);
     let laz = read_point_cloud(&local("laspy_pf3_rgb.laz"), None).unwrap();

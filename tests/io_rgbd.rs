@@ -10,7 +10,7 @@ use nalgebra::Point3;
 use omcl::geometry::{Intrinsics, Pose};
 use omcl::io::rgbd::{
     DepthImage, TUM_DEPTH_UNITS_PER_METRE, backproject, read_depth_png, read_intrinsics,
-    read_rgb_png, read_rgbd_frame, read_single_tum_pose,
+    read_rgbd_frame, read_single_tum_pose,
 };
 
 /// TUM's calibrated freiburg1 intrinsics (integer-centre convention, so
@@ -83,8 +83,8 @@ fn check_case(dir: &Path) {
     assert!(med < 0.03, "median {med}");
     assert!(frac > 0.8, "overlap {frac}");
     assert!(med_swapped > 3.0 * med, "{med_swapped} vs {med}");
-    let rgb = read_rgb_png(&dir.join("img_prev.png")).unwrap();
-    assert_eq!(rgb.pixels.len(), 640 * 480);
+    let rgb = omcl::io::rgb::read_rgb(&dir.join("img_prev.png")).unwrap();
+    assert_eq!(rgb.dimensions(), (640, 480));
     let cloud = read_rgbd_frame(
         &dir.join("dep_prev.png"),
         &dir.join("img_prev.png"),

@@ -2,9 +2,10 @@
 //! paper's Table II (GT and LSeg rows on Matterport3D) on a synthetic
 //! apartment, and the exact preset is perfectly consistent.
 
+use omcl::eval::consistency::ConsistencyMetrics as Scores;
 use omcl::geometry::Intrinsics;
 use omcl::raycast::EmbreeCaster;
-use omcl::sim::consistency::{Scores, measure};
+use omcl::sim::consistency::measure;
 use omcl::sim::features::{FeatureModel, Preset};
 use omcl::sim::files::builtin_table;
 use omcl::sim::indoor::{INDOOR_CLASSES, IndoorConfig, generate};

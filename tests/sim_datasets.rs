@@ -9,7 +9,8 @@ use nalgebra::{Point3, Vector3};
 use omcl::io::kitti::KittiSequence;
 use omcl::io::npy::read_npy;
 use omcl::io::poses::read_poses;
-use omcl::io::rgbd::{TUM_DEPTH_UNITS_PER_METRE, read_depth_png, read_intrinsics, read_rgb_png};
+use omcl::io::rgb::read_rgb;
+use omcl::io::rgbd::{TUM_DEPTH_UNITS_PER_METRE, read_depth_png, read_intrinsics};
 use omcl::sim::dataset::{IndoorDatasetConfig, OutdoorDatasetConfig, write_indoor, write_outdoor};
 use omcl::sim::files::{builtin_table, read_png_gray16};
 use omcl::sim::outdoor::{OUTDOOR_CLASSES, SEMANTIC_KITTI_IDS};
@@ -116,8 +117,8 @@ fn indoor_dataset_is_deterministic_and_reads_back_consistently() {
         .unwrap();
         let (w, h, labels) = read_png_gray16(&dir.join(format!("labels/{i:06}.png"))).unwrap();
         assert_eq!((w, h), (64, 48));
-        let rgb = read_rgb_png(&dir.join(format!("rgb/{i:06}.png"))).unwrap();
-        assert_eq!(rgb.pixels.len(), 64 * 48);
+        let rgb = read_rgb(&dir.join(format!("rgb/{i:06}.png"))).unwrap();
+        assert_eq!(rgb.dimensions(), (64, 48));
         let pose = poses.poses()[i];
         for v in 0..h {
             for u in 0..w {

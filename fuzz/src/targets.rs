@@ -166,13 +166,13 @@ pub fn run(target: Target, data: &[u8]) -> bool {
         Target::NpyHeader => io::npy::read_npy(&put("in.npy", &npy_from(data))).is_ok(),
         Target::PngDepth => io::rgbd::read_depth_png(&put("d.png", data), 1000.0).is_ok(),
         Target::PngLabel => io::rgbd::read_label_png(&put("l.png", data)).is_ok(),
-        Target::PngRgb => io::rgbd::read_rgb_png(&put("c.png", data)).is_ok(),
+        Target::PngRgb => io::rgb::read_rgb(&put("c.png", data)).is_ok(),
         Target::PngHeader => {
             // Every reader of PNGs on one well-formed file.
             let p = put("h.png", &png_from(data));
             let d = io::rgbd::read_depth_png(&p, 1000.0).is_ok();
             let l = io::rgbd::read_label_png(&p).is_ok();
-            let c = io::rgbd::read_rgb_png(&p).is_ok();
+            let c = io::rgb::read_rgb(&p).is_ok();
             d || l || c
         }
         Target::Intrinsics => io::rgbd::read_intrinsics(&put("intrinsics.txt", data)).is_ok(),

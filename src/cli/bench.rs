@@ -10,7 +10,7 @@ use anyhow::Context;
 use clap::{Args, ValueEnum};
 
 use omcl::experiment::sweep::{self, BenchPlan, Cache, Manifest, ResultDir, RunStatus};
-use omcl::experiment::{report, tables};
+use omcl::experiment::{features, report};
 use omcl::mcl::FilterConfig;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -163,7 +163,7 @@ impl PlanArgs {
 }
 
 const TABLE_VARIANT_NAMES: [&str; 5] = {
-    let v = omcl::experiment::tables::TABLE1_VARIANTS;
+    let v = omcl::experiment::table1::TABLE1_VARIANTS;
     [v[0].name, v[1].name, v[2].name, v[3].name, v[4].name]
 };
 
@@ -225,7 +225,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     let table4 = a.plan.experiments.contains(&Experiment::Table4);
     let sweep_wanted = a.plan.experiments.iter().any(|e| e.to_library().is_some());
     if table4 && !sweep_wanted {
-        let report = super::bench_table4::table4(&a, &tables::builtin_table()?)?;
+        let report = super::bench_table4::table4(&a, &features::builtin_table()?)?;
         println!("{report}");
         println!("wrote {}", a.out.display());
         return Ok(());
@@ -252,7 +252,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     println!("{}", c.markdown);
     println!("wrote {}", a.out.display());
     if table4 {
-        let report = super::bench_table4::table4(&a, &tables::builtin_table()?)?;
+        let report = super::bench_table4::table4(&a, &features::builtin_table()?)?;
         println!("{report}");
     }
     finish(&c, failures.len())

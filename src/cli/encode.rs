@@ -1,6 +1,7 @@
 //! `omcl encode ...`: run ONNX encoders on words, images and point clouds
 //! and write the features as `.npy`.
 
+use omcl::encode::Encoder as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};

@@ -1,5 +1,6 @@
 //! ONNX encoders as feature sources of the map and localize commands.
 
+use omcl::encode::Encoder as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
@@ -65,7 +66,7 @@ impl ImageSource {
         let enc = &mut self.encoder;
         let mut compute = || {
             let img = omcl::io::rgb::read_rgb(rgb)
-                .map_err(|e| omcl::encode::EncodeError::Input(format!("{}: {e}", rgb.display())))?;
+                .map_err(|e| omcl::encode::EncodeError::Input(e.to_string()))?;
             enc.encode(&img)
         };
         let fm = match &self.cache {

@@ -1,12 +1,14 @@
 //! The map-building commands: file handling around `omcl::mapping`.
 
+use omcl::encode::Encoder as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail, ensure};
 use clap::{Args, ValueEnum};
 use nalgebra::Vector3;
 
-use omcl::io::cloud::{CloudFormat, PointCloud, read_point_cloud};
+use omcl::io::cloud::PointCloud;
+use omcl::io::formats::{CloudFormat, read_point_cloud};
 use omcl::io::kitti::{AggregateOptions, KittiSequence};
 use omcl::io::labels::EmbeddingTable;
 use omcl::io::{npy, ply, poses, rgbd as rgbd_io};

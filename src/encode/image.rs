@@ -12,7 +12,7 @@ use image::RgbImage;
 
 use super::card::{ImageSpec, Layout, ModelCard, ModelKind, Resize};
 use super::preprocess::{self, normalize_chw, normalize_hwc};
-use super::runtime::{InputData, OnnxModel, Runtime};
+use super::runtime::{InputData, OnnxModel};
 use super::{EncodeError, ensure_feature_dim, normalize_in_place};
 
 /// Per-pixel features of one image: `height` x `width` cells of `dim`
@@ -96,30 +96,20 @@ struct Prepared {
     origin: [f32; 2],
 }
 
-impl ImageEncoder {
-    /// Loads `model` and the card beside it.
-    pub fn load(
-        runtime: &Runtime,
-        model: &Path,
-        threads: usize,
-    ) -> Result<ImageEncoder, EncodeError> {
-        let card = ModelCard::for_model(model)?;
-        Self::with_card(runtime, model, card, threads)
+impl super::Encoder for ImageEncoder {
+    const KIND: ModelKind = ModelKind::Image;
+    type Spec = ImageSpec;
+
+    fn spec(card: &ModelCard) -> Option<&ImageSpec> {
+        card.image.as_ref()
     }
 
-    /// Loads `model` with a card given by the caller.
-    pub fn with_card(
-        runtime: &Runtime,
+    fn from_parts(
         model: &Path,
         card: ModelCard,
-        threads: usize,
+        spec: ImageSpec,
+        onnx: OnnxModel,
     ) -> Result<ImageEncoder, EncodeError> {
-        card.expect_kind(ModelKind::Image, model)?;
-        let spec = card.image.clone().ok_or_else(|| EncodeError::Card {
-            path: model.to_path_buf(),
-            reason: "no image section".into(),
-        })?;
-        let onnx = OnnxModel::load(runtime, model, threads)?;
         let input = onnx.input(spec.input.as_deref())?;
         if input.dims.len() != 4 {
             return Err(EncodeError::Contract {
@@ -142,7 +132,9 @@ impl ImageEncoder {
             output,
         })
     }
+}
 
+impl ImageEncoder {
     /// The model card.
     pub fn card(&self) -> &ModelCard {
         &self.card

@@ -23,7 +23,7 @@ pub mod runtime;
 pub mod text;
 pub mod tokenize;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 pub use self::cache::FeatureCache;
 pub use self::card::{ModelCard, ModelKind};
@@ -32,6 +32,60 @@ pub use self::point::PointEncoder;
 pub use self::runtime::{OnnxModel, Runtime};
 pub use self::text::TextEncoder;
 pub use self::tokenize::ClipTokenizer;
+
+/// The one loading path of the three encoders: the card beside the model
+/// (or one given by the caller) is checked to be of the encoder's kind, its
+/// section for that kind taken, the ONNX session opened; each encoder then
+/// checks the model's own contract in [`Encoder::from_parts`].
+pub trait Encoder: Sized {
+    /// The card's kind this encoder reads.
+    const KIND: ModelKind;
+    /// The card's section for this kind.
+    type Spec: Clone;
+    /// The card's section for this kind, if it has one.
+    fn spec(card: &ModelCard) -> Option<&Self::Spec>;
+    /// The encoder, once its card and session are open: checks the model's
+    /// inputs and outputs against the contract.
+    fn from_parts(
+        model: &Path,
+        card: ModelCard,
+        spec: Self::Spec,
+        onnx: OnnxModel,
+    ) -> Result<Self, EncodeError>;
+
+    /// Loads `model` and the card beside it (`model.card.json`).
+    fn load(runtime: &Runtime, model: &Path, threads: usize) -> Result<Self, EncodeError> {
+        let card = ModelCard::for_model(model)?;
+        Self::with_card(runtime, model, card, threads)
+    }
+
+    /// Loads `model` with a card given by the caller; `threads` ONNX
+    /// Runtime intra-op threads (0: its default).
+    fn with_card(
+        runtime: &Runtime,
+        model: &Path,
+        card: ModelCard,
+        threads: usize,
+    ) -> Result<Self, EncodeError> {
+        card.expect_kind(Self::KIND, model)?;
+        let spec = Self::spec(&card)
+            .cloned()
+            .ok_or_else(|| EncodeError::Card {
+                path: model.to_path_buf(),
+                reason: format!("no {} section", kind_word(Self::KIND)),
+            })?;
+        let onnx = OnnxModel::load(runtime, model, threads)?;
+        Self::from_parts(model, card, spec, onnx)
+    }
+}
+
+fn kind_word(kind: ModelKind) -> &'static str {
+    match kind {
+        ModelKind::Image => "image",
+        ModelKind::Text => "text",
+        ModelKind::Point => "point",
+    }
+}
 
 /// Everything that can go wrong while loading or running an encoder. Each
 /// variant names the file (model, card or library) and what was expected.

@@ -10,7 +10,7 @@
 use std::path::Path;
 
 use super::card::{ModelCard, ModelKind, PointSpec};
-use super::runtime::{InputData, OnnxModel, Runtime};
+use super::runtime::{InputData, OnnxModel};
 use super::{EncodeError, ensure_feature_dim, normalize_in_place};
 
 /// An ONNX point encoder with its model card.
@@ -23,30 +23,20 @@ pub struct PointEncoder {
     batched: bool,
 }
 
-impl PointEncoder {
-    /// Loads `model` and the card beside it.
-    pub fn load(
-        runtime: &Runtime,
-        model: &Path,
-        threads: usize,
-    ) -> Result<PointEncoder, EncodeError> {
-        let card = ModelCard::for_model(model)?;
-        Self::with_card(runtime, model, card, threads)
+impl super::Encoder for PointEncoder {
+    const KIND: ModelKind = ModelKind::Point;
+    type Spec = PointSpec;
+
+    fn spec(card: &ModelCard) -> Option<&PointSpec> {
+        card.point.as_ref()
     }
 
-    /// Loads `model` with a card given by the caller.
-    pub fn with_card(
-        runtime: &Runtime,
+    fn from_parts(
         model: &Path,
         card: ModelCard,
-        threads: usize,
+        spec: PointSpec,
+        onnx: OnnxModel,
     ) -> Result<PointEncoder, EncodeError> {
-        card.expect_kind(ModelKind::Point, model)?;
-        let spec = card.point.clone().ok_or_else(|| EncodeError::Card {
-            path: model.to_path_buf(),
-            reason: "no point section".into(),
-        })?;
-        let onnx = OnnxModel::load(runtime, model, threads)?;
         let pts = onnx.input(Some(&spec.points_input))?;
         let batched = match pts.dims.len() {
             2 => false,
@@ -74,7 +64,9 @@ impl PointEncoder {
             batched,
         })
     }
+}
 
+impl PointEncoder {
     /// The model card.
     pub fn card(&self) -> &ModelCard {
         &self.card

@@ -8,7 +8,7 @@
 use std::path::Path;
 
 use super::card::{ModelCard, ModelKind, TextSpec};
-use super::runtime::{ElemKind, InputData, OnnxModel, Runtime};
+use super::runtime::{ElemKind, InputData, OnnxModel};
 use super::tokenize::ClipTokenizer;
 use super::{EncodeError, ensure_feature_dim, normalize_in_place};
 
@@ -25,30 +25,20 @@ pub struct TextEncoder {
     single: bool,
 }
 
-impl TextEncoder {
-    /// Loads `model` and the card beside it.
-    pub fn load(
-        runtime: &Runtime,
-        model: &Path,
-        threads: usize,
-    ) -> Result<TextEncoder, EncodeError> {
-        let card = ModelCard::for_model(model)?;
-        Self::with_card(runtime, model, card, threads)
+impl super::Encoder for TextEncoder {
+    const KIND: ModelKind = ModelKind::Text;
+    type Spec = TextSpec;
+
+    fn spec(card: &ModelCard) -> Option<&TextSpec> {
+        card.text.as_ref()
     }
 
-    /// Loads `model` with a card given by the caller.
-    pub fn with_card(
-        runtime: &Runtime,
+    fn from_parts(
         model: &Path,
         card: ModelCard,
-        threads: usize,
+        spec: TextSpec,
+        onnx: OnnxModel,
     ) -> Result<TextEncoder, EncodeError> {
-        card.expect_kind(ModelKind::Text, model)?;
-        let spec = card.text.clone().ok_or_else(|| EncodeError::Card {
-            path: model.to_path_buf(),
-            reason: "no text section".into(),
-        })?;
-        let onnx = OnnxModel::load(runtime, model, threads)?;
         let input = onnx.input(spec.input.as_deref())?.clone();
         let contract = |reason: String| EncodeError::Contract {
             path: model.to_path_buf(),
@@ -83,7 +73,9 @@ impl TextEncoder {
             tokenizer: ClipTokenizer::new(),
         })
     }
+}
 
+impl TextEncoder {
     /// The model card.
     pub fn card(&self) -> &ModelCard {
         &self.card

@@ -5,7 +5,10 @@
 //! not be either. [`GridFeatures`] computes them ahead of the filter step
 //! (the encoder's work, timed apart), [`SimFrameFeatures`] on demand.
 
+use super::ExperimentError;
+use super::sequence::SimSequence;
 use crate::mcl::FrameFeatures;
+use crate::sim::embeddings::ClassEmbeddings;
 use crate::sim::features::{FeatureModel, Preset};
 use crate::sim::render::{Frame, NO_LABEL};
 
@@ -136,6 +139,22 @@ impl FrameFeatures for GridFeatures<'_> {
     fn nearest_row(&self, u: u32, v: u32) -> Option<u32> {
         self.inner.nearest_row(u, v)
     }
+}
+
+/// The feature model of `preset` for `seq` (`salt` separates the mapping
+/// stream from the localization stream).
+pub fn feature_model(seq: &SimSequence, preset: Preset, salt: u64) -> FeatureModel {
+    FeatureModel::preset(
+        seq.table.clone(),
+        preset,
+        seq.config.seed.wrapping_mul(0x9e37).wrapping_add(salt),
+    )
+}
+
+/// The class table every benchmark uses: the simulator's built-in one.
+pub fn builtin_table() -> Result<ClassEmbeddings, ExperimentError> {
+    crate::sim::files::builtin_table()
+        .map_err(|e| ExperimentError::Sim(crate::sim::dataset::SimError::Io(e)))
 }
 
 #[cfg(test)]

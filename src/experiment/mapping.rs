@@ -6,6 +6,11 @@
 //! a recorded sequence are) and from a second camera path through the same
 //! world (another seed) that fills in what the first did not see.
 
+use std::sync::Arc;
+
+use super::features::feature_model;
+use crate::mcl::SensorModel;
+use crate::raycast::RayCaster;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
@@ -196,4 +201,46 @@ fn frame_points(
             (p[2] <= max_height).then(|| (p, row_of(u, v, p)))
         })
         .unzip()
+}
+
+/// A map of a sequence's world with its ray caster.
+pub struct BenchMap {
+    pub source: MapSource,
+    pub map: LanguageMap,
+    pub caster: Arc<dyn RayCaster>,
+}
+
+impl BenchMap {
+    /// Builds the map of `seq` from `source`.
+    pub fn build(
+        seq: &SimSequence,
+        source: MapSource,
+        params: &MapParams,
+        progress: &(dyn Fn(usize) + Sync),
+    ) -> Result<Self, ExperimentError> {
+        let model = match source {
+            MapSource::Features(p) | MapSource::Auto(p) => Some(feature_model(seq, p, 0x3a9)),
+            MapSource::PointCloud => Some(FeatureModel::new(
+                seq.table.clone(),
+                crate::sim::features::OPENSCENE_LIKE,
+                seq.config.seed.wrapping_mul(0x9e37).wrapping_add(0x3d9),
+            )),
+            MapSource::Labels => None,
+        };
+        let map = build_map(seq, source, params, model.as_ref(), progress)?;
+        Self::from_map(source, map)
+    }
+
+    /// A built (or loaded) map of `source` with its ray caster.
+    pub fn from_map(source: MapSource, map: LanguageMap) -> Result<Self, ExperimentError> {
+        let caster = Arc::new(SensorModel::embree_caster(
+            map.grid().resolution as f32,
+            &map.cells(),
+        )?);
+        Ok(BenchMap {
+            source,
+            map,
+            caster,
+        })
+    }
 }

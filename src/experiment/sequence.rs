@@ -77,7 +77,7 @@ impl SimSequence {
 }
 
 /// What a localization run needs of a benchmark sequence, indoor
-/// ([`SimSequence`]) or outdoor ([`super::street::StreetSequence`]).
+/// ([`SimSequence`]) or outdoor ([`super::table4::StreetSequence`]).
 pub trait BenchSequence {
     /// Ground-truth `world_from_camera` of every frame.
     fn poses(&self) -> &[Pose];

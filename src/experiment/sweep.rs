@@ -27,32 +27,23 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use super::ExperimentError;
+use super::features::builtin_table;
+use super::mapping::BenchMap;
 use super::mapping::{MapParams, MapSource};
+use super::particles_rays::{ABLATION_PARTICLES, ABLATION_RAYS};
 use super::run::RunResult;
+use super::sampling::{SAMPLING_PARTICLES, SAMPLING_STRATEGIES};
 use super::sequence::SimSequence;
-use super::tables::{self, BenchMap, GlobalRun, GlobalSpec, TABLE1_VARIANTS, Variant};
+use super::table1::{self, TABLE1_VARIANTS, Variant};
+use super::table2::{self, CONSISTENCY_FRAME_STEP};
+use super::table5::{self, GlobalRun, GlobalSpec};
 use crate::eval::ConsistencyMetrics;
-use crate::mcl::{FilterConfig, SamplingStrategy};
+use crate::mcl::FilterConfig;
 use crate::sim::embeddings::ClassEmbeddings;
 use crate::sim::features::Preset;
 
 /// The version of omcl every manifest line and result file carries.
 pub const OMCL_VERSION: &str = env!("CARGO_PKG_VERSION");
-
-/// Particle counts of the particles x rays ablation.
-pub const ABLATION_PARTICLES: [usize; 4] = [256, 512, 1024, 2048];
-/// Ray counts of the particles x rays ablation.
-pub const ABLATION_RAYS: [usize; 4] = [512, 1024, 2048, 4096];
-/// Particle counts of the ray-sampling ablation.
-pub const SAMPLING_PARTICLES: [usize; 3] = [256, 512, 1024];
-/// The ray-sampling ablation's strategies, by name.
-pub const SAMPLING_STRATEGIES: [(&str, SamplingStrategy); 3] = [
-    ("stratified", SamplingStrategy::Stratified),
-    ("equal", SamplingStrategy::EqualWithDuplicates),
-    ("uniform", SamplingStrategy::Uniform),
-];
-/// Table II scores every `CONSISTENCY_FRAME_STEP`-th frame.
-pub const CONSISTENCY_FRAME_STEP: usize = 10;
 
 /// Errors of planning, running and collecting sweeps; each names the file
 /// (and the run) it concerns.
@@ -753,7 +744,7 @@ impl Cache {
     pub fn new(dir: impl Into<PathBuf>, build: bool) -> Result<Cache, SweepError> {
         let dir = dir.into();
         std::fs::create_dir_all(&dir).map_err(io_err(&dir))?;
-        let table = tables::builtin_table().map_err(|e| SweepError::Plan(e.to_string()))?;
+        let table = builtin_table().map_err(|e| SweepError::Plan(e.to_string()))?;
         Ok(Cache {
             dir,
             table,
@@ -929,7 +920,7 @@ fn compute(entry: &RunEntry, cache: &Cache) -> Result<RunRecord, SweepError> {
     let map = cache.map(id, t, &seq)?;
     let outcome = match &t.work {
         Work::Track { filter, particles } => {
-            let r = tables::track(&seq, &map, t.preset, *filter, *particles).map_err(run_err)?;
+            let r = table1::track(&seq, &map, t.preset, *filter, *particles).map_err(run_err)?;
             TrackOutcome {
                 truth_xy: xy(&seq.poses()[..r.estimates.len()]),
                 estimate_xy: xy(&r.estimates),
@@ -938,7 +929,7 @@ fn compute(entry: &RunEntry, cache: &Cache) -> Result<RunRecord, SweepError> {
             .into()
         }
         Work::Consistency { frame_step } => Outcome::Consistency(
-            tables::consistency(&seq, &map, t.preset, *frame_step).map_err(run_err)?,
+            table2::consistency(&seq, &map, t.preset, *frame_step).map_err(run_err)?,
         ),
         Work::Global {
             filter,
@@ -955,7 +946,7 @@ fn compute(entry: &RunEntry, cache: &Cache) -> Result<RunRecord, SweepError> {
                 max_steps: *max_steps,
                 prompt: *prompt,
             };
-            Outcome::Global(tables::global_runs(&seq, &map, &spec).map_err(run_err)?)
+            Outcome::Global(table5::global_runs(&seq, &map, &spec).map_err(run_err)?)
         }
     };
     let cpu_seconds = match (cpu0, process_cpu_seconds()) {

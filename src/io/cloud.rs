@@ -274,56 +274,6 @@ impl PointCloud {
     }
 }
 
-/// On-disk point-cloud formats the readers understand.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CloudFormat {
-    /// PLY, any encoding ([`crate::io::ply::read_ply`]).
-    Ply,
-    /// LAS or LAZ ([`crate::io::las::read_las`]).
-    Las,
-    /// KITTI velodyne `.bin`, float32 x y z reflectance
-    /// ([`crate::io::kitti::read_velodyne_bin`]).
-    KittiBin,
-    /// ScanNet float32 x y z r g b `.bin`
-    /// ([`crate::io::scannet::read_scannet_xyzrgb_bin`]).
-    ScannetBin,
-}
-
-impl CloudFormat {
-    /// The format a file extension implies: `.ply`, `.las`, `.laz`. A `.bin`
-    /// is ambiguous (KITTI or ScanNet) and gives `None`: say which.
-    pub fn from_path(path: &Path) -> Option<Self> {
-        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
-        match ext.as_str() {
-            "ply" => Some(CloudFormat::Ply),
-            "las" | "laz" => Some(CloudFormat::Las),
-            _ => None,
-        }
-    }
-}
-
-/// Reads a point cloud in `format`, or in the format its extension implies.
-pub fn read_point_cloud(
-    path: &Path,
-    format: Option<CloudFormat>,
-) -> Result<PointCloud, CloudError> {
-    let format = format
-        .or_else(|| CloudFormat::from_path(path))
-        .ok_or_else(|| {
-            CloudError::format(
-                path,
-                "cannot tell the format from the extension (.ply, .las, .laz); \
-             for .bin say kitti or scannet",
-            )
-        })?;
-    match format {
-        CloudFormat::Ply => crate::io::ply::read_ply(path),
-        CloudFormat::Las => crate::io::las::read_las(path),
-        CloudFormat::KittiBin => crate::io::kitti::read_velodyne_bin(path),
-        CloudFormat::ScannetBin => crate::io::scannet::read_scannet_xyzrgb_bin(path),
-    }
-}
-
 /// Voxel down-sampling: keeps the first point of every cubic cell of edge
 /// `resolution` metres (cells `floor(p / resolution)`), with its columns.
 /// Keeping a real point (not a centroid) keeps labels and colours meaningful.

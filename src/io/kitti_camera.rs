@@ -22,7 +22,8 @@ use std::path::{Path, PathBuf};
 use super::cloud::CloudError;
 use super::kitti::{KITTI_IMAGE_SIZE, KittiCalib, KittiCamera, read_calib, read_kitti_poses};
 use super::poses::read_times;
-use super::rgbd::{read_label_png, read_rgb_png};
+use super::rgb::read_rgb;
+use super::rgbd::read_label_png;
 use crate::geometry::Pose;
 
 /// What camera 2 gives the localizer per frame.
@@ -116,8 +117,8 @@ impl KittiCameraSequence {
                 (w, h)
             }
             CameraInput::Images => {
-                let img = read_rgb_png(&first)?;
-                (img.width, img.height)
+                let img = read_rgb(&first)?;
+                img.dimensions()
             }
             CameraInput::Features => KITTI_IMAGE_SIZE,
         };

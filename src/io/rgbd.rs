@@ -1,5 +1,5 @@
 //! RGB-D frames: 16-bit depth PNGs (TUM: 5000 units a metre; Replica:
-//! 6553.5), colour PNGs, intrinsics files, single-pose files, and the
+//! 6553.5), label PNGs, intrinsics files, single-pose files, and the
 //! back-projection of a depth image to camera-frame points.
 //!
 //! Camera frame: OpenCV (x right, y down, z forward), metres; depth is
@@ -7,12 +7,12 @@
 //! crate, so intrinsics given in the integer-centre convention (TUM's
 //! `cx = 319.5`) describe the same camera with `cx + 0.5`, `cy + 0.5`.
 
-use std::fs::File;
-use std::io::BufReader;
 use std::path::Path;
 
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 use png::{BitDepth, ColorType, Transformations};
+
+use super::bounded_png::open_png;
 
 use crate::geometry::{Intrinsics, Pose};
 use crate::io::cloud::{CloudError, PointCloud};
@@ -30,54 +30,6 @@ pub struct DepthImage {
     pub height: u32,
     /// `width * height` depths, metres; 0 = invalid.
     pub depth: Vec<f32>,
-}
-
-/// An 8-bit sRGB image, row-major.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RgbImage {
-    pub width: u32,
-    pub height: u32,
-    pub pixels: Vec<[u8; 3]>,
-}
-
-/// Deflate's largest expansion (258-byte matches coded in 2 bits: about
-/// 1032 to 1), rounded up.
-const MAX_DEFLATE_RATIO: u64 = 1100;
-
-fn open_png(
-    path: &Path,
-    transform: Transformations,
-) -> Result<(png::OutputInfo, Vec<u8>), CloudError> {
-    let file = File::open(path).map_err(|e| CloudError::io(path, e))?;
-    let file_len = file.metadata().map_err(|e| CloudError::io(path, e))?.len();
-    let mut decoder = png::Decoder::new(BufReader::new(file));
-    decoder.set_transformations(transform);
-    let mut reader = decoder
-        .read_info()
-        .map_err(|e| CloudError::format(path, format!("not a readable PNG: {e}")))?;
-    let size = reader
-        .output_buffer_size()
-        .ok_or_else(|| CloudError::format(path, "PNG image too large"))?;
-    // The header's width and height are untrusted: deflate expands at most
-    // 1032-fold, so a larger image cannot come out of this file's bytes.
-    let most = file_len.saturating_mul(MAX_DEFLATE_RATIO).max(1 << 16);
-    if size as u64 > most {
-        let info = reader.info();
-        return Err(CloudError::format(
-            path,
-            format!(
-                "corrupt PNG: its header declares {} x {} pixels ({size} bytes), more than \
-                 the {file_len}-byte file can hold",
-                info.width, info.height
-            ),
-        ));
-    }
-    let mut buf = vec![0u8; size];
-    let info = reader
-        .next_frame(&mut buf)
-        .map_err(|e| CloudError::format(path, format!("corrupt or truncated PNG: {e}")))?;
-    buf.truncate(info.buffer_size());
-    Ok((info, buf))
 }
 
 /// Reads a 16-bit (or 8-bit) single-channel label PNG: one class id per
@@ -145,33 +97,6 @@ pub fn read_depth_png(path: &Path, units_per_metre: f64) -> Result<DepthImage, C
         width: info.width,
         height: info.height,
         depth,
-    })
-}
-
-/// Reads a colour PNG (palette, grey, RGB, with or without alpha, 8 or 16
-/// bits) as 8-bit RGB.
-pub fn read_rgb_png(path: &Path) -> Result<RgbImage, CloudError> {
-    let (info, buf) = open_png(path, Transformations::normalize_to_color8())?;
-    let channels = match info.color_type {
-        ColorType::Grayscale => 1,
-        ColorType::GrayscaleAlpha => 2,
-        ColorType::Rgb => 3,
-        ColorType::Rgba => 4,
-        ColorType::Indexed => {
-            return Err(CloudError::format(path, "palette PNG was not expanded"));
-        }
-    };
-    let pixels = buf
-        .chunks_exact(channels)
-        .map(|p| match channels {
-            1 | 2 => [p[0]; 3],
-            _ => [p[0], p[1], p[2]],
-        })
-        .collect();
-    Ok(RgbImage {
-        width: info.width,
-        height: info.height,
-        pixels,
     })
 }
 
@@ -304,14 +229,14 @@ pub fn read_rgbd_frame(
     world_from_camera: &Pose,
 ) -> Result<PointCloud, CloudError> {
     let depth = read_depth_png(depth_path, units_per_metre)?;
-    let color = read_rgb_png(color_path)?;
-    if (color.width, color.height) != (depth.width, depth.height) {
+    let color = super::rgb::read_rgb(color_path)?;
+    if (color.width(), color.height()) != (depth.width, depth.height) {
         return Err(CloudError::mismatch(
             color_path,
             format!(
                 "colour image is {}x{}, depth image {} is {}x{}",
-                color.width,
-                color.height,
+                color.width(),
+                color.height(),
                 depth_path.display(),
                 depth.width,
                 depth.height
@@ -320,7 +245,14 @@ pub fn read_rgbd_frame(
     }
     let (points, pixels) =
         backproject(k, &depth).map_err(|r| CloudError::mismatch(depth_path, r))?;
-    let colors = pixels.iter().map(|&i| color.pixels[i as usize]).collect();
+    let raw = color.as_raw();
+    let colors = pixels
+        .iter()
+        .map(|&i| {
+            let j = i as usize * 3;
+            [raw[j], raw[j + 1], raw[j + 2]]
+        })
+        .collect();
     let mut cloud = PointCloud {
         points,
         labels: None,

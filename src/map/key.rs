@@ -19,27 +19,6 @@ pub const CELL_MIN: i32 = -(1 << (AXIS_BITS - 1));
 /// Largest cell index an axis can hold.
 pub const CELL_MAX: i32 = (1 << (AXIS_BITS - 1)) - 1;
 
-fn spread(v: u64) -> u64 {
-    // Insert two zero bits between each of the low 21 bits.
-    let mut x = v & 0x1f_ffff;
-    x = (x | (x << 32)) & 0x1f00000000ffff;
-    x = (x | (x << 16)) & 0x1f0000ff0000ff;
-    x = (x | (x << 8)) & 0x100f00f00f00f00f;
-    x = (x | (x << 4)) & 0x10c30c30c30c30c3;
-    x = (x | (x << 2)) & 0x1249249249249249;
-    x
-}
-
-fn compact(v: u64) -> u64 {
-    let mut x = v & 0x1249249249249249;
-    x = (x | (x >> 2)) & 0x10c30c30c30c30c3;
-    x = (x | (x >> 4)) & 0x100f00f00f00f00f;
-    x = (x | (x >> 8)) & 0x1f0000ff0000ff;
-    x = (x | (x >> 16)) & 0x1f00000000ffff;
-    x = (x | (x >> 32)) & 0x1f_ffff;
-    x
-}
-
 /// Whether every index of `c` fits a Morton code.
 pub fn in_range(c: Cell) -> bool {
     c.iter().all(|&v| (CELL_MIN..=CELL_MAX).contains(&v))
@@ -49,12 +28,12 @@ pub fn in_range(c: Cell) -> bool {
 pub fn encode(c: Cell) -> u64 {
     debug_assert!(in_range(c));
     let b = |v: i32| (v as i64 + BIAS) as u64;
-    spread(b(c[0])) | (spread(b(c[1])) << 1) | (spread(b(c[2])) << 2)
+    crate::morton::encode3(b(c[0]), b(c[1]), b(c[2]))
 }
 
 /// The cell of a Morton code.
 pub fn decode(code: u64) -> Cell {
-    let u = |s: u32| (compact(code >> s) as i64 - BIAS) as i32;
+    let u = |s: u32| (crate::morton::compact3(code >> s) as i64 - BIAS) as i32;
     [u(0), u(1), u(2)]
 }
 

@@ -63,21 +63,13 @@ pub fn yaw(pose: &Pose) -> f64 {
 /// rays of consecutive particles through one pixel then travel together,
 /// which makes ray casting cache friendly. `cell` is the position bin (m).
 pub fn sort_spatially(ps: &mut [Particle], cell: f64) {
-    let spread = |v: u32| -> u64 {
-        let mut x = (v & 0x1f_ffff) as u64;
-        x = (x | (x << 32)) & 0x1f00000000ffff;
-        x = (x | (x << 16)) & 0x1f0000ff0000ff;
-        x = (x | (x << 8)) & 0x100f00f00f00f00f;
-        x = (x | (x << 4)) & 0x10c30c30c30c30c3;
-        (x | (x << 2)) & 0x1249249249249249
-    };
-    let q = |v: f64, s: f64| ((v / s).floor() as i64 + (1 << 20)).clamp(0, (1 << 21) - 1) as u32;
+    let q = |v: f64, s: f64| ((v / s).floor() as i64 + (1 << 20)).clamp(0, (1 << 21) - 1) as u64;
     ps.sort_by_cached_key(|p| {
         let t = p.pose.translation.vector;
         // One yaw bin spans about as much image motion as one position bin
         // at 2 m range.
         let y = yaw(&p.pose) + std::f64::consts::PI;
-        spread(q(t.x, cell)) | (spread(q(t.y, cell)) << 1) | (spread(q(y, cell / 2.0)) << 2)
+        crate::morton::encode3(q(t.x, cell), q(t.y, cell), q(y, cell / 2.0))
     });
 }
 

@@ -271,21 +271,8 @@ pub fn sample_pixels<R: Rng>(
     // Nearby pixels consecutive (Morton order: each run of 8 fills a compact
     // patch of the image): one particle's rays through them stay coherent
     // in the caster's packets.
-    out.sort_unstable_by_key(|&(u, v)| morton2(u, v));
+    out.sort_unstable_by_key(|&(u, v)| crate::morton::encode2(u, v));
     Ok(out)
-}
-
-/// Interleaves the bits of `u` (even) and `v` (odd).
-fn morton2(u: u32, v: u32) -> u64 {
-    fn spread(x: u32) -> u64 {
-        let mut x = u64::from(x);
-        x = (x | (x << 16)) & 0x0000_ffff_0000_ffff;
-        x = (x | (x << 8)) & 0x00ff_00ff_00ff_00ff;
-        x = (x | (x << 4)) & 0x0f0f_0f0f_0f0f_0f0f;
-        x = (x | (x << 2)) & 0x3333_3333_3333_3333;
-        (x | (x << 1)) & 0x5555_5555_5555_5555
-    }
-    spread(u) | (spread(v) << 1)
 }
 
 #[cfg(test)]

@@ -74,16 +74,6 @@ pub(crate) struct Bricks {
     pub edge: BrickEdge,
 }
 
-/// Spreads the low 21 bits of `v` to every third bit.
-fn spread3(v: u32) -> u64 {
-    let mut x = (v & 0x1f_ffff) as u64;
-    x = (x | (x << 32)) & 0x1f00000000ffff;
-    x = (x | (x << 16)) & 0x1f0000ff0000ff;
-    x = (x | (x << 8)) & 0x100f00f00f00f00f;
-    x = (x | (x << 4)) & 0x10c30c30c30c30c3;
-    (x | (x << 2)) & 0x1249249249249249
-}
-
 impl Bricks {
     /// Groups `cells` (voxel `i` is `cells[i]`) into bricks. A repeated
     /// cell keeps its first index, as in the reference caster.
@@ -121,7 +111,7 @@ impl Bricks {
         let mut order: Vec<u32> = (0..keys.len() as u32).collect();
         let morton = |k: &Cell| {
             let u = |v: i32| (v as u32) ^ 0x8000_0000;
-            spread3(u(k[0])) | (spread3(u(k[1])) << 1) | (spread3(u(k[2])) << 2)
+            crate::morton::encode3(u(k[0]).into(), u(k[1]).into(), u(k[2]).into())
         };
         order.sort_unstable_by_key(|&b| (morton(&keys[b as usize]), b));
         // Records, with each brick's first leaf slot.

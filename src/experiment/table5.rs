@@ -1,223 +1,19 @@
-//! The paper's experiments as functions from a benchmark (sequences and
-//! their maps) to result rows. Tables are plain data (serde) so the CLI
-//! can write them as JSON and Markdown.
+//! Table V: steps until global localization reaches each accuracy, from
+//! start frames spread over each sequence, without and with a prompt drawn
+//! as the paper draws them (words of the objects around the start).
 
-use std::sync::Arc;
+use std::fmt::Write as _;
 
 use super::ExperimentError;
-use super::mapping::{MapParams, MapSource, build_map};
-use super::run::{RunResult, RunSpec, Start, run};
+use super::features::feature_model;
+use super::mapping::BenchMap;
+use super::report::{Ctx, write_json};
+use super::run::{RunSpec, Start, run};
 use super::sequence::SimSequence;
-use crate::eval::localization::{SequenceSummary, summarize_sequences};
-use crate::map::LanguageMap;
+use super::sweep::{Outcome, SweepError, Use};
+use crate::eval::localization::CONVERGENCE_THRESHOLDS;
 use crate::mcl::FilterConfig;
-use crate::mcl::SensorModel;
-use crate::raycast::RayCaster;
-use crate::sim::embeddings::ClassEmbeddings;
-use crate::sim::features::{FeatureModel, Preset};
-
-/// A map of a sequence's world with its ray caster.
-pub struct BenchMap {
-    pub source: MapSource,
-    pub map: LanguageMap,
-    pub caster: Arc<dyn RayCaster>,
-}
-
-impl BenchMap {
-    /// Builds the map of `seq` from `source`.
-    pub fn build(
-        seq: &SimSequence,
-        source: MapSource,
-        params: &MapParams,
-        progress: &(dyn Fn(usize) + Sync),
-    ) -> Result<Self, ExperimentError> {
-        let model = match source {
-            MapSource::Features(p) | MapSource::Auto(p) => Some(feature_model(seq, p, 0x3a9)),
-            MapSource::PointCloud => Some(FeatureModel::new(
-                seq.table.clone(),
-                crate::sim::features::OPENSCENE_LIKE,
-                seq.config.seed.wrapping_mul(0x9e37).wrapping_add(0x3d9),
-            )),
-            MapSource::Labels => None,
-        };
-        let map = build_map(seq, source, params, model.as_ref(), progress)?;
-        Self::from_map(source, map)
-    }
-
-    /// A built (or loaded) map of `source` with its ray caster.
-    pub fn from_map(source: MapSource, map: LanguageMap) -> Result<Self, ExperimentError> {
-        let caster = Arc::new(SensorModel::embree_caster(
-            map.grid().resolution as f32,
-            &map.cells(),
-        )?);
-        Ok(BenchMap {
-            source,
-            map,
-            caster,
-        })
-    }
-}
-
-/// The feature model of `preset` for `seq` (`salt` separates the mapping
-/// stream from the localization stream).
-pub fn feature_model(seq: &SimSequence, preset: Preset, salt: u64) -> FeatureModel {
-    FeatureModel::preset(
-        seq.table.clone(),
-        preset,
-        seq.config.seed.wrapping_mul(0x9e37).wrapping_add(salt),
-    )
-}
-
-/// One variant of Table I: which map and which features localize.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub struct Variant {
-    pub name: &'static str,
-    pub map: MapSource,
-    pub localize: Preset,
-}
-
-/// The variants of Table I reproduced here: the paper's OMCL_GT (ground-truth
-/// semantic images for both mapping and localization, as the paper defines
-/// it: the simulator's `gt` preset, exact class embeddings with the label
-/// bleed of real ground-truth images near boundaries), OMCL_LSeg
-/// (`lseg-like`), the ungrounded OMCL_auto_LSeg (the same map without
-/// grounding on the class names) and OMCL_Open_LSeg (a map from the fused
-/// point cloud labelled by an OpenScene-like point encoder, localized with
-/// `lseg-like` images), plus OMCL_GT_exact (a map of the world's true
-/// labels, as a semantic mesh gives them, localized with every pixel's true
-/// class embedding: no error at all, the bound the sensor model reaches).
-pub const TABLE1_VARIANTS: [Variant; 5] = [
-    Variant {
-        name: "OMCL_GT",
-        map: MapSource::Features(Preset::Gt),
-        localize: Preset::Gt,
-    },
-    Variant {
-        name: "OMCL_LSeg",
-        map: MapSource::Features(Preset::LsegLike),
-        localize: Preset::LsegLike,
-    },
-    Variant {
-        name: "OMCL_auto_LSeg",
-        map: MapSource::Auto(Preset::LsegLike),
-        localize: Preset::LsegLike,
-    },
-    Variant {
-        name: "OMCL_Open_LSeg",
-        map: MapSource::PointCloud,
-        localize: Preset::LsegLike,
-    },
-    Variant {
-        name: "OMCL_GT_exact",
-        map: MapSource::Labels,
-        localize: Preset::Exact,
-    },
-];
-
-/// One variant's tracking results over the sequences.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct TrackingRow {
-    pub variant: String,
-    pub per_sequence: Vec<RunResult>,
-    pub summary: Option<SequenceSummary>,
-    pub completed: usize,
-    /// Filter steps per second over all steps of all sequences (encoder
-    /// excluded, as in the paper).
-    pub fps: f64,
-    /// Frames per second with the simulated encoder's work.
-    pub fps_with_encoder: f64,
-    /// Database rows (K) of the maps, mean over sequences.
-    pub map_rows: f64,
-}
-
-impl TrackingRow {
-    /// Gathers per-sequence results.
-    pub fn new(variant: impl Into<String>, per_sequence: Vec<RunResult>) -> Self {
-        let stats: Vec<_> = per_sequence.iter().map(|r| r.stats).collect();
-        let steps: usize = per_sequence.iter().map(|r| r.step_seconds.len()).sum();
-        let secs: f64 = per_sequence
-            .iter()
-            .flat_map(|r| r.step_seconds.iter())
-            .sum();
-        let encoder: f64 = per_sequence
-            .iter()
-            .flat_map(|r| r.encoder_seconds.iter())
-            .sum();
-        TrackingRow {
-            variant: variant.into(),
-            summary: summarize_sequences(&stats),
-            completed: per_sequence.iter().filter(|r| r.completed).count(),
-            fps: steps as f64 / secs.max(1e-12),
-            fps_with_encoder: steps as f64 / (secs + encoder).max(1e-12),
-            map_rows: per_sequence.iter().map(|r| r.map_rows as f64).sum::<f64>()
-                / per_sequence.len().max(1) as f64,
-            per_sequence,
-        }
-    }
-}
-
-/// Tracks sequence `seq` in `map` from the paper's local start with
-/// `filter`, `particles` and the features of `preset`.
-pub fn track(
-    seq: &SimSequence,
-    map: &BenchMap,
-    preset: Preset,
-    filter: FilterConfig,
-    particles: usize,
-) -> Result<RunResult, ExperimentError> {
-    let model = feature_model(seq, preset, 0x10c);
-    let spec = RunSpec {
-        filter,
-        particles,
-        start: Start::paper_local(),
-        first: 0,
-        frames: seq.len(),
-        preset,
-    };
-    run(seq, &map.map, map.caster.clone(), &model, &spec)
-}
-
-/// The class table every benchmark uses: the simulator's built-in one.
-pub fn builtin_table() -> Result<ClassEmbeddings, ExperimentError> {
-    crate::sim::files::builtin_table()
-        .map_err(|e| ExperimentError::Sim(crate::sim::dataset::SimError::Io(e)))
-}
-
-/// Table II: consistency of each variant's map with its features.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct ConsistencyRow {
-    pub variant: String,
-    /// Per sequence, per pose.
-    pub per_pose: Vec<Vec<crate::eval::ConsistencyMetrics>>,
-    /// Averaged over poses, then over sequences.
-    pub mean: Option<crate::eval::ConsistencyMetrics>,
-}
-
-impl ConsistencyRow {
-    /// Gathers per-pose metrics of the sequences.
-    pub fn new(
-        variant: impl Into<String>,
-        per_pose: Vec<Vec<crate::eval::ConsistencyMetrics>>,
-    ) -> Self {
-        ConsistencyRow {
-            variant: variant.into(),
-            mean: crate::eval::mean_over_sequences(&per_pose),
-            per_pose,
-        }
-    }
-}
-
-/// The consistency of `map` with the features of `preset` on `seq`, every
-/// `frame_step`-th frame, every 8th pixel.
-pub fn consistency(
-    seq: &SimSequence,
-    map: &BenchMap,
-    preset: Preset,
-    frame_step: usize,
-) -> Result<Vec<crate::eval::ConsistencyMetrics>, ExperimentError> {
-    let model = feature_model(seq, preset, 0x10c);
-    super::consistency::per_pose(seq, map, &model, frame_step, 8)
-}
+use crate::sim::features::Preset;
 
 /// Global localization (Table V): from `spec.starts` start frames of `seq`,
 /// the filter starts over all floor voxels (`prompt: false`) or over the
@@ -394,9 +190,64 @@ pub fn steps_rows(runs: &[GlobalRun]) -> Vec<StepsRow> {
         .collect()
 }
 
+impl Ctx<'_> {
+    pub(super) fn table5(&self) -> Result<String, SweepError> {
+        let v = self.bench.ablation()?;
+        let all: Vec<(bool, Vec<GlobalRun>)> = [false, true]
+            .into_iter()
+            .map(|prompt| {
+                let runs = self
+                    .records(&Use::Table5 { prompt })
+                    .filter_map(|r| match &r.outcome {
+                        Outcome::Global(g) => Some(g.clone()),
+                        _ => None,
+                    })
+                    .flatten()
+                    .collect();
+                (prompt, runs)
+            })
+            .collect();
+        let table: Vec<_> = all
+            .iter()
+            .map(|(p, runs)| serde_json::json!({"prompt": p, "rows": steps_rows(runs), "runs": runs}))
+            .collect();
+        write_json(&self.out.join("table5.json"), &table)?;
+        let mut s = format!(
+            "## Table V: steps until global localization reaches each accuracy ({}, {} runs of at most {} steps)\n\n\
+             | start | accuracy | mean | std | min | max | reached |\n|---|---|---|---|---|---|---|\n",
+            v.name,
+            all.first().map_or(0, |x| x.1.len()),
+            self.bench.max_steps
+        );
+        for (prompt, runs) in &all {
+            for r in steps_rows(runs) {
+                let f = |x: Option<f64>| x.map_or("-".into(), |x| format!("{x:.1}"));
+                let _ = writeln!(
+                    s,
+                    "| {} | {} m | {} | {} | {} | {} | {}/{} |",
+                    if *prompt { "prompt" } else { "global" },
+                    r.threshold_m,
+                    f(r.mean),
+                    f(r.std),
+                    f(r.min.map(|x| x as f64)),
+                    f(r.max.map(|x| x as f64)),
+                    r.reached,
+                    r.runs
+                );
+            }
+        }
+        let _ = writeln!(
+            s,
+            "\nThresholds: {CONVERGENCE_THRESHOLDS:?} m; a run counts for a threshold once its error first falls to or below it.\n"
+        );
+        Ok(s)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::experiment::features::builtin_table;
 
     /// Table V's statistics by hand: steps 2, 4 and 9 at 2 m (mean 5,
     /// population std sqrt(26 / 3)), one run of three at 0.1 m, none at 1 m.

@@ -1,0 +1,50 @@
+//! PNG decoding with the header's claims checked against the file: the
+//! one place every PNG reader (depth, labels, colour) opens its file.
+
+use std::fs::File;
+use std::io::BufReader;
+use std::path::Path;
+
+use png::Transformations;
+
+use super::cloud::CloudError;
+
+/// Deflate's largest expansion (258-byte matches coded in 2 bits: about
+/// 1032 to 1), rounded up.
+const MAX_DEFLATE_RATIO: u64 = 1100;
+
+pub(crate) fn open_png(
+    path: &Path,
+    transform: Transformations,
+) -> Result<(png::OutputInfo, Vec<u8>), CloudError> {
+    let file = File::open(path).map_err(|e| CloudError::io(path, e))?;
+    let file_len = file.metadata().map_err(|e| CloudError::io(path, e))?.len();
+    let mut decoder = png::Decoder::new(BufReader::new(file));
+    decoder.set_transformations(transform);
+    let mut reader = decoder
+        .read_info()
+        .map_err(|e| CloudError::format(path, format!("not a readable PNG: {e}")))?;
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| CloudError::format(path, "PNG image too large"))?;
+    // The header's width and height are untrusted: deflate expands at most
+    // 1032-fold, so a larger image cannot come out of this file's bytes.
+    let most = file_len.saturating_mul(MAX_DEFLATE_RATIO).max(1 << 16);
+    if size as u64 > most {
+        let info = reader.info();
+        return Err(CloudError::format(
+            path,
+            format!(
+                "corrupt PNG: its header declares {} x {} pixels ({size} bytes), more than \
+                 the {file_len}-byte file can hold",
+                info.width, info.height
+            ),
+        ));
+    }
+    let mut buf = vec![0u8; size];
+    let info = reader
+        .next_frame(&mut buf)
+        .map_err(|e| CloudError::format(path, format!("corrupt or truncated PNG: {e}")))?;
+    buf.truncate(info.buffer_size());
+    Ok((info, buf))
+}
