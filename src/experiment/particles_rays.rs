@@ -4,8 +4,9 @@
 use std::fmt::Write as _;
 
 use super::report::{Ctx, plot_err, write_json};
-use super::sweep::{SweepError, Use};
+use super::sweep::{Planner, SweepError, Task, Use};
 use super::table1::TrackingRow;
+use super::table1::Variant;
 use crate::plot::{self, Axes, Series};
 
 /// Particle counts of the particles x rays ablation.
@@ -89,5 +90,19 @@ impl Ctx<'_> {
         }
         s.push('\n');
         Ok(s)
+    }
+}
+
+/// Plans the particles x rays grid on the ablation sequences.
+pub(super) fn plan(p: &Planner, v: &Variant, out: &mut Vec<(Task, Use)>) {
+    for rays in ABLATION_RAYS {
+        for particles in ABLATION_PARTICLES {
+            let mut c = p.bench.filter;
+            c.sampling.rays = rays;
+            for s in p.bench.ablation_seeds() {
+                let u = Use::ParticlesRays { particles, rays };
+                out.push((p.track(s, v, c, particles), u));
+            }
+        }
     }
 }

@@ -4,7 +4,8 @@
 use std::fmt::Write as _;
 
 use super::report::{Ctx, plot_err, write_json};
-use super::sweep::{SweepError, Use};
+use super::sweep::{Planner, SweepError, Task, Use};
+use super::table1::Variant;
 use crate::mcl::SamplingStrategy;
 use crate::plot::{self, Axes, BarGroup};
 
@@ -73,5 +74,22 @@ impl Ctx<'_> {
         write_json(&self.out.join("ablation_sampling.json"), &json)?;
         s.push('\n');
         Ok(s)
+    }
+}
+
+/// Plans the sampling strategies on the ablation sequences.
+pub(super) fn plan(p: &Planner, v: &Variant, out: &mut Vec<(Task, Use)>) {
+    for particles in SAMPLING_PARTICLES {
+        for (name, strategy) in SAMPLING_STRATEGIES {
+            let mut c = p.bench.filter;
+            c.sampling.strategy = strategy;
+            for s in p.bench.ablation_seeds() {
+                let u = Use::Sampling {
+                    particles,
+                    strategy: name.into(),
+                };
+                out.push((p.track(s, v, c, particles), u));
+            }
+        }
     }
 }

@@ -30,12 +30,10 @@ use super::ExperimentError;
 use super::features::builtin_table;
 use super::mapping::BenchMap;
 use super::mapping::{MapParams, MapSource};
-use super::particles_rays::{ABLATION_PARTICLES, ABLATION_RAYS};
 use super::run::RunResult;
-use super::sampling::{SAMPLING_PARTICLES, SAMPLING_STRATEGIES};
 use super::sequence::SimSequence;
 use super::table1::{self, TABLE1_VARIANTS, Variant};
-use super::table2::{self, CONSISTENCY_FRAME_STEP};
+use super::table2;
 use super::table5::{self, GlobalRun, GlobalSpec};
 use crate::eval::ConsistencyMetrics;
 use crate::mcl::FilterConfig;
@@ -314,6 +312,45 @@ fn fnv1a(bytes: &[u8], basis: u64) -> u64 {
     })
 }
 
+/// What every experiment's planner needs: the bench and the tasks it
+/// makes for a seed and a variant.
+pub(super) struct Planner<'a> {
+    pub(super) bench: &'a BenchPlan,
+    map_params: MapParams,
+}
+
+impl Planner<'_> {
+    /// The task of `work` on sequence `seed` with `v`'s map and features.
+    pub(super) fn task(&self, seed: u64, v: &Variant, work: Work) -> Task {
+        Task {
+            seed,
+            frames: self.bench.frames,
+            map: v.map,
+            map_params: self.map_params,
+            preset: v.localize,
+            work,
+        }
+    }
+
+    /// A tracking task: `filter` with the sequence's seed, `particles`.
+    pub(super) fn track(
+        &self,
+        seed: u64,
+        v: &Variant,
+        filter: FilterConfig,
+        particles: usize,
+    ) -> Task {
+        self.task(
+            seed,
+            v,
+            Work::Track {
+                filter: FilterConfig { seed, ..filter },
+                particles,
+            },
+        )
+    }
+}
+
 /// Expands a bench plan into its runs: Table I and II per variant and
 /// seed, Table V per prompt and seed, the ablations per cell and seed.
 /// Runs that compute the same thing are merged (their uses joined); the
@@ -326,98 +363,26 @@ pub fn plan(bench: &BenchPlan) -> Result<Vec<RunEntry>, SweepError> {
     if variants.is_empty() {
         return Err(SweepError::Plan("no variant selected".into()));
     }
+    let planner = Planner {
+        bench,
+        map_params: bench.map_params(),
+    };
     let ablation = bench.ablation()?;
-    let map_params = bench.map_params();
-    let task = |seed: u64, v: &Variant, work: Work| Task {
-        seed,
-        frames: bench.frames,
-        map: v.map,
-        map_params,
-        preset: v.localize,
-        work,
-    };
-    let track = |seed: u64, v: &Variant, filter: FilterConfig, particles: usize| {
-        task(
-            seed,
-            v,
-            Work::Track {
-                filter: FilterConfig { seed, ..filter },
-                particles,
-            },
-        )
-    };
     let mut out: Vec<(Task, Use)> = Vec::new();
     if bench.wants(Experiment::Table1) {
-        for v in &variants {
-            for s in bench.seeds() {
-                let t = track(s, v, bench.filter, bench.particles);
-                out.push((
-                    t,
-                    Use::Table1 {
-                        variant: v.name.into(),
-                    },
-                ));
-            }
-        }
+        super::table1::plan(&planner, &variants, &mut out);
     }
     if bench.wants(Experiment::Table2) {
-        for v in &variants {
-            for s in bench.seeds() {
-                let work = Work::Consistency {
-                    frame_step: CONSISTENCY_FRAME_STEP,
-                };
-                out.push((
-                    task(s, v, work),
-                    Use::Table2 {
-                        variant: v.name.into(),
-                    },
-                ));
-            }
-        }
+        super::table2::plan(&planner, &variants, &mut out);
     }
     if bench.wants(Experiment::Table5) {
-        for prompt in [false, true] {
-            for s in bench.seeds() {
-                let work = Work::Global {
-                    filter: FilterConfig {
-                        seed: s,
-                        ..bench.filter
-                    },
-                    particles: bench.particles,
-                    starts: bench.starts,
-                    max_steps: bench.max_steps,
-                    prompt,
-                };
-                out.push((task(s, &ablation, work), Use::Table5 { prompt }));
-            }
-        }
+        super::table5::plan(&planner, &ablation, &mut out);
     }
     if bench.wants(Experiment::ParticlesRays) {
-        for rays in ABLATION_RAYS {
-            for particles in ABLATION_PARTICLES {
-                let mut c = bench.filter;
-                c.sampling.rays = rays;
-                for s in bench.ablation_seeds() {
-                    let u = Use::ParticlesRays { particles, rays };
-                    out.push((track(s, &ablation, c, particles), u));
-                }
-            }
-        }
+        super::particles_rays::plan(&planner, &ablation, &mut out);
     }
     if bench.wants(Experiment::Sampling) {
-        for particles in SAMPLING_PARTICLES {
-            for (name, strategy) in SAMPLING_STRATEGIES {
-                let mut c = bench.filter;
-                c.sampling.strategy = strategy;
-                for s in bench.ablation_seeds() {
-                    let u = Use::Sampling {
-                        particles,
-                        strategy: name.into(),
-                    };
-                    out.push((track(s, &ablation, c, particles), u));
-                }
-            }
-        }
+        super::sampling::plan(&planner, &ablation, &mut out);
     }
     let mut entries: Vec<RunEntry> = Vec::new();
     let mut by_id: HashMap<String, usize> = HashMap::new();

@@ -11,7 +11,7 @@ use super::mapping::{BenchMap, MapSource};
 use super::report::{Ctx, plot_err, write_json};
 use super::run::{RunResult, RunSpec, Start, run};
 use super::sequence::SimSequence;
-use super::sweep::{RunRecord, SweepError, Use, map_path};
+use super::sweep::{Planner, RunRecord, SweepError, Task, Use, map_path};
 use crate::eval::localization::{SequenceSummary, summarize_sequences};
 use crate::mcl::FilterConfig;
 use crate::plot::{self, FloorPlan, TrajectoryPanel};
@@ -209,5 +209,20 @@ impl Ctx<'_> {
         let map = crate::map::file::load(&path).ok()?;
         let table = super::features::builtin_table().ok()?;
         FloorPlan::from_map(&map, table.text_feature("floor"), 0.9)
+    }
+}
+
+/// Plans Table I: each variant tracks each sequence.
+pub(super) fn plan(p: &Planner, variants: &[Variant], out: &mut Vec<(Task, Use)>) {
+    for v in variants {
+        for s in p.bench.seeds() {
+            let t = p.track(s, v, p.bench.filter, p.bench.particles);
+            out.push((
+                t,
+                Use::Table1 {
+                    variant: v.name.into(),
+                },
+            ));
+        }
     }
 }

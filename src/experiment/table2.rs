@@ -14,7 +14,8 @@ use super::features::feature_model;
 use super::mapping::BenchMap;
 use super::report::{Ctx, write_json};
 use super::sequence::SimSequence;
-use super::sweep::{Outcome, SweepError, Use};
+use super::sweep::{Outcome, Planner, SweepError, Task, Use, Work};
+use super::table1::Variant;
 use crate::eval::consistency::{ConsistencyMetrics, NO_HIT, count_frame};
 use crate::geometry::camera_ray;
 use crate::sim::features::{FeatureModel, Preset};
@@ -164,5 +165,22 @@ impl Ctx<'_> {
         }
         s.push('\n');
         Ok(s)
+    }
+}
+
+/// Plans Table II: each variant's consistency on each sequence.
+pub(super) fn plan(p: &Planner, variants: &[Variant], out: &mut Vec<(Task, Use)>) {
+    for v in variants {
+        for s in p.bench.seeds() {
+            let work = Work::Consistency {
+                frame_step: CONSISTENCY_FRAME_STEP,
+            };
+            out.push((
+                p.task(s, v, work),
+                Use::Table2 {
+                    variant: v.name.into(),
+                },
+            ));
+        }
     }
 }

@@ -10,7 +10,8 @@ use super::mapping::BenchMap;
 use super::report::{Ctx, write_json};
 use super::run::{RunSpec, Start, run};
 use super::sequence::SimSequence;
-use super::sweep::{Outcome, SweepError, Use};
+use super::sweep::{Outcome, Planner, SweepError, Task, Use, Work};
+use super::table1::Variant;
 use crate::eval::localization::CONVERGENCE_THRESHOLDS;
 use crate::mcl::FilterConfig;
 use crate::sim::features::Preset;
@@ -241,6 +242,25 @@ impl Ctx<'_> {
             "\nThresholds: {CONVERGENCE_THRESHOLDS:?} m; a run counts for a threshold once its error first falls to or below it.\n"
         );
         Ok(s)
+    }
+}
+
+/// Plans Table V: global runs on each sequence, without and with a prompt.
+pub(super) fn plan(p: &Planner, v: &Variant, out: &mut Vec<(Task, Use)>) {
+    for prompt in [false, true] {
+        for s in p.bench.seeds() {
+            let work = Work::Global {
+                filter: FilterConfig {
+                    seed: s,
+                    ..p.bench.filter
+                },
+                particles: p.bench.particles,
+                starts: p.bench.starts,
+                max_steps: p.bench.max_steps,
+                prompt,
+            };
+            out.push((p.task(s, v, work), Use::Table5 { prompt }));
+        }
     }
 }
 

@@ -109,7 +109,10 @@ struct Block {
 }
 
 /// Generates the street world along `kitti_gt[start..start + frames]`
-/// (KITTI 3x4 camera poses, camera frame of the sequence's first camera).
+/// (KITTI 3x4 camera poses, camera frame of the sequence's first camera):
+/// the path's samples, building blocks on both sides, the ground, kerbs,
+/// buildings, fences and hedges as voxel columns, then trees, poles, signs
+/// and parked cars as primitives.
 pub fn generate(config: &OutdoorConfig, kitti_gt: &[Pose]) -> OutdoorWorld {
     let mut rng = ChaCha8Rng::seed_from_u64(config.seed ^ 0x07d_0000_u64);
     let end = (config.start + config.frames).min(kitti_gt.len());
@@ -122,8 +125,31 @@ pub fn generate(config: &OutdoorConfig, kitti_gt: &[Pose]) -> OutdoorWorld {
     let kitti_poses: Vec<Pose> = raw.iter().map(|p| first_inv * p).collect();
     let w = world_from_kitti();
     let poses: Vec<Pose> = kitti_poses.iter().map(|p| w * p).collect();
+    let (samples, total) = path_samples(&poses);
+    let blocks = building_blocks(&mut rng, total);
+    let r = config.resolution;
+    let (origin, ni, nj) = grid_extent(&samples, config);
+    let index = SampleIndex::new(&samples, config.extent);
+    let cols = columns(&index, origin, r, ni, nj, config.extent);
+    let cells = street_cells(&cols, &blocks, origin, config);
+    let mut scene = Scene {
+        classes: OUTDOOR_CLASSES.iter().map(|s| s.to_string()).collect(),
+        primitives: Vec::new(),
+    };
+    street_furniture(&mut rng, &samples, total, config, &mut scene);
+    let voxels = voxelize_onto(&scene, r, origin, cells);
+    OutdoorWorld {
+        config: config.clone(),
+        scene,
+        voxels,
+        poses,
+        kitti_poses,
+    }
+}
 
-    // Path samples every 0.5 m with tangent, arc length and ground height.
+/// Path samples every 0.5 m with tangent, arc length and ground height,
+/// and the path's length.
+fn path_samples(poses: &[Pose]) -> (Vec<Sample>, f64) {
     let mut samples: Vec<Sample> = Vec::new();
     let mut s_acc = 0.0;
     for win in poses.windows(2) {
@@ -164,12 +190,12 @@ pub fn generate(config: &OutdoorConfig, kitti_gt: &[Pose]) -> OutdoorWorld {
             ground: v.z - CAMERA_HEIGHT,
         });
     }
-    let total = s_acc;
-    let hw = config.road_half_width;
-    let sw = config.sidewalk_width;
-    let curb = hw + sw;
+    (samples, s_acc)
+}
 
-    // Building blocks per side (index 0: left, 1: right).
+/// Building blocks per side (index 0: left, 1: right) along `total` metres
+/// of arc length.
+fn building_blocks(rng: &mut ChaCha8Rng, total: f64) -> [Vec<Block>; 2] {
     let mut blocks: [Vec<Block>; 2] = [Vec::new(), Vec::new()];
     for side in blocks.iter_mut() {
         let mut s = -10.0;
@@ -188,10 +214,16 @@ pub fn generate(config: &OutdoorConfig, kitti_gt: &[Pose]) -> OutdoorWorld {
         }
     }
 
+    blocks
+}
+
+/// The grid's origin and its cell counts in x and y: the samples' bounds
+/// with the world's extent and a margin around them.
+fn grid_extent(samples: &[Sample], config: &OutdoorConfig) -> (Vector3<f64>, i32, i32) {
     let r = config.resolution;
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
-    for smp in &samples {
+    for smp in samples {
         lo[0] = lo[0].min(smp.p[0]);
         lo[1] = lo[1].min(smp.p[1]);
         lo[2] = lo[2].min(smp.ground);
@@ -204,20 +236,41 @@ pub fn generate(config: &OutdoorConfig, kitti_gt: &[Pose]) -> OutdoorWorld {
     let origin = Vector3::new(snap(lo[0] - m), snap(lo[1] - m), snap(lo[2] - 2.0));
     let ni = ((hi[0] - lo[0] + 2.0 * m) / r).ceil() as i32 + 4;
     let nj = ((hi[1] - lo[1] + 2.0 * m) / r).ceil() as i32 + 4;
+    (origin, ni, nj)
+}
 
-    // Spatial hash of samples in 4 m buckets for nearest-sample queries.
-    let bucket = 4.0;
-    let mut grid: FxHashMap<(i32, i32), Vec<usize>> = FxHashMap::default();
-    for (i, smp) in samples.iter().enumerate() {
-        grid.entry((
-            (smp.p[0] / bucket).floor() as i32,
-            (smp.p[1] / bucket).floor() as i32,
-        ))
-        .or_default()
-        .push(i);
+/// A spatial hash of the path samples in 4 m buckets for nearest-sample
+/// queries within the world's extent.
+struct SampleIndex<'a> {
+    samples: &'a [Sample],
+    grid: FxHashMap<(i32, i32), Vec<usize>>,
+    bucket: f64,
+    reach: i32,
+}
+
+impl<'a> SampleIndex<'a> {
+    fn new(samples: &'a [Sample], extent: f64) -> Self {
+        let bucket = 4.0;
+        let mut grid: FxHashMap<(i32, i32), Vec<usize>> = FxHashMap::default();
+        for (i, smp) in samples.iter().enumerate() {
+            grid.entry((
+                (smp.p[0] / bucket).floor() as i32,
+                (smp.p[1] / bucket).floor() as i32,
+            ))
+            .or_default()
+            .push(i);
+        }
+        SampleIndex {
+            samples,
+            grid,
+            bucket,
+            reach: (extent / bucket).ceil() as i32 + 1,
+        }
     }
-    let reach = (config.extent / bucket).ceil() as i32 + 1;
-    let nearest = |x: f64, y: f64| -> Option<(usize, f64)> {
+
+    /// The nearest sample to `(x, y)` and its distance.
+    fn nearest(&self, x: f64, y: f64) -> Option<(usize, f64)> {
+        let (bucket, reach, grid, samples) = (self.bucket, self.reach, &self.grid, self.samples);
         let (bx, by) = ((x / bucket).floor() as i32, (y / bucket).floor() as i32);
         let mut best: Option<(usize, f64)> = None;
         for ring in 0..=reach {
@@ -244,26 +297,38 @@ pub fn generate(config: &OutdoorConfig, kitti_gt: &[Pose]) -> OutdoorWorld {
             }
         }
         best
-    };
-
-    // Columns: (signed lateral offset, arc length, ground height, class).
-    struct Column {
-        d: f64,
-        s: f64,
-        g: f64,
     }
+}
+
+/// A ground column: signed lateral offset from the path (positive to the
+/// left of the driving direction), arc length and ground height.
+struct Column {
+    d: f64,
+    s: f64,
+    g: f64,
+}
+
+/// The ground columns of the `ni x nj` grid within `extent` of the path.
+fn columns(
+    index: &SampleIndex,
+    origin: Vector3<f64>,
+    r: f64,
+    ni: i32,
+    nj: i32,
+    extent: f64,
+) -> FxHashMap<(i32, i32), Column> {
     let mut cols: FxHashMap<(i32, i32), Column> = FxHashMap::default();
     for i in 0..ni {
         for j in 0..nj {
             let x = origin.x + (i as f64 + 0.5) * r;
             let y = origin.y + (j as f64 + 0.5) * r;
-            let Some((k, dist)) = nearest(x, y) else {
+            let Some((k, dist)) = index.nearest(x, y) else {
                 continue;
             };
-            if dist > config.extent {
+            if dist > extent {
                 continue;
             }
-            let smp = &samples[k];
+            let smp = &index.samples[k];
             let (dx, dy) = (x - smp.p[0], y - smp.p[1]);
             // Positive to the left of the driving direction.
             let d = smp.t[0] * dy - smp.t[1] * dx;
@@ -278,6 +343,20 @@ pub fn generate(config: &OutdoorConfig, kitti_gt: &[Pose]) -> OutdoorWorld {
             );
         }
     }
+    cols
+}
+
+/// The voxel cells of the columns: road, sidewalk and terrain surfaces,
+/// buildings' walls and roofs, fences and hedges along verges without one.
+fn street_cells(
+    cols: &FxHashMap<(i32, i32), Column>,
+    blocks: &[Vec<Block>; 2],
+    origin: Vector3<f64>,
+    config: &OutdoorConfig,
+) -> FxHashMap<[i32; 3], u16> {
+    let r = config.resolution;
+    let hw = config.road_half_width;
+    let curb = hw + config.sidewalk_width;
     let kz = |z: f64| ((z - origin.z) / r).floor() as i32;
     let block_of = |c: &Column| -> Option<&Block> {
         let side = if c.d >= 0.0 { 0 } else { 1 };
@@ -287,7 +366,7 @@ pub fn generate(config: &OutdoorConfig, kitti_gt: &[Pose]) -> OutdoorWorld {
         })
     };
     let mut cells: FxHashMap<[i32; 3], u16> = FxHashMap::default();
-    for (&(i, j), c) in &cols {
+    for (&(i, j), c) in cols {
         let a = c.d.abs();
         let (label, z) = if a < hw {
             (ROAD, c.g)
@@ -330,136 +409,152 @@ pub fn generate(config: &OutdoorConfig, kitti_gt: &[Pose]) -> OutdoorWorld {
             }
         }
     }
+    cells
+}
 
-    // Primitives: trees and poles on the sidewalk edge, signs, parked cars.
-    let mut scene = Scene {
-        classes: OUTDOOR_CLASSES.iter().map(|s| s.to_string()).collect(),
-        primitives: Vec::new(),
-    };
-    let at = |s: f64, d: f64| -> Option<([f64; 2], f64, [f64; 2])> {
-        let k = samples
-            .partition_point(|x| x.s < s)
-            .min(samples.len().checked_sub(1)?);
-        let smp = &samples[k];
-        let along = s - smp.s;
-        let p = [
-            smp.p[0] + smp.t[0] * along - smp.t[1] * d,
-            smp.p[1] + smp.t[1] * along + smp.t[0] * d,
-        ];
-        Some((p, smp.ground, smp.t))
-    };
+/// Trees, poles and signs on the sidewalk edge and parked cars along the
+/// kerb, on both sides of the path.
+fn street_furniture(
+    rng: &mut ChaCha8Rng,
+    samples: &[Sample],
+    total: f64,
+    config: &OutdoorConfig,
+    scene: &mut Scene,
+) {
+    let (hw, sw) = (config.road_half_width, config.sidewalk_width);
     for side in [1.0, -1.0] {
-        let mut s = rng.random_range(0.0..8.0);
-        while s < total {
-            let kind = rng.random_range(0..10);
-            let d = side * (hw + sw - 0.5);
-            if let Some((p, g, t)) = at(s, d) {
-                let z0 = g + 0.15;
-                match kind {
-                    0..=4 => {
-                        let h = rng.random_range(2.5..4.0);
-                        scene.add(
-                            VEGETATION,
-                            Shape::Cylinder {
-                                x: p[0],
-                                y: p[1],
-                                radius: 0.2,
-                                z0,
-                                z1: z0 + h,
-                            },
-                        );
-                        let cr = rng.random_range(1.5..2.8);
-                        scene.add(
-                            VEGETATION,
-                            Shape::Ellipsoid {
-                                centre: [p[0], p[1], z0 + h + cr * 0.8],
-                                radii: [cr, cr, cr * 1.1],
-                            },
-                        );
-                    }
-                    5..=7 => {
-                        scene.add(
-                            POLE,
-                            Shape::Cylinder {
-                                x: p[0],
-                                y: p[1],
-                                radius: 0.12,
-                                z0,
-                                z1: z0 + 7.0,
-                            },
-                        );
-                    }
-                    _ => {
-                        scene.add(
-                            POLE,
-                            Shape::Cylinder {
-                                x: p[0],
-                                y: p[1],
-                                radius: 0.06,
-                                z0,
-                                z1: z0 + 2.6,
-                            },
-                        );
-                        // Sign plate facing the traffic: thin along the road direction.
-                        let (hx, hy) = if t[0].abs() > t[1].abs() {
-                            (0.05, 0.35)
-                        } else {
-                            (0.35, 0.05)
-                        };
-                        scene.add(
-                            SIGN,
-                            Shape::Box(Aabb::new(
-                                [p[0] - hx, p[1] - hy, z0 + 2.0],
-                                [p[0] + hx, p[1] + hy, z0 + 2.7],
-                            )),
-                        );
-                    }
+        kerbside_objects(rng, samples, total, side * (hw + sw - 0.5), scene);
+        parked_cars(rng, samples, total, side * (hw - 1.1), scene);
+    }
+}
+
+/// The point `d` metres left of the path at arc length `s`, its ground
+/// height and the path's tangent there.
+fn at(samples: &[Sample], s: f64, d: f64) -> Option<([f64; 2], f64, [f64; 2])> {
+    let k = samples
+        .partition_point(|x| x.s < s)
+        .min(samples.len().checked_sub(1)?);
+    let smp = &samples[k];
+    let along = s - smp.s;
+    let p = [
+        smp.p[0] + smp.t[0] * along - smp.t[1] * d,
+        smp.p[1] + smp.t[1] * along + smp.t[0] * d,
+    ];
+    Some((p, smp.ground, smp.t))
+}
+
+/// Trees, poles and signs every 8 to 18 m at lateral offset `d`.
+fn kerbside_objects(
+    rng: &mut ChaCha8Rng,
+    samples: &[Sample],
+    total: f64,
+    d: f64,
+    scene: &mut Scene,
+) {
+    let mut s = rng.random_range(0.0..8.0);
+    while s < total {
+        let kind = rng.random_range(0..10);
+        if let Some((p, g, t)) = at(samples, s, d) {
+            let z0 = g + 0.15;
+            match kind {
+                0..=4 => {
+                    let h = rng.random_range(2.5..4.0);
+                    scene.add(
+                        VEGETATION,
+                        Shape::Cylinder {
+                            x: p[0],
+                            y: p[1],
+                            radius: 0.2,
+                            z0,
+                            z1: z0 + h,
+                        },
+                    );
+                    let cr = rng.random_range(1.5..2.8);
+                    scene.add(
+                        VEGETATION,
+                        Shape::Ellipsoid {
+                            centre: [p[0], p[1], z0 + h + cr * 0.8],
+                            radii: [cr, cr, cr * 1.1],
+                        },
+                    );
+                }
+                5..=7 => {
+                    scene.add(
+                        POLE,
+                        Shape::Cylinder {
+                            x: p[0],
+                            y: p[1],
+                            radius: 0.12,
+                            z0,
+                            z1: z0 + 7.0,
+                        },
+                    );
+                }
+                _ => {
+                    scene.add(
+                        POLE,
+                        Shape::Cylinder {
+                            x: p[0],
+                            y: p[1],
+                            radius: 0.06,
+                            z0,
+                            z1: z0 + 2.6,
+                        },
+                    );
+                    // Sign plate facing the traffic: thin along the road direction.
+                    let (hx, hy) = if t[0].abs() > t[1].abs() {
+                        (0.05, 0.35)
+                    } else {
+                        (0.35, 0.05)
+                    };
+                    scene.add(
+                        SIGN,
+                        Shape::Box(Aabb::new(
+                            [p[0] - hx, p[1] - hy, z0 + 2.0],
+                            [p[0] + hx, p[1] + hy, z0 + 2.7],
+                        )),
+                    );
                 }
             }
-            s += rng.random_range(8.0..18.0);
         }
-        // Parked cars along the kerb, on the road.
-        let mut s = rng.random_range(0.0..10.0);
-        while s < total {
-            if rng.random_bool(0.6)
-                && let Some((p, g, t)) = at(s, side * (hw - 1.1))
-            {
-                let (lx, ly) = if t[0].abs() > t[1].abs() {
-                    (2.2, 0.9)
-                } else {
-                    (0.9, 2.2)
-                };
-                scene.add(
-                    CAR,
-                    Shape::Box(Aabb::new(
-                        [p[0] - lx, p[1] - ly, g + 0.2],
-                        [p[0] + lx, p[1] + ly, g + 0.9],
-                    )),
-                );
-                let (cx, cy) = (lx * 0.55, ly * 0.55);
-                let (cx, cy) = if lx > ly {
-                    (cx, ly * 0.95)
-                } else {
-                    (lx * 0.95, cy)
-                };
-                scene.add(
-                    CAR,
-                    Shape::Box(Aabb::new(
-                        [p[0] - cx, p[1] - cy, g + 0.9],
-                        [p[0] + cx, p[1] + cy, g + 1.45],
-                    )),
-                );
-            }
-            s += rng.random_range(5.5..12.0);
-        }
+        s += rng.random_range(8.0..18.0);
     }
-    let voxels = voxelize_onto(&scene, r, origin, cells);
-    OutdoorWorld {
-        config: config.clone(),
-        scene,
-        voxels,
-        poses,
-        kitti_poses,
+}
+
+/// Parked cars at lateral offset `d` (on the road, along the kerb).
+fn parked_cars(rng: &mut ChaCha8Rng, samples: &[Sample], total: f64, d: f64, scene: &mut Scene) {
+    let mut s = rng.random_range(0.0..10.0);
+    while s < total {
+        if rng.random_bool(0.6)
+            && let Some((p, g, t)) = at(samples, s, d)
+        {
+            let (lx, ly) = if t[0].abs() > t[1].abs() {
+                (2.2, 0.9)
+            } else {
+                (0.9, 2.2)
+            };
+            scene.add(
+                CAR,
+                Shape::Box(Aabb::new(
+                    [p[0] - lx, p[1] - ly, g + 0.2],
+                    [p[0] + lx, p[1] + ly, g + 0.9],
+                )),
+            );
+            let (cx, cy) = (lx * 0.55, ly * 0.55);
+            let (cx, cy) = if lx > ly {
+                (cx, ly * 0.95)
+            } else {
+                (lx * 0.95, cy)
+            };
+            scene.add(
+                CAR,
+                Shape::Box(Aabb::new(
+                    [p[0] - cx, p[1] - cy, g + 0.9],
+                    [p[0] + cx, p[1] + cy, g + 1.45],
+                )),
+            );
+        }
+        s += rng.random_range(5.5..12.0);
     }
 }
 
