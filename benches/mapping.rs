@@ -117,6 +117,7 @@ fn bench(c: &mut Criterion) {
         width: k.width,
         labels: &labels,
         row_of_label: &row_of,
+        feature_of_label: None,
     };
     let mut g = c.benchmark_group("option1_rgbd_540");
     g.sample_size(20);

@@ -2,6 +2,7 @@
 pub mod encode;
 pub mod eval;
 pub mod experiment;
+pub mod frame;
 pub mod geometry;
 pub mod io;
 pub mod map;

@@ -9,7 +9,6 @@ use clap::Args;
 use omcl::encode::cache::FeatureCache;
 use omcl::encode::image::{FeatureMap as EncodedMap, ImageEncoder};
 use omcl::encode::text::TextEncoder;
-use omcl::mapping::{self, Feature};
 
 /// Options that select ONNX encoders.
 #[derive(Debug, Args, Default)]
@@ -77,19 +76,16 @@ impl ImageSource {
     }
 }
 
-/// An encoded feature map as a mapping feature source.
-pub struct Encoded<'a>(pub &'a EncodedMap);
-
-impl mapping::FrameFeatures for Encoded<'_> {
-    fn at(&self, u: u32, v: u32) -> Feature<'_> {
-        match self.0.at_pixel(u, v) {
-            Some(f) => Feature::Vector(f),
-            None => Feature::Unknown,
-        }
-    }
+/// An encoded frame as a feature source of mapping and localization (its
+/// cells follow the encoder's resize and crop; image size from the
+/// intrinsics).
+pub struct EncodedFrame<'a> {
+    pub map: &'a EncodedMap,
+    pub width: u32,
+    pub height: u32,
 }
 
-impl omcl::mcl::FrameFeatures for EncodedFrame<'_> {
+impl omcl::frame::FrameFeatures for EncodedFrame<'_> {
     fn width(&self) -> u32 {
         self.width
     }
@@ -105,13 +101,9 @@ impl omcl::mcl::FrameFeatures for EncodedFrame<'_> {
             None => out.fill(0.0),
         }
     }
-}
-
-/// An encoded frame for the localizer (image size from the intrinsics).
-pub struct EncodedFrame<'a> {
-    pub map: &'a EncodedMap,
-    pub width: u32,
-    pub height: u32,
+    fn known(&self, u: u32, v: u32) -> bool {
+        self.map.at_pixel(u, v).is_some()
+    }
 }
 
 /// Unit text features of `words` from a text encoder.

@@ -407,12 +407,17 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
                 width: k.width,
                 labels: &labels,
                 row_of_label: &rows,
+                feature_of_label: None,
             };
             mapping::rgbd::integrate_frame(&mut integ, &k, &depth.depth, pose, &img, &opt)?
         } else if let Some(src) = image.as_mut() {
             let rgb = d.join("rgb").join(format!("{i:06}.png"));
             let fm = src.encode(&rgb, i)?;
-            let feats = super::encoders::Encoded(&fm);
+            let feats = super::encoders::EncodedFrame {
+                map: &fm,
+                width: k.width,
+                height: k.height,
+            };
             mapping::rgbd::integrate_frame(&mut integ, &k, &depth.depth, pose, &feats, &opt)?
         } else {
             let p = d.join("features").join(format!("{i:06}.npy"));

@@ -7,7 +7,7 @@
 
 use super::ExperimentError;
 use super::sequence::SimSequence;
-use crate::mcl::FrameFeatures;
+use crate::frame::{FrameFeatures, grid_centre};
 use crate::sim::embeddings::ClassEmbeddings;
 use crate::sim::features::{FeatureModel, Preset};
 use crate::sim::render::{Frame, NO_LABEL};
@@ -92,7 +92,7 @@ impl<'a> GridFeatures<'a> {
             .enumerate()
             .for_each(|(i, out)| {
                 let (gx, gy) = (i as u32 % gw, i as u32 / gw);
-                let (u, v) = Self::centre(s, w, h, gx, gy);
+                let (u, v) = grid_centre(s, w, h, gx, gy);
                 inner.feature(u, v, out);
             });
         GridFeatures {
@@ -103,15 +103,11 @@ impl<'a> GridFeatures<'a> {
         }
     }
 
-    fn centre(s: u32, w: u32, h: u32, gx: u32, gy: u32) -> (u32, u32) {
-        ((gx * s + s / 2).min(w - 1), (gy * s + s / 2).min(h - 1))
-    }
-
     /// The cached feature of `(u, v)` if it is a grid centre.
     fn cached(&self, u: u32, v: u32) -> Option<&[f32]> {
         let (gx, gy) = (u / self.stride, v / self.stride);
         let (w, h) = (self.inner.width(), self.inner.height());
-        if Self::centre(self.stride, w, h, gx, gy) != (u, v) {
+        if grid_centre(self.stride, w, h, gx, gy) != (u, v) {
             return None;
         }
         let dim = self.inner.dim();

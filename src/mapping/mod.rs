@@ -53,28 +53,69 @@ pub enum Feature<'a> {
     Unknown,
 }
 
-/// Per-pixel features of one frame, at any resolution: `at(u, v)` is asked
-/// for pixel `(u, v)` of the depth image (`width x height`).
-pub trait FrameFeatures {
-    /// Feature at depth-image pixel `(u, v)`.
-    fn at(&self, u: u32, v: u32) -> Feature<'_>;
+pub use crate::frame::FrameFeatures;
+
+/// The feature pixel `(u, v)` of `f` adds to its voxel: the row the source
+/// names, else its vector (copied into `buf`, of length `f.dim()`), or
+/// nothing where the source knows nothing.
+pub fn pixel_feature<'b>(f: &dyn FrameFeatures, u: u32, v: u32, buf: &'b mut [f32]) -> Feature<'b> {
+    if !f.known(u, v) {
+        return Feature::Unknown;
+    }
+    if let Some(r) = f.nearest_row(u, v) {
+        return Feature::Row(r);
+    }
+    f.feature(u, v, buf);
+    Feature::Vector(buf)
 }
 
-/// A label image whose labels index rows through `row_of_label`.
+/// The feature of a label (`None`: the label has none).
+pub type LabelFeature<'a> = dyn Fn(u32) -> Option<&'a [f32]> + Sync;
+
+/// A label image: each pixel's label names a database row through
+/// `row_of_label` (the ground-truth mode) and, for localization against a
+/// map whose rows are not the table's, a feature through `feature_of_label`.
 pub struct LabelImage<'a> {
     pub width: u32,
     pub labels: &'a [u32],
     /// Row of each label, `None` for labels without a row.
-    pub row_of_label: &'a dyn Fn(u32) -> Option<u32>,
+    pub row_of_label: &'a (dyn Fn(u32) -> Option<u32> + Sync),
+    /// Feature of each label and their dimension (`None`: rows only, dimension 0).
+    pub feature_of_label: Option<(usize, &'a LabelFeature<'a>)>,
+}
+
+impl LabelImage<'_> {
+    fn label(&self, u: u32, v: u32) -> Option<u32> {
+        self.labels
+            .get(v as usize * self.width as usize + u as usize)
+            .copied()
+    }
 }
 
 impl FrameFeatures for LabelImage<'_> {
-    fn at(&self, u: u32, v: u32) -> Feature<'_> {
-        let i = v as usize * self.width as usize + u as usize;
-        match self.labels.get(i).and_then(|&l| (self.row_of_label)(l)) {
-            Some(r) => Feature::Row(r),
-            None => Feature::Unknown,
+    fn width(&self) -> u32 {
+        self.width
+    }
+    fn height(&self) -> u32 {
+        (self.labels.len() / self.width.max(1) as usize) as u32
+    }
+    fn dim(&self) -> usize {
+        self.feature_of_label.map_or(0, |(d, _)| d)
+    }
+    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
+        let f = self
+            .feature_of_label
+            .and_then(|(_, f)| self.label(u, v).and_then(f));
+        match f {
+            Some(f) => out.copy_from_slice(f),
+            None => out.fill(0.0),
         }
+    }
+    fn nearest_row(&self, u: u32, v: u32) -> Option<u32> {
+        self.label(u, v).and_then(|l| (self.row_of_label)(l))
+    }
+    fn known(&self, u: u32, v: u32) -> bool {
+        self.nearest_row(u, v).is_some()
     }
 }
 
@@ -132,21 +173,39 @@ impl<'a> FeatureMap<'a> {
     }
 }
 
-impl FrameFeatures for FeatureMap<'_> {
-    fn at(&self, u: u32, v: u32) -> Feature<'_> {
-        // The fields are public: a map built without `new` (zero extents)
-        // reads nothing rather than wrapping around.
-        let fu = ((u as u64 * 2 + 1) * self.w as u64 / (2 * self.width.max(1) as u64)) as usize;
-        let fv = ((v as u64 * 2 + 1) * self.h as u64 / (2 * self.height.max(1) as u64)) as usize;
+impl FeatureMap<'_> {
+    /// The features of the cell covering pixel `(u, v)`'s centre
+    /// ([`crate::frame::cell_of`]); `None` for a map without cells (the
+    /// fields are public: one built without `new`).
+    fn cell(&self, u: u32, v: u32) -> Option<&[f32]> {
         if self.h == 0 || self.w == 0 {
-            return Feature::Unknown;
+            return None;
         }
-        let i = (fv.min(self.h as usize - 1) * self.w as usize + fu.min(self.w as usize - 1))
-            * self.dim;
-        match self.data.get(i..i + self.dim) {
-            Some(f) => Feature::Vector(f),
-            None => Feature::Unknown,
+        let fu = crate::frame::cell_of(u, self.width, self.w as usize);
+        let fv = crate::frame::cell_of(v, self.height, self.h as usize);
+        let i = (fv * self.w as usize + fu) * self.dim;
+        self.data.get(i..i + self.dim)
+    }
+}
+
+impl FrameFeatures for FeatureMap<'_> {
+    fn width(&self) -> u32 {
+        self.width
+    }
+    fn height(&self) -> u32 {
+        self.height
+    }
+    fn dim(&self) -> usize {
+        self.dim
+    }
+    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
+        match self.cell(u, v) {
+            Some(f) => out.copy_from_slice(f),
+            None => out.fill(0.0),
         }
+    }
+    fn known(&self, u: u32, v: u32) -> bool {
+        self.cell(u, v).is_some()
     }
 }
 

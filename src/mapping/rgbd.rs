@@ -2,7 +2,7 @@
 
 use nalgebra::Vector3;
 
-use super::{FrameFeatures, IntegrationStats, MappingError};
+use super::{FrameFeatures, IntegrationStats, MappingError, pixel_feature};
 use crate::geometry::{Intrinsics, Pose};
 use crate::map::Integrator;
 
@@ -52,6 +52,7 @@ pub fn integrate_frame(
     }
     let mut s = IntegrationStats::default();
     let stride = opt.stride.max(1);
+    let mut buf = vec![0.0f32; features.dim()];
     for v in (0..k.height).step_by(stride as usize) {
         for u in (0..k.width).step_by(stride as usize) {
             s.offered += 1;
@@ -66,7 +67,7 @@ pub fn integrate_frame(
                 s.skipped += 1;
                 continue;
             }
-            s.add(integ, &p, features.at(u, v))?;
+            s.add(integ, &p, pixel_feature(features, u, v, &mut buf))?;
         }
     }
     Ok(s)
@@ -123,6 +124,7 @@ mod tests {
                     width: k.width,
                     labels: &labels,
                     row_of_label: &rows,
+                    feature_of_label: None,
                 };
                 total += integrate_frame(
                     &mut integ,
@@ -196,6 +198,7 @@ mod tests {
             width: 4,
             labels: &labels,
             row_of_label: &rows,
+            feature_of_label: None,
         };
         let opt = FrameOptions {
             max_height: Some(1.0),
@@ -274,7 +277,7 @@ mod tests {
             height: 2,
         };
         assert_eq!(
-            crate::mapping::FrameFeatures::at(&raw, 1, 1),
+            crate::mapping::pixel_feature(&raw, 1, 1, &mut [0.0; 2]),
             crate::mapping::Feature::Unknown
         );
     }

@@ -51,13 +51,14 @@ pub mod resample;
 pub mod sampling;
 pub mod sensor;
 
+pub use crate::frame::{DenseFeatures, FrameFeatures};
 pub use estimate::{Estimate, EstimateParams, average_rotations, estimate};
 pub use filter::{Filter, FilterConfig, StepReport, StepTimings};
 pub use init::{FloorParams, FloorSampler, PromptParams, global_init, local_init, prompt_init};
 pub use motion::{MotionMode, MotionModel};
 pub use particles::Particle;
 pub use resample::ResamplePolicy;
-pub use sampling::{DenseFeatures, FrameFeatures, SamplingParams, SamplingStrategy};
+pub use sampling::{SamplingParams, SamplingStrategy};
 pub use sensor::{
     FOOTPRINT_DEPTH, RAY_GROUP, RayOrder, SensorModel, SensorParams, SimilarityTable, packet_order,
     pixel_major_pays,

@@ -12,53 +12,8 @@ use rand::Rng;
 use rand::seq::SliceRandom;
 
 use super::MclError;
+use crate::frame::{FrameFeatures, grid_centre};
 use crate::map::FeatureDb;
-
-/// Per-pixel features of one image, in the map's feature space.
-pub trait FrameFeatures: Sync {
-    /// Image width, pixels.
-    fn width(&self) -> u32;
-    /// Image height, pixels.
-    fn height(&self) -> u32;
-    /// Feature dimension F.
-    fn dim(&self) -> usize;
-    /// Writes the feature of pixel `(u, v)` (any norm) into `out` (length F).
-    fn feature(&self, u: u32, v: u32, out: &mut [f32]);
-    /// The most similar database row of pixel `(u, v)`, when the source
-    /// knows it without computing (a label image in ground-truth mode);
-    /// `None` lets the sampler compute it from [`FrameFeatures::feature`].
-    fn nearest_row(&self, _u: u32, _v: u32) -> Option<u32> {
-        None
-    }
-}
-
-/// A dense `height x width x F` feature image, row-major.
-#[derive(Debug, Clone, PartialEq)]
-pub struct DenseFeatures {
-    pub width: u32,
-    pub height: u32,
-    pub dim: usize,
-    pub data: Vec<f32>,
-}
-
-impl FrameFeatures for DenseFeatures {
-    fn width(&self) -> u32 {
-        self.width
-    }
-    fn height(&self) -> u32 {
-        self.height
-    }
-    fn dim(&self) -> usize {
-        self.dim
-    }
-    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
-        let i = (v as usize * self.width as usize + u as usize) * self.dim;
-        match self.data.get(i..i + self.dim) {
-            Some(f) => out.copy_from_slice(f),
-            None => out.fill(0.0),
-        }
-    }
-}
 
 /// How pixels are chosen.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -160,7 +115,7 @@ fn cluster_grid(
     let (w, h) = (frame.width(), frame.height());
     let px: Vec<(u32, u32)> = (0..h.div_ceil(s))
         .flat_map(|gy| (0..w.div_ceil(s)).map(move |gx| (gx, gy)))
-        .map(|(gx, gy)| ((gx * s + s / 2).min(w - 1), (gy * s + s / 2).min(h - 1)))
+        .map(|(gx, gy)| grid_centre(s, w, h, gx, gy))
         .collect();
     // Rows the frame names itself (label images); the others by the
     // nearest row of their feature, all features in one matrix product.
@@ -217,7 +172,7 @@ pub fn sample_pixels<R: Rng>(
             let (w, h) = (frame.width(), frame.height());
             let mut px: Vec<(u32, u32)> = (0..h.div_ceil(s))
                 .flat_map(|gy| (0..w.div_ceil(s)).map(move |gx| (gx, gy)))
-                .map(|(gx, gy)| ((gx * s + s / 2).min(w - 1), (gy * s + s / 2).min(h - 1)))
+                .map(|(gx, gy)| grid_centre(s, w, h, gx, gy))
                 .collect();
             let n = params.rays.min(px.len());
             px.partial_shuffle(rng, n);
@@ -278,6 +233,7 @@ pub fn sample_pixels<R: Rng>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::frame::DenseFeatures;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 

@@ -40,7 +40,7 @@ use rayon::prelude::*;
 
 use super::MclError;
 use super::particles::Particle;
-use super::sampling::FrameFeatures;
+use crate::frame::FrameFeatures;
 use crate::geometry::{Intrinsics, Ray};
 use crate::map::Cell;
 use crate::map::FeatureDb;

@@ -60,7 +60,7 @@ fn intrinsics() -> Intrinsics {
 
 /// Features seen from `pose`: the hit voxel's row plus Gaussian noise of
 /// `noise` per unit vector (zero for a miss).
-fn render(w: &World, pose: &Pose, noise: f32, rng: &mut ChaCha8Rng) -> sampling::DenseFeatures {
+fn render(w: &World, pose: &Pose, noise: f32, rng: &mut ChaCha8Rng) -> crate::frame::DenseFeatures {
     let k = intrinsics();
     let rays: Vec<_> = (0..k.height)
         .flat_map(|v| (0..k.width).map(move |u| (u, v)))
@@ -81,7 +81,7 @@ fn render(w: &World, pose: &Pose, noise: f32, rng: &mut ChaCha8Rng) -> sampling:
             None => data.extend(std::iter::repeat_n(0.0, DIM)),
         }
     }
-    sampling::DenseFeatures {
+    crate::frame::DenseFeatures {
         width: k.width,
         height: k.height,
         dim: DIM,
@@ -645,7 +645,7 @@ fn bad_input_gives_clear_errors() {
         f.step(&nan, &frame),
         Err(MclError::BadOdometry(_))
     ));
-    let wrong = sampling::DenseFeatures {
+    let wrong = crate::frame::DenseFeatures {
         width: frame.width,
         height: frame.height,
         dim: 16,
@@ -658,7 +658,7 @@ fn bad_input_gives_clear_errors() {
             got: 16
         }
     );
-    let small = sampling::DenseFeatures {
+    let small = crate::frame::DenseFeatures {
         width: 10,
         ..frame.clone()
     };
@@ -672,7 +672,7 @@ fn bad_input_gives_clear_errors() {
         "errors leave the particles alone"
     );
     // A frame of all-zero features (no information): weights stay finite.
-    let blank = sampling::DenseFeatures {
+    let blank = crate::frame::DenseFeatures {
         data: vec![0.0; frame.data.len()],
         ..frame.clone()
     };
