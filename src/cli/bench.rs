@@ -4,14 +4,17 @@
 //! (results in `<out>/sweep/results/`, maps in `<out>/sweep/cache/`) and
 //! collects the tables, as `omcl sweep plan`, `run` and `collect` do.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use clap::{Args, ValueEnum};
 
 use omcl::experiment::sweep::{self, BenchPlan, Cache, Manifest, ResultDir, RunStatus};
+use omcl::experiment::table4::{Table4Params, table4 as run_table4};
 use omcl::experiment::{features, report};
 use omcl::mcl::FilterConfig;
+use omcl::sim::embeddings::ClassEmbeddings;
+use omcl::sim::features::Preset;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Experiment {
@@ -225,7 +228,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     let table4 = a.plan.experiments.contains(&Experiment::Table4);
     let sweep_wanted = a.plan.experiments.iter().any(|e| e.to_library().is_some());
     if table4 && !sweep_wanted {
-        let report = super::bench_table4::table4(&a, &features::builtin_table()?)?;
+        let report = street_table4(&a, &features::builtin_table()?)?;
         println!("{report}");
         println!("wrote {}", a.out.display());
         return Ok(());
@@ -252,7 +255,7 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     println!("{}", c.markdown);
     println!("wrote {}", a.out.display());
     if table4 {
-        let report = super::bench_table4::table4(&a, &features::builtin_table()?)?;
+        let report = street_table4(&a, &features::builtin_table()?)?;
         println!("{report}");
     }
     finish(&c, failures.len())
@@ -358,4 +361,45 @@ pub fn apply_overrides(config: FilterConfig, sets: &[String]) -> anyhow::Result<
         *slot = value;
     }
     serde_json::from_value(v).context("--set: the resulting configuration is invalid")
+}
+
+fn default_trajectories() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/trajectories")
+}
+
+/// Runs Table IV and returns its Markdown; writes `table4.json` and
+/// `table4_<odometry>.png` (the first seed's path).
+fn street_table4(a: &BenchArgs, table: &ClassEmbeddings) -> anyhow::Result<String> {
+    let params = Table4Params {
+        trajectories: a
+            .street
+            .trajectories
+            .clone()
+            .unwrap_or_else(default_trajectories),
+        street_start: a.street.street_start,
+        street_frames: a.street.street_frames,
+        street_resolution: a.street.street_resolution,
+        odometry: a.street.odometry.split(',').map(str::to_string).collect(),
+        first_seed: a.plan.first_seed,
+        sequences: a.plan.sequences,
+        particles: a.plan.particles.unwrap_or(512),
+        filter: {
+            let mut f = Table4Params::filter_default();
+            if let Some(r) = a.plan.rays {
+                f.sampling.rays = r;
+            }
+            apply_overrides(f, &a.plan.set)?
+        },
+        preset: a.plan.preset.unwrap_or(Preset::Gt),
+        out: a.out.clone(),
+    };
+    let pb = super::progress::spinner("Table IV");
+    let t = run_table4(
+        &params,
+        table,
+        &|msg| pb.set_message(msg.to_string()),
+        &|line| pb.suspend(|| eprintln!("{line}")),
+    )?;
+    pb.finish_and_clear();
+    Ok(t.markdown)
 }

@@ -2,7 +2,6 @@
 //! the library. Errors are `anyhow` here, `thiserror` in the library.
 
 pub mod bench;
-pub mod bench_table4;
 pub mod demo;
 pub mod encode;
 pub mod encoders;

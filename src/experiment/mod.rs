@@ -15,6 +15,7 @@
 //! built from a second path through the same apartment. Seeds: tuning on
 //! [`seeds::TUNING`], reporting from [`seeds::FIRST_REPORTING`] up.
 
+pub mod cells;
 pub mod features;
 pub mod mapping;
 pub mod particles_rays;
@@ -29,6 +30,8 @@ pub mod table1;
 pub mod table2;
 pub mod table4;
 pub mod table5;
+pub mod task;
+pub mod variant;
 
 pub use features::{GridFeatures, SimFrameFeatures};
 pub use mapping::{MapParams, MapSource, build_map, mapping_poses};

@@ -3,10 +3,10 @@
 
 use std::fmt::Write as _;
 
-use super::report::{Ctx, plot_err, write_json};
-use super::sweep::{Planner, SweepError, Task, Use};
-use super::table1::TrackingRow;
-use super::table1::Variant;
+use super::cells::{Ctx, plot_err, write_json};
+use super::run::TrackingRow;
+use super::task::{Planner, SweepError, Task, Use};
+use super::variant::Variant;
 use crate::plot::{self, Axes, Series};
 
 /// Particle counts of the particles x rays ablation.

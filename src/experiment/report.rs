@@ -7,12 +7,10 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use super::cells::{Ctx, Slot, write_text};
 use super::sweep::{
-    BenchPlan, Experiment, Manifest, ManifestLine, Outcome, ResultDir, RunEntry, RunRecord,
-    SweepError, TrackOutcome, Use,
+    Experiment, Manifest, ManifestLine, Outcome, ResultDir, RunEntry, RunRecord, SweepError,
 };
-use super::table1::TrackingRow;
-use crate::plot;
 
 /// What [`collect`] wrote and what it could not use.
 #[derive(Debug, Clone)]
@@ -25,12 +23,6 @@ pub struct Collected {
     pub done: usize,
     /// Runs without one: (run index, why).
     pub failed: Vec<(usize, String)>,
-}
-
-/// One run's place in the manifest and its result, if valid.
-struct Slot<'a> {
-    entry: &'a RunEntry,
-    record: Option<RunRecord>,
 }
 
 /// Reads the results of `manifest` from `results` and writes the tables
@@ -163,58 +155,4 @@ fn outcome_fits(r: &RunRecord, e: &RunEntry) -> bool {
                 )
                 | (Outcome::Global(_), super::sweep::Work::Global { .. })
         )
-}
-
-fn write_text(path: &Path, text: &str) -> Result<(), SweepError> {
-    crate::io::atomic::write(path, text.as_bytes()).map_err(|source| SweepError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
-}
-
-pub(super) fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<(), SweepError> {
-    let text = serde_json::to_string_pretty(value).map_err(|e| SweepError::Io {
-        path: path.to_path_buf(),
-        source: std::io::Error::other(e),
-    })?;
-    write_text(path, &text)
-}
-
-pub(super) fn plot_err(path: PathBuf) -> impl FnOnce(plot::PlotError) -> SweepError {
-    move |source| SweepError::Plot { path, source }
-}
-
-pub(super) struct Ctx<'a> {
-    pub(super) bench: &'a BenchPlan,
-    slots: &'a [Slot<'a>],
-    pub(super) cache: Option<&'a Path>,
-    pub(super) out: &'a Path,
-}
-
-impl Ctx<'_> {
-    /// Results of the runs used by `u`, in manifest (seed) order.
-    pub(super) fn records(&self, u: &Use) -> impl Iterator<Item = &RunRecord> {
-        self.slots
-            .iter()
-            .filter(move |s| s.entry.uses.contains(u))
-            .filter_map(|s| s.record.as_ref())
-    }
-
-    pub(super) fn tracks(&self, u: &Use) -> Vec<(&RunRecord, &TrackOutcome)> {
-        self.records(u)
-            .filter_map(|r| match &r.outcome {
-                Outcome::Track(t) => Some((r, &**t)),
-                _ => None,
-            })
-            .collect()
-    }
-
-    pub(super) fn tracking_row(&self, variant: &str, u: &Use) -> TrackingRow {
-        let runs = self
-            .tracks(u)
-            .into_iter()
-            .map(|(_, t)| t.result.clone())
-            .collect();
-        TrackingRow::new(variant, runs)
-    }
 }

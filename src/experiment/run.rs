@@ -13,6 +13,7 @@ use super::features::{GridFeatures, SimFrameFeatures};
 use super::sequence::BenchSequence;
 use crate::eval::ErrorStats;
 use crate::eval::localization::CompletionRule;
+use crate::eval::localization::{SequenceSummary, summarize_sequences};
 use crate::geometry::Pose;
 use crate::map::LanguageMap;
 use crate::mcl::{self, Filter, FilterConfig, FloorParams, PromptParams};
@@ -188,4 +189,74 @@ pub fn run(
         step_seconds,
         encoder_seconds,
     })
+}
+
+/// What [`super::table5::global_runs`] does.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GlobalSpec {
+    /// Features the localizer sees.
+    pub preset: Preset,
+    pub filter: FilterConfig,
+    pub particles: usize,
+    /// Start frames per sequence, spread evenly over it.
+    pub starts: usize,
+    /// Steps of each run.
+    pub max_steps: usize,
+    /// Start over the floor voxels matching a prompt (else all floor).
+    pub prompt: bool,
+}
+
+/// One global-localization run.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct GlobalRun {
+    /// Start frame.
+    pub first: usize,
+    /// Prompt words (empty without a prompt).
+    pub words: Vec<String>,
+    /// Steps to reach each threshold (`None`: not within the run).
+    pub steps: Vec<Option<usize>>,
+    /// Why the run could not start (e.g. no floor voxel matches the prompt).
+    pub error: Option<String>,
+}
+
+/// One variant's tracking results over the sequences.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct TrackingRow {
+    pub variant: String,
+    pub per_sequence: Vec<RunResult>,
+    pub summary: Option<SequenceSummary>,
+    pub completed: usize,
+    /// Filter steps per second over all steps of all sequences (encoder
+    /// excluded, as in the paper).
+    pub fps: f64,
+    /// Frames per second with the simulated encoder's work.
+    pub fps_with_encoder: f64,
+    /// Database rows (K) of the maps, mean over sequences.
+    pub map_rows: f64,
+}
+
+impl TrackingRow {
+    /// Gathers per-sequence results.
+    pub fn new(variant: impl Into<String>, per_sequence: Vec<RunResult>) -> Self {
+        let stats: Vec<_> = per_sequence.iter().map(|r| r.stats).collect();
+        let steps: usize = per_sequence.iter().map(|r| r.step_seconds.len()).sum();
+        let secs: f64 = per_sequence
+            .iter()
+            .flat_map(|r| r.step_seconds.iter())
+            .sum();
+        let encoder: f64 = per_sequence
+            .iter()
+            .flat_map(|r| r.encoder_seconds.iter())
+            .sum();
+        TrackingRow {
+            variant: variant.into(),
+            summary: summarize_sequences(&stats),
+            completed: per_sequence.iter().filter(|r| r.completed).count(),
+            fps: steps as f64 / secs.max(1e-12),
+            fps_with_encoder: steps as f64 / (secs + encoder).max(1e-12),
+            map_rows: per_sequence.iter().map(|r| r.map_rows as f64).sum::<f64>()
+                / per_sequence.len().max(1) as f64,
+            per_sequence,
+        }
+    }
 }

@@ -3,9 +3,9 @@
 
 use std::fmt::Write as _;
 
-use super::report::{Ctx, plot_err, write_json};
-use super::sweep::{Planner, SweepError, Task, Use};
-use super::table1::Variant;
+use super::cells::{Ctx, plot_err, write_json};
+use super::task::{Planner, SweepError, Task, Use};
+use super::variant::Variant;
 use crate::mcl::SamplingStrategy;
 use crate::plot::{self, Axes, BarGroup};
 

@@ -29,327 +29,15 @@ use std::time::Instant;
 use super::ExperimentError;
 use super::features::builtin_table;
 use super::mapping::BenchMap;
-use super::mapping::{MapParams, MapSource};
-use super::run::RunResult;
+use super::run::GlobalSpec;
 use super::sequence::SimSequence;
-use super::table1::{self, TABLE1_VARIANTS, Variant};
-use super::table2;
-use super::table5::{self, GlobalRun, GlobalSpec};
-use crate::eval::ConsistencyMetrics;
-use crate::mcl::FilterConfig;
+use super::task::io_err;
+pub use super::task::{
+    BenchPlan, Cost, Experiment, OMCL_VERSION, Outcome, Planner, RunEntry, RunRecord, SweepError,
+    SweepHeader, Task, TrackOutcome, Use, Work, map_path, run_id,
+};
+use super::{table1, table2, table5};
 use crate::sim::embeddings::ClassEmbeddings;
-use crate::sim::features::Preset;
-
-/// The version of omcl every manifest line and result file carries.
-pub const OMCL_VERSION: &str = env!("CARGO_PKG_VERSION");
-
-/// Errors of planning, running and collecting sweeps; each names the file
-/// (and the run) it concerns.
-#[derive(Debug, thiserror::Error)]
-pub enum SweepError {
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        source: std::io::Error,
-    },
-    #[error("{path} line {line}: {reason}")]
-    Manifest {
-        path: PathBuf,
-        line: usize,
-        reason: String,
-    },
-    #[error("{path}: run index {index} is out of range (the manifest has {runs} runs)")]
-    Index {
-        path: PathBuf,
-        index: usize,
-        runs: usize,
-    },
-    #[error("run {id}: map file {path} is missing (runs without --no-build-maps build it)")]
-    MissingMap { id: String, path: PathBuf },
-    #[error("run {id}: map file {path}: {reason}")]
-    BadMap {
-        id: String,
-        path: PathBuf,
-        reason: String,
-    },
-    #[error("run {id}: {source}")]
-    Run { id: String, source: ExperimentError },
-    #[error("{path}: {reason}")]
-    BadResult { path: PathBuf, reason: String },
-    #[error("{0}")]
-    Plan(String),
-    #[error("{path}: {source}")]
-    Plot {
-        path: PathBuf,
-        source: crate::plot::PlotError,
-    },
-}
-
-fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> SweepError + '_ {
-    move |source| SweepError::Io {
-        path: path.to_path_buf(),
-        source,
-    }
-}
-
-/// The experiments of `omcl bench`.
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
-)]
-#[serde(rename_all = "kebab-case")]
-pub enum Experiment {
-    /// Table I: tracking APE of the variants from the paper's local start
-    /// (and Figure 4).
-    Table1,
-    /// Table II: measurement-map consistency of the variants.
-    Table2,
-    /// Table V: steps until global localization reaches 2 ... 0.1 m.
-    Table5,
-    /// Ablation: APE and FPS against particles for several ray counts.
-    ParticlesRays,
-    /// Ablation: stratified against equal and uniform ray sampling.
-    Sampling,
-    /// Everything above.
-    All,
-}
-
-impl Experiment {
-    /// The name on the command line and in file names.
-    pub fn name(self) -> &'static str {
-        match self {
-            Experiment::Table1 => "table1",
-            Experiment::Table2 => "table2",
-            Experiment::Table5 => "table5",
-            Experiment::ParticlesRays => "particles-rays",
-            Experiment::Sampling => "sampling",
-            Experiment::All => "all",
-        }
-    }
-}
-
-/// What a sweep asks for: `omcl bench`'s options (line 1 of a manifest).
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct BenchPlan {
-    /// Sorted, without duplicates.
-    pub experiments: Vec<Experiment>,
-    /// Sequences `first_seed .. first_seed + sequences`.
-    pub sequences: u64,
-    pub first_seed: u64,
-    /// Frames per sequence.
-    pub frames: usize,
-    /// Frames of each map's mapping path.
-    pub map_frames: usize,
-    pub particles: usize,
-    /// Rays (also in `filter.sampling.rays`).
-    pub rays: usize,
-    /// Names of the Table I variants, in table order.
-    pub variants: Vec<String>,
-    /// Localize with these features instead of each variant's own.
-    pub preset: Option<Preset>,
-    /// The variant of Table V and the ablations.
-    pub ablation_variant: String,
-    /// Sequences of the ablations.
-    pub ablation_sequences: u64,
-    /// Start frames per sequence for Table V.
-    pub starts: usize,
-    /// Steps of each global-localization run.
-    pub max_steps: usize,
-    /// The filter's configuration (overrides applied; the seed is set per
-    /// sequence).
-    pub filter: FilterConfig,
-}
-
-impl BenchPlan {
-    /// Whether `e` is among the planned experiments.
-    pub fn wants(&self, e: Experiment) -> bool {
-        self.experiments.contains(&Experiment::All) || self.experiments.contains(&e)
-    }
-
-    /// The variants, in table order, with the preset override applied.
-    pub fn table_variants(&self) -> Result<Vec<Variant>, SweepError> {
-        self.variants
-            .iter()
-            .map(|n| self.variant(n))
-            .collect::<Result<_, _>>()
-    }
-
-    /// The variant called `name`, with the preset override applied to
-    /// Table I and II variants.
-    fn variant(&self, name: &str) -> Result<Variant, SweepError> {
-        let v = find_variant(name)?;
-        Ok(Variant {
-            localize: self.preset.unwrap_or(v.localize),
-            ..v
-        })
-    }
-
-    /// The variant of Table V and the ablations (its own features).
-    pub fn ablation(&self) -> Result<Variant, SweepError> {
-        find_variant(&self.ablation_variant)
-    }
-
-    /// The mapping parameters of every map.
-    pub fn map_params(&self) -> MapParams {
-        MapParams {
-            frames: self.map_frames,
-            ..MapParams::default()
-        }
-    }
-
-    /// Seeds of the tables.
-    pub fn seeds(&self) -> std::ops::Range<u64> {
-        self.first_seed..self.first_seed + self.sequences
-    }
-
-    /// Seeds of the ablations.
-    pub fn ablation_seeds(&self) -> std::ops::Range<u64> {
-        self.first_seed..self.first_seed + self.ablation_sequences
-    }
-}
-
-fn find_variant(name: &str) -> Result<Variant, SweepError> {
-    TABLE1_VARIANTS
-        .iter()
-        .find(|v| v.name == name)
-        .copied()
-        .ok_or_else(|| {
-            SweepError::Plan(format!(
-                "{name:?} is not a variant (one of {:?})",
-                TABLE1_VARIANTS.map(|v| v.name)
-            ))
-        })
-}
-
-/// Line 1 of a manifest.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct SweepHeader {
-    /// The omcl version that planned the sweep.
-    pub omcl: String,
-    pub bench: BenchPlan,
-}
-
-/// What one run computes: everything its result depends on.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Task {
-    /// Sequence (world) seed.
-    pub seed: u64,
-    /// Frames of the sequence.
-    pub frames: usize,
-    /// The map's source and mapping parameters.
-    pub map: MapSource,
-    pub map_params: MapParams,
-    /// Features the localizer sees.
-    pub preset: Preset,
-    pub work: Work,
-}
-
-/// The kind of work of a run.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Work {
-    /// Tracking from the paper's local start over the whole sequence.
-    Track {
-        filter: FilterConfig,
-        particles: usize,
-    },
-    /// Measurement-map consistency every `frame_step`-th frame.
-    Consistency { frame_step: usize },
-    /// Global localization from `starts` start frames, with or without a
-    /// prompt.
-    Global {
-        filter: FilterConfig,
-        particles: usize,
-        starts: usize,
-        max_steps: usize,
-        prompt: bool,
-    },
-}
-
-/// Where a run's result goes in the tables.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Use {
-    Table1 { variant: String },
-    Table2 { variant: String },
-    Table5 { prompt: bool },
-    ParticlesRays { particles: usize, rays: usize },
-    Sampling { particles: usize, strategy: String },
-}
-
-/// One line of a manifest after line 1.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct RunEntry {
-    /// [`run_id`] of `omcl` and `task`.
-    pub id: String,
-    /// The omcl version that planned the run.
-    pub omcl: String,
-    pub task: Task,
-    /// Table cells that use the result.
-    pub uses: Vec<Use>,
-}
-
-/// A run's stable id: 32 hex digits hashing the omcl version and the
-/// task's canonical JSON (two FNV-1a 64-bit hashes with different offset
-/// bases; collisions are negligible at millions of runs).
-pub fn run_id(omcl: &str, task: &Task) -> String {
-    #[derive(serde::Serialize)]
-    struct Key<'a> {
-        omcl: &'a str,
-        task: &'a Task,
-    }
-    // Serializing plain data into a Vec cannot fail.
-    let bytes = serde_json::to_vec(&Key { omcl, task }).unwrap_or_default();
-    format!(
-        "{:016x}{:016x}",
-        fnv1a(&bytes, 0xcbf2_9ce4_8422_2325),
-        fnv1a(&bytes, 0x6c62_272e_07bb_0142)
-    )
-}
-
-fn fnv1a(bytes: &[u8], basis: u64) -> u64 {
-    bytes.iter().fold(basis, |h, &b| {
-        (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3)
-    })
-}
-
-/// What every experiment's planner needs: the bench and the tasks it
-/// makes for a seed and a variant.
-pub(super) struct Planner<'a> {
-    pub(super) bench: &'a BenchPlan,
-    map_params: MapParams,
-}
-
-impl Planner<'_> {
-    /// The task of `work` on sequence `seed` with `v`'s map and features.
-    pub(super) fn task(&self, seed: u64, v: &Variant, work: Work) -> Task {
-        Task {
-            seed,
-            frames: self.bench.frames,
-            map: v.map,
-            map_params: self.map_params,
-            preset: v.localize,
-            work,
-        }
-    }
-
-    /// A tracking task: `filter` with the sequence's seed, `particles`.
-    pub(super) fn track(
-        &self,
-        seed: u64,
-        v: &Variant,
-        filter: FilterConfig,
-        particles: usize,
-    ) -> Task {
-        self.task(
-            seed,
-            v,
-            Work::Track {
-                filter: FilterConfig { seed, ..filter },
-                particles,
-            },
-        )
-    }
-}
 
 /// Expands a bench plan into its runs: Table I and II per variant and
 /// seed, Table V per prompt and seed, the ablations per cell and seed.
@@ -563,47 +251,6 @@ fn parse_line(text: &str, line: usize) -> ManifestLine {
     ManifestLine::Run(Box::new(entry))
 }
 
-/// What a run produced.
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Outcome {
-    Track(Box<TrackOutcome>),
-    Consistency(Vec<ConsistencyMetrics>),
-    Global(Vec<GlobalRun>),
-}
-
-/// A tracking run's result with the positions Figure 4 draws.
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-pub struct TrackOutcome {
-    pub result: RunResult,
-    /// Ground-truth camera (x, y) per frame, world frame, metres.
-    pub truth_xy: Vec<[f64; 2]>,
-    /// Estimated camera (x, y) per frame, world frame, metres.
-    pub estimate_xy: Vec<[f64; 2]>,
-}
-
-/// What a run cost.
-#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
-pub struct Cost {
-    /// Wall-clock time of the run (map loading or building included), s.
-    pub wall_seconds: f64,
-    /// CPU time (user + system) of the process while the run ran, s; exact
-    /// when the process runs one run at a time (`omcl sweep run --index`).
-    pub cpu_seconds: Option<f64>,
-    /// Peak resident memory of the process so far, MB.
-    pub peak_rss_mb: Option<f64>,
-}
-
-/// A finished run's result file.
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-pub struct RunRecord {
-    pub id: String,
-    pub omcl: String,
-    pub task: Task,
-    pub outcome: Outcome,
-    pub cost: Cost,
-}
-
 /// Where results go: `<dir>/<id[..2]>/<id>.json` and `.failed`.
 #[derive(Debug, Clone)]
 pub struct ResultDir {
@@ -804,34 +451,6 @@ impl Cache {
     }
 }
 
-/// The map file of `task` in cache folder `dir`: named by seed, frames,
-/// source and a hash of the mapping parameters and the omcl version.
-pub fn map_path(dir: &Path, task: &Task) -> PathBuf {
-    #[derive(serde::Serialize)]
-    struct Key<'a> {
-        omcl: &'a str,
-        seed: u64,
-        frames: usize,
-        map: MapSource,
-        params: &'a MapParams,
-    }
-    let key = serde_json::to_vec(&Key {
-        omcl: OMCL_VERSION,
-        seed: task.seed,
-        frames: task.frames,
-        map: task.map,
-        params: &task.map_params,
-    })
-    .unwrap_or_default();
-    dir.join(format!(
-        "map-{}-{}f-{}-{:08x}.omcl",
-        task.seed,
-        task.frames,
-        task.map.name(),
-        fnv1a(&key, 0xcbf2_9ce4_8422_2325) as u32
-    ))
-}
-
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     // A panic in another thread leaves the cache's data valid.
     m.lock().unwrap_or_else(|e| e.into_inner())
@@ -929,12 +548,6 @@ fn compute(entry: &RunEntry, cache: &Cache) -> Result<RunRecord, SweepError> {
             peak_rss_mb: peak_rss_mb(),
         },
     })
-}
-
-impl From<TrackOutcome> for Outcome {
-    fn from(t: TrackOutcome) -> Self {
-        Outcome::Track(Box::new(t))
-    }
 }
 
 fn xy(poses: &[crate::geometry::Pose]) -> Vec<[f64; 2]> {
@@ -1050,6 +663,8 @@ pub fn status(manifest: &Manifest, results: &ResultDir) -> SweepStatus {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::experiment::task::fnv1a;
+    use crate::mcl::FilterConfig;
 
     fn small_plan() -> BenchPlan {
         BenchPlan {

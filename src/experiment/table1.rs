@@ -6,13 +6,14 @@
 use std::fmt::Write as _;
 
 use super::ExperimentError;
+use super::cells::{Ctx, plot_err, write_json};
 use super::features::feature_model;
-use super::mapping::{BenchMap, MapSource};
-use super::report::{Ctx, plot_err, write_json};
+use super::mapping::BenchMap;
+pub use super::run::TrackingRow;
 use super::run::{RunResult, RunSpec, Start, run};
 use super::sequence::SimSequence;
-use super::sweep::{Planner, RunRecord, SweepError, Task, Use, map_path};
-use crate::eval::localization::{SequenceSummary, summarize_sequences};
+use super::task::{Planner, RunRecord, SweepError, Task, Use, map_path};
+pub use super::variant::{TABLE1_VARIANTS, Variant};
 use crate::mcl::FilterConfig;
 use crate::plot::{self, FloorPlan, TrajectoryPanel};
 use crate::sim::features::Preset;
@@ -20,94 +21,6 @@ use crate::sim::features::Preset;
 /// Figure 4 draws the first `FIGURE4_PANELS` sequences of a variant (a
 /// grid of a thousand panels is no figure).
 pub const FIGURE4_PANELS: usize = 12;
-
-/// One variant of Table I: which map and which features localize.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub struct Variant {
-    pub name: &'static str,
-    pub map: MapSource,
-    pub localize: Preset,
-}
-
-/// The variants of Table I reproduced here: the paper's OMCL_GT (ground-truth
-/// semantic images for both mapping and localization, as the paper defines
-/// it: the simulator's `gt` preset, exact class embeddings with the label
-/// bleed of real ground-truth images near boundaries), OMCL_LSeg
-/// (`lseg-like`), the ungrounded OMCL_auto_LSeg (the same map without
-/// grounding on the class names) and OMCL_Open_LSeg (a map from the fused
-/// point cloud labelled by an OpenScene-like point encoder, localized with
-/// `lseg-like` images), plus OMCL_GT_exact (a map of the world's true
-/// labels, as a semantic mesh gives them, localized with every pixel's true
-/// class embedding: no error at all, the bound the sensor model reaches).
-pub const TABLE1_VARIANTS: [Variant; 5] = [
-    Variant {
-        name: "OMCL_GT",
-        map: MapSource::Features(Preset::Gt),
-        localize: Preset::Gt,
-    },
-    Variant {
-        name: "OMCL_LSeg",
-        map: MapSource::Features(Preset::LsegLike),
-        localize: Preset::LsegLike,
-    },
-    Variant {
-        name: "OMCL_auto_LSeg",
-        map: MapSource::Auto(Preset::LsegLike),
-        localize: Preset::LsegLike,
-    },
-    Variant {
-        name: "OMCL_Open_LSeg",
-        map: MapSource::PointCloud,
-        localize: Preset::LsegLike,
-    },
-    Variant {
-        name: "OMCL_GT_exact",
-        map: MapSource::Labels,
-        localize: Preset::Exact,
-    },
-];
-
-/// One variant's tracking results over the sequences.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct TrackingRow {
-    pub variant: String,
-    pub per_sequence: Vec<RunResult>,
-    pub summary: Option<SequenceSummary>,
-    pub completed: usize,
-    /// Filter steps per second over all steps of all sequences (encoder
-    /// excluded, as in the paper).
-    pub fps: f64,
-    /// Frames per second with the simulated encoder's work.
-    pub fps_with_encoder: f64,
-    /// Database rows (K) of the maps, mean over sequences.
-    pub map_rows: f64,
-}
-
-impl TrackingRow {
-    /// Gathers per-sequence results.
-    pub fn new(variant: impl Into<String>, per_sequence: Vec<RunResult>) -> Self {
-        let stats: Vec<_> = per_sequence.iter().map(|r| r.stats).collect();
-        let steps: usize = per_sequence.iter().map(|r| r.step_seconds.len()).sum();
-        let secs: f64 = per_sequence
-            .iter()
-            .flat_map(|r| r.step_seconds.iter())
-            .sum();
-        let encoder: f64 = per_sequence
-            .iter()
-            .flat_map(|r| r.encoder_seconds.iter())
-            .sum();
-        TrackingRow {
-            variant: variant.into(),
-            summary: summarize_sequences(&stats),
-            completed: per_sequence.iter().filter(|r| r.completed).count(),
-            fps: steps as f64 / secs.max(1e-12),
-            fps_with_encoder: steps as f64 / (secs + encoder).max(1e-12),
-            map_rows: per_sequence.iter().map(|r| r.map_rows as f64).sum::<f64>()
-                / per_sequence.len().max(1) as f64,
-            per_sequence,
-        }
-    }
-}
 
 /// Tracks sequence `seq` in `map` from the paper's local start with
 /// `filter`, `particles` and the features of `preset`.

@@ -10,12 +10,12 @@ use std::fmt::Write as _;
 use rayon::prelude::*;
 
 use super::ExperimentError;
+use super::cells::{Ctx, write_json};
 use super::features::feature_model;
 use super::mapping::BenchMap;
-use super::report::{Ctx, write_json};
 use super::sequence::SimSequence;
-use super::sweep::{Outcome, Planner, SweepError, Task, Use, Work};
-use super::table1::Variant;
+use super::task::{Outcome, Planner, SweepError, Task, Use, Work};
+use super::variant::Variant;
 use crate::eval::consistency::{ConsistencyMetrics, NO_HIT, count_frame};
 use crate::geometry::camera_ray;
 use crate::sim::features::{FeatureModel, Preset};

@@ -5,16 +5,16 @@
 use std::fmt::Write as _;
 
 use super::ExperimentError;
+use super::cells::{Ctx, write_json};
 use super::features::feature_model;
 use super::mapping::BenchMap;
-use super::report::{Ctx, write_json};
+pub use super::run::{GlobalRun, GlobalSpec};
 use super::run::{RunSpec, Start, run};
 use super::sequence::SimSequence;
-use super::sweep::{Outcome, Planner, SweepError, Task, Use, Work};
-use super::table1::Variant;
+use super::task::{Outcome, Planner, SweepError, Task, Use, Work};
+use super::variant::Variant;
 use crate::eval::localization::CONVERGENCE_THRESHOLDS;
 use crate::mcl::FilterConfig;
-use crate::sim::features::Preset;
 
 /// Global localization (Table V): from `spec.starts` start frames of `seq`,
 /// the filter starts over all floor voxels (`prompt: false`) or over the
@@ -78,34 +78,6 @@ pub fn global_runs(
         });
     }
     Ok(out)
-}
-
-/// What [`global_runs`] does.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GlobalSpec {
-    /// Features the localizer sees.
-    pub preset: Preset,
-    pub filter: FilterConfig,
-    pub particles: usize,
-    /// Start frames per sequence, spread evenly over it.
-    pub starts: usize,
-    /// Steps of each run.
-    pub max_steps: usize,
-    /// Start over the floor voxels matching a prompt (else all floor).
-    pub prompt: bool,
-}
-
-/// One global-localization run.
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-pub struct GlobalRun {
-    /// Start frame.
-    pub first: usize,
-    /// Prompt words (empty without a prompt).
-    pub words: Vec<String>,
-    /// Steps to reach each threshold (`None`: not within the run).
-    pub steps: Vec<Option<usize>>,
-    /// Why the run could not start (e.g. no floor voxel matches the prompt).
-    pub error: Option<String>,
 }
 
 /// A prompt as the paper draws them: 3 to 5 words (`seed` picks how many

@@ -66,7 +66,7 @@ pub(crate) fn write_figure<F: Figure>(path: &Path, figure: &F) -> Result<F::Layo
         path: path.to_path_buf(),
         message: e.0,
     };
-    style::ensure_font().map_err(draw_err)?;
+    style::ensure_font().map_err(|m| draw_err(DrawError(m)))?;
     let (width, height) = figure.size();
     match format {
         Format::Png => {

@@ -6,8 +6,6 @@ use std::sync::OnceLock;
 use plotters::prelude::*;
 use plotters::style::{FontStyle, register_font};
 
-use super::output::DrawError;
-
 /// DejaVu Sans 2.37 from Debian's fonts-dejavu-core (see
 /// `assets/fonts/README.md`): plotters' bitmap backend draws text only
 /// through a registered font, and a machine may have none installed.
@@ -20,17 +18,16 @@ pub(crate) const TITLE_SIZE: u32 = 24;
 pub(crate) const LABEL_SIZE: u32 = 18;
 pub(crate) const TICK_SIZE: u32 = 15;
 
-/// Registers the embedded font with plotters once per process.
-pub(crate) fn ensure_font() -> Result<(), DrawError> {
+/// Registers the embedded font with plotters once per process; the error
+/// says why it could not.
+pub(crate) fn ensure_font() -> Result<(), String> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok =
         *REGISTERED.get_or_init(|| register_font(FONT, FontStyle::Normal, DEJAVU_SANS).is_ok());
     if ok {
         Ok(())
     } else {
-        Err(DrawError(
-            "the embedded DejaVu Sans font did not parse".into(),
-        ))
+        Err("the embedded DejaVu Sans font did not parse".into())
     }
 }
 
