@@ -14,6 +14,7 @@ demo: deps
 lint: deps
 	$(CARGO) fmt --all -- --check
 	$(CARGO) clippy --all-targets -- -D warnings
+	python3 tools/check_cycles.py src
 
 test: deps lint
 	$(CARGO) test --lib --bins --tests
