@@ -12,7 +12,7 @@ use omcl::io::poses::read_poses;
 use omcl::io::rgb::read_rgb;
 use omcl::io::rgbd::{TUM_DEPTH_UNITS_PER_METRE, read_depth_png, read_intrinsics};
 use omcl::sim::dataset::{IndoorDatasetConfig, OutdoorDatasetConfig, write_indoor, write_outdoor};
-use omcl::sim::files::{builtin_table, read_png_gray16};
+use omcl::sim::files::builtin_table;
 use omcl::sim::outdoor::{OUTDOOR_CLASSES, SEMANTIC_KITTI_IDS};
 use omcl::sim::paths::{level_camera, world_from_kitti};
 use omcl::sim::world::VoxelWorld;
@@ -115,7 +115,8 @@ fn indoor_dataset_is_deterministic_and_reads_back_consistently() {
             TUM_DEPTH_UNITS_PER_METRE,
         )
         .unwrap();
-        let (w, h, labels) = read_png_gray16(&dir.join(format!("labels/{i:06}.png"))).unwrap();
+        let (w, h, labels) =
+            omcl::io::rgbd::read_label_png(&dir.join(format!("labels/{i:06}.png"))).unwrap();
         assert_eq!((w, h), (64, 48));
         let rgb = read_rgb(&dir.join(format!("rgb/{i:06}.png"))).unwrap();
         assert_eq!(rgb.dimensions(), (64, 48));
@@ -132,7 +133,7 @@ fn indoor_dataset_is_deterministic_and_reads_back_consistently() {
                 let p_cam = ray * (d / ray.z + 0.002);
                 let p = pose * Point3::from(p_cam);
                 let cell = world.cell_of(&p.coords);
-                if world.label_at(cell) == Some(labels[j]) {
+                if world.label_at(cell) == Some(labels[j] as u16) {
                     agree += 1;
                 }
                 checked += 1;
@@ -256,7 +257,8 @@ fn outdoor_camera_2_labels_agree_with_the_lidar_labels() {
     .unwrap();
     assert_eq!(classes.ids, SEMANTIC_KITTI_IDS.to_vec());
     assert_eq!(classes.dim, 512);
-    let (w, h, labels) = read_png_gray16(&seq_dir.join("labels_2/000000.png")).unwrap();
+    let (w, h, labels) =
+        omcl::io::rgbd::read_label_png(&seq_dir.join("labels_2/000000.png")).unwrap();
     assert_eq!((w, h), KITTI_IMAGE_SIZE);
     // Road straight below the camera, sky (0) somewhere above the street.
     assert_eq!(labels[(h as usize - 4) * w as usize + w as usize / 2], 40);
@@ -264,7 +266,7 @@ fn outdoor_camera_2_labels_agree_with_the_lidar_labels() {
     assert!(
         labels
             .iter()
-            .all(|l| *l == 0 || SEMANTIC_KITTI_IDS.contains(&(*l as u32)))
+            .all(|l| *l == 0 || SEMANTIC_KITTI_IDS.contains(l))
     );
     let f = read_npy(&seq_dir.join("features_2/000001.npy")).unwrap();
     assert_eq!(f.shape, vec![376 / 16, 1241 / 16, 512]);
@@ -290,7 +292,7 @@ fn outdoor_camera_2_labels_agree_with_the_lidar_labels() {
             continue;
         }
         seen += 1;
-        agree += usize::from(labels[v as usize * w as usize + u as usize] as u32 == l);
+        agree += usize::from(labels[v as usize * w as usize + u as usize] == l);
     }
     assert!(seen > 2000, "{seen}");
     // The two sensors see from 0.33 m apart: occlusion edges differ.

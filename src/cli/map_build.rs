@@ -5,15 +5,14 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail, ensure};
 use clap::{Args, ValueEnum};
-use nalgebra::Vector3;
 
 use omcl::io::cloud::PointCloud;
-use omcl::io::formats::{CloudFormat, read_point_cloud};
-use omcl::io::kitti::{AggregateOptions, KittiSequence};
+use omcl::io::formats::CloudFormat;
 use omcl::io::labels::EmbeddingTable;
 use omcl::io::{npy, ply, poses, rgbd as rgbd_io};
 use omcl::map::{self, FeatureDb, GridSpec, Integrator, LanguageMap};
-use omcl::mapping::{self, Feature, FeatureMap, IntegrationStats, LabelImage, colors};
+use omcl::mapping::pipeline::{self, CloudInput};
+use omcl::mapping::{self, FeatureMap, IntegrationStats, LabelImage, colors};
 
 /// Options shared by the commands that build a map.
 #[derive(Debug, Clone, Args)]
@@ -52,6 +51,15 @@ impl BuildOptions {
         }
     }
 
+    fn params(&self) -> pipeline::BuildParams {
+        pipeline::BuildParams {
+            resolution: self.resolution,
+            tau: self.tau,
+            max_rows: self.max_rows,
+            encoder: self.encoder.clone(),
+        }
+    }
+
     fn check(&self) -> anyhow::Result<()> {
         ensure!(
             self.resolution.is_finite() && self.resolution > 0.0,
@@ -72,16 +80,13 @@ fn table_db(t: &EmbeddingTable, tau: f32) -> anyhow::Result<FeatureDb> {
 }
 
 fn finish(integ: Integrator, b: &BuildOptions, stats: IntegrationStats) -> anyhow::Result<()> {
-    ensure!(
-        integ.voxel_count() > 0,
-        "empty result: none of {} points/pixels could be integrated ({} skipped without feature or \
-         outside the crop, {} rejected as non-finite or out of range); no map written",
-        stats.offered,
-        stats.skipped,
-        stats.rejected
-    );
-    let m = integ.finish(b.encoder.clone(), b.tau)?;
-    map::save(&m, &b.out)?;
+    let m = pipeline::finish(integ, &b.encoder, b.tau, &stats)?;
+    save(&m, b, &stats)
+}
+
+/// Saves the map and says what it holds.
+fn save(m: &LanguageMap, b: &BuildOptions, stats: &IntegrationStats) -> anyhow::Result<()> {
+    map::save(m, &b.out)?;
     println!(
         "wrote {}: {} voxels at {} m, {} feature rows x {} dims ({} of {} inputs integrated, {} skipped, {} rejected)",
         b.out.display(),
@@ -145,154 +150,43 @@ pub struct CloudArgs {
     pub ort_lib: Option<PathBuf>,
 }
 
-fn load_cloud(a: &CloudArgs) -> anyhow::Result<PointCloud> {
-    if a.input.is_dir() {
-        let seq = KittiSequence::open(&a.input)?;
-        let frames: Vec<usize> = seq
-            .frames
-            .iter()
-            .copied()
-            .take(a.frames.unwrap_or(usize::MAX))
-            .collect();
-        let opts = AggregateOptions {
-            voxel_size: None,
-            drop_unlabeled_outlier_moving: !a.keep_all,
-            max_range: a.max_range,
-            features_dir: a.features_dir.clone(),
-        };
-        let pb = super::progress::spinner(&format!("aggregating {} scans", frames.len()));
-        let c = seq.aggregate(&frames, &opts)?;
-        pb.finish_and_clear();
-        return Ok(c);
-    }
-    let format = a.format.map(|f| match f {
-        FormatArg::Ply => CloudFormat::Ply,
-        FormatArg::Las => CloudFormat::Las,
-        FormatArg::Kitti => CloudFormat::KittiBin,
-        FormatArg::Scannet => CloudFormat::ScannetBin,
-    });
-    let kitti_scan = format == Some(CloudFormat::KittiBin);
-    ensure!(
-        a.labels.is_none() || kitti_scan,
-        "--labels is for a single KITTI scan (--format kitti); other formats carry their labels"
-    );
-    let mut c = if kitti_scan {
-        omcl::io::kitti::read_labelled_scan(&a.input, a.labels.as_deref())?
-    } else {
-        read_point_cloud(&a.input, format)?
-    };
-    if let Some(f) = &a.features {
-        c.attach_features_npy(f)?;
-    }
-    // After the features are attached, so their rows stay with their
-    // points.
-    if kitti_scan && !a.keep_all {
-        // As for sequences: unlabeled, outlier and moving points are dropped.
-        if let Some(labels) = c.labels.clone() {
-            c.retain_indices(|i| !omcl::io::labels::is_dropped_semantic_kitti(labels[i]));
-        }
-    }
-    let is_las = matches!(
-        format.or_else(|| CloudFormat::from_path(&a.input)),
-        Some(CloudFormat::Las)
-    );
-    if is_las && !a.keep_all {
-        // ASPRS classes 7 (low point, noise) and 18 (high noise) are outliers.
-        if let Some(labels) = c.labels.clone() {
-            c.retain_indices(|i| !matches!(labels[i], 7 | 18));
-        }
-    }
-    c.validate(&a.input.display().to_string())?;
-    Ok(c)
-}
-
-/// A grid whose origin is the cloud's lower corner snapped to the
-/// resolution, so that georeferenced coordinates (UTM) keep float precision.
-fn grid_for(points: &[[f64; 3]], resolution: f64) -> GridSpec {
-    let mut lo = [f64::INFINITY; 3];
-    for p in points {
-        for a in 0..3 {
-            lo[a] = lo[a].min(p[a]);
-        }
-    }
-    let snap = |v: f64| {
-        if v.is_finite() {
-            (v / resolution).floor() * resolution
-        } else {
-            0.0
-        }
-    };
-    GridSpec {
-        resolution,
-        origin: Vector3::new(snap(lo[0]), snap(lo[1]), snap(lo[2])),
-    }
-}
-
 pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     a.build.check()?;
-    let c = load_cloud(a)?;
-    let source = a.input.display().to_string();
-    ensure!(
-        !c.is_empty(),
-        "{source}: empty result: no points left to map; no map written"
-    );
-    let grid = grid_for(&c.points, a.build.resolution);
-    let table = a.build.table()?;
-    let mut c = c;
-    let mut build = a.build.clone();
-    if let Some(model) = &a.point_model {
-        let rt = super::encode::init_runtime(a.ort_lib.as_deref())?;
-        let mut enc = omcl::encode::PointEncoder::load(rt, model, 0)?;
-        // Points relative to the grid origin keep f32 precision (UTM).
-        let pts: Vec<[f32; 3]> = c
-            .points
-            .iter()
-            .map(|p| {
-                let q = nalgebra::Vector3::from(*p) - grid.origin;
-                [q.x as f32, q.y as f32, q.z as f32]
-            })
-            .collect();
-        let cols: Vec<[f32; 3]> = match &c.colors {
-            Some(cs) => cs.iter().map(|k| k.map(|v| v as f32 / 255.0)).collect(),
-            None => vec![[0.5; 3]; pts.len()],
-        };
-        let pb = super::progress::spinner(&format!("encoding {} points", pts.len()));
-        let f = enc
-            .encode(&pts, &cols)
-            .with_context(|| format!("{source}: point encoder"))?;
-        pb.finish_and_clear();
-        c.features = Some((enc.feature_dim(), f));
-        build.encoder = enc.card().name.clone();
-    }
-    let a_build = &build;
-    let (integ, stats) = if let Some((dim, feats)) = &c.features {
-        let db = FeatureDb::new(*dim, a_build.tau)?.with_max_rows(a_build.max_rows);
-        let mut integ = Integrator::new(grid, db)?;
-        let s = mapping::cloud::integrate_points(&mut integ, &c.points, |i| {
-            Feature::Vector(&feats[i * dim..(i + 1) * dim])
-        })
-        .with_context(|| format!("{source}: per-point features"))?;
-        (integ, s)
-    } else if let (Some(labels), Some(t)) = (&c.labels, &table) {
-        let mut integ = Integrator::new(grid, table_db(t, a_build.tau)?)?;
-        let rows: Vec<Option<u32>> = labels
-            .iter()
-            .map(|&l| t.row_index(l).map(|r| r as u32))
-            .collect();
-        let s = mapping::cloud::integrate_point_rows(&mut integ, &c.points, &rows);
-        (integ, s)
-    } else if c.labels.is_some() {
-        bail!(
-            "{source}: points carry labels but no embedding table was given: pass --classes and \
-             --embeddings (a class list and its .npy of class features)"
-        );
-    } else {
-        bail!(
-            "{source}: points carry neither features nor labels: pass --features (N x F .npy), --point-model, or \
-             use a labelled cloud with --classes/--embeddings"
-        );
+    let input = CloudInput {
+        path: a.input.clone(),
+        format: a.format.map(|f| match f {
+            FormatArg::Ply => CloudFormat::Ply,
+            FormatArg::Las => CloudFormat::Las,
+            FormatArg::Kitti => CloudFormat::KittiBin,
+            FormatArg::Scannet => CloudFormat::ScannetBin,
+        }),
+        labels: a.labels.clone(),
+        features: a.features.clone(),
+        frames: a.frames,
+        features_dir: a.features_dir.clone(),
+        keep_all: a.keep_all,
+        max_range: a.max_range,
     };
-    finish(integ, a_build, stats)
+    let pb = super::progress::spinner(&format!("reading {}", a.input.display()));
+    let c = pipeline::load_cloud(&input)?;
+    let table = a.build.table()?;
+    let mut encoder = match &a.point_model {
+        Some(model) => {
+            let rt = super::encode::init_runtime(a.ort_lib.as_deref())?;
+            Some(omcl::encode::PointEncoder::load(rt, model, 0)?)
+        }
+        None => None,
+    };
+    pb.set_message(format!("mapping {} points", c.len()));
+    let (m, stats) = pipeline::map_from_cloud(
+        c,
+        &a.input.display().to_string(),
+        &a.build.params(),
+        table.as_ref(),
+        encoder.as_mut(),
+    )?;
+    pb.finish_and_clear();
+    save(&m, &a.build, &stats)
 }
 
 #[derive(Debug, Args)]

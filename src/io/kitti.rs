@@ -337,26 +337,43 @@ impl Default for AggregateOptions {
     }
 }
 
+/// The `NNNNNN.ext` files of `folder` with their frame numbers, in frame
+/// order; a file of that extension whose name is not a number is an error.
+pub(crate) fn numbered_files(
+    folder: &Path,
+    ext: &str,
+) -> Result<Vec<(usize, PathBuf)>, CloudError> {
+    let entries = std::fs::read_dir(folder).map_err(|e| CloudError::io(folder, e))?;
+    let mut frames = Vec::new();
+    for entry in entries {
+        let p = entry.map_err(|e| CloudError::io(folder, e))?.path();
+        if p.extension().and_then(|e| e.to_str()) != Some(ext) {
+            continue;
+        }
+        let frame = p
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .and_then(|s| s.parse::<usize>().ok())
+            .ok_or_else(|| {
+                CloudError::format(
+                    &p,
+                    format!("file name is not a frame number (NNNNNN.{ext})"),
+                )
+            })?;
+        frames.push((frame, p));
+    }
+    frames.sort_unstable();
+    Ok(frames)
+}
+
 impl KittiSequence {
     /// Opens a sequence: reads calibration and poses and lists the scans.
     pub fn open(dir: &Path) -> Result<Self, CloudError> {
         let calib = read_calib(&dir.join("calib.txt"))?;
         let camera_poses = read_kitti_poses(&dir.join("poses.txt"))?;
         let vel = dir.join("velodyne");
-        let entries = std::fs::read_dir(&vel).map_err(|e| CloudError::io(&vel, e))?;
         let mut frames = Vec::new();
-        for entry in entries {
-            let p = entry.map_err(|e| CloudError::io(&vel, e))?.path();
-            if p.extension().and_then(|e| e.to_str()) != Some("bin") {
-                continue;
-            }
-            let frame = p
-                .file_stem()
-                .and_then(|s| s.to_str())
-                .and_then(|s| s.parse::<usize>().ok())
-                .ok_or_else(|| {
-                    CloudError::format(&p, "scan file name is not a frame number (NNNNNN.bin)")
-                })?;
+        for (frame, p) in numbered_files(&vel, "bin")? {
             if frame >= camera_poses.len() {
                 return Err(CloudError::mismatch(
                     &dir.join("poses.txt"),
@@ -369,7 +386,6 @@ impl KittiSequence {
             }
             frames.push(frame);
         }
-        frames.sort_unstable();
         if frames.is_empty() {
             return Err(CloudError::Empty {
                 source_name: vel.display().to_string(),

@@ -20,7 +20,9 @@
 use std::path::{Path, PathBuf};
 
 use super::cloud::CloudError;
-use super::kitti::{KITTI_IMAGE_SIZE, KittiCalib, KittiCamera, read_calib, read_kitti_poses};
+use super::kitti::{
+    KITTI_IMAGE_SIZE, KittiCalib, KittiCamera, numbered_files, read_calib, read_kitti_poses,
+};
 use super::poses::read_times;
 use super::rgb::read_rgb;
 use super::rgbd::read_label_png;
@@ -182,26 +184,10 @@ impl KittiCameraSequence {
 /// Number of `NNNNNN.ext` files in `folder`, which must be `000000` to
 /// `count - 1` without gaps.
 fn count_frames(folder: &Path, ext: &str) -> Result<usize, CloudError> {
-    let entries = std::fs::read_dir(folder).map_err(|e| CloudError::io(folder, e))?;
-    let mut frames = Vec::new();
-    for entry in entries {
-        let p = entry.map_err(|e| CloudError::io(folder, e))?.path();
-        if p.extension().and_then(|e| e.to_str()) != Some(ext) {
-            continue;
-        }
-        let frame = p
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .and_then(|s| s.parse::<usize>().ok())
-            .ok_or_else(|| {
-                CloudError::format(
-                    &p,
-                    format!("file name is not a frame number (NNNNNN.{ext})"),
-                )
-            })?;
-        frames.push(frame);
-    }
-    frames.sort_unstable();
+    let frames: Vec<usize> = numbered_files(folder, ext)?
+        .into_iter()
+        .map(|(f, _)| f)
+        .collect();
     if let Some((i, f)) = frames.iter().enumerate().find(|(i, f)| *i != **f) {
         return Err(CloudError::format(
             folder,

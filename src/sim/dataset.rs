@@ -3,6 +3,7 @@
 //! layouts). The glue between the algorithms and the writers; the demo and
 //! the CLI call these.
 
+use crate::io::poses::PoseFormat;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -181,11 +182,11 @@ pub fn write_indoor(
     )?;
     files::write_atomic(
         &dir.join("poses.txt"),
-        files::tum_lines(&scene.poses, 30.0).as_bytes(),
+        files::pose_lines(&scene.poses, PoseFormat::Tum, 30.0).as_bytes(),
     )?;
     files::write_atomic(
         &dir.join("odometry.txt"),
-        files::tum_lines(&odo, 30.0).as_bytes(),
+        files::pose_lines(&odo, PoseFormat::Tum, 30.0).as_bytes(),
     )?;
     files::save_table(dir, &table)?;
     files::write_world(&dir.join("world"), &scene.world.voxels)?;
@@ -403,7 +404,7 @@ pub fn write_outdoor(
     files::write_atomic(&seq.join("calib.txt"), KITTI00_CALIB.as_bytes())?;
     files::write_atomic(
         &seq.join("poses.txt"),
-        files::kitti_lines(&world.kitti_poses).as_bytes(),
+        files::pose_lines(&world.kitti_poses, PoseFormat::Kitti, 10.0).as_bytes(),
     )?;
     let times: String = (0..world.poses.len())
         .map(|i| format!("{:.6e}\n", i as f64 * 0.1))

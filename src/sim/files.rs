@@ -42,12 +42,14 @@
 
 use std::path::{Path, PathBuf};
 
-use nalgebra::{Matrix3, Quaternion, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Quaternion, UnitQuaternion};
 
 use super::embeddings::{ClassEmbeddings, ClipBank, EmbeddingError};
 use super::world::VoxelWorld;
 use crate::geometry::{Intrinsics, Pose};
 use crate::io::npy::{NpyError, read_npy, write_npy};
+use crate::io::poses::{PoseFormat, format_poses, read_poses_in};
+use crate::trajectory::Trajectory;
 
 /// Errors of simulator file I/O; each names the file.
 #[derive(Debug, thiserror::Error)]
@@ -67,6 +69,8 @@ pub enum SimIoError {
     Npy(#[from] NpyError),
     #[error("{path}: PNG: {reason}")]
     Png { path: PathBuf, reason: String },
+    #[error(transparent)]
+    Poses(#[from] crate::io::poses::PosesError),
     #[error("{path}: {source}")]
     Embedding {
         path: PathBuf,
@@ -218,69 +222,34 @@ pub fn builtin_table() -> Result<ClassEmbeddings, SimIoError> {
     ClassEmbeddings::new(names, dim, rows).map_err(|source| SimIoError::Embedding { path, source })
 }
 
-/// Reads KITTI poses: 12 numbers a line, row-major 3x4 `world_from_camera`.
+/// Reads a KITTI pose file through [`crate::io::poses`] (the crate's one
+/// pose parser: rotations re-orthonormalized, non-rigid poses refused with
+/// the file and line).
 pub fn read_kitti_poses(path: &Path) -> Result<Vec<Pose>, SimIoError> {
-    let mut out = Vec::new();
-    for (i, line) in read_text(path)?.lines().enumerate() {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let v: Result<Vec<f64>, _> = line.split_whitespace().map(str::parse::<f64>).collect();
-        let v = match v {
-            Ok(v) if v.len() == 12 => v,
-            _ => {
-                return Err(SimIoError::Parse {
-                    path: path.to_path_buf(),
-                    line: i + 1,
-                    reason: "expected 12 numbers (row-major 3x4 pose)".into(),
-                });
-            }
-        };
-        let m = Matrix3::new(v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]);
-        // Re-orthonormalize: KITTI files carry 7 significant digits.
-        let rot = Rotation3::from_matrix(&m);
-        out.push(Pose::from_parts(
-            Translation3::new(v[3], v[7], v[11]),
-            UnitQuaternion::from_rotation_matrix(&rot),
-        ));
-    }
-    Ok(out)
+    read_poses(path, PoseFormat::Kitti)
 }
 
-/// Formats poses as KITTI lines (row-major 3x4).
-pub fn kitti_lines(poses: &[Pose]) -> String {
-    let mut s = String::new();
-    for p in poses {
-        let m = p.to_homogeneous();
-        let vals: Vec<String> = (0..3)
-            .flat_map(|r| (0..4).map(move |c| (r, c)))
-            .map(|(r, c)| format!("{:.9e}", m[(r, c)]))
-            .collect();
-        s.push_str(&vals.join(" "));
-        s.push('\n');
-    }
-    s
+/// Reads a TUM pose file (`t tx ty tz qx qy qz qw`, `#` comments) through
+/// [`crate::io::poses`].
+pub fn read_tum_poses(path: &Path) -> Result<Vec<Pose>, SimIoError> {
+    read_poses(path, PoseFormat::Tum)
 }
 
-/// Formats poses as TUM lines `t tx ty tz qx qy qz qw` with `t = i / fps`.
-pub fn tum_lines(poses: &[Pose], fps: f64) -> String {
-    let mut s = String::new();
-    for (i, p) in poses.iter().enumerate() {
-        let t = p.translation.vector;
-        let q: &Quaternion<f64> = p.rotation.quaternion();
-        s.push_str(&format!(
-            "{:.6} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}\n",
-            i as f64 / fps,
-            t.x,
-            t.y,
-            t.z,
-            q.i,
-            q.j,
-            q.k,
-            q.w
-        ));
+fn read_poses(path: &Path, format: PoseFormat) -> Result<Vec<Pose>, SimIoError> {
+    let file = read_poses_in(path, format)?;
+    Ok(file.trajectory.poses().to_vec())
+}
+
+/// Pose-file text of `poses` ([`crate::io::poses::format_poses`]): TUM
+/// lines stamped `i / fps`, or KITTI lines (`fps` unused).
+pub fn pose_lines(poses: &[Pose], format: PoseFormat, fps: f64) -> String {
+    let stamps = (0..poses.len()).map(|i| i as f64 / fps).collect();
+    match Trajectory::new(stamps, poses.to_vec()) {
+        Ok(t) => format_poses(&t, format),
+        // Stamps i / fps increase for any positive fps; an empty path
+        // writes an empty file.
+        Err(_) => String::new(),
     }
-    s
 }
 
 /// Formats intrinsics as `fx fy cx cy width height`.
@@ -348,31 +317,6 @@ pub fn write_png_gray16(
     write_atomic(path, &b)
 }
 
-/// Reads a 16-bit grayscale PNG (for tests and tools).
-pub fn read_png_gray16(path: &Path) -> Result<(u32, u32, Vec<u16>), SimIoError> {
-    let perr = |e: png::DecodingError| SimIoError::Png {
-        path: path.to_path_buf(),
-        reason: e.to_string(),
-    };
-    let file = std::fs::File::open(path).map_err(io_err(path))?;
-    let mut dec = png::Decoder::new(std::io::BufReader::new(file))
-        .read_info()
-        .map_err(perr)?;
-    let mut buf = vec![0u8; dec.output_buffer_size().unwrap_or(0)];
-    let info = dec.next_frame(&mut buf).map_err(perr)?;
-    if info.bit_depth != png::BitDepth::Sixteen || info.color_type != png::ColorType::Grayscale {
-        return Err(SimIoError::Png {
-            path: path.to_path_buf(),
-            reason: "expected 16-bit grayscale".into(),
-        });
-    }
-    let data = buf[..info.buffer_size()]
-        .chunks(2)
-        .map(|c| u16::from_be_bytes([c[0], c[1]]))
-        .collect();
-    Ok((info.width, info.height, data))
-}
-
 /// Writes the ground-truth world: `voxels.ply`, `cells.npy`, `labels.npy`
 /// and `world.json` in `dir`.
 pub fn write_world(dir: &Path, world: &VoxelWorld) -> Result<(), SimIoError> {
@@ -437,50 +381,29 @@ pub fn quat(q: [f64; 4]) -> UnitQuaternion<f64> {
     UnitQuaternion::from_quaternion(Quaternion::new(q[3], q[0], q[1], q[2]))
 }
 
-/// Parses TUM pose lines (`t tx ty tz qx qy qz qw`, `#` comments).
-pub fn read_tum_poses(path: &Path) -> Result<Vec<Pose>, SimIoError> {
-    let mut out = Vec::new();
-    for (i, line) in read_text(path)?.lines().enumerate() {
-        let l = line.trim();
-        if l.is_empty() || l.starts_with('#') {
-            continue;
-        }
-        let v: Result<Vec<f64>, _> = l.split_whitespace().map(str::parse::<f64>).collect();
-        match v {
-            Ok(v) if v.len() == 8 => out.push(Pose::from_parts(
-                Translation3::from(Vector3::new(v[1], v[2], v[3])),
-                quat([v[4], v[5], v[6], v[7]]),
-            )),
-            _ => {
-                return Err(SimIoError::Parse {
-                    path: path.to_path_buf(),
-                    line: i + 1,
-                    reason: "expected `t tx ty tz qx qy qz qw`".into(),
-                });
-            }
-        }
-    }
-    Ok(out)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn poses_round_trip_through_tum_and_kitti_text() {
+        use nalgebra::Translation3;
         let dir = tempfile::tempdir().unwrap();
         let p = Pose::from_parts(
             Translation3::new(1.0, -2.0, 0.5),
             UnitQuaternion::from_euler_angles(0.1, -0.2, 0.3),
         );
         let tum = dir.path().join("t.txt");
-        write_atomic(&tum, tum_lines(&[p, p.inverse()], 30.0).as_bytes()).unwrap();
+        write_atomic(
+            &tum,
+            pose_lines(&[p, p.inverse()], PoseFormat::Tum, 30.0).as_bytes(),
+        )
+        .unwrap();
         let back = read_tum_poses(&tum).unwrap();
         assert!((back[0].translation.vector - p.translation.vector).norm() < 1e-8);
         assert!(back[1].rotation.angle_to(&p.inverse().rotation) < 1e-8);
         let kit = dir.path().join("k.txt");
-        write_atomic(&kit, kitti_lines(&[p]).as_bytes()).unwrap();
+        write_atomic(&kit, pose_lines(&[p], PoseFormat::Kitti, 10.0).as_bytes()).unwrap();
         let back = read_kitti_poses(&kit).unwrap();
         assert!(back[0].rotation.angle_to(&p.rotation) < 1e-8);
         std::fs::write(&kit, "1 2 3\n").unwrap();
@@ -494,7 +417,9 @@ mod tests {
         let path = dir.path().join("d.png");
         let data: Vec<u16> = (0..12).map(|i| i * 5000 + 7).collect();
         write_png_gray16(&path, 4, 3, &data).unwrap();
-        assert_eq!(read_png_gray16(&path).unwrap(), (4, 3, data));
+        let back = crate::io::rgbd::read_label_png(&path).unwrap();
+        let data: Vec<u32> = data.into_iter().map(u32::from).collect();
+        assert_eq!(back, (4, 3, data));
     }
 
     #[test]

@@ -1,0 +1,239 @@
+//! The map-from-a-cloud pipeline users run (`omcl map cloud`): read a
+//! point-cloud file or a SemanticKITTI sequence, drop the points the
+//! authors drop, attach or compute per-point features, and integrate them
+//! into an Octree Language Map on a grid anchored at the cloud's corner.
+//! The command line only parses options, shows progress and saves.
+
+use std::path::PathBuf;
+
+use nalgebra::Vector3;
+
+use super::{Feature, IntegrationStats};
+use crate::encode::{EncodeError, PointEncoder};
+use crate::io::cloud::{CloudError, PointCloud};
+use crate::io::formats::{CloudFormat, read_point_cloud};
+use crate::io::kitti::{AggregateOptions, KittiSequence};
+use crate::io::labels::EmbeddingTable;
+use crate::map::{FeatureDb, FeatureDbError, GridSpec, Integrator, LanguageMap, MapError};
+
+/// Errors of the pipeline; each names its input.
+#[derive(Debug, thiserror::Error)]
+pub enum PipelineError {
+    #[error(transparent)]
+    Cloud(#[from] CloudError),
+    #[error(transparent)]
+    Db(#[from] FeatureDbError),
+    #[error(transparent)]
+    Map(#[from] MapError),
+    #[error("{source_name}: {source}")]
+    Encode {
+        source_name: String,
+        source: EncodeError,
+    },
+    /// The inputs do not make a map (why, and what to pass).
+    #[error("{0}")]
+    Input(String),
+}
+
+/// Where the points come from and which of them to keep.
+#[derive(Debug, Clone, Default)]
+pub struct CloudInput {
+    /// A point-cloud file or a SemanticKITTI sequence folder.
+    pub path: PathBuf,
+    /// The file's format when its extension does not tell.
+    pub format: Option<CloudFormat>,
+    /// A single KITTI scan's `.label` file (default: beside it or in
+    /// `../labels/`).
+    pub labels: Option<PathBuf>,
+    /// Per-point features (`N x F` .npy).
+    pub features: Option<PathBuf>,
+    /// Sequence folders: at most this many scans from the start.
+    pub frames: Option<usize>,
+    /// Sequence folders: per-scan feature files `NNNNNN.npy` here.
+    pub features_dir: Option<PathBuf>,
+    /// Keep the points the authors drop (SemanticKITTI unlabeled, outlier
+    /// and moving classes; LAS noise classes 7 and 18).
+    pub keep_all: bool,
+    /// Sequence folders: ignore points farther than this from the sensor.
+    pub max_range: Option<f64>,
+}
+
+/// Reads the cloud of `input`, features attached and dropped points gone,
+/// validated.
+pub fn load_cloud(input: &CloudInput) -> Result<PointCloud, PipelineError> {
+    let path = &input.path;
+    if path.is_dir() {
+        let seq = KittiSequence::open(path)?;
+        let frames: Vec<usize> = seq
+            .frames
+            .iter()
+            .copied()
+            .take(input.frames.unwrap_or(usize::MAX))
+            .collect();
+        let opts = AggregateOptions {
+            voxel_size: None,
+            drop_unlabeled_outlier_moving: !input.keep_all,
+            max_range: input.max_range,
+            features_dir: input.features_dir.clone(),
+        };
+        return Ok(seq.aggregate(&frames, &opts)?);
+    }
+    let kitti_scan = input.format == Some(CloudFormat::KittiBin);
+    if input.labels.is_some() && !kitti_scan {
+        return Err(PipelineError::Input(
+            "--labels is for a single KITTI scan (--format kitti); other formats carry their labels"
+                .into(),
+        ));
+    }
+    let mut c = if kitti_scan {
+        crate::io::kitti::read_labelled_scan(path, input.labels.as_deref())?
+    } else {
+        read_point_cloud(path, input.format)?
+    };
+    if let Some(f) = &input.features {
+        c.attach_features_npy(f)?;
+    }
+    // After the features are attached, so their rows stay with their
+    // points.
+    if kitti_scan && !input.keep_all {
+        // As for sequences: unlabeled, outlier and moving points are dropped.
+        if let Some(labels) = c.labels.clone() {
+            c.retain_indices(|i| !crate::io::labels::is_dropped_semantic_kitti(labels[i]));
+        }
+    }
+    let is_las = matches!(
+        input.format.or_else(|| CloudFormat::from_path(path)),
+        Some(CloudFormat::Las)
+    );
+    if is_las && !input.keep_all {
+        // ASPRS classes 7 (low point, noise) and 18 (high noise) are outliers.
+        if let Some(labels) = c.labels.clone() {
+            c.retain_indices(|i| !matches!(labels[i], 7 | 18));
+        }
+    }
+    c.validate(&path.display().to_string())?;
+    Ok(c)
+}
+
+/// A grid whose origin is the cloud's lower corner snapped to the
+/// resolution, so that georeferenced coordinates (UTM) keep float precision.
+pub fn grid_for(points: &[[f64; 3]], resolution: f64) -> GridSpec {
+    let mut lo = [f64::INFINITY; 3];
+    for p in points {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+        }
+    }
+    let snap = |v: f64| {
+        if v.is_finite() {
+            (v / resolution).floor() * resolution
+        } else {
+            0.0
+        }
+    };
+    GridSpec {
+        resolution,
+        origin: Vector3::new(snap(lo[0]), snap(lo[1]), snap(lo[2])),
+    }
+}
+
+/// How the map is built.
+#[derive(Debug, Clone)]
+pub struct BuildParams {
+    /// Voxel edge, metres.
+    pub resolution: f64,
+    /// The feature database's cosine-distance threshold.
+    pub tau: f32,
+    /// Cap on observation rows for raw features.
+    pub max_rows: usize,
+    /// Name of the feature space stored in the map (a point encoder's own
+    /// name replaces it).
+    pub encoder: String,
+}
+
+/// Builds the map of `cloud` (named `input` in errors): per-point
+/// features from the cloud or from `encoder`, else labels through
+/// `table` (the ground-truth mode). Fails, naming what to pass, when the
+/// points carry neither or when nothing could be integrated.
+pub fn map_from_cloud(
+    mut cloud: PointCloud,
+    input: &str,
+    params: &BuildParams,
+    table: Option<&EmbeddingTable>,
+    encoder: Option<&mut PointEncoder>,
+) -> Result<(LanguageMap, IntegrationStats), PipelineError> {
+    if cloud.is_empty() {
+        return Err(PipelineError::Input(format!(
+            "{input}: empty result: no points left to map; no map written"
+        )));
+    }
+    let grid = grid_for(&cloud.points, params.resolution);
+    let mut name = params.encoder.clone();
+    if let Some(enc) = encoder {
+        // Points relative to the grid origin keep f32 precision (UTM).
+        let pts: Vec<[f32; 3]> = cloud
+            .points
+            .iter()
+            .map(|p| {
+                let q = Vector3::from(*p) - grid.origin;
+                [q.x as f32, q.y as f32, q.z as f32]
+            })
+            .collect();
+        let cols: Vec<[f32; 3]> = match &cloud.colors {
+            Some(cs) => cs.iter().map(|k| k.map(|v| v as f32 / 255.0)).collect(),
+            None => vec![[0.5; 3]; pts.len()],
+        };
+        let f = enc.encode(&pts, &cols).map_err(|e| PipelineError::Encode {
+            source_name: format!("{input}: point encoder"),
+            source: e,
+        })?;
+        cloud.features = Some((enc.feature_dim(), f));
+        name = enc.card().name.clone();
+    }
+    let (integ, stats) = if let Some((dim, feats)) = &cloud.features {
+        let db = FeatureDb::new(*dim, params.tau)?.with_max_rows(params.max_rows);
+        let mut integ = Integrator::new(grid, db)?;
+        let s = super::cloud::integrate_points(&mut integ, &cloud.points, |i| {
+            Feature::Vector(&feats[i * dim..(i + 1) * dim])
+        })?;
+        (integ, s)
+    } else if let (Some(labels), Some(t)) = (&cloud.labels, table) {
+        let db = FeatureDb::from_rows(t.dim, params.tau, t.data.clone())?;
+        let mut integ = Integrator::new(grid, db)?;
+        let rows: Vec<Option<u32>> = labels
+            .iter()
+            .map(|&l| t.row_index(l).map(|r| r as u32))
+            .collect();
+        let s = super::cloud::integrate_point_rows(&mut integ, &cloud.points, &rows);
+        (integ, s)
+    } else if cloud.labels.is_some() {
+        return Err(PipelineError::Input(format!(
+            "{input}: points carry labels but no embedding table was given: pass --classes and \
+             --embeddings (a class list and its .npy of class features)"
+        )));
+    } else {
+        return Err(PipelineError::Input(format!(
+            "{input}: points carry neither features nor labels: pass --features (N x F .npy), \
+             --point-model, or use a labelled cloud with --classes/--embeddings"
+        )));
+    };
+    Ok((finish(integ, &name, params.tau, &stats)?, stats))
+}
+
+/// The map of an integrator, or an error saying why nothing was
+/// integrated.
+pub fn finish(
+    integ: Integrator,
+    encoder: &str,
+    tau: f32,
+    stats: &IntegrationStats,
+) -> Result<LanguageMap, PipelineError> {
+    if integ.voxel_count() == 0 {
+        return Err(PipelineError::Input(format!(
+            "empty result: none of {} points/pixels could be integrated ({} skipped without \
+             feature or outside the crop, {} rejected as non-finite or out of range); no map written",
+            stats.offered, stats.skipped, stats.rejected
+        )));
+    }
+    Ok(integ.finish(encoder.to_string(), tau)?)
+}
