@@ -10,5 +10,6 @@ pub mod mcl;
 pub mod plot;
 pub mod raycast;
 pub mod scene;
+pub mod session;
 pub mod sim;
 pub mod trajectory;
