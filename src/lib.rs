@@ -10,6 +10,7 @@ pub mod mcl;
 pub mod plot;
 pub mod raycast;
 pub mod scene;
+pub mod serve;
 pub mod session;
 pub mod sim;
 pub mod trajectory;
