@@ -41,27 +41,42 @@ pub struct Fixture {
 
 impl Fixture {
     pub fn new() -> Fixture {
+        Fixture::make(&[])
+    }
+
+    /// With per-frame features (features/NNNNNN.npy, 4-pixel stride).
+    pub fn with_features() -> Fixture {
+        Fixture::make(&["--features", "--feature-stride", "4"])
+    }
+
+    fn make(extra: &[&str]) -> Fixture {
         let dir = tempfile::tempdir().unwrap();
         let seq = dir.path().join("seq");
         let map = dir.path().join("seq.omcl");
-        let r = omcl(&[
-            "sim",
-            "indoor",
-            "--out",
-            s(&seq),
-            "--seed",
-            "1",
-            "--rooms",
-            "2",
-            "--frames",
-            "24",
-            "--width",
-            "64",
-            "--height",
-            "48",
-            "--trajectories",
-            "none",
-        ]);
+        let r = omcl(
+            &[
+                &[
+                    "sim",
+                    "indoor",
+                    "--out",
+                    s(&seq),
+                    "--seed",
+                    "1",
+                    "--rooms",
+                    "2",
+                    "--frames",
+                    "24",
+                    "--width",
+                    "64",
+                    "--height",
+                    "48",
+                    "--trajectories",
+                    "none",
+                ][..],
+                extra,
+            ]
+            .concat(),
+        );
         assert!(r.status.success(), "{r:?}");
         let r = omcl(&["map", "rgbd", s(&seq), "-o", s(&map), "--resolution", "0.1"]);
         assert!(r.status.success(), "{r:?}");
