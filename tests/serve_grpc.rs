@@ -341,6 +341,8 @@ async fn caps_overload_idle_expiry_and_shutdown() {
             "1.0",
             "--threads",
             "1",
+            "--max-message-mib",
+            "1",
         ],
     );
     let mut c = server.client(Auth::good()).await;
@@ -378,6 +380,21 @@ async fn caps_overload_idle_expiry_and_shutdown() {
     assert_eq!(e.code(), Code::ResourceExhausted, "{e:?}");
     assert!(e.message().contains("overloaded"), "{e:?}");
     assert!(e.metadata().get("retry-after-ms").is_some(), "{e:?}");
+
+    // A message over the size limit (1 MiB) is refused, the session lives.
+    let mut fr = f.frame(&b, 0);
+    fr.features = Some(proto::frame::Features::Grid(proto::FeatureGrid {
+        height: 24,
+        width: 32,
+        dim: 512,
+        data: vec![0.5; 24 * 32 * 512],
+    }));
+    let e = c.localize(fr).await.unwrap_err();
+    assert!(
+        matches!(e.code(), Code::ResourceExhausted | Code::OutOfRange),
+        "{e:?}"
+    );
+    c.localize(f.frame(&b, 1)).await.unwrap();
 
     // Idle sessions expire (1 s).
     tokio::time::sleep(Duration::from_millis(2500)).await;

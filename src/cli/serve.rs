@@ -168,6 +168,7 @@ pub fn run(a: ServeArgs) -> anyhow::Result<()> {
     // own compute pool.
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
+        .max_blocking_threads(8)
         .thread_name("omcl-io")
         .enable_all()
         .build()

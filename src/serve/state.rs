@@ -308,13 +308,19 @@ impl State {
             .map_err(|_| Status::internal("the compute pool dropped the task"))
     }
 
-    /// Runs `f` on a session's filter on the pool (reinitialization).
+    /// Runs `f` on a session (reinitialization) on a blocking thread of the
+    /// runtime, not on the compute pool: it waits for the session's lock,
+    /// and a pool thread waiting inside a step (rayon steals work while it
+    /// joins) could otherwise take this task while its own step holds that
+    /// lock.
     pub async fn with_session<T: Send + 'static>(
         &self,
         slot: Arc<Slot>,
         f: impl FnOnce(&mut Session) -> T + Send + 'static,
     ) -> Result<T, Status> {
-        self.on_pool(move || f(&mut lock(&slot.session))).await
+        tokio::task::spawn_blocking(move || f(&mut lock(&slot.session)))
+            .await
+            .map_err(|e| Status::internal(format!("reinitialization failed: {e}")))
     }
 
     /// Hands a frame to its session (see the module's scheduling notes).

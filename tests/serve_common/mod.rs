@@ -50,35 +50,57 @@ impl Fixture {
     }
 
     fn make(extra: &[&str]) -> Fixture {
+        Fixture::sized(64, 48, 24, 2, "0.1", extra)
+    }
+
+    /// A sequence of `frames` frames of `width x height` pixels through
+    /// `rooms` rooms (seed 1), its map at `resolution` metres.
+    pub fn sized(
+        width: u32,
+        height: u32,
+        frames: usize,
+        rooms: usize,
+        resolution: &str,
+        extra: &[&str],
+    ) -> Fixture {
         let dir = tempfile::tempdir().unwrap();
         let seq = dir.path().join("seq");
         let map = dir.path().join("seq.omcl");
-        let r = omcl(
-            &[
-                &[
-                    "sim",
-                    "indoor",
-                    "--out",
-                    s(&seq),
-                    "--seed",
-                    "1",
-                    "--rooms",
-                    "2",
-                    "--frames",
-                    "24",
-                    "--width",
-                    "64",
-                    "--height",
-                    "48",
-                    "--trajectories",
-                    "none",
-                ][..],
-                extra,
-            ]
-            .concat(),
+        let (w, h, n, r) = (
+            width.to_string(),
+            height.to_string(),
+            frames.to_string(),
+            rooms.to_string(),
         );
+        let sim = [
+            "sim",
+            "indoor",
+            "--out",
+            s(&seq),
+            "--seed",
+            "1",
+            "--rooms",
+            &r,
+            "--frames",
+            &n,
+            "--width",
+            &w,
+            "--height",
+            &h,
+            "--trajectories",
+            "none",
+        ];
+        let r = omcl(&[&sim[..], extra].concat());
         assert!(r.status.success(), "{r:?}");
-        let r = omcl(&["map", "rgbd", s(&seq), "-o", s(&map), "--resolution", "0.1"]);
+        let r = omcl(&[
+            "map",
+            "rgbd",
+            s(&seq),
+            "-o",
+            s(&map),
+            "--resolution",
+            resolution,
+        ]);
         assert!(r.status.success(), "{r:?}");
         Fixture { dir, seq, map }
     }
