@@ -93,8 +93,9 @@ fn main() {
     let server = Server::start(&f, &["--threads", &threads.to_string()]);
     let frames: Vec<proto::Frame> = (0..SEQ_FRAMES).map(|i| f.frame("", i)).collect();
     println!(
-        "| sessions | steps/s (all) | vs CLI | p50 ms | p99 ms | filter step ms (mean) | server RSS MiB | load average |\n\
-         |---:|---:|---:|---:|---:|---:|---:|---|"
+        "| sessions | steps/s (all) | vs CLI | p50 ms | p99 ms | filter step ms (mean) | \
+         server cores used | steps per server CPU-second | server RSS MiB | load average |\n\
+         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"
     );
     let mut rss_one = 0u64;
     // OMCL_BENCH_SESSIONS="1,4" picks levels (default 1, 4, 16, 64).
@@ -103,7 +104,7 @@ fn main() {
         .map(|v| v.split(',').filter_map(|x| x.trim().parse().ok()).collect())
         .unwrap_or_else(|| vec![1, 4, 16, 64]);
     for n in levels {
-        let (step_ms, rate, p50, p99, rss) = rt.block_on(async {
+        let (cores_used, per_cpu_s, step_ms, rate, p50, p99, rss) = rt.block_on(async {
             let mut c = server.client(Auth::good()).await;
             let mut ids = Vec::new();
             for s in 0..n {
@@ -112,6 +113,7 @@ fn main() {
                 req.rays = Some(BENCH_RAYS);
                 ids.push(c.create_session(req).await.unwrap().into_inner().session_id);
             }
+            let cpu0 = server.cpu_seconds();
             let t0 = Instant::now();
             let stop = t0 + Duration::from_secs_f64(secs);
             let mut tasks = Vec::new();
@@ -138,6 +140,7 @@ fn main() {
                 lat.extend(t.await.unwrap());
             }
             let elapsed = t0.elapsed().as_secs_f64();
+            let cpu = server.cpu_seconds() - cpu0;
             let rss = server.rss();
             for id in ids {
                 c.close_session(proto::CloseSessionRequest { session_id: id })
@@ -148,6 +151,8 @@ fn main() {
             let mut lat: Vec<f64> = lat.into_iter().map(|l| l.0).collect();
             lat.sort_by(|a, b| a.total_cmp(b));
             (
+                cpu / elapsed,
+                lat.len() as f64 / cpu,
                 step_ms,
                 lat.len() as f64 / elapsed,
                 percentile(&lat, 0.5),
@@ -159,7 +164,8 @@ fn main() {
             rss_one = rss;
         }
         println!(
-            "| {n} | {rate:.1} | {:.0} % | {p50:.1} | {p99:.1} | {step_ms:.1} | {:.1} | {} |",
+            "| {n} | {rate:.1} | {:.0} % | {p50:.1} | {p99:.1} | {step_ms:.1} | {cores_used:.2} | \
+             {per_cpu_s:.1} | {:.1} | {} |",
             100.0 * rate / cli_before,
             rss as f64 / (1 << 20) as f64,
             load()

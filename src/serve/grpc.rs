@@ -21,21 +21,30 @@ use super::state::{Reply, State};
 
 pub struct Service {
     pub state: Arc<State>,
-    pub token: Token,
 }
 
-impl Service {
-    fn auth(&self, md: &MetadataMap) -> Result<(), Status> {
-        if self.state.shutting_down.load(Ordering::Relaxed) {
-            self.state.metrics.reject("shutting_down");
+/// The bearer-token check of every gRPC call, as a tonic interceptor (a
+/// tower layer in front of the service): refused calls never reach a
+/// handler.
+pub fn interceptor(
+    state: Arc<State>,
+    token: Token,
+) -> impl FnMut(Request<()>) -> Result<Request<()>, Status> + Clone {
+    move |req: Request<()>| {
+        if state.shutting_down.load(Ordering::Relaxed) {
+            state.metrics.reject("shutting_down");
             return Err(Status::unavailable("the server is shutting down"));
         }
+        let md: &MetadataMap = req.metadata();
         let value = md.get("authorization").map(|v| v.as_bytes());
         let elsewhere = MISPLACED.iter().find(|k| md.contains_key(**k)).copied();
-        self.token.check(value, elsewhere).map_err(|e| {
-            self.state.metrics.reject("unauthenticated");
-            Status::unauthenticated(e.to_string())
-        })
+        match token.check(value, elsewhere) {
+            Ok(()) => Ok(req),
+            Err(e) => {
+                state.metrics.reject("unauthenticated");
+                Err(Status::unauthenticated(e.to_string()))
+            }
+        }
     }
 }
 
@@ -67,9 +76,8 @@ fn camera(c: Option<&proto::CameraInfo>) -> Result<Intrinsics, Status> {
 impl Localization for Service {
     async fn list_maps(
         &self,
-        req: Request<proto::ListMapsRequest>,
+        _req: Request<proto::ListMapsRequest>,
     ) -> Result<Response<proto::ListMapsResponse>, Status> {
-        self.auth(req.metadata())?;
         Ok(Response::new(proto::ListMapsResponse {
             maps: super::map_infos(&self.state),
         }))
@@ -77,9 +85,8 @@ impl Localization for Service {
 
     async fn list_sessions(
         &self,
-        req: Request<proto::ListSessionsRequest>,
+        _req: Request<proto::ListSessionsRequest>,
     ) -> Result<Response<proto::ListSessionsResponse>, Status> {
-        self.auth(req.metadata())?;
         Ok(Response::new(proto::ListSessionsResponse {
             sessions: super::session_infos(&self.state),
         }))
@@ -89,7 +96,6 @@ impl Localization for Service {
         &self,
         req: Request<proto::CreateSessionRequest>,
     ) -> Result<Response<proto::CreateSessionResponse>, Status> {
-        self.auth(req.metadata())?;
         let r = req.into_inner();
         let map = self.state.map(&r.map)?.clone();
         let intrinsics = camera(r.camera.as_ref())?;
@@ -154,7 +160,6 @@ impl Localization for Service {
         &self,
         req: Request<proto::CloseSessionRequest>,
     ) -> Result<Response<proto::CloseSessionResponse>, Status> {
-        self.auth(req.metadata())?;
         let slot = self.state.remove_session(&req.get_ref().session_id)?;
         Ok(Response::new(proto::CloseSessionResponse {
             frames: slot.frames(),
@@ -165,7 +170,6 @@ impl Localization for Service {
         &self,
         req: Request<proto::SetInitialPoseRequest>,
     ) -> Result<Response<proto::ReinitializeResponse>, Status> {
-        self.auth(req.metadata())?;
         let r = req.into_inner();
         let slot = self.state.session(&r.session_id)?;
         let pose = r
@@ -185,7 +189,6 @@ impl Localization for Service {
         &self,
         req: Request<proto::GlobalLocalizationRequest>,
     ) -> Result<Response<proto::ReinitializeResponse>, Status> {
-        self.auth(req.metadata())?;
         let r = req.into_inner();
         let slot = self.state.session(&r.session_id)?;
         let start = match &r.prompt {
@@ -204,7 +207,6 @@ impl Localization for Service {
         &self,
         req: Request<proto::Frame>,
     ) -> Result<Response<proto::PoseUpdate>, Status> {
-        self.auth(req.metadata())?;
         let f = req.into_inner();
         let slot = self.state.session(&f.session_id)?;
         let input = convert::frame_input(f, &slot).inspect_err(|_| {
@@ -228,7 +230,6 @@ impl Localization for Service {
         &self,
         req: Request<Streaming<proto::Frame>>,
     ) -> Result<Response<Self::StreamStream>, Status> {
-        self.auth(req.metadata())?;
         let mut inbound = req.into_inner();
         let (tx, rx) = mpsc::channel(self.state.limits.stream_buffer.max(1));
         let state = self.state.clone();

@@ -174,10 +174,13 @@ pub async fn serve(
     let n = config.limits.max_message_bytes;
     let svc = proto::localization_server::LocalizationServer::new(grpc::Service {
         state: state.clone(),
-        token: config.token.clone(),
     })
     .max_decoding_message_size(n)
     .max_encoding_message_size(n);
+    let svc = tonic::service::interceptor::InterceptedService::new(
+        svc,
+        grpc::interceptor(state.clone(), config.token.clone()),
+    );
     let mut builder = tonic::transport::Server::builder();
     if let Some(tls) = &config.tls {
         let id = tonic::transport::Identity::from_pem(&tls.cert_pem, &tls.key_pem);

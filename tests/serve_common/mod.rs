@@ -253,6 +253,17 @@ impl Server {
         self.child.id()
     }
 
+    /// CPU time the server has used (user + system), seconds.
+    pub fn cpu_seconds(&self) -> f64 {
+        let s = std::fs::read_to_string(format!("/proc/{}/stat", self.pid())).unwrap();
+        // Fields after the command's closing parenthesis; utime and stime
+        // are the 14th and 15th fields of the line.
+        let rest = &s[s.rfind(')').unwrap() + 2..];
+        let v: Vec<&str> = rest.split_whitespace().collect();
+        let ticks: f64 = v[11].parse::<f64>().unwrap() + v[12].parse::<f64>().unwrap();
+        ticks / clock_ticks()
+    }
+
     /// Resident memory of the server, bytes.
     pub fn rss(&self) -> u64 {
         let s = std::fs::read_to_string(format!("/proc/{}/status", self.pid())).unwrap();
@@ -294,6 +305,12 @@ impl Server {
         let body = text.split("\r\n\r\n").nth(1).unwrap_or("").to_string();
         (status, body)
     }
+}
+
+/// Clock ticks per second of /proc's times (`getconf CLK_TCK`).
+pub fn clock_ticks() -> f64 {
+    let out = Command::new("getconf").arg("CLK_TCK").output().unwrap();
+    String::from_utf8_lossy(&out.stdout).trim().parse().unwrap()
 }
 
 impl Drop for Server {
