@@ -365,16 +365,21 @@ impl State {
         self.pool.spawn(move || {
             state.run_step(&slot, job);
             let mut q = lock(&slot.queue);
-            match q.pending.take() {
-                Some(next) if !state.shutting_down.load(Ordering::Relaxed) => {
-                    drop(q);
-                    // To the back of the pool's queue: round robin.
-                    state.spawn_step(slot.clone(), next);
+            let next = q.pending.take();
+            if state.shutting_down.load(Ordering::Relaxed) || next.is_none() {
+                q.busy = false;
+                drop(q);
+                state.queued.fetch_sub(1, Ordering::Relaxed);
+                // A frame that waited behind the last step is not stepped
+                // once shutdown began; it is told so.
+                if let Some(job) = next {
+                    let st = Status::unavailable("the server is shutting down");
+                    send(job.reply, Err(st), &job.frame);
                 }
-                _ => {
-                    q.busy = false;
-                    state.queued.fetch_sub(1, Ordering::Relaxed);
-                }
+            } else if let Some(next) = next {
+                drop(q);
+                // To the back of the pool's queue: round robin.
+                state.spawn_step(slot.clone(), next);
             }
         });
     }
