@@ -13,6 +13,7 @@
 //! on the async runtime's threads.
 
 pub mod auth;
+pub mod compute;
 pub mod convert;
 pub mod grpc;
 pub mod http;

@@ -148,7 +148,7 @@ pub struct State {
     pub limits: Limits,
     pub metrics: Metrics,
     sessions: Mutex<HashMap<String, Arc<Slot>>>,
-    pool: rayon::ThreadPool,
+    compute: super::compute::Compute,
     /// Steps queued or running on the pool.
     queued: AtomicUsize,
     next_id: AtomicU64,
@@ -179,17 +179,13 @@ pub fn status_of(e: &SessionError) -> Status {
 
 impl State {
     pub fn new(maps: Vec<Arc<SharedMap>>, limits: Limits) -> Result<Arc<State>, String> {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(limits.threads.max(1))
-            .thread_name(|i| format!("omcl-step-{i}"))
-            .build()
-            .map_err(|e| format!("compute pool: {e}"))?;
+        let compute = super::compute::Compute::new(limits.threads)?;
         Ok(Arc::new(State {
             maps,
             limits,
             metrics: Metrics::default(),
             sessions: Mutex::new(HashMap::new()),
-            pool,
+            compute,
             queued: AtomicUsize::new(0),
             next_id: AtomicU64::new(1),
             shutting_down: AtomicBool::new(false),
@@ -301,7 +297,7 @@ impl State {
         f: impl FnOnce() -> T + Send + 'static,
     ) -> Result<T, Status> {
         let (tx, rx) = oneshot::channel();
-        self.pool.spawn(move || {
+        self.compute.spawn_lane(move || {
             let _ = tx.send(f());
         });
         rx.await
@@ -362,7 +358,7 @@ impl State {
 
     fn spawn_step(self: &Arc<Self>, slot: Arc<Slot>, job: Job) {
         let state = self.clone();
-        self.pool.spawn(move || {
+        let task = move || {
             state.run_step(&slot, job);
             let mut q = lock(&slot.queue);
             let next = q.pending.take();
@@ -381,7 +377,13 @@ impl State {
                 // To the back of the pool's queue: round robin.
                 state.spawn_step(slot.clone(), next);
             }
-        });
+        };
+        // Alone, a step gets every thread; with others waiting, one each.
+        if self.queued.load(Ordering::Relaxed) <= 1 {
+            self.compute.spawn_shared(task);
+        } else {
+            self.compute.spawn_lane(task);
+        }
     }
 
     fn run_step(&self, slot: &Slot, job: Job) {
