@@ -125,8 +125,8 @@ fn main() {
                 let id = id.clone();
                 let frames = frames.clone();
                 warm.push(tokio::spawn(async move {
-                    for i in 0..WARMUP {
-                        let mut fr = frames[i].clone();
+                    for f in frames.iter().take(WARMUP) {
+                        let mut fr = f.clone();
                         fr.session_id = id.clone();
                         c.localize(fr).await.unwrap();
                     }
