@@ -4,6 +4,11 @@
 //! Debian 12 ships Embree 3.13 as `libembree-dev` without a pkg-config file,
 //! so the library is linked by name; `EMBREE_DIR` points at another install
 //! (its `include/` and `lib/`).
+//!
+//! Also generates the gRPC code of `omcl serve` from `proto/omcl.proto` with
+//! tonic-prost-build; `protoc` comes from the `protoc-bin-vendored` crate
+//! (a binary inside a crates.io package), so no system protoc is needed
+//! (`PROTOC` in the environment overrides it).
 
 use std::env;
 use std::path::PathBuf;
@@ -72,4 +77,21 @@ fn main() {
     bindings
         .write_to_file(out.join("embree_bindings.rs"))
         .expect("could not write the Embree bindings into OUT_DIR");
+
+    grpc();
+}
+
+/// Server and client code of `proto/omcl.proto` into OUT_DIR.
+fn grpc() {
+    println!("cargo:rerun-if-changed=proto/omcl.proto");
+    println!("cargo:rerun-if-env-changed=PROTOC");
+    let mut config = tonic_prost_build::Config::new();
+    if env::var_os("PROTOC").is_none() {
+        let protoc = protoc_bin_vendored::protoc_bin_path()
+            .expect("protoc-bin-vendored has no protoc for this platform: set PROTOC");
+        config.protoc_executable(protoc);
+    }
+    tonic_prost_build::configure()
+        .compile_with_config(config, &["proto/omcl.proto"], &["proto"])
+        .expect("compiling proto/omcl.proto");
 }

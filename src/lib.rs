@@ -12,5 +12,7 @@ pub mod morton;
 pub mod plot;
 pub mod raycast;
 pub mod scene;
+pub mod serve;
+pub mod session;
 pub mod sim;
 pub mod trajectory;

@@ -45,3 +45,16 @@ if ! ls "$ORT_DIR"/onnxruntime/capi/libonnxruntime.so* >/dev/null 2>&1; then
     --target "$ORT_DIR" "onnxruntime==$ORT_VERSION"
 fi
 echo "setup: ONNX Runtime present: $(ls "$ORT_DIR"/onnxruntime/capi/libonnxruntime.so.* | head -1)"
+
+# gRPC for the Python client of `omcl serve` (tools/omcl_client.py, and the
+# test tests/serve_python.rs): grpcio and grpcio-tools (which generates the
+# stubs from proto/omcl.proto at run time) into .deps/python/.
+GRPC_VERSION=1.85.1
+PY_DIR=.deps/python
+if ! [ -f "$PY_DIR/grpcio_tools-$GRPC_VERSION.dist-info/METADATA" ] \
+  || ! [ -f "$PY_DIR/grpcio-$GRPC_VERSION.dist-info/METADATA" ]; then
+  echo "setup: installing grpcio and grpcio-tools $GRPC_VERSION into $PY_DIR"
+  python3 -m pip install --quiet --disable-pip-version-check --target "$PY_DIR" \
+    "grpcio==$GRPC_VERSION" "grpcio-tools==$GRPC_VERSION"
+fi
+echo "setup: Python gRPC present: grpcio $GRPC_VERSION in $PY_DIR"

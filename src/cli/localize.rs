@@ -5,10 +5,6 @@ use std::sync::Arc;
 
 use anyhow::{Context, bail, ensure};
 use clap::{Args, ValueEnum};
-use nalgebra::{UnitQuaternion, Vector3};
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
 
 use omcl::eval::ape::{PoseRelation, ape};
 use omcl::eval::localization::CompletionRule;
@@ -17,10 +13,10 @@ use omcl::io::kitti_camera::{CameraInput, KittiCameraSequence};
 use omcl::io::labels::EmbeddingTable;
 use omcl::io::poses::{self, PoseFormat};
 use omcl::io::{npy, rgbd};
-use omcl::map::{self, LanguageMap};
-use omcl::mcl::{
-    self, Filter, FilterConfig, FloorParams, FloorSampler, FrameFeatures, MotionMode, PromptParams,
-    SamplingStrategy, SensorModel,
+use omcl::map;
+use omcl::mcl::{self, FilterConfig, FloorParams, MotionMode, PromptParams, SamplingStrategy};
+use omcl::session::{
+    LabelFrame, LabelTable, Session, SessionConfig, SessionError, SharedMap, Start,
 };
 use omcl::trajectory::Trajectory;
 
@@ -76,8 +72,9 @@ pub struct LocalizeArgs {
     /// Use ground truth plus Gaussian noise as odometry even if a file exists.
     #[arg(long)]
     pub odom_from_gt: bool,
-    /// Odometry noise per frame when made from ground truth: metres
-    /// (RGB-D: on x, y, z; KITTI: on camera x and z, the authors' form).
+    /// Odometry noise per frame when made from ground truth: metres on
+    /// camera x and z (the ground plane of a level camera; the authors'
+    /// form, as `omcl sim` writes odometry.txt).
     #[arg(long, default_value_t = 0.10)]
     pub odom_noise_m: f64,
     /// Odometry noise per frame when made from ground truth: degrees about
@@ -191,67 +188,6 @@ pub struct LocalizeArgs {
     pub text_model: Option<PathBuf>,
 }
 
-/// Features of one frame: a label image looked up in an embedding table.
-struct LabelFrame<'a> {
-    width: u32,
-    height: u32,
-    labels: Vec<u32>,
-    table: &'a EmbeddingTable,
-    /// Nearest map row of each table row.
-    map_row: &'a [u32],
-}
-
-impl FrameFeatures for LabelFrame<'_> {
-    fn width(&self) -> u32 {
-        self.width
-    }
-    fn height(&self) -> u32 {
-        self.height
-    }
-    fn dim(&self) -> usize {
-        self.table.dim
-    }
-    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
-        let l = self.labels[(v * self.width + u) as usize];
-        match self.table.row(l) {
-            Some(f) => out.copy_from_slice(f),
-            None => out.fill(0.0),
-        }
-    }
-    fn nearest_row(&self, u: u32, v: u32) -> Option<u32> {
-        let l = self.labels[(v * self.width + u) as usize];
-        self.table.row_index(l).map(|r| self.map_row[r])
-    }
-}
-
-/// A feature map at any resolution, read from features/NNNNNN.npy.
-struct NpyFrame {
-    width: u32,
-    height: u32,
-    h: usize,
-    w: usize,
-    dim: usize,
-    data: Vec<f32>,
-}
-
-impl FrameFeatures for NpyFrame {
-    fn width(&self) -> u32 {
-        self.width
-    }
-    fn height(&self) -> u32 {
-        self.height
-    }
-    fn dim(&self) -> usize {
-        self.dim
-    }
-    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
-        let fu = ((2 * u as usize + 1) * self.w / (2 * self.width as usize)).min(self.w - 1);
-        let fv = ((2 * v as usize + 1) * self.h / (2 * self.height as usize)).min(self.h - 1);
-        let i = (fv * self.w + fu) * self.dim;
-        out.copy_from_slice(&self.data[i..i + self.dim]);
-    }
-}
-
 /// What to do when global or prompt initialization cannot place particles,
 /// in the command line's terms.
 fn init_advice(e: mcl::MclError) -> anyhow::Error {
@@ -271,30 +207,6 @@ fn init_advice(e: mcl::MclError) -> anyhow::Error {
 
 fn parse_pose(s: &str) -> anyhow::Result<Pose> {
     rgbd::parse_tum_pose(s).map_err(|e| anyhow::anyhow!("--init-pose {s:?}: {e}"))
-}
-
-fn noisy_odometry(
-    gt: &[Pose],
-    sigma_m: f64,
-    sigma_deg: f64,
-    seed: u64,
-) -> anyhow::Result<Vec<Pose>> {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x0d0);
-    let t = Normal::new(0.0, sigma_m).context("--odom-noise-m")?;
-    let r = Normal::new(0.0, sigma_deg.to_radians()).context("--odom-noise-deg")?;
-    let mut out = Vec::with_capacity(gt.len());
-    let mut acc = gt[0];
-    out.push(acc);
-    for w in gt.windows(2) {
-        let inc = w[0].inverse() * w[1];
-        let noise = Pose::from_parts(
-            Vector3::new(t.sample(&mut rng), t.sample(&mut rng), t.sample(&mut rng)).into(),
-            UnitQuaternion::from_scaled_axis(Vector3::new(0.0, r.sample(&mut rng), 0.0)),
-        );
-        acc = acc * inc * noise;
-        out.push(acc);
-    }
-    Ok(out)
 }
 
 fn word_features(
@@ -376,7 +288,8 @@ impl Inputs {
 }
 
 pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
-    let m: LanguageMap = map::load(&a.map)?;
+    let shared = Arc::new(SharedMap::new("map", map::load(&a.map)?)?);
+    let m = shared.map();
     let d = &a.sequence;
     let mut image = super::encoders::ImageSource::open(&a.encoder)?;
     let is_kitti = d.join("calib.txt").exists();
@@ -432,17 +345,9 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             m.db().dim()
         );
     }
-    let map_row: Vec<u32> = match &table {
-        Some(t) => (0..t.ids.len())
-            .map(|r| {
-                m.db()
-                    .nearest(&t.data[r * t.dim..(r + 1) * t.dim])
-                    .ok()
-                    .flatten()
-                    .map_or(0, |(i, _)| i as u32)
-            })
-            .collect(),
-        None => Vec::new(),
+    let table = match table {
+        Some(t) => Some(LabelTable::new(t, m)?),
+        None => None,
     };
     let odom_file = a.odometry.clone().or_else(|| {
         let p = d.join("odometry.txt");
@@ -464,13 +369,19 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
                 None => poses.to_vec(),
             }
         }
-        (None, Some(g), Some(_)) => {
-            // The authors' form: noise on camera x and z and on yaw about
-            // camera y, every frame, accumulated.
+        (None, Some(g), kitti) => {
+            // The library's one definition of noisy odometry: noise on
+            // camera x and z and on yaw about camera y, every frame,
+            // accumulated (the authors' form).
+            let default_deg = if kitti.is_some() {
+                0.1f64.to_degrees()
+            } else {
+                6.0
+            };
             let cfg = omcl::sim::paths::OdometryConfig {
                 seed: a.seed ^ 0x0d0,
                 sigma_t: a.odom_noise_m,
-                sigma_r_deg: a.odom_noise_deg.unwrap_or(0.1f64.to_degrees()),
+                sigma_r_deg: a.odom_noise_deg.unwrap_or(default_deg),
                 drift_scale: 1.0,
             };
             ensure!(
@@ -479,12 +390,6 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             );
             omcl::sim::paths::odometry(g.poses(), &[], &cfg)
         }
-        (None, Some(g), None) => noisy_odometry(
-            g.poses(),
-            a.odom_noise_m,
-            a.odom_noise_deg.unwrap_or(6.0),
-            a.seed,
-        )?,
         (None, None, _) => bail!(
             "{}: no odometry: pass --odometry FILE, or provide poses.txt to make it from ground truth",
             d.display()
@@ -509,36 +414,30 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         );
     }
 
-    let mut rng = ChaCha8Rng::seed_from_u64(a.seed);
     let floor_params = FloorParams::default();
     let floor_feature = || -> anyhow::Result<Vec<f32>> {
         let t = table
             .as_ref()
             .context("global and prompt initialization need classes.txt with \"floor\"")?;
-        Ok(word_features(t, "floor", classes)?.remove(0))
+        Ok(word_features(t.table(), "floor", classes)?.remove(0))
     };
     let init_sigma_deg =
         a.init_sigma_deg
             .unwrap_or(if is_kitti { 0.1f64.to_degrees() } else { 17.0 });
-    let particles = match a.init {
+    let start = match a.init {
         InitArg::Local => {
             let pose = match (&a.init_pose, &gt) {
                 (Some(s), _) => parse_pose(s)?,
                 (None, Some(g)) => g.poses()[0],
                 (None, None) => bail!("--init local needs --init-pose or a poses.txt"),
             };
-            mcl::local_init(
-                &pose,
-                a.particles,
-                a.init_sigma_m,
-                init_sigma_deg.to_radians(),
-                &mut rng,
-            )
+            Start::Pose {
+                pose,
+                sigma_m: a.init_sigma_m,
+                sigma_rad: init_sigma_deg.to_radians(),
+            }
         }
-        InitArg::Global => {
-            mcl::global_init(&m, &floor_feature()?, &floor_params, a.particles, &mut rng)
-                .map_err(init_advice)?
-        }
+        InitArg::Global => Start::Global,
         InitArg::Prompt => {
             let words = a
                 .prompt
@@ -547,24 +446,20 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             let t = table
                 .as_ref()
                 .context("--init prompt needs classes.txt and embeddings.npy")?;
-            let w = word_features(t, words, classes)?;
-            mcl::prompt_init(
-                &m,
-                &floor_feature()?,
-                &w,
-                &floor_params,
-                &PromptParams {
+            Start::Prompt {
+                words: word_features(t.table(), words, classes)?,
+                params: PromptParams {
                     radius: a.prompt_radius,
                     rho: a.prompt_rho,
                     k: a.prompt_k,
                     ..PromptParams::default()
                 },
-                a.particles,
-                &mut rng,
-            )
-            .map_err(init_advice)
-            .with_context(|| format!("prompt {words:?}"))?
+            }
         }
+    };
+    let floor_feature = match (a.init, a.recovery) {
+        (InitArg::Local, false) => None,
+        _ => Some(floor_feature()?),
     };
     let mut config = FilterConfig {
         seed: a.seed,
@@ -600,17 +495,30 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     if a.recovery {
         config.recovery = Some(mcl::recovery::RecoveryParams::default());
     }
-    let caster = Arc::new(SensorModel::embree_caster(
-        m.grid().resolution as f32,
-        &m.cells(),
-    )?);
-    let mut filter = Filter::new(&m, caster, k, config, particles)?;
-    if a.recovery {
-        let floor = mcl::init::floor_voxels(&m, &floor_feature()?, floor_params.rho)
-            .map_err(init_advice)
-            .context("--recovery injects poses over the floor")?;
-        filter = filter.with_injection(FloorSampler::new(&m, &floor, floor_params));
-    }
+    let session_config = SessionConfig {
+        intrinsics: k,
+        particles: a.particles,
+        filter: config,
+        floor: floor_params,
+        floor_feature,
+    };
+    let mut session =
+        Session::new(shared.clone(), session_config, &start).map_err(|e| match e {
+            SessionError::Init(e) => match &a.prompt {
+                Some(words) if matches!(a.init, InitArg::Prompt) => {
+                    init_advice(e).context(format!("prompt {words:?}"))
+                }
+                _ => init_advice(e),
+            },
+            SessionError::Recovery(e) => {
+                init_advice(e).context("--recovery injects poses over the floor")
+            }
+            e => e.into(),
+        })?;
+    let stamps: Vec<f64> = match &gt {
+        Some(g) => g.stamps()[..n].to_vec(),
+        None => (0..n).map(|i| i as f64).collect(),
+    };
 
     let mut estimates = Vec::with_capacity(n);
     let mut diag = String::from(
@@ -621,15 +529,11 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     let (mut filter_s, mut input_s) = (0.0f64, 0.0f64);
     let pb = super::progress::bar(n as u64, "localizing");
     for i in 0..n {
-        let inc = if i == 0 {
-            Pose::identity()
-        } else {
-            odom[i - 1].inverse() * odom[i]
-        };
         let labels_frame = table.as_ref().filter(|_| !a.use_features);
         let t_in = std::time::Instant::now();
         let input: f64;
-        let report = if let Some(src) = image.as_mut() {
+        let (odom_i, stamp) = (&odom[i], stamps[i]);
+        let r = if let Some(src) = image.as_mut() {
             let p = inputs.rgb_dir.join(format!("{i:06}.png"));
             let fm = src.encode(&p, i)?;
             input = t_in.elapsed().as_secs_f64();
@@ -638,22 +542,17 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
                 width: k.width,
                 height: k.height,
             };
-            filter
-                .step(&inc, &f)
+            session
+                .step(odom_i, stamp, &f)
                 .with_context(|| format!("frame {i} ({})", p.display()))?
         } else if let Some(t) = labels_frame {
             let p = inputs.labels_dir.join(format!("{i:06}.png"));
             let (w, h, labels) = rgbd::read_label_png(&p)?;
             input = t_in.elapsed().as_secs_f64();
-            let f = LabelFrame {
-                width: w,
-                height: h,
-                labels,
-                table: t,
-                map_row: &map_row,
-            };
-            filter
-                .step(&inc, &f)
+            let f = LabelFrame::new(w, h, &labels, t)
+                .with_context(|| format!("frame {i} ({})", p.display()))?;
+            session
+                .step(odom_i, stamp, &f)
                 .with_context(|| format!("frame {i} ({})", p.display()))?
         } else {
             let p = inputs.features_dir.join(format!("{i:06}.npy"));
@@ -665,18 +564,14 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
                 p.display(),
                 arr.shape
             );
-            let f = NpyFrame {
-                width: k.width,
-                height: k.height,
-                h: arr.shape[0],
-                w: arr.shape[1],
-                dim: arr.shape[2],
-                data: arr.data,
-            };
-            filter
-                .step(&inc, &f)
+            let shape = [arr.shape[0], arr.shape[1], arr.shape[2]];
+            let f = omcl::session::feature_grid(k.width, k.height, shape, &arr.data)
+                .with_context(|| format!("frame {i} ({})", p.display()))?;
+            session
+                .step(odom_i, stamp, &f)
                 .with_context(|| format!("frame {i} ({})", p.display()))?
         };
+        let report = &r.step;
         let t = &report.timings;
         let step = (t.features + t.predict + t.weigh + t.update).as_secs_f64();
         filter_s += step;
@@ -696,10 +591,6 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         pb.inc(1);
     }
     pb.finish_and_clear();
-    let stamps: Vec<f64> = match &gt {
-        Some(g) => g.stamps()[..n].to_vec(),
-        None => (0..n).map(|i| i as f64).collect(),
-    };
     let est = Trajectory::new(stamps.clone(), estimates)?;
     let metric = gt
         .as_ref()
@@ -769,9 +660,9 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         if let Some(p) = &a.plot {
             let floor = table
                 .as_ref()
-                .and_then(|t| word_features(t, "floor", classes).ok())
+                .and_then(|t| word_features(t.table(), "floor", classes).ok())
                 .and_then(|mut w| w.pop());
-            let plan = omcl::plot::FloorPlan::from_map(&m, floor.as_deref(), 0.9);
+            let plan = omcl::plot::FloorPlan::from_map(m, floor.as_deref(), 0.9);
             let xy = |t: &Trajectory| -> Vec<[f64; 2]> {
                 t.poses()
                     .iter()

@@ -10,6 +10,7 @@ pub mod localize;
 pub mod map;
 pub mod map_build;
 pub mod progress;
+pub mod serve;
 pub mod sim;
 pub mod sweep;
 
@@ -41,6 +42,9 @@ pub enum Command {
     Eval(eval::EvalCommand),
     /// Localize a camera sequence in a map with the particle filter.
     Localize(Box<localize::LocalizeArgs>),
+    /// Serve localization to many cameras at once over gRPC (+ HTTP control
+    /// plane), maps loaded once.
+    Serve(Box<serve::ServeArgs>),
     /// Synthetic worlds and sensor data in real datasets' layouts.
     #[command(subcommand)]
     Sim(sim::SimCommand),
@@ -58,6 +62,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Encode(cmd) => encode::run(cmd),
         Command::Eval(cmd) => eval::run(cmd),
         Command::Localize(a) => localize::run(*a),
+        Command::Serve(a) => serve::run(*a),
         Command::Sim(cmd) => sim::run(cmd),
         Command::Sweep(cmd) => sweep::run(cmd),
     }

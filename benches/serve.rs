@@ -1,0 +1,208 @@
+//! Load benchmark of `omcl serve` on loopback: aggregate filter steps per
+//! second and p50 / p99 step latency (client side, request to answer) for
+//! 1, 4, 16 and 64 concurrent sessions on one map, against the rate of the
+//! single-process `omcl localize` on the same frames; and the server's
+//! resident memory per extra session.
+//!
+//! `cargo bench --bench serve` (about a minute). Every session is a closed
+//! loop (the next frame is sent when the previous one is answered), so no
+//! frame is dropped and the pool is always busy; each session first tracks
+//! 10 untimed frames, then each level runs for
+//! OMCL_BENCH_SECONDS (default 6) and then stops. Sizes: a 160 x 120
+//! camera, the map at 5 cm, 1024 particles and 2048 sampled pixels (the
+//! paper's), labels as frames.
+
+#[path = "../tests/serve_common/mod.rs"]
+mod serve_common;
+
+use std::time::{Duration, Instant};
+
+use serve_common::*;
+
+use omcl::serve::proto;
+
+const WIDTH: u32 = 160;
+const HEIGHT: u32 = 120;
+const SEQ_FRAMES: usize = 40;
+const BENCH_PARTICLES: u32 = 1024;
+const BENCH_RAYS: u32 = 2048;
+/// Untimed frames each session tracks before its level is measured.
+const WARMUP: usize = 10;
+
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    let i = ((sorted.len() as f64 - 1.0) * p).round() as usize;
+    sorted[i.min(sorted.len() - 1)]
+}
+
+/// Frame `i` of an endless walk along the sequence and back (ping-pong),
+/// so that the odometry never jumps and the filter keeps tracking.
+fn ping_pong(i: usize, n: usize) -> usize {
+    let k = i % (2 * n - 2);
+    if k < n { k } else { 2 * n - 2 - k }
+}
+
+fn load() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_default()
+}
+
+/// `omcl localize`'s own filter rate on the fixture.
+fn cli_rate(f: &Fixture) -> f64 {
+    let out = f.dir.path().join("est.txt");
+    let r = omcl(&[
+        "localize",
+        "--map",
+        f.map.to_str().unwrap(),
+        "--sequence",
+        f.seq.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--particles",
+        &BENCH_PARTICLES.to_string(),
+        "--rays",
+        &BENCH_RAYS.to_string(),
+    ]);
+    assert!(r.status.success(), "{r:?}");
+    let text = String::from_utf8_lossy(&r.stdout);
+    let cli_rate: f64 = text
+        .split(" filter steps/s")
+        .next()
+        .and_then(|s| s.split_whitespace().last())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no rate in {text:?}"));
+    println!(
+        "omcl localize: {cli_rate:.1} filter steps/s ({WIDTH}x{HEIGHT}, {BENCH_PARTICLES} \
+         particles, {BENCH_RAYS} rays, {SEQ_FRAMES} frames); load average {}",
+        load()
+    );
+    cli_rate
+}
+
+fn main() {
+    let secs: f64 = std::env::var("OMCL_BENCH_SECONDS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(6.0);
+    let f = Fixture::sized(WIDTH, HEIGHT, SEQ_FRAMES, 3, "0.05", &[]);
+    let cli_before = cli_rate(&f);
+
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    let threads = std::thread::available_parallelism().map_or(2, |n| n.get());
+    let server = Server::start(&f, &["--threads", &threads.to_string()]);
+    let frames: Vec<proto::Frame> = (0..SEQ_FRAMES).map(|i| f.frame("", i)).collect();
+    println!(
+        "| sessions | steps/s (all) | vs CLI | p50 ms | p99 ms | filter step ms (mean) | \
+         server cores used | steps per server CPU-second | server RSS MiB | load average |\n\
+         |---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"
+    );
+    let mut rss_one = 0u64;
+    // OMCL_BENCH_SESSIONS="1,4" picks levels (default 1, 4, 16, 64).
+    let levels: Vec<usize> = std::env::var("OMCL_BENCH_SESSIONS")
+        .ok()
+        .map(|v| v.split(',').filter_map(|x| x.trim().parse().ok()).collect())
+        .unwrap_or_else(|| vec![1, 4, 16, 64]);
+    for n in levels {
+        let (cores_used, per_cpu_s, step_ms, rate, p50, p99, rss) = rt.block_on(async {
+            let mut c = server.client(Auth::good()).await;
+            let mut ids = Vec::new();
+            for s in 0..n {
+                let mut req = f.create(s as u64);
+                req.particles = Some(BENCH_PARTICLES);
+                req.rays = Some(BENCH_RAYS);
+                ids.push(c.create_session(req).await.unwrap().into_inner().session_id);
+            }
+            // Every session first tracks WARMUP frames, untimed: a step
+            // costs more while the particles are still spread, and the
+            // levels would otherwise compare young filters with old ones.
+            let mut warm = Vec::new();
+            for id in &ids {
+                let mut c = c.clone();
+                let id = id.clone();
+                let frames = frames.clone();
+                warm.push(tokio::spawn(async move {
+                    for f in frames.iter().take(WARMUP) {
+                        let mut fr = f.clone();
+                        fr.session_id = id.clone();
+                        c.localize(fr).await.unwrap();
+                    }
+                }));
+            }
+            for w in warm {
+                w.await.unwrap();
+            }
+            let cpu0 = server.cpu_seconds();
+            let t0 = Instant::now();
+            let stop = t0 + Duration::from_secs_f64(secs);
+            let mut tasks = Vec::new();
+            for id in &ids {
+                let mut c = c.clone();
+                let id = id.clone();
+                let frames = frames.clone();
+                tasks.push(tokio::spawn(async move {
+                    let mut lat = Vec::new();
+                    let mut i = WARMUP;
+                    while Instant::now() < stop {
+                        let mut fr = frames[ping_pong(i, frames.len())].clone();
+                        fr.session_id = id.clone();
+                        let t = Instant::now();
+                        let u = c.localize(fr).await.unwrap().into_inner();
+                        lat.push((t.elapsed().as_secs_f64() * 1e3, u.step_ms));
+                        i += 1;
+                    }
+                    lat
+                }));
+            }
+            let mut lat = Vec::new();
+            for t in tasks {
+                lat.extend(t.await.unwrap());
+            }
+            let elapsed = t0.elapsed().as_secs_f64();
+            let cpu = server.cpu_seconds() - cpu0;
+            let rss = server.rss();
+            for id in ids {
+                c.close_session(proto::CloseSessionRequest { session_id: id })
+                    .await
+                    .unwrap();
+            }
+            let step_ms = lat.iter().map(|l| l.1).sum::<f64>() / lat.len() as f64;
+            let mut lat: Vec<f64> = lat.into_iter().map(|l| l.0).collect();
+            lat.sort_by(|a, b| a.total_cmp(b));
+            (
+                cpu / elapsed,
+                lat.len() as f64 / cpu,
+                step_ms,
+                lat.len() as f64 / elapsed,
+                percentile(&lat, 0.5),
+                percentile(&lat, 0.99),
+                rss,
+            )
+        });
+        if n == 1 {
+            rss_one = rss;
+        }
+        println!(
+            "| {n} | {rate:.1} | {:.0} % | {p50:.1} | {p99:.1} | {step_ms:.1} | {cores_used:.2} | \
+             {per_cpu_s:.1} | {:.1} | {} |",
+            100.0 * rate / cli_before,
+            rss as f64 / (1 << 20) as f64,
+            load()
+        );
+        if n == 64 && rss_one > 0 {
+            let per = (rss.saturating_sub(rss_one)) as f64 / 63.0 / (1 << 20) as f64;
+            println!(
+                "memory per extra session: {per:.2} MiB (RSS at 64 sessions minus at 1, / 63)"
+            );
+        }
+    }
+    drop(server);
+    let cli_after = cli_rate(&f);
+    println!(
+        "vs CLI: against the CLI's rate before the server ran ({cli_before:.1}); after it: \
+         {cli_after:.1}"
+    );
+}

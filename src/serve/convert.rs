@@ -1,0 +1,326 @@
+//! Between the wire's messages and the library's types, with the checks
+//! that turn malformed input into named INVALID_ARGUMENT answers.
+
+use std::time::{Duration, Instant};
+
+use nalgebra::{Quaternion, Translation3, UnitQuaternion};
+use tonic::{Code, Status};
+
+use crate::geometry::{Intrinsics, Pose};
+use crate::mcl::{Particle, PromptParams};
+use crate::session::{PoseReport, SharedMap, Start};
+
+use super::proto;
+
+/// The paper's initial spread when a covariance does not give one.
+pub const DEFAULT_INIT_SIGMA_M: f64 = 0.3;
+pub const DEFAULT_INIT_SIGMA_DEG: f64 = 17.0;
+
+pub fn pose_msg(p: &Pose) -> proto::Pose {
+    let t = p.translation.vector;
+    let q = p.rotation.coords;
+    proto::Pose {
+        position: Some(proto::Point {
+            x: t.x,
+            y: t.y,
+            z: t.z,
+        }),
+        orientation: Some(proto::Quaternion {
+            x: q.x,
+            y: q.y,
+            z: q.z,
+            w: q.w,
+        }),
+    }
+}
+
+/// A pose from the wire: every number finite, the quaternion of unit
+/// length within 1e-3 (then normalized).
+pub fn pose_from_msg(p: Option<&proto::Pose>, what: &str) -> Result<Pose, Status> {
+    let p = p.ok_or_else(|| Status::invalid_argument(format!("{what}: missing")))?;
+    let (Some(t), Some(q)) = (&p.position, &p.orientation) else {
+        return Err(Status::invalid_argument(format!(
+            "{what}: needs position and orientation"
+        )));
+    };
+    let v = [t.x, t.y, t.z, q.x, q.y, q.z, q.w];
+    if !v.iter().all(|x| x.is_finite()) {
+        return Err(Status::invalid_argument(format!(
+            "{what} is not finite: position ({}, {}, {}), orientation (x y z w) ({}, {}, {}, {})",
+            v[0], v[1], v[2], v[3], v[4], v[5], v[6]
+        )));
+    }
+    let quat = Quaternion::new(q.w, q.x, q.y, q.z);
+    let n = quat.norm();
+    if (n - 1.0).abs() > 1e-3 {
+        return Err(Status::invalid_argument(format!(
+            "{what}: orientation is not a unit quaternion (norm {n})"
+        )));
+    }
+    Ok(Pose::from_parts(
+        Translation3::new(t.x, t.y, t.z),
+        UnitQuaternion::from_quaternion(quat),
+    ))
+}
+
+pub fn seconds(t: Option<&proto::Time>) -> f64 {
+    t.map_or(0.0, |t| t.sec as f64 + 1e-9 * t.nanosec as f64)
+}
+
+/// The status code's name as gRPC spells it.
+pub fn code_name(c: Code) -> &'static str {
+    match c {
+        Code::Ok => "OK",
+        Code::Cancelled => "CANCELLED",
+        Code::Unknown => "UNKNOWN",
+        Code::InvalidArgument => "INVALID_ARGUMENT",
+        Code::DeadlineExceeded => "DEADLINE_EXCEEDED",
+        Code::NotFound => "NOT_FOUND",
+        Code::AlreadyExists => "ALREADY_EXISTS",
+        Code::PermissionDenied => "PERMISSION_DENIED",
+        Code::ResourceExhausted => "RESOURCE_EXHAUSTED",
+        Code::FailedPrecondition => "FAILED_PRECONDITION",
+        Code::Aborted => "ABORTED",
+        Code::OutOfRange => "OUT_OF_RANGE",
+        Code::Unimplemented => "UNIMPLEMENTED",
+        Code::Internal => "INTERNAL",
+        Code::Unavailable => "UNAVAILABLE",
+        Code::DataLoss => "DATA_LOSS",
+        Code::Unauthenticated => "UNAUTHENTICATED",
+    }
+}
+
+pub fn frame_error(s: &Status, stamp: Option<proto::Time>) -> proto::FrameError {
+    proto::FrameError {
+        code: code_name(s.code()).into(),
+        message: s.message().into(),
+        header: Some(proto::Header {
+            stamp,
+            frame_id: String::new(),
+        }),
+    }
+}
+
+pub fn pose_update(
+    r: &PoseReport,
+    frame_id: &str,
+    stamp: Option<proto::Time>,
+    dropped: u64,
+    latency: Duration,
+    particles: Option<proto::ParticleCloud>,
+) -> proto::PoseUpdate {
+    let t = &r.step.timings;
+    let step = t.features + t.predict + t.weigh + t.update;
+    proto::PoseUpdate {
+        pose: Some(proto::PoseWithCovarianceStamped {
+            header: Some(proto::Header {
+                stamp,
+                frame_id: frame_id.into(),
+            }),
+            pose: Some(proto::PoseWithCovariance {
+                pose: Some(pose_msg(&r.pose)),
+                covariance: r.covariance.to_vec(),
+            }),
+        }),
+        confidence: r.step.confidence,
+        ess: r.step.ess,
+        spread_m: r.step.spread,
+        frame: r.frame,
+        frames_dropped: dropped,
+        step_ms: 1e3 * step.as_secs_f64(),
+        latency_ms: 1e3 * latency.as_secs_f64(),
+        particles,
+    }
+}
+
+pub fn particle_cloud(ps: &[Particle], frame_id: &str, frame: &FrameInput) -> proto::ParticleCloud {
+    proto::ParticleCloud {
+        header: Some(proto::Header {
+            stamp: frame.stamp_msg,
+            frame_id: frame_id.into(),
+        }),
+        particles: ps
+            .iter()
+            .map(|p| proto::Particle {
+                pose: Some(pose_msg(&p.pose)),
+                weight: p.weight,
+            })
+            .collect(),
+    }
+}
+
+/// A start around a pose: standard deviations from the covariance's x and
+/// yaw entries (indices 0 and 35), the paper's defaults where they are 0.
+pub fn initial_pose(p: &proto::PoseWithCovarianceStamped) -> Result<Start, Status> {
+    let pc = p
+        .pose
+        .as_ref()
+        .ok_or_else(|| Status::invalid_argument("initial pose: missing pose"))?;
+    let pose = pose_from_msg(pc.pose.as_ref(), "initial pose")?;
+    let c = &pc.covariance;
+    if !(c.is_empty() || c.len() == 36) {
+        return Err(Status::invalid_argument(format!(
+            "initial pose: covariance has {} entries, expected 36 (or none)",
+            c.len()
+        )));
+    }
+    let var = |i: usize| c.get(i).copied().unwrap_or(0.0);
+    let (vx, vyaw) = (var(0), var(35));
+    if !(vx.is_finite() && vx >= 0.0 && vyaw.is_finite() && vyaw >= 0.0) {
+        return Err(Status::invalid_argument(format!(
+            "initial pose: variances must be finite and >= 0, got x {vx}, yaw {vyaw}"
+        )));
+    }
+    Ok(Start::Pose {
+        pose,
+        sigma_m: if vx > 0.0 {
+            vx.sqrt()
+        } else {
+            DEFAULT_INIT_SIGMA_M
+        },
+        sigma_rad: if vyaw > 0.0 {
+            vyaw.sqrt()
+        } else {
+            DEFAULT_INIT_SIGMA_DEG.to_radians()
+        },
+    })
+}
+
+/// A prompt start: the words looked up in the map's class table.
+pub fn prompt(p: &proto::PromptStart, map: &SharedMap) -> Result<Start, Status> {
+    let classes = map.classes().ok_or_else(|| {
+        Status::failed_precondition(format!(
+            "map {:?} has no class table: prompt words cannot be looked up",
+            map.name()
+        ))
+    })?;
+    if p.words.is_empty() {
+        return Err(Status::invalid_argument("prompt: no words"));
+    }
+    let words = p
+        .words
+        .iter()
+        .map(|w| {
+            classes.word(w.trim()).map(<[f32]>::to_vec).ok_or_else(|| {
+                Status::invalid_argument(format!(
+                    "prompt word {w:?} is not a class of map {:?}",
+                    map.name()
+                ))
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let d = PromptParams::default();
+    Ok(Start::Prompt {
+        words,
+        params: PromptParams {
+            radius: p.radius.unwrap_or(d.radius),
+            rho: p.rho.unwrap_or(d.rho),
+            k: p.k.unwrap_or(d.k),
+            ..d
+        },
+    })
+}
+
+/// A frame checked against its session, ready for the pool.
+pub struct FrameInput {
+    pub odom: Pose,
+    pub stamp: f64,
+    pub stamp_msg: Option<proto::Time>,
+    pub features: Features,
+    pub want_particles: bool,
+    pub received: Instant,
+}
+
+pub enum Features {
+    Grid {
+        shape: [usize; 3],
+        data: Vec<f32>,
+    },
+    Labels {
+        width: u32,
+        height: u32,
+        labels: Vec<u32>,
+    },
+}
+
+/// A frame checked against its session: sizes, dimensions, odometry.
+pub fn frame_input(f: proto::Frame, k: &Intrinsics, map: &SharedMap) -> Result<FrameInput, Status> {
+    let received = Instant::now();
+    let odom = pose_from_msg(f.odometry.as_ref(), "odometry")?;
+    let stamp_msg = f.header.as_ref().and_then(|h| h.stamp);
+    let dim = map.map().db().dim();
+    let features = match f.features {
+        Some(proto::frame::Features::Grid(g)) => {
+            let shape = [g.height as usize, g.width as usize, g.dim as usize];
+            if g.dim as usize != dim {
+                return Err(Status::invalid_argument(format!(
+                    "feature dimension {} does not match map {:?}'s {dim}",
+                    g.dim,
+                    map.name()
+                )));
+            }
+            if shape.contains(&0) {
+                return Err(Status::invalid_argument(format!(
+                    "feature grid of {}x{}x{}: every size must be above 0",
+                    g.height, g.width, g.dim
+                )));
+            }
+            let want = shape[0] * shape[1] * shape[2];
+            if g.data.len() != want {
+                return Err(Status::invalid_argument(format!(
+                    "feature grid of {}x{}x{} needs {want} values, got {}",
+                    g.height,
+                    g.width,
+                    g.dim,
+                    g.data.len()
+                )));
+            }
+            if let Some(i) = g.data.iter().position(|x| !x.is_finite()) {
+                return Err(Status::invalid_argument(format!(
+                    "feature grid value {i} is not finite"
+                )));
+            }
+            Features::Grid {
+                shape,
+                data: g.data,
+            }
+        }
+        Some(proto::frame::Features::Labels(l)) => {
+            if (l.width, l.height) != (k.width, k.height) {
+                return Err(Status::invalid_argument(format!(
+                    "label image is {}x{} pixels, the session's camera {}x{}",
+                    l.width, l.height, k.width, k.height
+                )));
+            }
+            if l.labels.len() != l.width as usize * l.height as usize {
+                return Err(Status::invalid_argument(format!(
+                    "label image of {}x{} pixels needs {} labels, got {}",
+                    l.width,
+                    l.height,
+                    l.width as usize * l.height as usize,
+                    l.labels.len()
+                )));
+            }
+            if map.classes().is_none() {
+                return Err(Status::failed_precondition(format!(
+                    "map {:?} has no class table for label images (serve it with --classes)",
+                    map.name()
+                )));
+            }
+            Features::Labels {
+                width: l.width,
+                height: l.height,
+                labels: l.labels,
+            }
+        }
+        None => return Err(Status::invalid_argument("frame without features")),
+    };
+    Ok(FrameInput {
+        odom,
+        stamp: seconds(stamp_msg.as_ref()),
+        stamp_msg,
+        features,
+        want_particles: f.want_particles,
+        received,
+    })
+}

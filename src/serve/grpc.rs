@@ -1,0 +1,270 @@
+//! The gRPC service: thin handlers over [`State`]. Handlers never run a
+//! filter step or an initialization themselves; those go to the compute
+//! pool.
+
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+
+use tokio::sync::{mpsc, oneshot};
+use tokio_stream::wrappers::ReceiverStream;
+use tonic::metadata::MetadataMap;
+use tonic::{Request, Response, Status, Streaming};
+
+use crate::geometry::Intrinsics;
+use crate::mcl::FilterConfig;
+use crate::session::{Session, SessionConfig, Start};
+
+use super::auth::{MISPLACED, Token};
+use super::convert;
+use super::proto::{self, localization_server::Localization};
+use super::state::{Reply, State};
+
+pub struct Service {
+    pub state: Arc<State>,
+}
+
+/// The bearer-token check of every gRPC call, as a tonic interceptor (a
+/// tower layer in front of the service): refused calls never reach a
+/// handler.
+pub fn interceptor(
+    state: Arc<State>,
+    token: Token,
+) -> impl FnMut(Request<()>) -> Result<Request<()>, Status> + Clone {
+    move |req: Request<()>| {
+        if state.shutting_down.load(Ordering::Relaxed) {
+            state.metrics.reject("shutting_down");
+            return Err(Status::unavailable("the server is shutting down"));
+        }
+        let md: &MetadataMap = req.metadata();
+        let value = md.get("authorization").map(|v| v.as_bytes());
+        let elsewhere = MISPLACED.iter().find(|k| md.contains_key(**k)).copied();
+        match token.check(value, elsewhere) {
+            Ok(()) => Ok(req),
+            Err(e) => {
+                state.metrics.reject("unauthenticated");
+                Err(Status::unauthenticated(e.to_string()))
+            }
+        }
+    }
+}
+
+fn camera(c: Option<&proto::CameraInfo>) -> Result<Intrinsics, Status> {
+    let c = c.ok_or_else(|| Status::invalid_argument("camera: missing"))?;
+    let ok = [c.fx, c.fy, c.cx, c.cy].iter().all(|v| v.is_finite())
+        && c.fx > 0.0
+        && c.fy > 0.0
+        && c.width > 0
+        && c.height > 0
+        && c.width <= 16384
+        && c.height <= 16384;
+    if !ok {
+        return Err(Status::invalid_argument(format!(
+            "camera: fx, fy must be finite and > 0, width and height in 1..=16384; got {c:?}"
+        )));
+    }
+    Ok(Intrinsics {
+        fx: c.fx,
+        fy: c.fy,
+        cx: c.cx,
+        cy: c.cy,
+        width: c.width,
+        height: c.height,
+    })
+}
+
+#[tonic::async_trait]
+impl Localization for Service {
+    async fn list_maps(
+        &self,
+        _req: Request<proto::ListMapsRequest>,
+    ) -> Result<Response<proto::ListMapsResponse>, Status> {
+        Ok(Response::new(proto::ListMapsResponse {
+            maps: super::map_infos(&self.state),
+        }))
+    }
+
+    async fn list_sessions(
+        &self,
+        _req: Request<proto::ListSessionsRequest>,
+    ) -> Result<Response<proto::ListSessionsResponse>, Status> {
+        Ok(Response::new(proto::ListSessionsResponse {
+            sessions: super::session_infos(&self.state),
+        }))
+    }
+
+    async fn create_session(
+        &self,
+        req: Request<proto::CreateSessionRequest>,
+    ) -> Result<Response<proto::CreateSessionResponse>, Status> {
+        let r = req.into_inner();
+        let map = self.state.map(&r.map)?.clone();
+        let intrinsics = camera(r.camera.as_ref())?;
+        let particles = r.particles.unwrap_or(1024) as usize;
+        if !(1..=1_000_000).contains(&particles) {
+            return Err(Status::invalid_argument(format!(
+                "particles: {particles}, expected 1..=1000000"
+            )));
+        }
+        let rays = r.rays.unwrap_or(2048) as usize;
+        if !(1..=1_000_000).contains(&rays) {
+            return Err(Status::invalid_argument(format!(
+                "rays: {rays}, expected 1..=1000000"
+            )));
+        }
+        let start = match &r.start {
+            Some(proto::create_session_request::Start::InitialPose(p)) => convert::initial_pose(p)?,
+            Some(proto::create_session_request::Start::Global(_)) => Start::Global,
+            Some(proto::create_session_request::Start::Prompt(p)) => convert::prompt(p, &map)?,
+            None => {
+                return Err(Status::invalid_argument(
+                    "start: give initial_pose, global or prompt",
+                ));
+            }
+        };
+        let mut filter = FilterConfig {
+            seed: r.seed,
+            ..FilterConfig::default()
+        };
+        filter.sampling.rays = rays;
+        if r.recovery {
+            filter.recovery = Some(crate::mcl::recovery::RecoveryParams::default());
+        }
+        let config = SessionConfig {
+            intrinsics,
+            particles,
+            filter,
+            floor: crate::mcl::FloorParams::default(),
+            floor_feature: map
+                .classes()
+                .and_then(|c| c.word("floor"))
+                .map(<[f32]>::to_vec),
+        };
+        let m = map.clone();
+        let session = self
+            .state
+            .on_pool(move || Session::new(m, config, &start))
+            .await?
+            .map_err(|e| super::state::status_of(&e))?;
+        let frame_id = if r.frame_id.is_empty() {
+            "map".to_string()
+        } else {
+            r.frame_id
+        };
+        let id = self.state.add_session(map, session, frame_id)?;
+        Ok(Response::new(proto::CreateSessionResponse {
+            session_id: id,
+        }))
+    }
+
+    async fn close_session(
+        &self,
+        req: Request<proto::CloseSessionRequest>,
+    ) -> Result<Response<proto::CloseSessionResponse>, Status> {
+        let slot = self.state.remove_session(&req.get_ref().session_id)?;
+        Ok(Response::new(proto::CloseSessionResponse {
+            frames: slot.frames(),
+        }))
+    }
+
+    async fn set_initial_pose(
+        &self,
+        req: Request<proto::SetInitialPoseRequest>,
+    ) -> Result<Response<proto::ReinitializeResponse>, Status> {
+        let r = req.into_inner();
+        let slot = self.state.session(&r.session_id)?;
+        let pose = r
+            .pose
+            .as_ref()
+            .ok_or_else(|| Status::invalid_argument("pose: missing"))?;
+        let start = convert::initial_pose(pose)?;
+        slot.touch();
+        self.state
+            .with_session(slot, move |s| s.reinitialize(&start))
+            .await?
+            .map_err(|e| super::state::status_of(&e))?;
+        Ok(Response::new(proto::ReinitializeResponse {}))
+    }
+
+    async fn global_localization(
+        &self,
+        req: Request<proto::GlobalLocalizationRequest>,
+    ) -> Result<Response<proto::ReinitializeResponse>, Status> {
+        let r = req.into_inner();
+        let slot = self.state.session(&r.session_id)?;
+        let start = match &r.prompt {
+            Some(p) if !p.words.is_empty() => convert::prompt(p, &slot.map)?,
+            _ => Start::Global,
+        };
+        slot.touch();
+        self.state
+            .with_session(slot, move |s| s.reinitialize(&start))
+            .await?
+            .map_err(|e| super::state::status_of(&e))?;
+        Ok(Response::new(proto::ReinitializeResponse {}))
+    }
+
+    async fn localize(
+        &self,
+        req: Request<proto::Frame>,
+    ) -> Result<Response<proto::PoseUpdate>, Status> {
+        let f = req.into_inner();
+        let slot = self.state.session(&f.session_id)?;
+        let input = convert::frame_input(f, &slot.camera(), &slot.map).inspect_err(|_| {
+            self.state.metrics.reject("invalid_frame");
+        })?;
+        let (tx, rx) = oneshot::channel();
+        self.state.submit(slot, input, Reply::Unary(tx));
+        match tokio::time::timeout(self.state.limits.deadline, rx).await {
+            Ok(Ok(answer)) => answer.map(Response::new),
+            Ok(Err(_)) => Err(Status::internal("the step's answer was lost")),
+            Err(_) => Err(Status::deadline_exceeded(format!(
+                "no pose within the server's deadline of {:?}",
+                self.state.limits.deadline
+            ))),
+        }
+    }
+
+    type StreamStream = ReceiverStream<Result<proto::StreamResponse, Status>>;
+
+    async fn stream(
+        &self,
+        req: Request<Streaming<proto::Frame>>,
+    ) -> Result<Response<Self::StreamStream>, Status> {
+        let mut inbound = req.into_inner();
+        let (tx, rx) = mpsc::channel(self.state.limits.stream_buffer.max(1));
+        let state = self.state.clone();
+        tokio::spawn(async move {
+            loop {
+                let f = match inbound.message().await {
+                    Ok(Some(f)) => f,
+                    // End of the client's stream, or a transport error
+                    // (the client is gone).
+                    Ok(None) | Err(_) => break,
+                };
+                if state.shutting_down.load(Ordering::Relaxed) {
+                    let _ = tx
+                        .send(Err(Status::unavailable("the server is shutting down")))
+                        .await;
+                    break;
+                }
+                let stamp = f.header.as_ref().and_then(|h| h.stamp);
+                let checked = state.session(&f.session_id).and_then(|slot| {
+                    convert::frame_input(f, &slot.camera(), &slot.map).map(|i| (slot, i))
+                });
+                match checked {
+                    Ok((slot, input)) => state.submit(slot, input, Reply::Stream(tx.clone())),
+                    Err(s) => {
+                        state.metrics.reject("invalid_frame");
+                        let msg = proto::StreamResponse {
+                            result: Some(proto::stream_response::Result::Error(
+                                convert::frame_error(&s, stamp),
+                            )),
+                        };
+                        let _ = tx.try_send(Ok(msg));
+                    }
+                }
+            }
+        });
+        Ok(Response::new(ReceiverStream::new(rx)))
+    }
+}

@@ -1,0 +1,225 @@
+//! `omcl serve`: many cameras localized at once against maps loaded once.
+//!
+//! - gRPC ([`proto`], from `proto/omcl.proto`): unary calls for maps and
+//!   sessions, `Localize` (one frame, one pose) and `Stream` (frames in,
+//!   poses out) per session, nav2 AMCL's conventions;
+//! - HTTP ([`http`]): `/healthz`, `/readyz`, `/metrics`, `/v1/maps`,
+//!   `/v1/sessions`;
+//! - [`state`]: sessions, the bounded compute pool, latest-frame-wins
+//!   queues, caps and idle expiry;
+//! - [`auth`]: bearer tokens on every call but the health checks.
+//!
+//! Filter steps and initializations run on a dedicated rayon pool, never
+//! on the async runtime's threads.
+
+pub mod auth;
+pub mod compute;
+pub mod convert;
+pub mod grpc;
+pub mod http;
+pub mod metrics;
+pub mod state;
+
+/// Messages and the client and server stubs generated from
+/// `proto/omcl.proto`.
+#[allow(clippy::all, missing_docs)]
+pub mod proto {
+    tonic::include_proto!("omcl.v1");
+}
+
+use std::future::Future;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use tokio::net::TcpListener;
+use tokio_stream::StreamExt;
+use tokio_stream::wrappers::TcpListenerStream;
+
+use crate::session::SharedMap;
+
+pub use auth::Token;
+pub use state::{Limits, State};
+
+/// Errors that stop the server.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    #[error("binding {addr}: {source}")]
+    Bind {
+        addr: SocketAddr,
+        source: std::io::Error,
+    },
+    #[error("TLS: {0}")]
+    Tls(String),
+    #[error("gRPC server: {0}")]
+    Grpc(String),
+    #[error("HTTP server: {0}")]
+    Http(std::io::Error),
+    #[error("{0}")]
+    Setup(String),
+}
+
+/// PEM certificate chain and private key for gRPC over TLS.
+#[derive(Clone)]
+pub struct TlsFiles {
+    pub cert_pem: Vec<u8>,
+    pub key_pem: Vec<u8>,
+}
+
+pub struct ServeConfig {
+    pub grpc_addr: SocketAddr,
+    pub http_addr: SocketAddr,
+    pub token: Token,
+    pub limits: Limits,
+    pub tls: Option<TlsFiles>,
+    /// How long shutdown waits for in-flight calls and steps.
+    pub drain_timeout: Duration,
+}
+
+/// The addresses actually bound (port 0 picks one).
+#[derive(Debug, Clone, Copy)]
+pub struct Bound {
+    pub grpc: SocketAddr,
+    pub http: SocketAddr,
+}
+
+pub fn map_infos(state: &State) -> Vec<proto::MapInfo> {
+    let sessions = state.sessions();
+    state
+        .maps
+        .iter()
+        .map(|m| proto::MapInfo {
+            name: m.name().into(),
+            leaves: m.map().rows().len() as u64,
+            feature_rows: m.map().db().len() as u64,
+            feature_dim: m.map().db().dim() as u32,
+            resolution: m.map().grid().resolution,
+            classes: m
+                .classes()
+                .map(|c| c.table().names.clone())
+                .unwrap_or_default(),
+            sessions: sessions.iter().filter(|s| Arc::ptr_eq(&s.map, m)).count() as u32,
+        })
+        .collect()
+}
+
+pub fn session_infos(state: &State) -> Vec<proto::SessionInfo> {
+    state
+        .sessions()
+        .iter()
+        .map(|s| proto::SessionInfo {
+            session_id: s.id.clone(),
+            map: s.map.name().into(),
+            frames: s.frames(),
+            frames_dropped: s.frames_dropped.load(Ordering::Relaxed),
+            idle_s: s.idle().as_secs_f64(),
+        })
+        .collect()
+}
+
+/// Runs the server until `shutdown` completes, then stops taking calls,
+/// finishes the steps in flight (at most `drain_timeout`) and returns.
+/// `on_bound` is told the bound addresses once both listen.
+pub async fn serve(
+    config: ServeConfig,
+    maps: Vec<SharedMap>,
+    on_bound: impl FnOnce(Bound),
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> Result<(), ServeError> {
+    let maps: Vec<Arc<SharedMap>> = maps.into_iter().map(Arc::new).collect();
+    let state = State::new(maps, config.limits.clone()).map_err(ServeError::Setup)?;
+    let bind = |addr: SocketAddr| async move {
+        TcpListener::bind(addr)
+            .await
+            .map_err(|source| ServeError::Bind { addr, source })
+    };
+    let grpc_l = bind(config.grpc_addr).await?;
+    let http_l = bind(config.http_addr).await?;
+    let local = |l: &TcpListener, addr| {
+        l.local_addr()
+            .map_err(|source| ServeError::Bind { addr, source })
+    };
+    let bound = Bound {
+        grpc: local(&grpc_l, config.grpc_addr)?,
+        http: local(&http_l, config.http_addr)?,
+    };
+
+    let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
+    {
+        let state = state.clone();
+        tokio::spawn(async move {
+            shutdown.await;
+            state.shutting_down.store(true, Ordering::Relaxed);
+            let _ = stop_tx.send(true);
+        });
+    }
+    let stopped = |mut rx: tokio::sync::watch::Receiver<bool>| async move {
+        let _ = rx.wait_for(|s| *s).await;
+    };
+
+    // Idle sessions expire.
+    {
+        let state = state.clone();
+        let every = (config.limits.idle_timeout / 4)
+            .clamp(Duration::from_millis(50), Duration::from_secs(5));
+        tokio::spawn(async move {
+            let mut t = tokio::time::interval(every);
+            loop {
+                t.tick().await;
+                state.expire_idle();
+            }
+        });
+    }
+
+    let n = config.limits.max_message_bytes;
+    let svc = proto::localization_server::LocalizationServer::new(grpc::Service {
+        state: state.clone(),
+    })
+    .max_decoding_message_size(n)
+    .max_encoding_message_size(n);
+    let svc = tonic::service::interceptor::InterceptedService::new(
+        svc,
+        grpc::interceptor(state.clone(), config.token.clone()),
+    );
+    let mut builder = tonic::transport::Server::builder();
+    if let Some(tls) = &config.tls {
+        let id = tonic::transport::Identity::from_pem(&tls.cert_pem, &tls.key_pem);
+        builder = builder
+            .tls_config(tonic::transport::ServerTlsConfig::new().identity(id))
+            .map_err(|e| ServeError::Tls(e.to_string()))?;
+    }
+    // Small answers go out at once: without TCP_NODELAY, Nagle's algorithm
+    // and the client's delayed ACK add about 40 ms to every pose.
+    let incoming = TcpListenerStream::new(grpc_l).map(|s| {
+        let s = s?;
+        s.set_nodelay(true)?;
+        Ok::<_, std::io::Error>(s)
+    });
+    let grpc_fut = builder
+        .timeout(config.limits.deadline)
+        .add_service(svc)
+        .serve_with_incoming_shutdown(incoming, stopped(stop_rx.clone()));
+    let http_fut = axum::serve(http_l, http::router(state.clone(), config.token.clone()))
+        .with_graceful_shutdown(stopped(stop_rx.clone()));
+    let grpc_task = tokio::spawn(grpc_fut);
+    let http_task = tokio::spawn(async move { http_fut.await });
+    on_bound(bound);
+
+    stopped(stop_rx).await;
+    // Drain: calls in flight (bounded), then the pool's steps.
+    let deadline = Instant::now() + config.drain_timeout;
+    let left = || deadline.saturating_duration_since(Instant::now());
+    let grpc_res = tokio::time::timeout(left(), grpc_task).await;
+    let http_res = tokio::time::timeout(left(), http_task).await;
+    while state.queue_depth().0 > 0 && Instant::now() < deadline {
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    if let Ok(Ok(Err(e))) = grpc_res {
+        return Err(ServeError::Grpc(e.to_string()));
+    }
+    if let Ok(Ok(Err(e))) = http_res {
+        return Err(ServeError::Http(e));
+    }
+    Ok(())
+}

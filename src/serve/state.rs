@@ -1,0 +1,450 @@
+//! The server's state: maps, sessions, the compute pool and its bounded
+//! queues, and the metrics.
+//!
+//! Scheduling: every session has at most one step running or queued on the
+//! compute pool and at most one frame waiting behind it. A frame that
+//! arrives while one is waiting replaces it (latest frame wins) and the
+//! replaced one is counted as dropped. A step that finds a waiting frame
+//! when it ends queues it at the back of the pool (round robin between
+//! sessions: a flooding session gets its share, no more). The pool's queue
+//! therefore holds at most one task per session, and sessions are capped;
+//! past `max_queued` tasks a new frame is refused (RESOURCE_EXHAUSTED).
+
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+use tokio::sync::{mpsc, oneshot};
+use tonic::Status;
+
+use crate::geometry::Intrinsics;
+use crate::session::{LabelFrame, Session, SessionError, SharedMap, feature_grid};
+
+use super::convert::{Features, FrameInput};
+use super::metrics::Metrics;
+use super::proto;
+
+/// Limits and sizes of a server.
+#[derive(Debug, Clone)]
+pub struct Limits {
+    /// Threads of the compute pool (filter steps run only there).
+    pub threads: usize,
+    pub max_sessions: usize,
+    pub max_sessions_per_map: usize,
+    /// Steps queued or running on the pool, in total, before new frames
+    /// are refused.
+    pub max_queued: usize,
+    /// Sessions without a frame or call for this long are closed.
+    pub idle_timeout: Duration,
+    /// Deadline of a unary call (a client's shorter grpc-timeout wins).
+    pub deadline: Duration,
+    /// Largest message accepted, bytes.
+    pub max_message_bytes: usize,
+    /// Answers of a stream buffered for a slow reader; more are dropped.
+    pub stream_buffer: usize,
+    /// The retry hint sent with RESOURCE_EXHAUSTED / 503.
+    pub retry_after: Duration,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            threads: std::thread::available_parallelism().map_or(2, |n| n.get()),
+            max_sessions: 256,
+            max_sessions_per_map: 128,
+            max_queued: 256,
+            idle_timeout: Duration::from_secs(300),
+            deadline: Duration::from_secs(10),
+            max_message_bytes: 32 << 20,
+            stream_buffer: 16,
+            retry_after: Duration::from_millis(200),
+        }
+    }
+}
+
+/// Where a step's answer goes.
+pub enum Reply {
+    Unary(oneshot::Sender<Result<proto::PoseUpdate, Status>>),
+    Stream(mpsc::Sender<Result<proto::StreamResponse, Status>>),
+}
+
+struct Job {
+    frame: FrameInput,
+    reply: Reply,
+}
+
+#[derive(Default)]
+struct Queue {
+    /// A step of this session is queued or running on the pool.
+    busy: bool,
+    /// The frame waiting behind it.
+    pending: Option<Job>,
+}
+
+/// One open session.
+pub struct Slot {
+    pub id: String,
+    pub map: Arc<SharedMap>,
+    /// frame_id of the estimates.
+    pub frame_id: String,
+    camera: Intrinsics,
+    session: Mutex<Session>,
+    queue: Mutex<Queue>,
+    pub frames_dropped: AtomicU64,
+    last_used: Mutex<Instant>,
+    closed: AtomicBool,
+}
+
+impl Slot {
+    /// The session's camera.
+    pub fn camera(&self) -> Intrinsics {
+        self.camera
+    }
+    pub fn touch(&self) {
+        *lock(&self.last_used) = Instant::now();
+    }
+    pub fn idle(&self) -> Duration {
+        lock(&self.last_used).elapsed()
+    }
+    pub fn frames(&self) -> u64 {
+        lock(&self.session).frames()
+    }
+    fn busy(&self) -> bool {
+        lock(&self.queue).busy
+    }
+}
+
+/// A poisoned lock means a panic in a step; the data is still consistent
+/// (a step changes the session only when it succeeds), so go on.
+pub fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Everything the handlers share.
+pub struct State {
+    pub maps: Vec<Arc<SharedMap>>,
+    pub limits: Limits,
+    pub metrics: Metrics,
+    sessions: Mutex<HashMap<String, Arc<Slot>>>,
+    compute: super::compute::Compute,
+    /// Steps queued or running on the pool.
+    queued: AtomicUsize,
+    next_id: AtomicU64,
+    pub shutting_down: AtomicBool,
+}
+
+/// The RESOURCE_EXHAUSTED answer with its retry hint (`retry-after-ms`).
+pub fn exhausted(msg: impl Into<String>, retry_after: Duration) -> Status {
+    let mut s = Status::resource_exhausted(msg);
+    if let Ok(v) = retry_after.as_millis().to_string().parse() {
+        s.metadata_mut().insert("retry-after-ms", v);
+    }
+    s
+}
+
+/// The gRPC status of a session error.
+pub fn status_of(e: &SessionError) -> Status {
+    match e {
+        SessionError::BadFrame(_) | SessionError::BadOdometry(_) | SessionError::BadStamp(_) => {
+            Status::invalid_argument(e.to_string())
+        }
+        SessionError::NoFloorFeature(_) | SessionError::Init(_) | SessionError::Recovery(_) => {
+            Status::failed_precondition(e.to_string())
+        }
+        _ => Status::internal(e.to_string()),
+    }
+}
+
+impl State {
+    pub fn new(maps: Vec<Arc<SharedMap>>, limits: Limits) -> Result<Arc<State>, String> {
+        let compute = super::compute::Compute::new(limits.threads)?;
+        Ok(Arc::new(State {
+            maps,
+            limits,
+            metrics: Metrics::default(),
+            sessions: Mutex::new(HashMap::new()),
+            compute,
+            queued: AtomicUsize::new(0),
+            next_id: AtomicU64::new(1),
+            shutting_down: AtomicBool::new(false),
+        }))
+    }
+
+    pub fn map(&self, name: &str) -> Result<&Arc<SharedMap>, Status> {
+        self.maps
+            .iter()
+            .find(|m| m.name() == name)
+            .ok_or_else(|| Status::not_found(format!("unknown map {name:?}")))
+    }
+
+    pub fn session(&self, id: &str) -> Result<Arc<Slot>, Status> {
+        let s = lock(&self.sessions).get(id).cloned();
+        s.ok_or_else(|| Status::not_found(format!("unknown session {id:?}")))
+    }
+
+    pub fn sessions(&self) -> Vec<Arc<Slot>> {
+        let mut v: Vec<_> = lock(&self.sessions).values().cloned().collect();
+        v.sort_by(|a, b| a.id.cmp(&b.id));
+        v
+    }
+
+    /// Steps queued or running, and frames waiting behind them.
+    pub fn queue_depth(&self) -> (usize, usize) {
+        let waiting = lock(&self.sessions)
+            .values()
+            .filter(|s| lock(&s.queue).pending.is_some())
+            .count();
+        (self.queued.load(Ordering::Relaxed), waiting)
+    }
+
+    /// Registers a session made on the pool; refused past the caps.
+    pub fn add_session(
+        &self,
+        map: Arc<SharedMap>,
+        session: Session,
+        frame_id: String,
+    ) -> Result<String, Status> {
+        let mut all = lock(&self.sessions);
+        let on_map = all.values().filter(|s| Arc::ptr_eq(&s.map, &map)).count();
+        if all.len() >= self.limits.max_sessions {
+            self.metrics.reject("session_cap");
+            return Err(exhausted(
+                format!("session cap: {} sessions open", all.len()),
+                self.limits.retry_after,
+            ));
+        }
+        if on_map >= self.limits.max_sessions_per_map {
+            self.metrics.reject("session_cap");
+            return Err(exhausted(
+                format!("session cap: {on_map} sessions on map {:?}", map.name()),
+                self.limits.retry_after,
+            ));
+        }
+        let n = self.next_id.fetch_add(1, Ordering::Relaxed);
+        let id = format!("s{n}-{:08x}", rand::random::<u32>());
+        all.insert(
+            id.clone(),
+            Arc::new(Slot {
+                id: id.clone(),
+                map,
+                frame_id,
+                camera: session.config().intrinsics,
+                session: Mutex::new(session),
+                queue: Mutex::new(Queue::default()),
+                frames_dropped: AtomicU64::new(0),
+                last_used: Mutex::new(Instant::now()),
+                closed: AtomicBool::new(false),
+            }),
+        );
+        self.metrics
+            .sessions_created
+            .fetch_add(1, Ordering::Relaxed);
+        Ok(id)
+    }
+
+    pub fn remove_session(&self, id: &str) -> Result<Arc<Slot>, Status> {
+        let s = lock(&self.sessions).remove(id);
+        let s = s.ok_or_else(|| Status::not_found(format!("unknown session {id:?}")))?;
+        s.closed.store(true, Ordering::Relaxed);
+        Ok(s)
+    }
+
+    /// Closes sessions idle for longer than the limit (not while a step of
+    /// theirs is queued or running). Returns how many.
+    pub fn expire_idle(&self) -> usize {
+        let mut all = lock(&self.sessions);
+        let before = all.len();
+        all.retain(|_, s| {
+            let keep = s.busy() || s.idle() < self.limits.idle_timeout;
+            if !keep {
+                s.closed.store(true, Ordering::Relaxed);
+            }
+            keep
+        });
+        let n = before - all.len();
+        self.metrics
+            .sessions_expired
+            .fetch_add(n as u64, Ordering::Relaxed);
+        n
+    }
+
+    /// Runs `f` on the compute pool and waits for it without blocking the
+    /// async runtime.
+    pub async fn on_pool<T: Send + 'static>(
+        &self,
+        f: impl FnOnce() -> T + Send + 'static,
+    ) -> Result<T, Status> {
+        let (tx, rx) = oneshot::channel();
+        self.compute.spawn_lane(move || {
+            let _ = tx.send(f());
+        });
+        rx.await
+            .map_err(|_| Status::internal("the compute pool dropped the task"))
+    }
+
+    /// Runs `f` on a session (reinitialization) on a blocking thread of the
+    /// runtime, not on the compute pool: it waits for the session's lock,
+    /// and a pool thread waiting inside a step (rayon steals work while it
+    /// joins) could otherwise take this task while its own step holds that
+    /// lock.
+    pub async fn with_session<T: Send + 'static>(
+        &self,
+        slot: Arc<Slot>,
+        f: impl FnOnce(&mut Session) -> T + Send + 'static,
+    ) -> Result<T, Status> {
+        tokio::task::spawn_blocking(move || f(&mut lock(&slot.session)))
+            .await
+            .map_err(|e| Status::internal(format!("reinitialization failed: {e}")))
+    }
+
+    /// Hands a frame to its session (see the module's scheduling notes).
+    pub fn submit(self: &Arc<Self>, slot: Arc<Slot>, frame: FrameInput, reply: Reply) {
+        slot.touch();
+        let job = Job { frame, reply };
+        let mut q = lock(&slot.queue);
+        if q.busy {
+            if let Some(old) = q.pending.replace(job) {
+                slot.frames_dropped.fetch_add(1, Ordering::Relaxed);
+                self.metrics.frames_dropped.fetch_add(1, Ordering::Relaxed);
+                if let Reply::Unary(tx) = old.reply {
+                    let _ = tx.send(Err(Status::resource_exhausted(
+                        "dropped: a newer frame of this session arrived before this one ran \
+                         (latest frame wins)",
+                    )));
+                }
+            }
+            return;
+        }
+        if self.queued.load(Ordering::Relaxed) >= self.limits.max_queued {
+            drop(q);
+            self.metrics.reject("overload");
+            let st = exhausted(
+                format!(
+                    "overloaded: {} steps queued on {} threads",
+                    self.limits.max_queued, self.limits.threads
+                ),
+                self.limits.retry_after,
+            );
+            send(job.reply, Err(st), &job.frame);
+            return;
+        }
+        q.busy = true;
+        drop(q);
+        self.queued.fetch_add(1, Ordering::Relaxed);
+        self.spawn_step(slot, job);
+    }
+
+    fn spawn_step(self: &Arc<Self>, slot: Arc<Slot>, job: Job) {
+        let state = self.clone();
+        let task = move || {
+            state.run_step(&slot, job);
+            let mut q = lock(&slot.queue);
+            let next = q.pending.take();
+            if state.shutting_down.load(Ordering::Relaxed) || next.is_none() {
+                q.busy = false;
+                drop(q);
+                state.queued.fetch_sub(1, Ordering::Relaxed);
+                // A frame that waited behind the last step is not stepped
+                // once shutdown began; it is told so.
+                if let Some(job) = next {
+                    let st = Status::unavailable("the server is shutting down");
+                    send(job.reply, Err(st), &job.frame);
+                }
+            } else if let Some(next) = next {
+                drop(q);
+                // To the back of the pool's queue: round robin.
+                state.spawn_step(slot.clone(), next);
+            }
+        };
+        // Alone, a step gets every thread; with others waiting, one each.
+        if self.queued.load(Ordering::Relaxed) <= 1 {
+            self.compute.spawn_shared(task);
+        } else {
+            self.compute.spawn_lane(task);
+        }
+    }
+
+    fn run_step(&self, slot: &Slot, job: Job) {
+        let Job { frame, reply } = job;
+        if slot.closed.load(Ordering::Relaxed) {
+            send(
+                reply,
+                Err(Status::not_found(format!(
+                    "session {:?} was closed",
+                    slot.id
+                ))),
+                &frame,
+            );
+            return;
+        }
+        let mut session = lock(&slot.session);
+        let classes = slot.map.classes();
+        let result = match &frame.features {
+            Features::Grid { shape, data } => {
+                let k = session.config().intrinsics;
+                feature_grid(k.width, k.height, *shape, data)
+                    .and_then(|f| session.step(&frame.odom, frame.stamp, &f))
+            }
+            Features::Labels {
+                width,
+                height,
+                labels,
+            } => match classes {
+                Some(t) => LabelFrame::new(*width, *height, labels, t)
+                    .and_then(|f| session.step(&frame.odom, frame.stamp, &f)),
+                None => Err(SessionError::BadFrame(format!(
+                    "map {:?} has no class table for label images",
+                    slot.map.name()
+                ))),
+            },
+        };
+        let answer = match result {
+            Ok(r) => {
+                let latency = frame.received.elapsed();
+                self.metrics.observe_step(latency);
+                let particles = frame.want_particles.then(|| {
+                    super::convert::particle_cloud(session.particles(), &slot.frame_id, &frame)
+                });
+                Ok(super::convert::pose_update(
+                    &r,
+                    &slot.frame_id,
+                    frame.stamp_msg,
+                    slot.frames_dropped.load(Ordering::Relaxed),
+                    latency,
+                    particles,
+                ))
+            }
+            Err(e) => {
+                self.metrics.reject("invalid_frame");
+                Err(status_of(&e))
+            }
+        };
+        drop(session);
+        slot.touch();
+        send(reply, answer, &frame);
+    }
+}
+
+fn send(reply: Reply, answer: Result<proto::PoseUpdate, Status>, frame: &FrameInput) {
+    match reply {
+        Reply::Unary(tx) => {
+            let _ = tx.send(answer);
+        }
+        Reply::Stream(tx) => {
+            let msg = match answer {
+                Ok(p) => proto::StreamResponse {
+                    result: Some(proto::stream_response::Result::Pose(p)),
+                },
+                Err(s) => proto::StreamResponse {
+                    result: Some(proto::stream_response::Result::Error(
+                        super::convert::frame_error(&s, frame.stamp_msg),
+                    )),
+                },
+            };
+            // A reader slower than the stream's buffer loses answers; the
+            // pool never waits for it.
+            let _ = tx.try_send(Ok(msg));
+        }
+    }
+}

@@ -1,0 +1,394 @@
+//! Localization sessions: the one loop that `omcl localize` and `omcl serve`
+//! both run.
+//!
+//! A [`SharedMap`] is opened once (the map and its Embree scene, read-only,
+//! shared by `Arc` between any number of sessions and threads). A
+//! [`Session`] starts on it from a pose, from prompt words or globally,
+//! takes frames (any [`FrameFeatures`]: [`LabelFrame`], [`feature_grid`], an
+//! encoder's output) with an odometry pose and a stamp, and answers each
+//! with a [`PoseReport`]: the pose, its 6x6 covariance and the filter's
+//! confidence. It can be reinitialized from a new pose or prompt at any
+//! time; dropping it closes it.
+//!
+//! Odometry is given as poses (`odom_from_camera`, as a robot's odometry
+//! frame publishes them); the session turns consecutive poses into the
+//! filter's increments, so the first frame moves nothing. Noisy odometry
+//! made from ground truth has one definition in the library,
+//! [`crate::sim::paths::odometry`].
+
+pub mod frames;
+
+use std::path::Path;
+use std::sync::Arc;
+
+use nalgebra::{Matrix6, Vector6};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use crate::geometry::{Intrinsics, Pose};
+use crate::map::{self, LanguageMap};
+use crate::mcl::{
+    self, Filter, FilterConfig, FloorParams, FloorSampler, FrameFeatures, MclError, Particle,
+    PromptParams, SensorModel, StepReport,
+};
+use crate::raycast::RayCaster;
+
+pub use frames::{LabelFrame, LabelTable, feature_grid};
+
+/// Errors of a session. [`SessionError::BadFrame`], [`SessionError::BadOdometry`]
+/// and [`SessionError::BadStamp`] reject one input and leave the session as
+/// it was.
+#[derive(Debug, thiserror::Error)]
+pub enum SessionError {
+    #[error("map {path}: {source}")]
+    Map {
+        path: String,
+        source: map::MapFileError,
+    },
+    #[error("building the ray-casting scene: {0}")]
+    Scene(String),
+    #[error("malformed frame: {0}")]
+    BadFrame(String),
+    #[error("odometry pose is not a finite rigid motion: {0}")]
+    BadOdometry(String),
+    #[error("stamp {0} is not a finite number")]
+    BadStamp(f64),
+    #[error("{0} needs the feature of \"floor\" (a class table with a \"floor\" row)")]
+    NoFloorFeature(&'static str),
+    #[error("initialization: {0}")]
+    Init(MclError),
+    #[error("recovery injects poses over the floor: {0}")]
+    Recovery(MclError),
+    #[error(transparent)]
+    Filter(#[from] MclError),
+}
+
+/// A map opened once for any number of sessions: the map, its ray-casting
+/// scene, and optionally a class table for label frames and prompt words.
+pub struct SharedMap {
+    name: String,
+    map: LanguageMap,
+    caster: Arc<dyn RayCaster>,
+    classes: Option<LabelTable>,
+}
+
+impl SharedMap {
+    /// Builds the ray-casting scene of `map` once.
+    pub fn new(name: impl Into<String>, map: LanguageMap) -> Result<Self, SessionError> {
+        let caster = SensorModel::embree_caster(map.grid().resolution as f32, &map.cells())
+            .map_err(|e| SessionError::Scene(e.to_string()))?;
+        Ok(SharedMap {
+            name: name.into(),
+            map,
+            caster: Arc::new(caster),
+            classes: None,
+        })
+    }
+
+    /// Reads the map file at `path` and builds its scene.
+    pub fn open(name: impl Into<String>, path: &Path) -> Result<Self, SessionError> {
+        let map = map::load(path).map_err(|source| SessionError::Map {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Self::new(name, map)
+    }
+
+    /// Attaches a class table (for label frames and prompt words).
+    pub fn with_classes(mut self, classes: LabelTable) -> Self {
+        self.classes = Some(classes);
+        self
+    }
+
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    pub fn map(&self) -> &LanguageMap {
+        &self.map
+    }
+
+    /// The class table, if one was attached.
+    pub fn classes(&self) -> Option<&LabelTable> {
+        self.classes.as_ref()
+    }
+
+    /// The ray-casting scene shared by the sessions.
+    pub fn caster(&self) -> &Arc<dyn RayCaster> {
+        &self.caster
+    }
+}
+
+/// How a session places its particles.
+#[derive(Debug, Clone)]
+pub enum Start {
+    /// Gaussian around `pose` (`world_from_camera`): `sigma_m` on the ground
+    /// plane, `sigma_rad` on yaw.
+    Pose {
+        pose: Pose,
+        sigma_m: f64,
+        sigma_rad: f64,
+    },
+    /// Uniformly over the floor voxels.
+    Global,
+    /// Over the floor voxels near voxels matching every word's feature.
+    Prompt {
+        words: Vec<Vec<f32>>,
+        params: PromptParams,
+    },
+}
+
+/// Everything fixed for the life of a session.
+#[derive(Debug, Clone)]
+pub struct SessionConfig {
+    pub intrinsics: Intrinsics,
+    /// Particles at the start (and after each reinitialization).
+    pub particles: usize,
+    /// The filter; `filter.seed` seeds every random draw of the session.
+    pub filter: FilterConfig,
+    /// Floor detection and camera placement of global and prompt starts.
+    pub floor: FloorParams,
+    /// The feature of "floor", needed by global and prompt starts and by
+    /// recovery (`filter.recovery`).
+    pub floor_feature: Option<Vec<f32>>,
+}
+
+/// The answer to one frame.
+#[derive(Debug, Clone, Copy)]
+pub struct PoseReport {
+    /// The frame's stamp, echoed.
+    pub stamp: f64,
+    /// Frames stepped so far, this one included.
+    pub frame: u64,
+    /// Estimated `world_from_camera`.
+    pub pose: Pose,
+    /// Covariance of the particles about `pose`, row-major 6x6 over
+    /// (x, y, z, rotation about world x, y, z), metres and radians, as
+    /// `geometry_msgs/PoseWithCovariance`.
+    pub covariance: [f64; 36],
+    /// The filter's own numbers (ESS, spread, confidence, timings).
+    pub step: StepReport,
+}
+
+/// One camera localized in a shared map.
+pub struct Session {
+    map: Arc<SharedMap>,
+    config: SessionConfig,
+    filter: Filter,
+    /// Draws of the initializations (the filter has its own generator).
+    init_rng: ChaCha8Rng,
+    last_odom: Option<Pose>,
+    frames: u64,
+}
+
+impl Session {
+    /// Starts a session on `map`.
+    pub fn new(
+        map: Arc<SharedMap>,
+        config: SessionConfig,
+        start: &Start,
+    ) -> Result<Self, SessionError> {
+        let mut init_rng = ChaCha8Rng::seed_from_u64(config.filter.seed);
+        let particles = initial_particles(&map, &config, start, &mut init_rng)?;
+        let mut filter = Filter::new(
+            &map.map,
+            map.caster.clone(),
+            config.intrinsics,
+            config.filter,
+            particles,
+        )?;
+        if config.filter.recovery.is_some() {
+            let floor = config
+                .floor_feature
+                .as_deref()
+                .ok_or(SessionError::NoFloorFeature("recovery"))?;
+            let voxels = mcl::init::floor_voxels(&map.map, floor, config.floor.rho)
+                .map_err(SessionError::Recovery)?;
+            filter = filter.with_injection(FloorSampler::new(&map.map, &voxels, config.floor));
+        }
+        Ok(Session {
+            map,
+            config,
+            filter,
+            init_rng,
+            last_odom: None,
+            frames: 0,
+        })
+    }
+
+    /// The map this session localizes in.
+    pub fn map(&self) -> &Arc<SharedMap> {
+        &self.map
+    }
+
+    pub fn config(&self) -> &SessionConfig {
+        &self.config
+    }
+
+    /// Frames stepped so far.
+    pub fn frames(&self) -> u64 {
+        self.frames
+    }
+
+    /// The particles (normalized weights), e.g. for a particle cloud.
+    pub fn particles(&self) -> &[Particle] {
+        self.filter.particles()
+    }
+
+    /// Replaces the particles as `start` says (after track loss, or a user's
+    /// new pose or prompt). The next frame's odometry is taken as the new
+    /// reference (it moves nothing).
+    pub fn reinitialize(&mut self, start: &Start) -> Result<(), SessionError> {
+        let particles = initial_particles(&self.map, &self.config, start, &mut self.init_rng)?;
+        self.filter.reinitialize(particles)?;
+        self.last_odom = None;
+        Ok(())
+    }
+
+    /// One frame: `odom` is the odometry pose of the frame's camera
+    /// (`odom_from_camera`), `stamp` its time. A rejected frame leaves the
+    /// session as it was.
+    pub fn step(
+        &mut self,
+        odom: &Pose,
+        stamp: f64,
+        frame: &dyn FrameFeatures,
+    ) -> Result<PoseReport, SessionError> {
+        if !stamp.is_finite() {
+            return Err(SessionError::BadStamp(stamp));
+        }
+        mcl::motion::check_pose(odom).map_err(|e| match e {
+            MclError::BadOdometry(s) => SessionError::BadOdometry(s),
+            e => SessionError::Filter(e),
+        })?;
+        let increment = match &self.last_odom {
+            Some(prev) => prev.inverse() * odom,
+            None => Pose::identity(),
+        };
+        let step = self.filter.step(&increment, frame).map_err(|e| match e {
+            MclError::DimMismatch { .. } | MclError::ImageSize { .. } => {
+                SessionError::BadFrame(e.to_string())
+            }
+            MclError::BadOdometry(s) => SessionError::BadOdometry(s),
+            e => SessionError::Filter(e),
+        })?;
+        self.last_odom = Some(*odom);
+        self.frames += 1;
+        Ok(PoseReport {
+            stamp,
+            frame: self.frames,
+            pose: step.estimate,
+            covariance: covariance(self.filter.particles(), &step.estimate),
+            step,
+        })
+    }
+}
+
+fn initial_particles(
+    map: &SharedMap,
+    config: &SessionConfig,
+    start: &Start,
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<Particle>, SessionError> {
+    let n = config.particles;
+    if n == 0 {
+        return Err(SessionError::Init(MclError::NoParticles));
+    }
+    let floor = |what| {
+        config
+            .floor_feature
+            .as_deref()
+            .ok_or(SessionError::NoFloorFeature(what))
+    };
+    match start {
+        Start::Pose {
+            pose,
+            sigma_m,
+            sigma_rad,
+        } => {
+            mcl::motion::check_pose(pose).map_err(SessionError::Init)?;
+            if !(sigma_m.is_finite()
+                && *sigma_m >= 0.0
+                && sigma_rad.is_finite()
+                && *sigma_rad >= 0.0)
+            {
+                return Err(SessionError::Init(MclError::BadParam {
+                    name: "initial spread",
+                    why: format!("must be finite and >= 0, got {sigma_m} m, {sigma_rad} rad"),
+                }));
+            }
+            Ok(mcl::local_init(pose, n, *sigma_m, *sigma_rad, rng))
+        }
+        Start::Global => mcl::global_init(
+            &map.map,
+            floor("global initialization")?,
+            &config.floor,
+            n,
+            rng,
+        )
+        .map_err(SessionError::Init),
+        Start::Prompt { words, params } => mcl::prompt_init(
+            &map.map,
+            floor("prompt initialization")?,
+            words,
+            &config.floor,
+            params,
+            n,
+            rng,
+        )
+        .map_err(SessionError::Init),
+    }
+}
+
+/// Weighted covariance of the particles about `center`, row-major 6x6 over
+/// (translation x, y, z; rotation vector of `R_particle R_center^T` about
+/// the world axes).
+pub fn covariance(particles: &[Particle], center: &Pose) -> [f64; 36] {
+    let total: f64 = particles.iter().map(|p| p.weight).sum();
+    let mut c = Matrix6::<f64>::zeros();
+    if total > 0.0 {
+        let inv_r = center.rotation.inverse();
+        for p in particles {
+            let t = p.pose.translation.vector - center.translation.vector;
+            let r = (p.pose.rotation * inv_r).scaled_axis();
+            let d = Vector6::new(t.x, t.y, t.z, r.x, r.y, r.z);
+            c += (p.weight / total) * d * d.transpose();
+        }
+    }
+    let mut out = [0.0; 36];
+    for i in 0..6 {
+        for j in 0..6 {
+            out[6 * i + j] = c[(i, j)];
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Translation3, UnitQuaternion, Vector3};
+
+    #[test]
+    fn covariance_of_known_particles() {
+        // Four particles of weight 1/4: two at x = +-0.5 m, two at yaw
+        // +-0.1 rad, about the origin: 2 x 0.25 x 0.25 = 0.125 m^2 on x,
+        // 2 x 0.25 x 0.01 = 0.005 rad^2 on rotation about z, nothing else.
+        let at = |x: f64, yaw: f64| Particle {
+            pose: Pose::from_parts(
+                Translation3::new(x, 0.0, 0.0),
+                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw),
+            ),
+            weight: 0.25,
+        };
+        let ps = [at(0.5, 0.0), at(-0.5, 0.0), at(0.0, 0.1), at(0.0, -0.1)];
+        let c = covariance(&ps, &Pose::identity());
+        assert!((c[0] - 0.125).abs() < 1e-12, "{c:?}");
+        assert!((c[35] - 0.005).abs() < 1e-12, "{c:?}");
+        for (i, v) in c.iter().enumerate() {
+            if i != 0 && i != 35 {
+                assert!(v.abs() < 1e-12, "entry {i}: {v}");
+            }
+        }
+    }
+}

@@ -1,0 +1,445 @@
+//! `omcl serve` end to end on loopback: the real binary, a Rust client.
+//! Same trajectories as `omcl localize`; tokens; malformed input answered
+//! with named errors while the session lives on; caps, overload, idle
+//! expiry and graceful shutdown.
+
+mod serve_common;
+
+use std::time::{Duration, Instant};
+
+use serve_common::*;
+use tonic::Code;
+
+use omcl::serve::proto;
+
+fn s(p: &std::path::Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_sessions_give_the_trajectories_of_two_cli_runs() {
+    let f = Fixture::new();
+    // The CLI, seeds 3 and 4.
+    let mut cli = Vec::new();
+    for seed in [3u64, 4] {
+        let out = f.dir.path().join(format!("est{seed}.txt"));
+        let r = omcl(&[
+            "localize",
+            "--map",
+            s(&f.map),
+            "--sequence",
+            s(&f.seq),
+            "-o",
+            s(&out),
+            "--particles",
+            &PARTICLES.to_string(),
+            "--rays",
+            &RAYS.to_string(),
+            "--seed",
+            &seed.to_string(),
+            "--frames",
+            &FRAMES.to_string(),
+        ]);
+        assert!(r.status.success(), "{r:?}");
+        cli.push(read_tum(&out));
+    }
+    assert_ne!(cli[0], cli[1], "seeds 3 and 4 should differ");
+
+    let server = Server::start(&f, &[]);
+    let mut c = server.client(Auth::good()).await;
+    let a = c.create_session(f.create(3)).await.unwrap().into_inner();
+    let b = c.create_session(f.create(4)).await.unwrap().into_inner();
+    // Session a through unary calls, session b through a stream, frame by
+    // frame side by side.
+    let (tx, rx) = tokio::sync::mpsc::channel(4);
+    let mut answers = c
+        .stream(tokio_stream::wrappers::ReceiverStream::new(rx))
+        .await
+        .unwrap()
+        .into_inner();
+    let (mut got_a, mut got_b) = (Vec::new(), Vec::new());
+    for i in 0..FRAMES {
+        tx.send(f.frame(&b.session_id, i)).await.unwrap();
+        let ua = c
+            .localize(f.frame(&a.session_id, i))
+            .await
+            .unwrap()
+            .into_inner();
+        let ub = match answers.message().await.unwrap().unwrap().result.unwrap() {
+            proto::stream_response::Result::Pose(p) => p,
+            proto::stream_response::Result::Error(e) => panic!("frame {i}: {e:?}"),
+        };
+        assert_eq!((ua.frame, ub.frame), (i as u64 + 1, i as u64 + 1));
+        assert_eq!(ub.frames_dropped, 0);
+        let cov = &ua.pose.as_ref().unwrap().pose.as_ref().unwrap().covariance;
+        assert_eq!(cov.len(), 36);
+        assert!(cov[0] >= 0.0 && cov[7] >= 0.0 && cov[35] >= 0.0, "{cov:?}");
+        assert!((0.0..=1.0).contains(&ua.confidence));
+        assert_eq!(
+            ua.pose.as_ref().unwrap().header.as_ref().unwrap().frame_id,
+            "map"
+        );
+        got_a.push(pose_of(&ua));
+        got_b.push(pose_of(&ub));
+    }
+    for (name, got, want) in [("a", &got_a, &cli[0]), ("b", &got_b, &cli[1])] {
+        assert_eq!(got.len(), want.len());
+        for (i, (g, w)) in got.iter().zip(want).enumerate() {
+            for k in 0..7 {
+                assert!(
+                    (g[k] - w[k]).abs() < 1e-9,
+                    "session {name} frame {i}: server {g:?}, CLI {w:?}"
+                );
+            }
+        }
+    }
+    let list = c
+        .list_sessions(proto::ListSessionsRequest {})
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!(list.sessions.len(), 2);
+    assert!(list.sessions.iter().all(|s| s.frames == FRAMES as u64));
+    let closed = c
+        .close_session(proto::CloseSessionRequest {
+            session_id: a.session_id.clone(),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!(closed.frames, FRAMES as u64);
+    let e = c.localize(f.frame(&a.session_id, 0)).await.unwrap_err();
+    assert_eq!(e.code(), Code::NotFound, "{e:?}");
+    // The particle cloud on request.
+    let mut fr = f.frame(&b.session_id, FRAMES);
+    fr.want_particles = true;
+    let u = c.localize(fr).await.unwrap().into_inner();
+    let cloud = u.particles.unwrap();
+    assert_eq!(cloud.particles.len(), PARTICLES as usize);
+    let w: f64 = cloud.particles.iter().map(|p| p.weight).sum();
+    assert!((w - 1.0).abs() < 1e-9, "weights sum to {w}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn calls_without_the_right_token_get_nothing() {
+    let f = Fixture::new();
+    let server = Server::start(&f, &[]);
+    let cases = [
+        (Auth(None), "missing credentials"),
+        (
+            Auth::bearer("wrong-token-0123456789abcdef"),
+            "invalid token",
+        ),
+        (Auth(Some(("authorization", TOKEN.to_string()))), "Bearer"),
+        (Auth(Some(("x-api-key", TOKEN.to_string()))), "wrong place"),
+    ];
+    for (auth, needle) in cases {
+        let mut c = server.client(auth.clone()).await;
+        let e = c
+            .list_maps(proto::ListMapsRequest {})
+            .await
+            .expect_err("refused");
+        assert_eq!(e.code(), Code::Unauthenticated, "{e:?}");
+        assert!(e.message().contains(needle), "{needle:?} not in {e:?}");
+        assert!(!e.message().contains("room"), "leaks the map's name: {e:?}");
+        let e = c.create_session(f.create(0)).await.unwrap_err();
+        assert_eq!(e.code(), Code::Unauthenticated);
+        let e = c.localize(f.frame("s1", 0)).await.unwrap_err();
+        assert_eq!(e.code(), Code::Unauthenticated);
+    }
+    let mut c = server.client(Auth::good()).await;
+    let maps = c
+        .list_maps(proto::ListMapsRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .maps;
+    assert_eq!(maps.len(), 1);
+    assert_eq!(maps[0].name, "room");
+    assert!(maps[0].classes.iter().any(|c| c == "floor"));
+
+    // HTTP: health without a token; the rest only with it, in its place.
+    assert_eq!(server.get("/healthz", &[]).0, 200);
+    assert_eq!(server.get("/readyz", &[]).0, 200);
+    let bearer = format!("Bearer {TOKEN}");
+    for path in ["/metrics", "/v1/maps", "/v1/sessions"] {
+        let (code, body) = server.get(path, &[]);
+        assert_eq!(code, 401, "{path}: {body}");
+        assert!(!body.contains("room"), "{path} leaks: {body}");
+        let (code, body) = server.get(&format!("{path}?token={TOKEN}"), &[]);
+        assert_eq!(code, 401, "{path}: {body}");
+        assert!(body.contains("query string"), "{path}: {body}");
+        let (code, _) = server.get(path, &[("Authorization", "Bearer nope-nope-nope-nope")]);
+        assert_eq!(code, 401, "{path}");
+        let (code, body) = server.get(path, &[("Authorization", &bearer)]);
+        assert_eq!(code, 200, "{path}: {body}");
+    }
+    let (_, maps) = server.get("/v1/maps", &[("Authorization", &bearer)]);
+    assert!(maps.contains("\"room\""), "{maps}");
+    let (_, metrics) = server.get("/metrics", &[("Authorization", &bearer)]);
+    assert!(
+        metrics.contains("omcl_rejected_total{reason=\"unauthenticated\"}"),
+        "{metrics}"
+    );
+    assert!(!metrics.contains("omcl_rejected_total{reason=\"unauthenticated\"} 0"));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn malformed_input_is_named_and_the_session_lives_on() {
+    let f = Fixture::new();
+    let server = Server::start(&f, &[]);
+    let mut c = server.client(Auth::good()).await;
+    let id = c
+        .create_session(f.create(0))
+        .await
+        .unwrap()
+        .into_inner()
+        .session_id;
+    let k = f.intrinsics();
+    let grid = |h: u32, w: u32, dim: u32, n: usize| {
+        proto::frame::Features::Grid(proto::FeatureGrid {
+            height: h,
+            width: w,
+            dim,
+            data: vec![0.1; n],
+        })
+    };
+    let mut cases: Vec<(proto::Frame, Code, &str)> = Vec::new();
+    let mut fr = f.frame(&id, 0);
+    fr.features = Some(grid(4, 4, 512, 4 * 4 * 512 - 1));
+    cases.push((fr, Code::InvalidArgument, "needs 8192 values, got 8191"));
+    let mut fr = f.frame(&id, 0);
+    fr.features = Some(grid(4, 4, 7, 4 * 4 * 7));
+    cases.push((fr, Code::InvalidArgument, "feature dimension 7"));
+    let mut fr = f.frame(&id, 0);
+    fr.features = Some(proto::frame::Features::Labels(proto::LabelImage {
+        width: k.width + 1,
+        height: k.height,
+        labels: vec![0; (k.width as usize + 1) * k.height as usize],
+    }));
+    cases.push((fr, Code::InvalidArgument, "label image is 65x48"));
+    let mut fr = f.frame(&id, 0);
+    if let Some(proto::frame::Features::Labels(l)) = &mut fr.features {
+        l.labels.pop();
+    }
+    cases.push((fr, Code::InvalidArgument, "needs 3072 labels, got 3071"));
+    let mut fr = f.frame(&id, 0);
+    fr.odometry.as_mut().unwrap().position.as_mut().unwrap().x = f64::NAN;
+    cases.push((fr, Code::InvalidArgument, "odometry is not finite"));
+    let mut fr = f.frame(&id, 0);
+    fr.odometry
+        .as_mut()
+        .unwrap()
+        .orientation
+        .as_mut()
+        .unwrap()
+        .w = 3.0;
+    cases.push((fr, Code::InvalidArgument, "not a unit quaternion"));
+    let mut fr = f.frame(&id, 0);
+    fr.features = None;
+    cases.push((fr, Code::InvalidArgument, "without features"));
+    cases.push((
+        f.frame("no-such-session", 0),
+        Code::NotFound,
+        "unknown session \"no-such-session\"",
+    ));
+    for (fr, code, needle) in cases.clone() {
+        let e = c.localize(fr).await.unwrap_err();
+        assert_eq!(e.code(), code, "{e:?}");
+        assert!(e.message().contains(needle), "{needle:?} not in {e:?}");
+    }
+    // The session lives on: the good frames still step, from frame 1.
+    for i in 0..3 {
+        let u = c.localize(f.frame(&id, i)).await.unwrap().into_inner();
+        assert_eq!(u.frame, i as u64 + 1);
+    }
+    // In a stream the errors come in the stream, which goes on.
+    let (tx, rx) = tokio::sync::mpsc::channel(4);
+    let mut answers = c
+        .stream(tokio_stream::wrappers::ReceiverStream::new(rx))
+        .await
+        .unwrap()
+        .into_inner();
+    for (fr, code, needle) in cases {
+        tx.send(fr).await.unwrap();
+        match answers.message().await.unwrap().unwrap().result.unwrap() {
+            proto::stream_response::Result::Error(e) => {
+                let want = omcl::serve::convert::code_name(code);
+                assert_eq!(e.code, want, "{e:?}");
+                assert!(e.message.contains(needle), "{needle:?} not in {e:?}");
+            }
+            other => panic!("expected an error, got {other:?}"),
+        }
+    }
+    tx.send(f.frame(&id, 3)).await.unwrap();
+    match answers.message().await.unwrap().unwrap().result.unwrap() {
+        proto::stream_response::Result::Pose(p) => assert_eq!(p.frame, 4),
+        other => panic!("expected a pose, got {other:?}"),
+    }
+
+    // Bad sessions requests.
+    let mut r = f.create(0);
+    r.map = "atlantis".into();
+    let e = c.create_session(r).await.unwrap_err();
+    assert_eq!(e.code(), Code::NotFound);
+    assert!(e.message().contains("unknown map \"atlantis\""), "{e:?}");
+    let mut r = f.create(0);
+    r.camera.as_mut().unwrap().fx = f64::NAN;
+    let e = c.create_session(r).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument);
+    assert!(e.message().contains("camera"), "{e:?}");
+    let mut r = f.create(0);
+    r.start = Some(proto::create_session_request::Start::Prompt(
+        proto::PromptStart {
+            words: vec!["unicorn".into()],
+            ..Default::default()
+        },
+    ));
+    let e = c.create_session(r).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument);
+    assert!(e.message().contains("\"unicorn\""), "{e:?}");
+    // Global localization and a new initial pose on the live session.
+    c.global_localization(proto::GlobalLocalizationRequest {
+        session_id: id.clone(),
+        prompt: None,
+    })
+    .await
+    .unwrap();
+    let u = c.localize(f.frame(&id, 4)).await.unwrap().into_inner();
+    assert_eq!(u.frame, 5, "{u:?}");
+    let (_, gt) = f.poses("poses.txt");
+    c.set_initial_pose(proto::SetInitialPoseRequest {
+        session_id: id.clone(),
+        pose: Some(proto::PoseWithCovarianceStamped {
+            header: None,
+            pose: Some(proto::PoseWithCovariance {
+                pose: Some(pose_msg(&gt[5])),
+                covariance: vec![],
+            }),
+        }),
+    })
+    .await
+    .unwrap();
+    let u = c.localize(f.frame(&id, 5)).await.unwrap().into_inner();
+    let p = pose_of(&u);
+    let t = gt[5].translation.vector;
+    let d = ((p[0] - t.x).powi(2) + (p[1] - t.y).powi(2)).sqrt();
+    assert!(d < 0.6, "{d} m from the pose given");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn caps_overload_idle_expiry_and_shutdown() {
+    let f = Fixture::new();
+    let server = Server::start(
+        &f,
+        &[
+            "--max-sessions",
+            "2",
+            "--max-queued",
+            "1",
+            "--idle-timeout-s",
+            "1.0",
+            "--threads",
+            "1",
+            "--max-message-mib",
+            "1",
+        ],
+    );
+    let mut c = server.client(Auth::good()).await;
+    // Slow steps (many particles), so that a second session's frame finds
+    // the queue full.
+    let mut big = f.create(0);
+    big.particles = Some(20_000);
+    big.rays = Some(2048);
+    let a = c.create_session(big).await.unwrap().into_inner().session_id;
+    let b = c
+        .create_session(f.create(1))
+        .await
+        .unwrap()
+        .into_inner()
+        .session_id;
+    let e = c.create_session(f.create(2)).await.unwrap_err();
+    assert_eq!(e.code(), Code::ResourceExhausted);
+    assert!(e.message().contains("session cap"), "{e:?}");
+    assert!(e.metadata().get("retry-after-ms").is_some(), "{e:?}");
+
+    let mut exhausted = None;
+    for i in 0..20 {
+        let mut ca = c.clone();
+        let fa = f.frame(&a, i);
+        let slow = tokio::spawn(async move { ca.localize(fa).await });
+        tokio::time::sleep(Duration::from_millis(5)).await;
+        let r = c.localize(f.frame(&b, i)).await;
+        slow.await.unwrap().unwrap();
+        if let Err(e) = r {
+            exhausted = Some(e);
+            break;
+        }
+    }
+    let e = exhausted.expect("a frame behind a full queue is refused");
+    assert_eq!(e.code(), Code::ResourceExhausted, "{e:?}");
+    assert!(e.message().contains("overloaded"), "{e:?}");
+    assert!(e.metadata().get("retry-after-ms").is_some(), "{e:?}");
+
+    // A message over the size limit (1 MiB) is refused, the session lives.
+    let mut fr = f.frame(&b, 0);
+    fr.features = Some(proto::frame::Features::Grid(proto::FeatureGrid {
+        height: 24,
+        width: 32,
+        dim: 512,
+        data: vec![0.5; 24 * 32 * 512],
+    }));
+    let e = c.localize(fr).await.unwrap_err();
+    assert!(
+        matches!(e.code(), Code::ResourceExhausted | Code::OutOfRange),
+        "{e:?}"
+    );
+    c.localize(f.frame(&b, 1)).await.unwrap();
+
+    // Idle sessions expire (1 s).
+    tokio::time::sleep(Duration::from_millis(2500)).await;
+    let e = c.localize(f.frame(&a, 0)).await.unwrap_err();
+    assert_eq!(e.code(), Code::NotFound, "{e:?}");
+    let bearer = format!("Bearer {TOKEN}");
+    let (_, metrics) = server.get("/metrics", &[("Authorization", &bearer)]);
+    assert!(metrics.contains("omcl_sessions 0"), "{metrics}");
+    assert!(
+        metrics.contains("omcl_sessions_expired_total 2"),
+        "{metrics}"
+    );
+
+    // Graceful shutdown: a step in flight is answered, then the process
+    // exits by itself with status 0.
+    let a = c.create_session({
+        let mut r = f.create(0);
+        r.particles = Some(20_000);
+        r
+    });
+    let a = a.await.unwrap().into_inner().session_id;
+    let mut ca = c.clone();
+    let fa = f.frame(&a, 0);
+    let inflight = tokio::spawn(async move { ca.localize(fa).await });
+    tokio::time::sleep(Duration::from_millis(20)).await;
+    let mut server = server;
+    unsafe_free_sigterm(server.pid());
+    let r = inflight.await.unwrap();
+    assert!(r.is_ok(), "the step in flight was lost: {r:?}");
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(s) = server.child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(15), "still running");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert!(status.success(), "{status:?}");
+}
+
+/// SIGTERM by the `kill` command (no `unsafe` outside the Embree module).
+fn unsafe_free_sigterm(pid: u32) {
+    let st = std::process::Command::new("kill")
+        .args(["-TERM", &pid.to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+}
