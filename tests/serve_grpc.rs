@@ -443,3 +443,109 @@ fn unsafe_free_sigterm(pid: u32) {
         .unwrap();
     assert!(st.success());
 }
+
+/// Raw RGB frames go through the map's image encoder on the server: the
+/// same poses as `omcl localize --image-model` on the same images; a
+/// wrong-size image is INVALID_ARGUMENT and the session lives on; a map
+/// served without an encoder refuses raw frames.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn raw_rgb_frames_are_encoded_on_the_server_as_localize_encodes_them() {
+    let f = Fixture::new();
+    let model =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/encode/tiny_image.onnx");
+    // The sequence without its labels and class table (which localize
+    // would read, in another feature space than the encoder's).
+    let seq = f.dir.path().join("seq_rgb");
+    std::fs::create_dir(&seq).unwrap();
+    for e in std::fs::read_dir(&f.seq).unwrap() {
+        let e = e.unwrap();
+        let name = e.file_name();
+        let keep = ["rgb", "depth", "intrinsics.txt", "poses.txt", "odometry.txt"];
+        if keep.iter().any(|k| name == *k) {
+            std::os::unix::fs::symlink(e.path(), seq.join(&name)).unwrap();
+        }
+    }
+    let img_map = f.dir.path().join("img.omcl");
+    let r = omcl(&[
+        "map",
+        "rgbd",
+        s(&seq),
+        "--image-model",
+        s(&model),
+        "--stride",
+        "1",
+        "--resolution",
+        "0.1",
+        "--tau",
+        "0.0005",
+        "-o",
+        s(&img_map),
+    ]);
+    assert!(r.status.success(), "{r:?}");
+    let out = f.dir.path().join("est_img.txt");
+    let r = omcl(&[
+        "localize",
+        "--map",
+        s(&img_map),
+        "--sequence",
+        s(&seq),
+        "--image-model",
+        s(&model),
+        "-o",
+        s(&out),
+        "--particles",
+        &PARTICLES.to_string(),
+        "--rays",
+        &RAYS.to_string(),
+        "--seed",
+        "3",
+        "--frames",
+        &FRAMES.to_string(),
+    ]);
+    assert!(r.status.success(), "{r:?}");
+    let cli = read_tum(&out);
+
+    let img_arg = format!("img={}", s(&img_map));
+    let model_arg = format!("img={}", s(&model));
+    let server = Server::start(&f, &["--map", &img_arg, "--image-model", &model_arg]);
+    let mut c = server.client(Auth::good()).await;
+    let mut req = f.create(3);
+    req.map = "img".into();
+    let sid = c.create_session(req).await.unwrap().into_inner().session_id;
+    let rgb_frame = |i: usize| {
+        let mut fr = f.frame(&sid, i);
+        let img = omcl::io::rgb::read_rgb(&f.seq.join(format!("rgb/{i:06}.png"))).unwrap();
+        fr.features = Some(proto::frame::Features::Image(proto::RgbImage {
+            width: img.width(),
+            height: img.height(),
+            rgb: img.into_raw(),
+        }));
+        fr
+    };
+    // A truncated image first: refused, the session unchanged.
+    let mut bad = rgb_frame(0);
+    if let Some(proto::frame::Features::Image(img)) = &mut bad.features {
+        img.rgb.truncate(10);
+    }
+    let e = c.localize(bad).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    assert!(e.message().contains("bytes"), "{e:?}");
+    for (i, want) in cli.iter().enumerate() {
+        let u = c.localize(rgb_frame(i)).await.unwrap().into_inner();
+        assert_eq!(u.frame, i as u64 + 1);
+        let got = pose_of(&u);
+        for k in 0..7 {
+            assert!(
+                (got[k] - want[k]).abs() < 1e-9,
+                "frame {i}: server {got:?}, CLI {want:?}"
+            );
+        }
+    }
+    // The labels map has no encoder.
+    let room = c.create_session(f.create(3)).await.unwrap().into_inner();
+    let mut fr = rgb_frame(0);
+    fr.session_id = room.session_id;
+    let e = c.localize(fr).await.unwrap_err();
+    assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
+    assert!(e.message().contains("image encoder"), "{e:?}");
+}

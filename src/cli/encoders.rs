@@ -76,35 +76,7 @@ impl ImageSource {
     }
 }
 
-/// An encoded frame as a feature source of mapping and localization (its
-/// cells follow the encoder's resize and crop; image size from the
-/// intrinsics).
-pub struct EncodedFrame<'a> {
-    pub map: &'a EncodedMap,
-    pub width: u32,
-    pub height: u32,
-}
-
-impl omcl::frame::FrameFeatures for EncodedFrame<'_> {
-    fn width(&self) -> u32 {
-        self.width
-    }
-    fn height(&self) -> u32 {
-        self.height
-    }
-    fn dim(&self) -> usize {
-        self.map.dim
-    }
-    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
-        match self.map.at_pixel(u, v) {
-            Some(f) => out.copy_from_slice(f),
-            None => out.fill(0.0),
-        }
-    }
-    fn known(&self, u: u32, v: u32) -> bool {
-        self.map.at_pixel(u, v).is_some()
-    }
-}
+pub use omcl::encode::image::EncodedFrame;
 
 /// Unit text features of `words` from a text encoder.
 pub fn text_features(

@@ -1,6 +1,7 @@
 //! `omcl serve`: argument parsing and the runtime around
 //! [`omcl::serve::serve`].
 
+use omcl::encode::Encoder as _;
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -35,6 +36,15 @@ pub struct ServeArgs {
     /// frames, prompt words and global localization ("floor").
     #[arg(long = "classes", value_name = "NAME=DIR")]
     pub classes: Vec<String>,
+    /// An image encoder for a map, as NAME=MODEL.onnx (with its
+    /// .card.json beside it): frames may then be raw RGB images, encoded on
+    /// the server (one at a time per map) before the filter step.
+    #[arg(long = "image-model", value_name = "NAME=ONNX")]
+    pub image_models: Vec<String>,
+    /// ONNX Runtime library for --image-model (overrides ORT_DYLIB_PATH and
+    /// .deps/).
+    #[arg(long, value_name = "PATH")]
+    pub ort_lib: Option<PathBuf>,
     /// gRPC address.
     #[arg(long, default_value = "127.0.0.1:50051")]
     pub grpc: SocketAddr,
@@ -126,6 +136,22 @@ pub fn run(a: ServeArgs) -> anyhow::Result<()> {
             LabelTable::new(table, maps[i].map()).with_context(|| format!("--classes {spec:?}"))?;
         let m = maps.remove(i);
         maps.insert(i, m.with_classes(bound));
+    }
+    for spec in &a.image_models {
+        let (name, model) = split(spec, "--image-model")?;
+        let i = maps
+            .iter()
+            .position(|m| m.name() == name)
+            .with_context(|| format!("--image-model {spec:?}: no --map named {name:?}"))?;
+        let rt = super::encode::init_runtime(a.ort_lib.as_deref())?;
+        let enc = omcl::encode::ImageEncoder::load(rt, &model, 0)
+            .with_context(|| format!("--image-model {spec:?}"))?;
+        let m = maps.remove(i);
+        maps.insert(
+            i,
+            m.with_encoder(enc)
+                .with_context(|| format!("--image-model {spec:?}"))?,
+        );
     }
     let tls = match (&a.tls_cert, &a.tls_key) {
         (Some(c), Some(k)) => Some(TlsFiles {

@@ -241,6 +241,8 @@ pub enum Features {
         height: u32,
         labels: Vec<u32>,
     },
+    /// A raw RGB image for the map's encoder.
+    Image(image::RgbImage),
 }
 
 /// A frame checked against its session: sizes, dimensions, odometry.
@@ -312,6 +314,31 @@ pub fn frame_input(f: proto::Frame, k: &Intrinsics, map: &SharedMap) -> Result<F
                 height: l.height,
                 labels: l.labels,
             }
+        }
+        Some(proto::frame::Features::Image(img)) => {
+            if (img.width, img.height) != (k.width, k.height) {
+                return Err(Status::invalid_argument(format!(
+                    "RGB image is {}x{} pixels, the session's camera {}x{}",
+                    img.width, img.height, k.width, k.height
+                )));
+            }
+            if !map.has_encoder() {
+                return Err(Status::failed_precondition(format!(
+                    "map {:?} has no image encoder for raw frames (serve it with --image-model)",
+                    map.name()
+                )));
+            }
+            let want = img.width as usize * img.height as usize * 3;
+            let got = img.rgb.len();
+            let rgb = image::RgbImage::from_raw(img.width, img.height, img.rgb)
+                .filter(|_| got == want)
+                .ok_or_else(|| {
+                    Status::invalid_argument(format!(
+                        "RGB image of {}x{} pixels needs {want} bytes, got {got}",
+                        img.width, img.height
+                    ))
+                })?;
+            Features::Image(rgb)
         }
         None => return Err(Status::invalid_argument("frame without features")),
     };

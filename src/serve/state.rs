@@ -398,6 +398,17 @@ impl State {
                     slot.map.name()
                 ))),
             },
+            Features::Image(rgb) => {
+                let k = session.config().intrinsics;
+                slot.map.encode(rgb).and_then(|m| {
+                    let f = crate::encode::image::EncodedFrame {
+                        map: &m,
+                        width: k.width,
+                        height: k.height,
+                    };
+                    session.step(&frame.odom, frame.stamp, &f)
+                })
+            }
         };
         let answer = match result {
             Ok(r) => {

@@ -19,12 +19,13 @@
 pub mod frames;
 
 use std::path::Path;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use nalgebra::{Matrix6, Vector6};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
+use crate::encode::{FeatureMap as EncodedMap, ImageEncoder};
 use crate::geometry::{Intrinsics, Pose};
 use crate::map::{self, LanguageMap};
 use crate::mcl::{
@@ -61,6 +62,8 @@ pub enum SessionError {
     Recovery(MclError),
     #[error(transparent)]
     Filter(#[from] MclError),
+    #[error("image encoder: {0}")]
+    Encoder(String),
 }
 
 /// A map opened once for any number of sessions: the map, its ray-casting
@@ -70,6 +73,8 @@ pub struct SharedMap {
     map: LanguageMap,
     caster: Arc<dyn RayCaster>,
     classes: Option<LabelTable>,
+    /// The image encoder raw frames go through (one at a time).
+    encoder: Option<Mutex<ImageEncoder>>,
 }
 
 impl SharedMap {
@@ -82,6 +87,7 @@ impl SharedMap {
             map,
             caster: Arc::new(caster),
             classes: None,
+            encoder: None,
         })
     }
 
@@ -98,6 +104,39 @@ impl SharedMap {
     pub fn with_classes(mut self, classes: LabelTable) -> Self {
         self.classes = Some(classes);
         self
+    }
+
+    /// Attaches an image encoder for raw RGB frames; its features must
+    /// have the map's dimension.
+    pub fn with_encoder(mut self, encoder: ImageEncoder) -> Result<Self, SessionError> {
+        let (got, want) = (encoder.feature_dim(), self.map.db().dim());
+        if got != want {
+            return Err(SessionError::Encoder(format!(
+                "{} gives {got}-dimensional features, map {:?} has {want}",
+                encoder.card().name,
+                self.name
+            )));
+        }
+        self.encoder = Some(Mutex::new(encoder));
+        Ok(self)
+    }
+
+    /// Whether raw RGB frames can be encoded for this map.
+    pub fn has_encoder(&self) -> bool {
+        self.encoder.is_some()
+    }
+
+    /// Encodes a raw RGB frame with the map's image encoder.
+    pub fn encode(&self, image: &image::RgbImage) -> Result<EncodedMap, SessionError> {
+        let enc = self.encoder.as_ref().ok_or_else(|| {
+            SessionError::BadFrame(format!(
+                "map {:?} has no image encoder for raw frames (serve it with --image-model)",
+                self.name
+            ))
+        })?;
+        let mut enc = enc.lock().unwrap_or_else(|e| e.into_inner());
+        enc.encode(image)
+            .map_err(|e| SessionError::Encoder(e.to_string()))
     }
 
     pub fn name(&self) -> &str {
