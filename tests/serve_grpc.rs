@@ -460,7 +460,13 @@ async fn raw_rgb_frames_are_encoded_on_the_server_as_localize_encodes_them() {
     for e in std::fs::read_dir(&f.seq).unwrap() {
         let e = e.unwrap();
         let name = e.file_name();
-        let keep = ["rgb", "depth", "intrinsics.txt", "poses.txt", "odometry.txt"];
+        let keep = [
+            "rgb",
+            "depth",
+            "intrinsics.txt",
+            "poses.txt",
+            "odometry.txt",
+        ];
         if keep.iter().any(|k| name == *k) {
             std::os::unix::fs::symlink(e.path(), seq.join(&name)).unwrap();
         }

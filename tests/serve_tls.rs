@@ -1,5 +1,6 @@
-//! `omcl serve --tls-cert --tls-key`: gRPC over TLS (rustls). A client that
-//! trusts the certificate gets answers; a plaintext client gets none.
+//! `omcl serve --tls-cert --tls-key`: gRPC and the HTTP control plane over
+//! TLS (rustls). A client that trusts the certificate gets answers; a
+//! plaintext client gets none.
 
 mod serve_common;
 
@@ -46,6 +47,31 @@ async fn grpc_over_tls_with_a_token() {
     let mut anon = LocalizationClient::with_interceptor(ch, Auth(None));
     let e = anon.list_maps(proto::ListMapsRequest {}).await.unwrap_err();
     assert_eq!(e.code(), tonic::Code::Unauthenticated);
+    // The HTTP control plane is HTTPS with the same certificate: a client
+    // that trusts it gets the map list with the token, 401 without; a
+    // plaintext request gets no HTTP answer.
+    let (status, body) = https_get(&server, &cert_pem, "/v1/maps", Some(TOKEN)).await;
+    assert!(status.starts_with("HTTP/1.1 200"), "{status}");
+    assert!(body.contains("room"), "{body}");
+    let (status, body) = https_get(&server, &cert_pem, "/v1/maps", None).await;
+    assert!(status.starts_with("HTTP/1.1 401"), "{status}");
+    assert!(!body.contains("room"), "{body}");
+    let (status, _) = https_get(&server, &cert_pem, "/healthz", None).await;
+    assert!(status.starts_with("HTTP/1.1 200"), "{status}");
+    {
+        use tokio::io::{AsyncReadExt, AsyncWriteExt};
+        let mut tcp = tokio::net::TcpStream::connect(server.http).await.unwrap();
+        tcp.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+            .await
+            .unwrap();
+        let mut got = Vec::new();
+        let _ = tokio::time::timeout(std::time::Duration::from_secs(5), tcp.read_to_end(&mut got))
+            .await;
+        assert!(
+            !String::from_utf8_lossy(&got).contains("HTTP/1.1 200"),
+            "plaintext HTTP answered"
+        );
+    }
     // A plaintext client does not get through.
     let plain = Channel::from_shared(format!("http://{}", server.grpc))
         .unwrap()
@@ -55,4 +81,40 @@ async fn grpc_over_tls_with_a_token() {
         let mut c = LocalizationClient::with_interceptor(ch, Auth::good());
         assert!(c.list_maps(proto::ListMapsRequest {}).await.is_err());
     }
+}
+
+/// GET `path` over HTTPS from the control plane, trusting `cert_pem`:
+/// the status line and the body.
+async fn https_get(
+    server: &Server,
+    cert_pem: &str,
+    path: &str,
+    token: Option<&str>,
+) -> (String, String) {
+    use rustls::pki_types::pem::PemObject;
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    use tokio_rustls::rustls;
+    let mut roots = rustls::RootCertStore::empty();
+    for c in rustls::pki_types::CertificateDer::pem_slice_iter(cert_pem.as_bytes()) {
+        roots.add(c.unwrap()).unwrap();
+    }
+    let provider = std::sync::Arc::new(rustls::crypto::ring::default_provider());
+    let cfg = rustls::ClientConfig::builder_with_provider(provider)
+        .with_safe_default_protocol_versions()
+        .unwrap()
+        .with_root_certificates(roots)
+        .with_no_client_auth();
+    let connector = tokio_rustls::TlsConnector::from(std::sync::Arc::new(cfg));
+    let tcp = tokio::net::TcpStream::connect(server.http).await.unwrap();
+    let name = rustls::pki_types::ServerName::try_from("localhost").unwrap();
+    let mut tls = connector.connect(name, tcp).await.unwrap();
+    let auth = token.map_or(String::new(), |t| format!("Authorization: Bearer {t}\r\n"));
+    let req = format!("GET {path} HTTP/1.1\r\nHost: localhost\r\n{auth}Connection: close\r\n\r\n");
+    tls.write_all(req.as_bytes()).await.unwrap();
+    let mut got = Vec::new();
+    let _ = tls.read_to_end(&mut got).await;
+    let text = String::from_utf8_lossy(&got).to_string();
+    let status = text.lines().next().unwrap_or("").to_string();
+    let body = text.split("\r\n\r\n").nth(1).unwrap_or("").to_string();
+    (status, body)
 }

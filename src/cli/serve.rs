@@ -77,10 +77,11 @@ pub struct ServeArgs {
     /// Largest gRPC message, MiB.
     #[arg(long, default_value_t = 32)]
     pub max_message_mib: usize,
-    /// PEM certificate chain for gRPC over TLS (with --tls-key).
+    /// PEM certificate chain for TLS on both planes, gRPC and HTTPS (with
+    /// --tls-key).
     #[arg(long, requires = "tls_key")]
     pub tls_cert: Option<PathBuf>,
-    /// PEM private key for gRPC over TLS.
+    /// PEM private key for TLS on both planes.
     #[arg(long, requires = "tls_cert")]
     pub tls_key: Option<PathBuf>,
     /// How long shutdown waits for calls and steps in flight, seconds.

@@ -134,3 +134,61 @@ async fn sessions(AxState(ctx): AxState<Ctx>) -> Response {
         .collect();
     Json(serde_json::json!({ "sessions": v })).into_response()
 }
+
+/// The server's TLS configuration for HTTPS from the PEM files of
+/// `--tls-cert` and `--tls-key` (ring, ALPN h2 and http/1.1).
+pub fn tls_config(
+    tls: &super::TlsFiles,
+) -> Result<std::sync::Arc<tokio_rustls::rustls::ServerConfig>, super::ServeError> {
+    use rustls::pki_types::pem::PemObject;
+    use rustls::pki_types::{CertificateDer, PrivateKeyDer};
+    use tokio_rustls::rustls;
+    let bad = |what: &str, e: String| super::ServeError::Tls(format!("{what}: {e}"));
+    let certs = CertificateDer::pem_slice_iter(&tls.cert_pem)
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| bad("--tls-cert", e.to_string()))?;
+    let key =
+        PrivateKeyDer::from_pem_slice(&tls.key_pem).map_err(|e| bad("--tls-key", e.to_string()))?;
+    let provider = std::sync::Arc::new(rustls::crypto::ring::default_provider());
+    let mut cfg = rustls::ServerConfig::builder_with_provider(provider)
+        .with_safe_default_protocol_versions()
+        .map_err(|e| bad("TLS", e.to_string()))?
+        .with_no_client_auth()
+        .with_single_cert(certs, key)
+        .map_err(|e| bad("--tls-cert/--tls-key", e.to_string()))?;
+    cfg.alpn_protocols = vec![b"h2".to_vec(), b"http/1.1".to_vec()];
+    Ok(std::sync::Arc::new(cfg))
+}
+
+/// Serves `router` over TLS on `listener` until `stop` resolves: every
+/// accepted connection's handshake and requests run on their own task; a
+/// failed handshake (a plaintext client) closes that connection only.
+pub async fn serve_https(
+    listener: tokio::net::TcpListener,
+    router: axum::Router,
+    cfg: std::sync::Arc<tokio_rustls::rustls::ServerConfig>,
+    stop: impl std::future::Future<Output = ()>,
+) -> std::io::Result<()> {
+    let acceptor = tokio_rustls::TlsAcceptor::from(cfg);
+    tokio::pin!(stop);
+    loop {
+        let (tcp, _) = tokio::select! {
+            _ = &mut stop => return Ok(()),
+            r = listener.accept() => match r {
+                Ok(c) => c,
+                Err(_) => continue,
+            },
+        };
+        let (acceptor, router) = (acceptor.clone(), router.clone());
+        tokio::spawn(async move {
+            let Ok(tls) = acceptor.accept(tcp).await else {
+                return;
+            };
+            let svc = hyper_util::service::TowerToHyperService::new(router);
+            let _ =
+                hyper_util::server::conn::auto::Builder::new(hyper_util::rt::TokioExecutor::new())
+                    .serve_connection(hyper_util::rt::TokioIo::new(tls), svc)
+                    .await;
+        });
+    }
+}

@@ -200,10 +200,24 @@ pub async fn serve(
         .timeout(config.limits.deadline)
         .add_service(svc)
         .serve_with_incoming_shutdown(incoming, stopped(stop_rx.clone()));
-    let http_fut = axum::serve(http_l, http::router(state.clone(), config.token.clone()))
-        .with_graceful_shutdown(stopped(stop_rx.clone()));
+    let router = http::router(state.clone(), config.token.clone());
     let grpc_task = tokio::spawn(grpc_fut);
-    let http_task = tokio::spawn(async move { http_fut.await });
+    let http_task = match &config.tls {
+        Some(tls) => {
+            let cfg = http::tls_config(tls)?;
+            tokio::spawn(http::serve_https(
+                http_l,
+                router,
+                cfg,
+                stopped(stop_rx.clone()),
+            ))
+        }
+        None => {
+            let http_fut =
+                axum::serve(http_l, router).with_graceful_shutdown(stopped(stop_rx.clone()));
+            tokio::spawn(async move { http_fut.await })
+        }
+    };
     on_bound(bound);
 
     stopped(stop_rx).await;
