@@ -287,6 +287,241 @@ impl Inputs {
     }
 }
 
+/// The odometry poses: a pose file (`--odometry`, or odometry.txt beside
+/// an RGB-D sequence), or ground truth with the library's one definition
+/// of odometry noise.
+fn odometry(
+    a: &LocalizeArgs,
+    d: &Path,
+    is_kitti: bool,
+    gt: Option<&Trajectory>,
+    kitti: Option<&KittiCameraSequence>,
+) -> anyhow::Result<Vec<Pose>> {
+    let odom_file = a.odometry.clone().or_else(|| {
+        let p = d.join("odometry.txt");
+        (!a.odom_from_gt && !is_kitti && p.exists()).then_some(p)
+    });
+    Ok(match (&odom_file, gt, kitti) {
+        (Some(p), _, kitti) => {
+            let poses = poses::read_poses(p)?.trajectory.poses().to_vec();
+            ensure!(
+                a.odom_first < poses.len(),
+                "{}: --odom-first {} is past its {} poses",
+                p.display(),
+                a.odom_first,
+                poses.len()
+            );
+            let poses = &poses[a.odom_first..];
+            match kitti {
+                Some(seq) => seq.camera2_in_map(poses),
+                None => poses.to_vec(),
+            }
+        }
+        (None, Some(g), kitti) => {
+            // The library's one definition of noisy odometry: noise on
+            // camera x and z and on yaw about camera y, every frame,
+            // accumulated (the authors' form).
+            let default_deg = if kitti.is_some() {
+                0.1f64.to_degrees()
+            } else {
+                6.0
+            };
+            let cfg = omcl::sim::paths::OdometryConfig {
+                seed: a.seed ^ 0x0d0,
+                sigma_t: a.odom_noise_m,
+                sigma_r_deg: a.odom_noise_deg.unwrap_or(default_deg),
+                drift_scale: 1.0,
+            };
+            ensure!(
+                cfg.sigma_t >= 0.0 && cfg.sigma_r_deg >= 0.0,
+                "--odom-noise-m and --odom-noise-deg must be >= 0"
+            );
+            omcl::sim::paths::odometry(g.poses(), &[], &cfg)
+        }
+        (None, None, _) => bail!(
+            "{}: no odometry: pass --odometry FILE, or provide poses.txt to make it from ground truth",
+            d.display()
+        ),
+    })
+}
+
+/// Where the particles start: around a pose (`--init-pose` or the first
+/// ground-truth pose), globally, or from prompt words.
+fn start(
+    a: &LocalizeArgs,
+    gt: Option<&Trajectory>,
+    table: Option<&LabelTable>,
+    classes: &Path,
+    is_kitti: bool,
+) -> anyhow::Result<Start> {
+    let init_sigma_deg =
+        a.init_sigma_deg
+            .unwrap_or(if is_kitti { 0.1f64.to_degrees() } else { 17.0 });
+    Ok(match a.init {
+        InitArg::Local => {
+            let pose = match (&a.init_pose, gt) {
+                (Some(s), _) => parse_pose(s)?,
+                (None, Some(g)) => g.poses()[0],
+                (None, None) => bail!("--init local needs --init-pose or a poses.txt"),
+            };
+            Start::Pose {
+                pose,
+                sigma_m: a.init_sigma_m,
+                sigma_rad: init_sigma_deg.to_radians(),
+            }
+        }
+        InitArg::Global => Start::Global,
+        InitArg::Prompt => {
+            let words = a
+                .prompt
+                .as_deref()
+                .context("--init prompt needs --prompt \"word, word\"")?;
+            let t = table.context("--init prompt needs classes.txt and embeddings.npy")?;
+            Start::Prompt {
+                words: word_features(t.table(), words, classes)?,
+                params: PromptParams {
+                    radius: a.prompt_radius,
+                    rho: a.prompt_rho,
+                    k: a.prompt_k,
+                    ..PromptParams::default()
+                },
+            }
+        }
+    })
+}
+
+/// The filter's configuration from the options (KITTI sequences default to
+/// road motion).
+fn filter_config(a: &LocalizeArgs, is_kitti: bool) -> FilterConfig {
+    let mut config = FilterConfig {
+        seed: a.seed,
+        ..FilterConfig::default()
+    };
+    config.sampling.rays = a.rays;
+    config.sampling.boundary_margin = a.boundary_margin;
+    config.sampling.strategy = match a.sampling {
+        SamplingArg::Stratified => SamplingStrategy::Stratified,
+        SamplingArg::Uniform => SamplingStrategy::Uniform,
+        SamplingArg::Equal => SamplingStrategy::EqualWithDuplicates,
+    };
+    let motion = a.motion.unwrap_or(if is_kitti {
+        MotionArg::Road
+    } else {
+        MotionArg::Planar
+    });
+    config.motion.mode = match motion {
+        MotionArg::Planar => MotionMode::Planar,
+        MotionArg::Full => MotionMode::Full,
+        MotionArg::Road => MotionMode::Road,
+    };
+    if let Some(v) = a.motion_sigma_m {
+        config.motion.sigma_translation = v;
+    }
+    if let Some(v) = a.motion_sigma_deg {
+        config.motion.sigma_rotation = v.to_radians();
+    }
+    if let Some(s) = a.sharpen {
+        config.sharpen = s;
+    }
+    config.sensor.contrast = !a.no_contrast;
+    if a.recovery {
+        config.recovery = Some(mcl::recovery::RecoveryParams::default());
+    }
+    config
+}
+
+/// Writes `--metrics`: the outdoor metric of the run as JSON.
+fn write_metrics(
+    p: &Path,
+    d: &Path,
+    n: usize,
+    mt: &omcl::eval::OutdoorMetric,
+    steps_per_s: f64,
+) -> anyhow::Result<()> {
+    let json = serde_json::json!({
+        "sequence": d.display().to_string(),
+        "frames": n,
+        "metric": "per-frame translation error |t_est - t_gt| (m) and rotation error \
+                   angle(R_gt^T R_est) (deg) of the camera; completed: after frame 10 \
+                   the error never exceeds 1 m for more than 5 frames",
+        "translation_m": mt.translation,
+        "rotation_deg": mt.rotation,
+        "completed": mt.completed,
+        "filter_steps_per_s": steps_per_s,
+        "per_frame": {
+            "translation_m": mt.translation_m,
+            "rotation_deg": mt.rotation_deg,
+        },
+    });
+    let text = serde_json::to_string_pretty(&json)?;
+    omcl::io::atomic::write(p, text.as_bytes())
+        .with_context(|| format!("writing {}", p.display()))?;
+    Ok(())
+}
+
+/// Prints APE and completion against ground truth `g` (and, on KITTI,
+/// the outdoor metric), and draws `--plot`.
+fn report_against_truth(
+    a: &LocalizeArgs,
+    g: &Trajectory,
+    est: &Trajectory,
+    n: usize,
+    metric: Option<&omcl::eval::OutdoorMetric>,
+    floor: Option<&[f32]>,
+    m: &omcl::map::LanguageMap,
+) -> anyhow::Result<()> {
+    let d = &a.sequence;
+    let is_kitti = d.join("calib.txt").exists();
+    let reference = Trajectory::new(g.stamps()[..n].to_vec(), g.poses()[..n].to_vec())?;
+    let e = ape(&reference, est, PoseRelation::Translation)?;
+    let rule = CompletionRule::default();
+    // The rule judges frames after its first `skip_frames`: a shorter
+    // run is not judged rather than called completed.
+    let done = if n <= rule.skip_frames {
+        format!(
+            "not judged (the rule starts after frame {})",
+            rule.skip_frames
+        )
+    } else if rule.is_completed(&e.errors) {
+        "yes".into()
+    } else {
+        "no".into()
+    };
+    if let Some(p) = &a.plot {
+        let plan = omcl::plot::FloorPlan::from_map(m, floor, 0.9);
+        let xy = |t: &Trajectory| -> Vec<[f64; 2]> {
+            t.poses()
+                .iter()
+                .map(|p| [p.translation.vector.x, p.translation.vector.y])
+                .collect()
+        };
+        let title = format!("{} (APE rmse {:.3} m)", d.display(), e.stats.rmse);
+        omcl::plot::trajectory_plot(
+            p,
+            &omcl::plot::TrajectoryPanel {
+                title: &title,
+                plan: plan.as_ref(),
+                gt_xy: &xy(&reference),
+                est_xy: &xy(est),
+                errors_m: &e.errors,
+            },
+        )?;
+    }
+    print!(
+        "; APE rmse {:.3} m, mean {:.3}, median {:.3}, max {:.3}; completed: {}",
+        e.stats.rmse, e.stats.mean, e.stats.median, e.stats.max, done
+    );
+    if let (Some(mt), true) = (metric, is_kitti) {
+        print!(
+            "; translation error mean {:.3} m (std {:.3}), rotation error mean {:.2} deg \
+             (std {:.2})",
+            mt.translation.mean, mt.translation.std, mt.rotation.mean, mt.rotation.std
+        );
+    }
+    println!();
+    Ok(())
+}
+
 pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     let shared = Arc::new(SharedMap::new("map", map::load(&a.map)?)?);
     let m = shared.map();
@@ -349,52 +584,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         Some(t) => Some(LabelTable::new(t, m)?),
         None => None,
     };
-    let odom_file = a.odometry.clone().or_else(|| {
-        let p = d.join("odometry.txt");
-        (!a.odom_from_gt && !is_kitti && p.exists()).then_some(p)
-    });
-    let odom: Vec<Pose> = match (&odom_file, &gt, &inputs.kitti) {
-        (Some(p), _, kitti) => {
-            let poses = poses::read_poses(p)?.trajectory.poses().to_vec();
-            ensure!(
-                a.odom_first < poses.len(),
-                "{}: --odom-first {} is past its {} poses",
-                p.display(),
-                a.odom_first,
-                poses.len()
-            );
-            let poses = &poses[a.odom_first..];
-            match kitti {
-                Some(seq) => seq.camera2_in_map(poses),
-                None => poses.to_vec(),
-            }
-        }
-        (None, Some(g), kitti) => {
-            // The library's one definition of noisy odometry: noise on
-            // camera x and z and on yaw about camera y, every frame,
-            // accumulated (the authors' form).
-            let default_deg = if kitti.is_some() {
-                0.1f64.to_degrees()
-            } else {
-                6.0
-            };
-            let cfg = omcl::sim::paths::OdometryConfig {
-                seed: a.seed ^ 0x0d0,
-                sigma_t: a.odom_noise_m,
-                sigma_r_deg: a.odom_noise_deg.unwrap_or(default_deg),
-                drift_scale: 1.0,
-            };
-            ensure!(
-                cfg.sigma_t >= 0.0 && cfg.sigma_r_deg >= 0.0,
-                "--odom-noise-m and --odom-noise-deg must be >= 0"
-            );
-            omcl::sim::paths::odometry(g.poses(), &[], &cfg)
-        }
-        (None, None, _) => bail!(
-            "{}: no odometry: pass --odometry FILE, or provide poses.txt to make it from ground truth",
-            d.display()
-        ),
-    };
+    let odom = odometry(&a, d, is_kitti, gt.as_ref(), inputs.kitti.as_ref())?;
     let mut n = odom.len().min(a.frames.unwrap_or(usize::MAX));
     if let Some(seq) = &inputs.kitti {
         n = n.min(seq.len());
@@ -421,80 +611,12 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             .context("global and prompt initialization need classes.txt with \"floor\"")?;
         Ok(word_features(t.table(), "floor", classes)?.remove(0))
     };
-    let init_sigma_deg =
-        a.init_sigma_deg
-            .unwrap_or(if is_kitti { 0.1f64.to_degrees() } else { 17.0 });
-    let start = match a.init {
-        InitArg::Local => {
-            let pose = match (&a.init_pose, &gt) {
-                (Some(s), _) => parse_pose(s)?,
-                (None, Some(g)) => g.poses()[0],
-                (None, None) => bail!("--init local needs --init-pose or a poses.txt"),
-            };
-            Start::Pose {
-                pose,
-                sigma_m: a.init_sigma_m,
-                sigma_rad: init_sigma_deg.to_radians(),
-            }
-        }
-        InitArg::Global => Start::Global,
-        InitArg::Prompt => {
-            let words = a
-                .prompt
-                .as_deref()
-                .context("--init prompt needs --prompt \"word, word\"")?;
-            let t = table
-                .as_ref()
-                .context("--init prompt needs classes.txt and embeddings.npy")?;
-            Start::Prompt {
-                words: word_features(t.table(), words, classes)?,
-                params: PromptParams {
-                    radius: a.prompt_radius,
-                    rho: a.prompt_rho,
-                    k: a.prompt_k,
-                    ..PromptParams::default()
-                },
-            }
-        }
-    };
+    let start = start(&a, gt.as_ref(), table.as_ref(), classes, is_kitti)?;
     let floor_feature = match (a.init, a.recovery) {
         (InitArg::Local, false) => None,
         _ => Some(floor_feature()?),
     };
-    let mut config = FilterConfig {
-        seed: a.seed,
-        ..FilterConfig::default()
-    };
-    config.sampling.rays = a.rays;
-    config.sampling.boundary_margin = a.boundary_margin;
-    config.sampling.strategy = match a.sampling {
-        SamplingArg::Stratified => SamplingStrategy::Stratified,
-        SamplingArg::Uniform => SamplingStrategy::Uniform,
-        SamplingArg::Equal => SamplingStrategy::EqualWithDuplicates,
-    };
-    let motion = a.motion.unwrap_or(if is_kitti {
-        MotionArg::Road
-    } else {
-        MotionArg::Planar
-    });
-    config.motion.mode = match motion {
-        MotionArg::Planar => MotionMode::Planar,
-        MotionArg::Full => MotionMode::Full,
-        MotionArg::Road => MotionMode::Road,
-    };
-    if let Some(v) = a.motion_sigma_m {
-        config.motion.sigma_translation = v;
-    }
-    if let Some(v) = a.motion_sigma_deg {
-        config.motion.sigma_rotation = v.to_radians();
-    }
-    if let Some(s) = a.sharpen {
-        config.sharpen = s;
-    }
-    config.sensor.contrast = !a.no_contrast;
-    if a.recovery {
-        config.recovery = Some(mcl::recovery::RecoveryParams::default());
-    }
+    let config = filter_config(&a, is_kitti);
     let session_config = SessionConfig {
         intrinsics: k,
         particles: a.particles,
@@ -611,24 +733,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             .with_context(|| format!("writing {}", p.display()))?;
     }
     if let (Some(p), Some(mt)) = (&a.metrics, &metric) {
-        let json = serde_json::json!({
-            "sequence": d.display().to_string(),
-            "frames": n,
-            "metric": "per-frame translation error |t_est - t_gt| (m) and rotation error \
-                       angle(R_gt^T R_est) (deg) of the camera; completed: after frame 10 \
-                       the error never exceeds 1 m for more than 5 frames",
-            "translation_m": mt.translation,
-            "rotation_deg": mt.rotation,
-            "completed": mt.completed,
-            "filter_steps_per_s": n as f64 / filter_s.max(1e-12),
-            "per_frame": {
-                "translation_m": mt.translation_m,
-                "rotation_deg": mt.rotation_deg,
-            },
-        });
-        let text = serde_json::to_string_pretty(&json)?;
-        omcl::io::atomic::write(p, text.as_bytes())
-            .with_context(|| format!("writing {}", p.display()))?;
+        write_metrics(p, d, n, mt, n as f64 / filter_s.max(1e-12))?;
     }
     println!(
         "{:.1} filter steps/s; {:.1} frames/s with reading the frames{}",
@@ -641,60 +746,16 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         }
     );
     print!("wrote {} ({n} frames)", a.out.display());
-    if let Some(g) = &gt {
-        let reference = Trajectory::new(g.stamps()[..n].to_vec(), g.poses()[..n].to_vec())?;
-        let e = ape(&reference, &est, PoseRelation::Translation)?;
-        let rule = CompletionRule::default();
-        // The rule judges frames after its first `skip_frames`: a shorter
-        // run is not judged rather than called completed.
-        let done = if n <= rule.skip_frames {
-            format!(
-                "not judged (the rule starts after frame {})",
-                rule.skip_frames
-            )
-        } else if rule.is_completed(&e.errors) {
-            "yes".into()
-        } else {
-            "no".into()
-        };
-        if let Some(p) = &a.plot {
+    match &gt {
+        Some(g) => {
+            // The floor's feature colours the plot's floor plan.
             let floor = table
                 .as_ref()
                 .and_then(|t| word_features(t.table(), "floor", classes).ok())
                 .and_then(|mut w| w.pop());
-            let plan = omcl::plot::FloorPlan::from_map(m, floor.as_deref(), 0.9);
-            let xy = |t: &Trajectory| -> Vec<[f64; 2]> {
-                t.poses()
-                    .iter()
-                    .map(|p| [p.translation.vector.x, p.translation.vector.y])
-                    .collect()
-            };
-            let title = format!("{} (APE rmse {:.3} m)", d.display(), e.stats.rmse);
-            omcl::plot::trajectory_plot(
-                p,
-                &omcl::plot::TrajectoryPanel {
-                    title: &title,
-                    plan: plan.as_ref(),
-                    gt_xy: &xy(&reference),
-                    est_xy: &xy(&est),
-                    errors_m: &e.errors,
-                },
-            )?;
+            report_against_truth(&a, g, &est, n, metric.as_ref(), floor.as_deref(), m)?
         }
-        print!(
-            "; APE rmse {:.3} m, mean {:.3}, median {:.3}, max {:.3}; completed: {}",
-            e.stats.rmse, e.stats.mean, e.stats.median, e.stats.max, done
-        );
-        if let (Some(mt), true) = (&metric, is_kitti) {
-            print!(
-                "; translation error mean {:.3} m (std {:.3}), rotation error mean {:.2} deg \
-                 (std {:.2})",
-                mt.translation.mean, mt.translation.std, mt.rotation.mean, mt.rotation.std
-            );
-        }
-        println!();
-    } else {
-        println!();
+        None => println!(),
     }
     Ok(())
 }
