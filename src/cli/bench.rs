@@ -33,7 +33,16 @@ pub enum Experiment {
     /// path over the map. Runs in this process (not planned as a sweep);
     /// not part of `all`.
     Table4,
-    /// Everything above but table4.
+    /// Table I's 2-D block: OMCL variants on floor plans projected from
+    /// their maps (x, y, yaw; planar rays), beside the paper's rows. Runs
+    /// in this process; not part of `all`.
+    Table1Floorplan,
+    /// Table I's 3-D block: the full 6-DoF pose (height, roll, pitch
+    /// included) on sequences with height and pitch changes and odometry
+    /// noise on all six degrees of freedom. Runs in this process; not part
+    /// of `all`.
+    Table1Sixdof,
+    /// Everything above but table4, table1-floorplan and table1-sixdof.
     All,
 }
 
@@ -47,7 +56,9 @@ impl Experiment {
             Experiment::ParticlesRays => sweep::Experiment::ParticlesRays,
             Experiment::Sampling => sweep::Experiment::Sampling,
             Experiment::All => sweep::Experiment::All,
-            Experiment::Table4 => return None,
+            Experiment::Table4 | Experiment::Table1Floorplan | Experiment::Table1Sixdof => {
+                return None;
+            }
         })
     }
 }
@@ -224,6 +235,10 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     }
     let table4 = a.plan.experiments.contains(&Experiment::Table4);
     let sweep_wanted = a.plan.experiments.iter().any(|e| e.to_library().is_some());
+    if super::bench_table1::run(&a)? && !sweep_wanted && !table4 {
+        println!("wrote {}", a.out.display());
+        return Ok(());
+    }
     if table4 && !sweep_wanted {
         let report = super::bench_table4::table4(&a, &tables::builtin_table()?)?;
         println!("{report}");

@@ -2,6 +2,7 @@
 //! the library. Errors are `anyhow` here, `thiserror` in the library.
 
 pub mod bench;
+pub mod bench_table1;
 pub mod bench_table4;
 pub mod demo;
 pub mod encode;
@@ -10,6 +11,7 @@ pub mod eval;
 pub mod localize;
 pub mod map;
 pub mod map_build;
+pub mod map_floorplan;
 pub mod progress;
 pub mod sim;
 pub mod sweep;

@@ -21,6 +21,8 @@ pub mod sequence;
 pub mod slurm;
 pub mod street;
 pub mod sweep;
+pub mod table1_6dof;
+pub mod table1_floorplan;
 pub mod tables;
 
 pub use features::{GridFeatures, SimFrameFeatures};
