@@ -41,6 +41,33 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
     assert_eq!(r.errors_m.len(), 60);
     eprintln!("2-D OMCL_GT RMSE {:.3} m", r.stats.rmse);
     assert!(r.stats.rmse < BOUND_2D, "2-D RMSE {:.3} m", r.stats.rmse);
+    // Frames of another feature dimension than the plan's: a named error.
+    let caster: std::sync::Arc<dyn omcl::raycast::RayCaster> = plan.caster.clone();
+    let mut f = omcl::mcl::Filter::new(
+        &plan.map,
+        caster,
+        seq.intrinsics,
+        filter,
+        vec![omcl::mcl::Particle::new(seq.poses()[0], 1.0)],
+    )
+    .unwrap();
+    let (w, h) = (seq.intrinsics.width, seq.intrinsics.height);
+    let wrong = omcl::mcl::DenseFeatures {
+        width: w,
+        height: h,
+        dim: 3,
+        data: vec![1.0; (w * h * 3) as usize],
+    };
+    let e = f
+        .step(&omcl::geometry::Pose::identity(), &wrong)
+        .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            omcl::mcl::MclError::DimMismatch { expected, got: 3 } if expected == plan.plan.db().dim()
+        ),
+        "{e}"
+    );
     for b in [Baseline::Sedar, Baseline::Simp] {
         let r =
             track_baseline(&seq, &plan, b, &Default::default(), Preset::Gt, filter, 256).unwrap();
