@@ -375,9 +375,14 @@ mod tests {
         for (r, h) in rays.iter().zip(&hits) {
             let one = c.cast_one(r);
             assert_eq!(h.leaf, one.leaf);
-            assert!((h.t - one.t).abs() < 1e-5, "{h:?} {one:?}");
+            if one.is_hit() {
+                assert!((h.t - one.t).abs() < 1e-5, "{h:?} {one:?}");
+            }
         }
-        assert!(hits[0].is_hit() && hits[0].leaf != hits[8].leaf);
+        // The column rays reach the wall (leaf 1 at y 0.77); the +y ray
+        // starts left of every column and misses.
+        assert!(hits[..8].iter().all(|h| h.leaf == 1));
+        assert!(!hits[8].is_hit());
     }
 
     #[test]
