@@ -73,8 +73,9 @@ pub struct FloorPlanParams {
 }
 
 impl Default for FloorPlanParams {
-    /// 0.10 to 2.30 m: above a 5 cm floor slab and its skirting, below the
-    /// ceiling of the synthetic apartments (2.6 m) and of most rooms.
+    /// 0.10 to 2.00 m: above a 5 cm floor slab and its skirting, below the
+    /// ceiling and below the wall over doorways (the synthetic doors are
+    /// 2.05 m high; a band up to 2.3 m closed every doorway in the plan).
     fn default() -> Self {
         FloorPlanParams {
             band_min: 0.10,
