@@ -7,218 +7,14 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use clap::{Args, ValueEnum};
 
-use omcl::experiment::sweep::{self, BenchPlan, Cache, Manifest, ResultDir, RunStatus};
+use omcl::experiment::sweep::{self, Cache, Manifest, ResultDir, RunStatus};
 use omcl::experiment::table4::{Table4Params, table4 as run_table4};
 use omcl::experiment::{features, report};
-use omcl::mcl::FilterConfig;
 use omcl::sim::embeddings::ClassEmbeddings;
 use omcl::sim::features::Preset;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Experiment {
-    /// Table I: tracking APE of the variants from the paper's local start,
-    /// with Figure 4 (trajectories coloured by APE over the floor plan).
-    Table1,
-    /// Table II: measurement-map consistency of the variants.
-    Table2,
-    /// Table V: steps until global localization reaches 2 ... 0.1 m,
-    /// without and with a prompt.
-    Table5,
-    /// Figure: APE and FPS against particles for several ray counts.
-    ParticlesRays,
-    /// Figure: stratified against equal and uniform ray sampling.
-    Sampling,
-    /// Table IV: camera 2 on the street world along the real KITTI 00
-    /// path (--street-*), the odometry variants of --odometry; translation
-    /// and rotation error, completion, filter steps/s, and the estimated
-    /// path over the map. Runs in this process (not planned as a sweep);
-    /// not part of `all`.
-    Table4,
-    /// Everything above but table4.
-    All,
-}
-
-impl Experiment {
-    /// The sweep's experiment; `None` for table4, which runs on its own.
-    fn to_library(self) -> Option<sweep::Experiment> {
-        Some(match self {
-            Experiment::Table1 => sweep::Experiment::Table1,
-            Experiment::Table2 => sweep::Experiment::Table2,
-            Experiment::Table5 => sweep::Experiment::Table5,
-            Experiment::ParticlesRays => sweep::Experiment::ParticlesRays,
-            Experiment::Sampling => sweep::Experiment::Sampling,
-            Experiment::All => sweep::Experiment::All,
-            Experiment::Table4 => return None,
-        })
-    }
-}
-
-/// What to plan: the experiments and their parameters (shared by
-/// `omcl bench` and `omcl sweep plan`).
-#[derive(Debug, Args)]
-pub struct PlanArgs {
-    /// Which experiments (one or more; runs two experiments share are
-    /// planned once, e.g. `omcl bench table1 table2`).
-    #[arg(value_enum, required = true, num_args = 1..)]
-    pub experiments: Vec<Experiment>,
-    /// Number of sequences (seeds first-seed .. first-seed + n).
-    #[arg(long, default_value_t = 10)]
-    pub sequences: u64,
-    /// First sequence seed. The default is the first held-out seed
-    /// (reported tables); seeds 0-99 are the tuning range
-    /// (`omcl::experiment::seeds`).
-    #[arg(long, default_value_t = omcl::experiment::seeds::FIRST_REPORTING)]
-    pub first_seed: u64,
-    /// Frames per sequence.
-    #[arg(long, default_value_t = 150)]
-    pub frames: usize,
-    /// Frames of each map's second (mapping) path; every second frame of it
-    /// and of the sequence is mapped.
-    #[arg(long, default_value_t = 300)]
-    pub map_frames: usize,
-    /// Particles (default 1024; table4: 512, the paper's outdoor setting).
-    #[arg(long)]
-    pub particles: Option<usize>,
-    /// Rays, sampled pixels before duplicates are dropped (default 2048;
-    /// table4: 4096).
-    #[arg(long)]
-    pub rays: Option<usize>,
-    /// Only these variants (comma-separated: OMCL_GT, OMCL_LSeg,
-    /// OMCL_auto_LSeg, OMCL_Open_LSeg, OMCL_GT_exact; default all).
-    #[arg(long)]
-    pub variants: Option<String>,
-    /// Localize (and score consistency) with these features instead of each
-    /// variant's own: exact, gt or lseg-like.
-    #[arg(long)]
-    pub preset: Option<omcl::sim::features::Preset>,
-    /// The variant of Table V and the ablations.
-    #[arg(long, default_value = "OMCL_LSeg")]
-    pub ablation_variant: String,
-    /// Sequences used by the ablations (their sweeps are long).
-    #[arg(long, default_value_t = 3)]
-    pub ablation_sequences: u64,
-    /// Start frames per sequence for Table V.
-    #[arg(long, default_value_t = 3)]
-    pub starts: usize,
-    /// Steps of each global-localization run.
-    #[arg(long, default_value_t = 60)]
-    pub max_steps: usize,
-    /// Override any filter parameter: `--set sharpen=40 --set
-    /// sensor.miss_score=0.2` (paths into the filter configuration's JSON,
-    /// printed by `--show-config`; VALUE is JSON).
-    #[arg(long = "set", value_name = "PATH=VALUE")]
-    pub set: Vec<String>,
-}
-
-impl PlanArgs {
-    /// The filter configuration: defaults, `--rays`, then `--set`.
-    pub fn filter(&self) -> anyhow::Result<FilterConfig> {
-        let mut config = FilterConfig::default();
-        config.sampling.rays = self.rays.unwrap_or(2048);
-        apply_overrides(config, &self.set)
-    }
-
-    /// The sweep these options ask for.
-    pub fn bench_plan(&self) -> anyhow::Result<BenchPlan> {
-        let names = TABLE_VARIANT_NAMES;
-        let variants: Vec<String> = names
-            .iter()
-            .filter(|n| {
-                self.variants
-                    .as_deref()
-                    .is_none_or(|s| s.split(',').any(|x| x.trim() == **n))
-            })
-            .map(|n| n.to_string())
-            .collect();
-        anyhow::ensure!(!variants.is_empty(), "--variants matches none of {names:?}");
-        anyhow::ensure!(
-            names.contains(&self.ablation_variant.as_str()),
-            "--ablation-variant {:?} is not a variant",
-            self.ablation_variant
-        );
-        anyhow::ensure!(self.sequences > 0, "--sequences must be at least 1");
-        let mut experiments: Vec<sweep::Experiment> = self
-            .experiments
-            .iter()
-            .filter_map(|e| e.to_library())
-            .collect();
-        experiments.sort();
-        experiments.dedup();
-        Ok(BenchPlan {
-            experiments,
-            sequences: self.sequences,
-            first_seed: self.first_seed,
-            frames: self.frames,
-            map_frames: self.map_frames,
-            particles: self.particles.unwrap_or(1024),
-            rays: self.rays.unwrap_or(2048),
-            variants,
-            preset: self.preset,
-            ablation_variant: self.ablation_variant.clone(),
-            ablation_sequences: self.ablation_sequences,
-            starts: self.starts,
-            max_steps: self.max_steps,
-            filter: self.filter()?,
-        })
-    }
-}
-
-const TABLE_VARIANT_NAMES: [&str; 5] = {
-    let v = omcl::experiment::table1::TABLE1_VARIANTS;
-    [v[0].name, v[1].name, v[2].name, v[3].name, v[4].name]
-};
-
-/// Table IV's street (`omcl bench table4`).
-#[derive(Debug, Args)]
-pub struct StreetArgs {
-    /// table4: first frame of KITTI 00 the street starts at.
-    #[arg(long, default_value_t = 0)]
-    pub street_start: usize,
-    /// table4: frames of the street (KITTI 00 has 4541, 3.7 km; 300 are
-    /// the first 226 m).
-    #[arg(long, default_value_t = 300)]
-    pub street_frames: usize,
-    /// table4: voxel edge of the street world and of its LiDAR map, metres
-    /// (the authors' configuration for sequence 00: 0.1).
-    #[arg(long, default_value_t = 0.1)]
-    pub street_resolution: f64,
-    /// table4: odometry variants, comma-separated: `noise` (ground truth
-    /// plus the authors' 0.1 m on camera x and z and 0.1 rad yaw a frame),
-    /// `orb` (the frame-to-frame motion of the real ORB-SLAM2 estimate of
-    /// KITTI 00 replayed from the first true pose; stands in for the
-    /// paper's Stereo DSO).
-    #[arg(long, default_value = "noise,orb")]
-    pub odometry: String,
-    /// table4: folder with KITTI_00_gt.txt and KITTI_00_ORB.txt (default:
-    /// the shared data beside the source tree).
-    #[arg(long)]
-    pub trajectories: Option<PathBuf>,
-}
-
-#[derive(Debug, Args)]
-pub struct BenchArgs {
-    #[command(flatten)]
-    pub plan: PlanArgs,
-    #[command(flatten)]
-    pub street: StreetArgs,
-    /// Runs computed at once (each also uses every core for its rays; more
-    /// than one makes the measured steps/s smaller).
-    #[arg(long, default_value_t = 1)]
-    pub jobs: usize,
-    /// Print the filter configuration as JSON and exit.
-    #[arg(long)]
-    pub show_config: bool,
-    /// Output folder (created if missing).
-    #[arg(long, short, default_value = "bench-out")]
-    pub out: PathBuf,
-    /// Reuse the results and maps of an earlier bench in `<out>/sweep/`
-    /// (only with the same build: run ids know the omcl version, not the
-    /// code). Without it they are deleted first.
-    #[arg(long)]
-    pub resume: bool,
-}
+use super::bench_args::{BenchArgs, Experiment, apply_overrides};
 
 pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     if a.show_config {
@@ -227,6 +23,10 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     }
     let table4 = a.plan.experiments.contains(&Experiment::Table4);
     let sweep_wanted = a.plan.experiments.iter().any(|e| e.to_library().is_some());
+    if super::bench_table1::run(&a)? && !sweep_wanted && !table4 {
+        println!("wrote {}", a.out.display());
+        return Ok(());
+    }
     if table4 && !sweep_wanted {
         let report = street_table4(&a, &features::builtin_table()?)?;
         println!("{report}");
@@ -340,27 +140,6 @@ pub fn finish(c: &report::Collected, failed_runs: usize) -> anyhow::Result<()> {
         c.path.display()
     );
     Ok(())
-}
-
-/// Applies `PATH=VALUE` overrides to a filter configuration through its
-/// JSON form (`VALUE` is JSON; a bare word is taken as a string).
-pub fn apply_overrides(config: FilterConfig, sets: &[String]) -> anyhow::Result<FilterConfig> {
-    let mut v = serde_json::to_value(config)?;
-    for s in sets {
-        let (path, value) = s
-            .split_once('=')
-            .with_context(|| format!("--set {s:?}: expected PATH=VALUE"))?;
-        let value: serde_json::Value = serde_json::from_str(value)
-            .unwrap_or_else(|_| serde_json::Value::String(value.to_string()));
-        let mut slot = &mut v;
-        for key in path.split('.') {
-            slot = slot.get_mut(key).with_context(|| {
-                format!("--set {s:?}: no parameter {path:?} (see --show-config)")
-            })?;
-        }
-        *slot = value;
-    }
-    serde_json::from_value(v).context("--set: the resulting configuration is invalid")
 }
 
 fn default_trajectories() -> PathBuf {

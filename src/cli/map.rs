@@ -28,6 +28,10 @@ pub enum MapCommand {
     /// Convert a map file of an older format version (1: checksum over the
     /// data only) into the current one (2: header values checksummed too).
     Upgrade(UpgradeArgs),
+    /// Project a map to a floor plan: features averaged along the vertical
+    /// over a height band into a 2-D grid (Table I's 2-D block), written as
+    /// a versioned file and optionally a PNG.
+    Floorplan(super::map_floorplan::FloorplanArgs),
 }
 
 #[derive(Debug, Args)]
@@ -59,6 +63,7 @@ pub fn run(cmd: MapCommand) -> anyhow::Result<()> {
         MapCommand::Ground(a) => super::map_build::ground(&a),
         MapCommand::Query(a) => super::map_build::query(&a),
         MapCommand::Export(a) => super::map_build::export(&a),
+        MapCommand::Floorplan(a) => super::map_floorplan::run(&a),
         MapCommand::Upgrade(a) => {
             anyhow::ensure!(
                 a.file != a.out,

@@ -2,6 +2,8 @@
 //! the library. Errors are `anyhow` here, `thiserror` in the library.
 
 pub mod bench;
+pub mod bench_args;
+pub mod bench_table1;
 pub mod demo;
 pub mod encode;
 pub mod encoders;
@@ -9,6 +11,7 @@ pub mod eval;
 pub mod localize;
 pub mod map;
 pub mod map_build;
+pub mod map_floorplan;
 pub mod progress;
 pub mod serve;
 pub mod sim;
@@ -31,7 +34,7 @@ pub enum Command {
     #[command(subcommand)]
     Map(map::MapCommand),
     /// The paper's experiments on the synthetic benchmark: tables and plots.
-    Bench(bench::BenchArgs),
+    Bench(bench_args::BenchArgs),
     /// Run the pipeline end to end on the built-in synthetic world.
     Demo(demo::DemoArgs),
     /// Run ONNX encoders: words, images and point clouds to features.

@@ -10,7 +10,8 @@ use omcl::experiment::report;
 use omcl::experiment::slurm::{self, SlurmOptions};
 use omcl::experiment::sweep::{self, Cache, Manifest, ResultDir};
 
-use super::bench::{PlanArgs, finish, run_with_progress};
+use super::bench::{finish, run_with_progress};
+use super::bench_args::PlanArgs;
 
 #[derive(Debug, Subcommand)]
 pub enum SweepCommand {

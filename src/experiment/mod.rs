@@ -27,6 +27,8 @@ pub mod sequence;
 pub mod slurm;
 pub mod sweep;
 pub mod table1;
+pub mod table1_6dof;
+pub mod table1_floorplan;
 pub mod table2;
 pub mod table4;
 pub mod table5;

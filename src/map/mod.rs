@@ -3,6 +3,7 @@
 //! format.
 pub mod features;
 pub mod file;
+pub mod floorplan;
 pub mod ground;
 pub mod integrate;
 pub mod key;
@@ -11,6 +12,7 @@ pub mod query;
 
 pub use features::{FeatureDb, FeatureDbError};
 pub use file::{MapFileError, load, save};
+pub use floorplan::{FloorPlan, FloorPlanParams};
 pub use ground::{GroundingReport, ground};
 pub use integrate::Integrator;
 pub use key::{Cell, GridSpec};

@@ -40,6 +40,7 @@
 //! a spread above ~1 m or a sharp drop of the likelihood means the filter is
 //! lost: re-initialize with [`Filter::reinitialize`] (e.g. from a new prompt).
 
+pub mod baselines;
 pub mod estimate;
 pub mod filter;
 pub mod init;

@@ -13,6 +13,7 @@
 
 mod bricks;
 mod embree;
+mod planar;
 mod reference;
 
 pub use bricks::BrickEdge;
@@ -20,6 +21,7 @@ pub use embree::{
     BuildOptions, BuildQuality, EmbreeCaster, EmbreeError, Geometry, Packet, misaligned_masks,
     thread_float_mode,
 };
+pub use planar::PlanarCaster;
 pub use reference::ReferenceCaster;
 
 use rayon::prelude::*;

@@ -1,0 +1,62 @@
+//! `omcl map floorplan`: project a language map to a floor plan (2-D grid,
+//! features averaged along the vertical over a height band), written as a
+//! versioned file and optionally a PNG.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use clap::Args;
+
+use omcl::map::floorplan::{self, FloorPlan, FloorPlanParams};
+
+#[derive(Debug, Args)]
+pub struct FloorplanArgs {
+    /// The 3-D language map (`.omcl`).
+    pub map: PathBuf,
+    /// Where to write the floor plan (safetensors, format `omcl-floor-plan`).
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// Lower edge of the averaged height band, metres above the bottom of
+    /// the map's lowest occupied layer (leaves the floor out).
+    #[arg(long, default_value_t = FloorPlanParams::default().band_min)]
+    pub band_min: f64,
+    /// Upper edge of the band, metres above the floor (leaves the ceiling
+    /// out).
+    #[arg(long, default_value_t = FloorPlanParams::default().band_max)]
+    pub band_max: f64,
+    /// Also write the plan as a PNG, one pixel a cell, +y up, free cells
+    /// white, occupied cells coloured by feature row.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+}
+
+pub fn run(a: &FloorplanArgs) -> anyhow::Result<()> {
+    let map = omcl::map::load(&a.map)?;
+    let params = FloorPlanParams {
+        band_min: a.band_min,
+        band_max: a.band_max,
+    };
+    let plan = FloorPlan::from_map(&map, &params)
+        .with_context(|| format!("projecting {} to a floor plan", a.map.display()))?;
+    floorplan::save(&plan, &a.out)?;
+    println!(
+        "{} -> {}: {} columns of {} m, {} feature rows (from {} voxels, {} rows), band {}..{} m above z = {:.3} m",
+        a.map.display(),
+        a.out.display(),
+        plan.len(),
+        plan.resolution,
+        plan.db().len(),
+        map.len(),
+        map.db().len(),
+        params.band_min,
+        params.band_max,
+        plan.floor_z
+    );
+    if let Some(png) = &a.png {
+        let (w, h, rgb) = plan.image();
+        omcl::sim::files::write_png_rgb(png, w, h, &rgb)
+            .with_context(|| format!("writing {}", png.display()))?;
+        println!("wrote {} ({w} x {h})", png.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,772 @@
+//! Floor-plan maps: the Octree Language Map projected to a 2-D grid by
+//! averaging its features along the vertical (the paper's 2-D block of
+//! Table I, on which OMCL, SeDAR* and SIMP* are compared).
+//!
+//! # Construction
+//!
+//! Every column `(i, j)` of the map's grid (same resolution and horizontal
+//! origin) gets the mean of the features of its leaves whose centres lie in
+//! a height band `[floor + band_min, floor + band_max]`, where `floor` is
+//! the bottom of the map's lowest occupied layer. Each leaf counts once
+//! with its (unit) database row; the sum is normalized. The band leaves out
+//! the floor and the ceiling: they cover every column of a room, so with
+//! them every free column would be occupied and a horizontal ray would stop
+//! in the camera's own cell. Columns with no leaf in the band are free.
+//!
+//! The database is rebuilt from the averaged column features with the
+//! map's own `tau`: each averaged feature is admitted in column order
+//! (`j` then `i`) into an empty [`FeatureDb`] of the same dimension (a new
+//! row when it is farther than `tau` in cosine distance from every row,
+//! else the nearest row represents it), so a wall column keeps the wall's
+//! row and a column of a table under a shelf gets the blend of the two.
+//!
+//! # File
+//!
+//! One safetensors file, like the 3-D map ([`super::file`]): tensors
+//! `cells` (I32, P x 2 column indices, strictly increasing in `(j, i)`),
+//! `rows` (U32, P feature rows), `features` (F32, K x F unit rows); header
+//! `format` = `omcl-floor-plan`, `version`, `resolution`, `origin_x`,
+//! `origin_y`, `floor_z`, `band_min`, `band_max` (m), `feature_dim`, `tau`,
+//! `encoder`, `cells`, `rows`, and `crc32`: CRC-32 of the header values of
+//! [`CHECKED_FIELDS`] (each as a `name=value` line) followed by the three
+//! tensors' bytes. A file of another version or with a wrong checksum is
+//! refused with a named error.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use nalgebra::Vector3;
+use safetensors::tensor::{Dtype, SafeTensors, TensorView};
+
+use super::features::{FeatureDb, FeatureDbError};
+use super::key::GridSpec;
+use super::octree::{LanguageMap, MapError};
+
+/// Value of the `format` field.
+pub const FORMAT: &str = "omcl-floor-plan";
+/// Version this build writes and reads.
+pub const VERSION: u32 = 1;
+
+/// Header fields covered by the checksum, in checksum order.
+pub const CHECKED_FIELDS: [&str; 13] = [
+    "format",
+    "version",
+    "resolution",
+    "origin_x",
+    "origin_y",
+    "floor_z",
+    "band_min",
+    "band_max",
+    "feature_dim",
+    "tau",
+    "encoder",
+    "cells",
+    "rows",
+];
+
+/// The height band whose leaves are averaged, metres above the bottom of
+/// the map's lowest occupied layer.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FloorPlanParams {
+    pub band_min: f64,
+    pub band_max: f64,
+}
+
+impl Default for FloorPlanParams {
+    /// 0.10 to 2.00 m: above a 5 cm floor slab and its skirting, below the
+    /// ceiling and below the wall over doorways (the synthetic doors are
+    /// 2.05 m high; a band up to 2.3 m closed every doorway in the plan).
+    fn default() -> Self {
+        FloorPlanParams {
+            band_min: 0.10,
+            band_max: 2.00,
+        }
+    }
+}
+
+/// Errors building a floor plan.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum FloorPlanError {
+    #[error("the height band [{0}, {1}] m is empty or not finite")]
+    BadBand(f64, f64),
+    #[error("the map has no leaf in the height band [{0}, {1}] m above its floor")]
+    EmptyBand(f64, f64),
+    #[error("column indices must be strictly increasing in (j, i) (at column {0})")]
+    Unsorted(usize),
+    #[error("{cells} cells but {rows} row indices")]
+    LengthMismatch { cells: usize, rows: usize },
+    #[error("column {cell} points at feature row {row}, but the database has {rows} rows")]
+    RowOutOfRange { cell: usize, row: u32, rows: usize },
+    #[error("resolution must be a positive finite number of metres, got {0}")]
+    BadResolution(f64),
+    #[error(transparent)]
+    Features(#[from] FeatureDbError),
+    #[error(transparent)]
+    Map(#[from] MapError),
+}
+
+/// A floor plan: occupied columns of a 2-D grid and their feature rows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FloorPlan {
+    /// Cell edge, metres.
+    pub resolution: f64,
+    /// World x, y of the corner of cell (0, 0).
+    pub origin: [f64; 2],
+    /// World z of the floor the band is measured from.
+    pub floor_z: f64,
+    pub params: FloorPlanParams,
+    cells: Vec<[i32; 2]>,
+    rows: Vec<u32>,
+    db: FeatureDb,
+    encoder: String,
+}
+
+impl FloorPlan {
+    /// A plan from columns already sorted by `(j, i)`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn from_parts(
+        resolution: f64,
+        origin: [f64; 2],
+        floor_z: f64,
+        params: FloorPlanParams,
+        db: FeatureDb,
+        encoder: impl Into<String>,
+        cells: Vec<[i32; 2]>,
+        rows: Vec<u32>,
+    ) -> Result<Self, FloorPlanError> {
+        if !(resolution.is_finite() && resolution > 0.0) {
+            return Err(FloorPlanError::BadResolution(resolution));
+        }
+        if cells.len() != rows.len() {
+            return Err(FloorPlanError::LengthMismatch {
+                cells: cells.len(),
+                rows: rows.len(),
+            });
+        }
+        if let Some(i) = cells
+            .windows(2)
+            .position(|w| (w[0][1], w[0][0]) >= (w[1][1], w[1][0]))
+        {
+            return Err(FloorPlanError::Unsorted(i + 1));
+        }
+        if let Some((cell, &row)) = rows
+            .iter()
+            .enumerate()
+            .find(|(_, r)| **r as usize >= db.len())
+        {
+            return Err(FloorPlanError::RowOutOfRange {
+                cell,
+                row,
+                rows: db.len(),
+            });
+        }
+        Ok(FloorPlan {
+            resolution,
+            origin,
+            floor_z,
+            params,
+            cells,
+            rows,
+            db,
+            encoder: encoder.into(),
+        })
+    }
+
+    /// Projects `map` to a floor plan (see the module documentation).
+    pub fn from_map(map: &LanguageMap, params: &FloorPlanParams) -> Result<Self, FloorPlanError> {
+        let (lo, hi) = (params.band_min, params.band_max);
+        if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+            return Err(FloorPlanError::BadBand(lo, hi));
+        }
+        let g = map.grid();
+        let r = g.resolution;
+        let Some((min, _)) = map.cell_bounds() else {
+            return Err(FloorPlanError::EmptyBand(lo, hi));
+        };
+        let floor_z = g.origin.z + min[2] as f64 * r;
+        let dim = map.db().dim();
+        // Sum of unit rows per column.
+        let mut sums: HashMap<(i32, i32), Vec<f32>> = HashMap::new();
+        for (c, &row) in map.cells().iter().zip(map.rows()) {
+            let centre = g.origin.z + (c[2] as f64 + 0.5) * r - floor_z;
+            if centre < lo || centre > hi {
+                continue;
+            }
+            let s = sums.entry((c[1], c[0])).or_insert_with(|| vec![0.0; dim]);
+            for (a, b) in s.iter_mut().zip(map.db().row(row as usize)) {
+                *a += b;
+            }
+        }
+        if sums.is_empty() {
+            return Err(FloorPlanError::EmptyBand(lo, hi));
+        }
+        let mut keys: Vec<(i32, i32)> = sums.keys().copied().collect();
+        keys.sort_unstable();
+        let mut db = FeatureDb::new(dim, map.db().tau())?;
+        let mut cells = Vec::with_capacity(keys.len());
+        let mut rows = Vec::with_capacity(keys.len());
+        for k in keys {
+            let f = &sums[&k];
+            // A column whose features cancel exactly has no direction: it
+            // is left free.
+            match db.admit(f) {
+                Ok(row) => {
+                    cells.push([k.1, k.0]);
+                    rows.push(row as u32);
+                }
+                Err(FeatureDbError::Degenerate { .. }) => continue,
+                Err(e) => return Err(e.into()),
+            }
+        }
+        Self::from_parts(
+            r,
+            [g.origin.x, g.origin.y],
+            floor_z,
+            *params,
+            db,
+            map.encoder(),
+            cells,
+            rows,
+        )
+    }
+
+    /// Occupied columns `[i, j]`, sorted by `(j, i)`.
+    pub fn cells(&self) -> &[[i32; 2]] {
+        &self.cells
+    }
+
+    /// Feature row of every column.
+    pub fn rows(&self) -> &[u32] {
+        &self.rows
+    }
+
+    /// The feature database.
+    pub fn db(&self) -> &FeatureDb {
+        &self.db
+    }
+
+    /// Name of the encoder whose feature space the rows live in.
+    pub fn encoder(&self) -> &str {
+        &self.encoder
+    }
+
+    /// Number of occupied columns.
+    pub fn len(&self) -> usize {
+        self.cells.len()
+    }
+
+    /// Whether no column is occupied.
+    pub fn is_empty(&self) -> bool {
+        self.cells.is_empty()
+    }
+
+    /// Row of column `[i, j]`, if occupied.
+    pub fn row_at(&self, cell: [i32; 2]) -> Option<u32> {
+        self.cells
+            .binary_search_by_key(&(cell[1], cell[0]), |c| (c[1], c[0]))
+            .ok()
+            .map(|k| self.rows[k])
+    }
+
+    /// The plan as a one-layer language map (cells `[i, j, 0]`, origin at
+    /// `floor_z`), so that the 3-D filter's pieces (motion, sampling, the
+    /// eq. 2 sensor model, estimate) run on it unchanged with a
+    /// [`crate::raycast::PlanarCaster`] built from its leaves.
+    pub fn to_language_map(&self) -> Result<LanguageMap, FloorPlanError> {
+        let grid = GridSpec {
+            resolution: self.resolution,
+            origin: Vector3::new(self.origin[0], self.origin[1], self.floor_z),
+        };
+        Ok(LanguageMap::from_cells(
+            grid,
+            self.db.clone(),
+            self.encoder.clone(),
+            self.cells
+                .iter()
+                .zip(&self.rows)
+                .map(|(c, &r)| ([c[0], c[1], 0], r)),
+        )?)
+    }
+
+    /// An RGB image of the plan, one pixel a cell, north (+y) up: free
+    /// cells white, occupied cells coloured by feature row (golden-ratio
+    /// hues, so neighbouring rows differ). Returns `(width, height, rgb)`.
+    pub fn image(&self) -> (u32, u32, Vec<u8>) {
+        if self.cells.is_empty() {
+            return (1, 1, vec![255; 3]);
+        }
+        let (mut lo, mut hi) = ([i32::MAX; 2], [i32::MIN; 2]);
+        for c in &self.cells {
+            for a in 0..2 {
+                lo[a] = lo[a].min(c[a]);
+                hi[a] = hi[a].max(c[a]);
+            }
+        }
+        let w = (hi[0] - lo[0] + 1) as u32;
+        let h = (hi[1] - lo[1] + 1) as u32;
+        let mut rgb = vec![255u8; (w * h * 3) as usize];
+        for (c, &row) in self.cells.iter().zip(&self.rows) {
+            let x = (c[0] - lo[0]) as u32;
+            let y = (hi[1] - c[1]) as u32;
+            let k = ((y * w + x) * 3) as usize;
+            rgb[k..k + 3].copy_from_slice(&row_colour(row));
+        }
+        (w, h, rgb)
+    }
+}
+
+/// A colour per feature row: hue `row x 0.618` turns, saturation 0.65,
+/// value 0.85.
+pub fn row_colour(row: u32) -> [u8; 3] {
+    let h = (row as f64 * 0.618_033_988_75).fract() * 6.0;
+    let (s, v) = (0.65, 0.85);
+    let c = v * s;
+    let x = c * (1.0 - ((h % 2.0) - 1.0).abs());
+    let (r, g, b) = match h as u32 {
+        0 => (c, x, 0.0),
+        1 => (x, c, 0.0),
+        2 => (0.0, c, x),
+        3 => (0.0, x, c),
+        4 => (x, 0.0, c),
+        _ => (c, 0.0, x),
+    };
+    let m = v - c;
+    [r, g, b].map(|u| ((u + m) * 255.0).round() as u8)
+}
+
+/// Errors reading or writing a floor-plan file; each names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum FloorPlanFileError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: not an omcl floor plan: not a safetensors file ({reason})")]
+    NotSafetensors { path: PathBuf, reason: String },
+    #[error(
+        "{path}: not an omcl floor plan: header field `format` is {found:?}, expected \"{FORMAT}\""
+    )]
+    Foreign {
+        path: PathBuf,
+        found: Option<String>,
+    },
+    #[error(
+        "{path}: floor-plan format version {found} is not supported (this build reads version {VERSION})"
+    )]
+    Version { path: PathBuf, found: String },
+    #[error("{path}: header field `{field}` is missing")]
+    MissingField { path: PathBuf, field: &'static str },
+    #[error("{path}: header field `{field}` = {value:?} is not valid: {expected}")]
+    BadField {
+        path: PathBuf,
+        field: &'static str,
+        value: String,
+        expected: &'static str,
+    },
+    #[error("{path}: tensor `{name}`: {reason}")]
+    Tensor {
+        path: PathBuf,
+        name: &'static str,
+        reason: String,
+    },
+    #[error(
+        "{path}: checksum mismatch (header says {stored:08x}, data gives {computed:08x}): the file is corrupt"
+    )]
+    Checksum {
+        path: PathBuf,
+        stored: u32,
+        computed: u32,
+    },
+    #[error("{path}: inconsistent floor plan: {source}")]
+    Invalid {
+        path: PathBuf,
+        source: FloorPlanError,
+    },
+}
+
+fn checksum(meta: &HashMap<String, String>, tensors: [&[u8]; 3]) -> u32 {
+    let mut crc = crc32fast::Hasher::new();
+    for name in CHECKED_FIELDS {
+        crc.update(name.as_bytes());
+        crc.update(b"=");
+        crc.update(meta.get(name).map_or(&b""[..], |v| v.as_bytes()));
+        crc.update(b"\n");
+    }
+    for t in tensors {
+        crc.update(t);
+    }
+    crc.finalize()
+}
+
+/// Serializes a plan into the bytes of a floor-plan file.
+pub fn to_bytes(plan: &FloorPlan) -> Vec<u8> {
+    let cells: Vec<u8> = plan
+        .cells
+        .iter()
+        .flat_map(|c| c.iter().flat_map(|v| v.to_le_bytes()))
+        .collect();
+    let rows: Vec<u8> = plan.rows.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let features: Vec<u8> = plan
+        .db
+        .rows()
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let mut meta: HashMap<String, String> = [
+        ("format", FORMAT.to_string()),
+        ("version", VERSION.to_string()),
+        ("resolution", format!("{:?}", plan.resolution)),
+        ("origin_x", format!("{:?}", plan.origin[0])),
+        ("origin_y", format!("{:?}", plan.origin[1])),
+        ("floor_z", format!("{:?}", plan.floor_z)),
+        ("band_min", format!("{:?}", plan.params.band_min)),
+        ("band_max", format!("{:?}", plan.params.band_max)),
+        ("feature_dim", plan.db.dim().to_string()),
+        ("tau", format!("{:?}", plan.db.tau())),
+        ("encoder", plan.encoder.clone()),
+        ("cells", plan.len().to_string()),
+        ("rows", plan.db.len().to_string()),
+        ("writer", format!("omcl {}", env!("CARGO_PKG_VERSION"))),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v))
+    .collect();
+    let crc = checksum(&meta, [&cells, &rows, &features]);
+    meta.insert("crc32".into(), format!("{crc:08x}"));
+    let n = plan.len();
+    let views = [
+        ("cells", TensorView::new(Dtype::I32, vec![n, 2], &cells)),
+        ("rows", TensorView::new(Dtype::U32, vec![n], &rows)),
+        (
+            "features",
+            TensorView::new(Dtype::F32, vec![plan.db.len(), plan.db.dim()], &features),
+        ),
+    ];
+    let views = views
+        .into_iter()
+        .map(|(n, v)| (n, v.expect("tensor sizes follow from the plan's lengths")));
+    safetensors::serialize(views, Some(meta)).expect("a plan always has a valid safetensors layout")
+}
+
+/// Writes `plan` to `path` atomically.
+pub fn save(plan: &FloorPlan, path: &Path) -> Result<(), FloorPlanFileError> {
+    crate::io::atomic::write(path, &to_bytes(plan)).map_err(|source| FloorPlanFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Reads a floor-plan file.
+pub fn load(path: &Path) -> Result<FloorPlan, FloorPlanFileError> {
+    let bytes = std::fs::read(path).map_err(|source| FloorPlanFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    from_bytes(&bytes, path)
+}
+
+/// Parses the bytes of a floor-plan file; `path` names it in errors.
+pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<FloorPlan, FloorPlanFileError> {
+    use FloorPlanFileError as E;
+    let p = || path.to_path_buf();
+    let st = SafeTensors::deserialize(bytes).map_err(|e| E::NotSafetensors {
+        path: p(),
+        reason: e.to_string(),
+    })?;
+    let (_, header) = SafeTensors::read_metadata(bytes).map_err(|e| E::NotSafetensors {
+        path: p(),
+        reason: e.to_string(),
+    })?;
+    let meta = header.metadata().clone().unwrap_or_default();
+    let format = meta.get("format");
+    if format.map(String::as_str) != Some(FORMAT) {
+        return Err(E::Foreign {
+            path: p(),
+            found: format.cloned(),
+        });
+    }
+    let field = |name: &'static str| -> Result<&String, E> {
+        meta.get(name).ok_or(E::MissingField {
+            path: p(),
+            field: name,
+        })
+    };
+    let version = field("version")?;
+    if version.parse::<u32>().ok() != Some(VERSION) {
+        return Err(E::Version {
+            path: p(),
+            found: version.clone(),
+        });
+    }
+    fn num<T: std::str::FromStr>(
+        path: &Path,
+        name: &'static str,
+        v: &str,
+        expected: &'static str,
+        ok: impl Fn(&T) -> bool,
+    ) -> Result<T, FloorPlanFileError> {
+        v.parse::<T>()
+            .ok()
+            .filter(|x| ok(x))
+            .ok_or(FloorPlanFileError::BadField {
+                path: path.to_path_buf(),
+                field: name,
+                value: v.to_string(),
+                expected,
+            })
+    }
+    let finite = |x: &f64| x.is_finite();
+    let f64_field = |name: &'static str| -> Result<f64, E> {
+        num(path, name, field(name)?, "a finite number", finite)
+    };
+    let resolution: f64 = num(
+        path,
+        "resolution",
+        field("resolution")?,
+        "a positive number",
+        |x: &f64| x.is_finite() && *x > 0.0,
+    )?;
+    let origin = [f64_field("origin_x")?, f64_field("origin_y")?];
+    let floor_z = f64_field("floor_z")?;
+    let params = FloorPlanParams {
+        band_min: f64_field("band_min")?,
+        band_max: f64_field("band_max")?,
+    };
+    let dim: usize = num(
+        path,
+        "feature_dim",
+        field("feature_dim")?,
+        "a positive integer",
+        |d| *d > 0,
+    )?;
+    let tau: f32 = num(
+        path,
+        "tau",
+        field("tau")?,
+        "a cosine distance in [0, 2]",
+        |t: &f32| (0.0..=2.0).contains(t),
+    )?;
+    let n: usize = num(path, "cells", field("cells")?, "an integer", |_| true)?;
+    let k: usize = num(path, "rows", field("rows")?, "an integer", |_| true)?;
+    let crc_text = field("crc32")?;
+    let stored = u32::from_str_radix(crc_text, 16).map_err(|_| E::BadField {
+        path: p(),
+        field: "crc32",
+        value: crc_text.clone(),
+        expected: "8 hex digits",
+    })?;
+    let encoder = field("encoder")?.clone();
+    let tensor = |name: &'static str, dtype: Dtype, shape: Vec<usize>| -> Result<&[u8], E> {
+        let t = st.tensor(name).map_err(|e| E::Tensor {
+            path: p(),
+            name,
+            reason: e.to_string(),
+        })?;
+        if t.dtype() != dtype || t.shape() != shape.as_slice() {
+            return Err(E::Tensor {
+                path: p(),
+                name,
+                reason: format!(
+                    "expected {dtype:?} of shape {shape:?}, found {:?} of shape {:?}",
+                    t.dtype(),
+                    t.shape()
+                ),
+            });
+        }
+        Ok(t.data())
+    };
+    let cells_b = tensor("cells", Dtype::I32, vec![n, 2])?;
+    let rows_b = tensor("rows", Dtype::U32, vec![n])?;
+    let feat_b = tensor("features", Dtype::F32, vec![k, dim])?;
+    let computed = checksum(&meta, [cells_b, rows_b, feat_b]);
+    if computed != stored {
+        return Err(E::Checksum {
+            path: p(),
+            stored,
+            computed,
+        });
+    }
+    let i32s: Vec<i32> = cells_b
+        .chunks_exact(4)
+        .map(|b| i32::from_le_bytes(b.try_into().expect("4 bytes")))
+        .collect();
+    let cells: Vec<[i32; 2]> = i32s.chunks_exact(2).map(|c| [c[0], c[1]]).collect();
+    let rows: Vec<u32> = rows_b
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes(b.try_into().expect("4 bytes")))
+        .collect();
+    let feats: Vec<f32> = feat_b
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes(b.try_into().expect("4 bytes")))
+        .collect();
+    let invalid = |source: FloorPlanError| E::Invalid { path: p(), source };
+    let db = FeatureDb::from_rows(dim, tau, feats).map_err(|e| invalid(e.into()))?;
+    FloorPlan::from_parts(
+        resolution, origin, floor_z, params, db, encoder, cells, rows,
+    )
+    .map_err(invalid)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::map::features::dot;
+
+    fn grid() -> GridSpec {
+        GridSpec {
+            resolution: 0.5,
+            origin: Vector3::new(1.0, -2.0, 0.0),
+        }
+    }
+
+    /// A hand-made map at 0.5 m: a floor layer (z index 0, bottom at 0 m)
+    /// under everything, a wall column at (0, 0) of row 1 over z 1..=3, a
+    /// column at (2, 1) with row 1 at z 1 and row 2 at z 2 and z 3, and a
+    /// ceiling (row 3) at z 5 over (0, 0). Band 0.6 to 2.0 m: centres 0.75,
+    /// 1.25, 1.75 (z 1..=3) are in; the floor (0.25) and ceiling (2.75) are
+    /// out.
+    fn hand_map() -> LanguageMap {
+        let rows = vec![
+            1.0, 0.0, 0.0, // 0 floor
+            0.0, 1.0, 0.0, // 1 wall
+            0.0, 0.0, 1.0, // 2 shelf
+            0.6, 0.0, 0.8, // 3 ceiling
+        ];
+        let db = FeatureDb::from_rows(3, 0.05, rows).unwrap();
+        let mut leaves = vec![];
+        for i in 0..4 {
+            for j in 0..3 {
+                leaves.push(([i, j, 0], 0));
+            }
+        }
+        for z in 1..=3 {
+            leaves.push(([0, 0, z], 1));
+        }
+        leaves.push(([2, 1, 1], 1));
+        leaves.push(([2, 1, 2], 2));
+        leaves.push(([2, 1, 3], 2));
+        leaves.push(([0, 0, 5], 3));
+        LanguageMap::from_cells(grid(), db, "hand", leaves).unwrap()
+    }
+
+    fn band() -> FloorPlanParams {
+        FloorPlanParams {
+            band_min: 0.6,
+            band_max: 2.0,
+        }
+    }
+
+    #[test]
+    fn averaging_a_hand_made_map_gives_the_known_plan() {
+        let plan = FloorPlan::from_map(&hand_map(), &band()).unwrap();
+        assert_eq!(plan.floor_z, 0.0);
+        assert_eq!(plan.origin, [1.0, -2.0]);
+        // Two occupied columns, (j, i) order: (0, 0) then (2, 1).
+        assert_eq!(plan.cells(), &[[0, 0], [2, 1]]);
+        // (0, 0): three wall leaves: the wall's direction.
+        let a = plan.db().row(plan.rows()[0] as usize);
+        assert!((a[0]).abs() < 1e-6 && (a[1] - 1.0).abs() < 1e-6 && a[2].abs() < 1e-6);
+        // (2, 1): one wall + two shelf leaves: (0, 1, 2) / sqrt 5.
+        let b = plan.db().row(plan.rows()[1] as usize);
+        let s = 5f32.sqrt();
+        assert!(
+            b[0].abs() < 1e-6 && (b[1] - 1.0 / s).abs() < 1e-6 && (b[2] - 2.0 / s).abs() < 1e-6
+        );
+        assert_eq!(plan.db().len(), 2);
+        assert_eq!(plan.row_at([2, 1]), Some(plan.rows()[1]));
+        assert_eq!(plan.row_at([1, 1]), None);
+        // A band holding only the floor layer is an error; so is an empty one.
+        let floor_only = FloorPlanParams {
+            band_min: 3.5,
+            band_max: 4.0,
+        };
+        assert_eq!(
+            FloorPlan::from_map(&hand_map(), &floor_only),
+            Err(FloorPlanError::EmptyBand(3.5, 4.0))
+        );
+        assert!(matches!(
+            FloorPlan::from_map(
+                &hand_map(),
+                &FloorPlanParams {
+                    band_min: 1.0,
+                    band_max: 1.0
+                }
+            ),
+            Err(FloorPlanError::BadBand(..))
+        ));
+    }
+
+    #[test]
+    fn tau_merges_columns_whose_averages_are_close() {
+        // With tau 0.2 the blend (0, 1, 2)/sqrt 5 is 0.553 from the wall
+        // (cos 0.447): kept apart; with tau 0.6 it merges into the wall row.
+        let m = hand_map();
+        let loose = LanguageMap::from_cells(
+            *m.grid(),
+            FeatureDb::from_rows(3, 0.6, m.db().rows().to_vec()).unwrap(),
+            "hand",
+            m.cells().into_iter().zip(m.rows().iter().copied()),
+        )
+        .unwrap();
+        let plan = FloorPlan::from_map(&loose, &band()).unwrap();
+        assert_eq!(plan.db().len(), 1);
+        assert_eq!(plan.rows(), &[0, 0]);
+        assert!((dot(plan.db().row(0), &[0.0, 1.0, 0.0]) - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_one_layer_map_keeps_columns_and_rows() {
+        let plan = FloorPlan::from_map(&hand_map(), &band()).unwrap();
+        let m = plan.to_language_map().unwrap();
+        assert_eq!(m.len(), 2);
+        assert_eq!(m.grid().origin, Vector3::new(1.0, -2.0, 0.0));
+        for (c, r) in m.cells().iter().zip(m.rows()) {
+            assert_eq!(c[2], 0);
+            assert_eq!(plan.row_at([c[0], c[1]]), Some(*r));
+        }
+        let (w, h, rgb) = plan.image();
+        assert_eq!((w, h), (3, 2));
+        // Top-left pixel is column (0, 1): free, white; bottom-left (0, 0).
+        assert_eq!(&rgb[0..3], &[255, 255, 255]);
+        assert_eq!(&rgb[9..12], &row_colour(plan.rows()[0]));
+    }
+
+    #[test]
+    fn file_round_trip_and_corruption_refused() {
+        let plan = FloorPlan::from_map(&hand_map(), &band()).unwrap();
+        let path = Path::new("plan.omclplan");
+        let bytes = to_bytes(&plan);
+        assert_eq!(from_bytes(&bytes, path).unwrap(), plan);
+        // A flipped byte in the last feature value: checksum error.
+        let mut bad = bytes.clone();
+        let n = bad.len();
+        bad[n - 2] ^= 0x40;
+        assert!(matches!(
+            from_bytes(&bad, path),
+            Err(FloorPlanFileError::Checksum { .. })
+        ));
+        // A future version is refused by name.
+        let find = |pat: &[u8]| bytes.windows(pat.len()).position(|w| w == pat).unwrap();
+        let at = find(b"\"version\":\"1\"");
+        let mut future = bytes.clone();
+        future[at + 11] = b'9';
+        let e = from_bytes(&future, path).unwrap_err();
+        assert!(matches!(e, FloorPlanFileError::Version { .. }), "{e}");
+        assert!(e.to_string().contains("plan.omclplan") && e.to_string().contains("version 9"));
+        // A 3-D map file is not a plan.
+        let map_bytes = crate::map::file::to_bytes(&hand_map());
+        assert!(matches!(
+            from_bytes(&map_bytes, path),
+            Err(FloorPlanFileError::Foreign { .. })
+        ));
+        // A changed origin digit is caught by the header checksum.
+        let at = find(b"\"origin_x\":\"1.0\"");
+        let mut moved = bytes.clone();
+        moved[at + 12] = b'3';
+        assert!(matches!(
+            from_bytes(&moved, path),
+            Err(FloorPlanFileError::Checksum { .. })
+        ));
+    }
+}

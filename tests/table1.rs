@@ -1,0 +1,115 @@
+//! Table I on synthetic sequences: OMCL on a floor plan (2-D block) and
+//! the full 6-DoF pose in the 3-D map (3-D block), each on one tuning-range
+//! sequence with an accuracy bound.
+
+use omcl::experiment::features::builtin_table;
+use omcl::experiment::mapping::BenchMap;
+use omcl::experiment::table1_6dof::{SixDofMotion, sixdof_sequence, track_6dof};
+use omcl::experiment::table1_floorplan::{PlanBench, TwoDParams, track_2d, track_baseline};
+use omcl::experiment::variant::TABLE1_VARIANTS;
+use omcl::experiment::{MapParams, MapSource, SimSequence};
+use omcl::map::FloorPlanParams;
+use omcl::mcl::FilterConfig;
+use omcl::mcl::baselines::Baseline;
+
+const BOUND_2D: f64 = 0.5;
+const BOUND_6DOF: f64 = 0.5;
+const BOUND_HEIGHT: f64 = 0.2;
+use omcl::sim::features::Preset;
+
+/// OMCL_GT on the floor plan of sequence 1 (tuning range), 60 frames,
+/// 512 particles: the horizontal APE stays bounded, and the baselines run
+/// to the end of the same sequence on the same plan.
+#[test]
+fn two_d_omcl_tracks_on_the_floor_plan() {
+    let table = builtin_table().unwrap();
+    let seq = SimSequence::generate(1, 60, &table).unwrap();
+    let map = BenchMap::build(
+        &seq,
+        MapSource::Features(Preset::Gt),
+        &MapParams::default(),
+        &|_| {},
+    )
+    .unwrap();
+    let plan = PlanBench::from_bench(&map, &FloorPlanParams::default()).unwrap();
+    // The plan is a one-layer map of the 3-D map's columns.
+    assert!(plan.map.cells().iter().all(|c| c[2] == 0));
+    assert!(plan.plan.len() > 1000 && plan.plan.len() < map.map.len());
+    let filter = FilterConfig {
+        seed: 1,
+        ..FilterConfig::default()
+    };
+    let (r, _) = track_2d(&seq, &plan, Preset::Gt, filter, 512, &TwoDParams::default()).unwrap();
+    assert_eq!(r.errors_m.len(), 60);
+    eprintln!("2-D OMCL_GT RMSE {:.3} m", r.stats.rmse);
+    assert!(r.stats.rmse < BOUND_2D, "2-D RMSE {:.3} m", r.stats.rmse);
+    // Frames of another feature dimension than the plan's: a named error.
+    let caster: std::sync::Arc<dyn omcl::raycast::RayCaster> = plan.caster.clone();
+    let mut f = omcl::mcl::Filter::new(
+        &plan.map,
+        caster,
+        seq.intrinsics,
+        filter,
+        vec![omcl::mcl::Particle::new(seq.poses()[0], 1.0)],
+    )
+    .unwrap();
+    let (w, h) = (seq.intrinsics.width, seq.intrinsics.height);
+    let wrong = omcl::mcl::DenseFeatures {
+        width: w,
+        height: h,
+        dim: 3,
+        data: vec![1.0; (w * h * 3) as usize],
+    };
+    let e = f
+        .step(&omcl::geometry::Pose::identity(), &wrong)
+        .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            omcl::mcl::MclError::DimMismatch { expected, got: 3 } if expected == plan.plan.db().dim()
+        ),
+        "{e}"
+    );
+    for b in [Baseline::Sedar, Baseline::Simp] {
+        let r =
+            track_baseline(&seq, &plan, b, &Default::default(), Preset::Gt, filter, 256).unwrap();
+        assert_eq!(r.errors_m.len(), 60);
+        assert!(r.errors_m.iter().all(|e| e.is_finite()));
+        eprintln!("{} RMSE {:.3} m", b.name(), r.stats.rmse);
+    }
+}
+
+/// OMCL_GT with the full 6-DoF motion model on sequence 1 with height,
+/// pitch and roll changes and 6-DoF odometry noise: the 3-D APE stays
+/// bounded and the estimated height follows the true one.
+#[test]
+fn six_dof_omcl_tracks_height_and_pitch_changes() {
+    let table = builtin_table().unwrap();
+    let seq = sixdof_sequence(1, 60, &table, &SixDofMotion::default()).unwrap();
+    let map = BenchMap::build(
+        &seq,
+        MapSource::Features(Preset::Gt),
+        &MapParams::default(),
+        &|_| {},
+    )
+    .unwrap();
+    let filter = FilterConfig {
+        seed: 1,
+        ..FilterConfig::default()
+    };
+    let r = track_6dof(&seq, &map, &TABLE1_VARIANTS[0], filter, 512).unwrap();
+    eprintln!("6-DoF OMCL_GT RMSE {:.3} m", r.stats.rmse);
+    assert!(
+        r.stats.rmse < BOUND_6DOF,
+        "6-DoF RMSE {:.3} m",
+        r.stats.rmse
+    );
+    let dz: f64 = r
+        .estimates
+        .iter()
+        .zip(seq.poses())
+        .map(|(e, t)| (e.translation.z - t.translation.z).abs())
+        .sum::<f64>()
+        / 60.0;
+    assert!(dz < BOUND_HEIGHT, "mean height error {dz:.3} m");
+}
