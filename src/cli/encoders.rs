@@ -6,8 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use clap::Args;
 
-use omcl::encode::cache::FeatureCache;
-use omcl::encode::image::{FeatureMap as EncodedMap, ImageEncoder};
+use omcl::encode::image::ImageEncoder;
 use omcl::encode::text::TextEncoder;
 
 /// Options that select ONNX encoders.
@@ -26,54 +25,19 @@ pub struct EncoderArgs {
     pub ort_lib: Option<PathBuf>,
 }
 
-/// A loaded image encoder with its optional cache.
-pub struct ImageSource {
-    encoder: ImageEncoder,
-    cache: Option<FeatureCache>,
-    pub name: String,
-}
+pub use omcl::encode::cache::ImageSource;
 
-impl ImageSource {
-    /// Loads the encoder of `args`, if one was given.
-    pub fn open(args: &EncoderArgs) -> anyhow::Result<Option<ImageSource>> {
-        let Some(model) = &args.image_model else {
-            return Ok(None);
-        };
-        let rt = super::encode::init_runtime(args.ort_lib.as_deref())?;
-        let encoder = ImageEncoder::load(rt, model, 0)?;
-        let name = encoder.card().name.clone();
-        let cache = args
-            .feature_cache
-            .as_deref()
-            .map(|d| FeatureCache::new(d, &name))
-            .transpose()?;
-        Ok(Some(ImageSource {
-            encoder,
-            cache,
-            name,
-        }))
-    }
-
-    /// Feature dimension of the encoder.
-    pub fn dim(&self) -> usize {
-        self.encoder.feature_dim()
-    }
-
-    /// Features of the image `rgb` (frame `frame` of its sequence).
-    pub fn encode(&mut self, rgb: &Path, frame: usize) -> anyhow::Result<EncodedMap> {
-        let id = format!("{frame:06}");
-        let enc = &mut self.encoder;
-        let mut compute = || {
-            let img = omcl::io::rgb::read_rgb(rgb)
-                .map_err(|e| omcl::encode::EncodeError::Input(e.to_string()))?;
-            enc.encode(&img)
-        };
-        let fm = match &self.cache {
-            Some(c) => c.get_or_compute(&id, compute),
-            None => compute(),
-        };
-        fm.with_context(|| format!("encoding {}", rgb.display()))
-    }
+/// The image encoder of `args` with its cache, if one was given.
+pub fn open_image_source(args: &EncoderArgs) -> anyhow::Result<Option<ImageSource>> {
+    let Some(model) = &args.image_model else {
+        return Ok(None);
+    };
+    let rt = super::encode::init_runtime(args.ort_lib.as_deref())?;
+    let encoder = ImageEncoder::load(rt, model, 0)?;
+    Ok(Some(ImageSource::new(
+        encoder,
+        args.feature_cache.as_deref(),
+    )?))
 }
 
 pub use omcl::encode::image::EncodedFrame;

@@ -526,7 +526,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     let shared = Arc::new(SharedMap::new("map", map::load(&a.map)?)?);
     let m = shared.map();
     let d = &a.sequence;
-    let mut image = super::encoders::ImageSource::open(&a.encoder)?;
+    let mut image = super::encoders::open_image_source(&a.encoder)?;
     let is_kitti = d.join("calib.txt").exists();
     let inputs = if is_kitti {
         let input = if image.is_some() {
@@ -657,7 +657,9 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         let (odom_i, stamp) = (&odom[i], stamps[i]);
         let r = if let Some(src) = image.as_mut() {
             let p = inputs.rgb_dir.join(format!("{i:06}.png"));
-            let fm = src.encode(&p, i)?;
+            let fm = src
+                .encode(&p, i)
+                .with_context(|| format!("encoding {}", p.display()))?;
             input = t_in.elapsed().as_secs_f64();
             let f = super::encoders::EncodedFrame {
                 map: &fm,

@@ -9,10 +9,10 @@ use clap::{Args, ValueEnum};
 use omcl::io::cloud::PointCloud;
 use omcl::io::formats::CloudFormat;
 use omcl::io::labels::EmbeddingTable;
-use omcl::io::{npy, ply, poses, rgbd as rgbd_io};
-use omcl::map::{self, FeatureDb, GridSpec, Integrator, LanguageMap};
+use omcl::io::{ply, poses};
+use omcl::map::{self, FeatureDb, LanguageMap};
 use omcl::mapping::pipeline::{self, CloudInput};
-use omcl::mapping::{self, FeatureMap, IntegrationStats, LabelImage, colors};
+use omcl::mapping::{IntegrationStats, colors};
 
 /// Options shared by the commands that build a map.
 #[derive(Debug, Clone, Args)]
@@ -73,15 +73,6 @@ impl BuildOptions {
         );
         Ok(())
     }
-}
-
-fn table_db(t: &EmbeddingTable, tau: f32) -> anyhow::Result<FeatureDb> {
-    FeatureDb::from_rows(t.dim, tau, t.data.clone()).context("embedding table")
-}
-
-fn finish(integ: Integrator, b: &BuildOptions, stats: IntegrationStats) -> anyhow::Result<()> {
-    let m = pipeline::finish(integ, &b.encoder, b.tau, &stats)?;
-    save(&m, b, &stats)
 }
 
 /// Saves the map and says what it holds.
@@ -223,137 +214,40 @@ pub struct RgbdArgs {
 pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
     a.build.check()?;
     let d = &a.dir;
-    let k = rgbd_io::read_intrinsics(&d.join("intrinsics.txt"))?;
-    let traj = poses::read_poses(&d.join("poses.txt"))?.trajectory;
-    let n = traj.poses().len().min(a.frames.unwrap_or(usize::MAX));
-    let mut image = super::encoders::ImageSource::open(&a.encoder)?;
+    let mut image = super::encoders::open_image_source(&a.encoder)?;
     let use_labels = image.is_none() && !a.use_features && d.join("labels").is_dir();
     let table = if use_labels {
-        let mut b = a.build.table()?;
-        if b.is_none() {
-            b = Some(EmbeddingTable::read(
+        match a.build.table()? {
+            Some(t) => Some(t),
+            None => Some(EmbeddingTable::read(
                 &d.join("classes.txt"),
                 &d.join("embeddings.npy"),
-            )?);
+            )?),
         }
-        b
     } else {
         None
     };
-    let grid = GridSpec {
-        resolution: a.build.resolution,
-        // Any origin works; the first camera, snapped, keeps coordinates small.
-        origin: traj.poses()[0]
-            .translation
-            .vector
-            .map(|v| (v / a.build.resolution).floor())
-            * a.build.resolution,
+    let features = match (&table, image.as_mut()) {
+        (Some(t), _) => pipeline::RgbdFeatures::Labels(t),
+        (None, Some(src)) => pipeline::RgbdFeatures::Encoder(src),
+        (None, None) => pipeline::RgbdFeatures::Files,
     };
-    let db = match (&table, &image) {
-        (Some(t), _) => table_db(t, a.build.tau)?,
-        (None, Some(img)) => {
-            FeatureDb::new(img.dim(), a.build.tau)?.with_max_rows(a.build.max_rows)
-        }
-        (None, None) => {
-            let f0 = d.join("features").join(format!("{:06}.npy", 0));
-            let arr = npy::read_npy(&f0).with_context(|| {
-                format!(
-                    "no labels/ folder, so features/ is needed: {}",
-                    f0.display()
-                )
-            })?;
-            FeatureDb::new(arr.as_matrix_dims().1, a.build.tau)?.with_max_rows(a.build.max_rows)
-        }
-    };
-    let mut integ = Integrator::new(grid, db)?;
-    let opt = mapping::rgbd::FrameOptions {
-        min_depth: 0.05,
+    let input = pipeline::RgbdInput {
+        dir: d.clone(),
+        depth_scale: a.depth_scale,
         max_depth: a.max_depth,
         max_height: a.max_height,
         stride: a.stride,
+        frames: a.frames,
     };
-    let mut stats = IntegrationStats::default();
-    let pb = super::progress::bar(n as u64, "frames");
-    for (i, pose) in traj.poses().iter().take(n).enumerate() {
-        let depth_path = d.join("depth").join(format!("{i:06}.png"));
-        let depth = rgbd_io::read_depth_png(&depth_path, a.depth_scale)?;
-        ensure!(
-            (depth.width, depth.height) == (k.width, k.height),
-            "{}: {}x{} pixels, intrinsics say {}x{}",
-            depth_path.display(),
-            depth.width,
-            depth.height,
-            k.width,
-            k.height
-        );
-        let s = if let Some(t) = &table {
-            let p = d.join("labels").join(format!("{i:06}.png"));
-            let (w, h, labels) = rgbd_io::read_label_png(&p)?;
-            ensure!(
-                (w, h) == (k.width, k.height),
-                "{}: {w}x{h} pixels, expected {}x{}",
-                p.display(),
-                k.width,
-                k.height
-            );
-            let rows = |l: u32| t.row_index(l).map(|r| r as u32);
-            let img = LabelImage {
-                width: k.width,
-                labels: &labels,
-                row_of_label: &rows,
-                feature_of_label: None,
-            };
-            mapping::rgbd::integrate_frame(&mut integ, &k, &depth.depth, pose, &img, &opt)?
-        } else if let Some(src) = image.as_mut() {
-            let rgb = d.join("rgb").join(format!("{i:06}.png"));
-            let fm = src.encode(&rgb, i)?;
-            let feats = super::encoders::EncodedFrame {
-                map: &fm,
-                width: k.width,
-                height: k.height,
-            };
-            mapping::rgbd::integrate_frame(&mut integ, &k, &depth.depth, pose, &feats, &opt)?
-        } else {
-            let p = d.join("features").join(format!("{i:06}.npy"));
-            let arr = npy::read_npy(&p)?;
-            ensure!(
-                arr.shape.len() == 3,
-                "{}: expected h x w x F, got shape {:?}",
-                p.display(),
-                arr.shape
-            );
-            let dim = arr.shape[2];
-            ensure!(
-                dim == integ.observation_db().dim(),
-                "{}: features have dimension {dim}, earlier frames {}",
-                p.display(),
-                integ.observation_db().dim()
-            );
-            let fm = FeatureMap::new(
-                u32::try_from(arr.shape[0]).unwrap_or(u32::MAX),
-                u32::try_from(arr.shape[1]).unwrap_or(u32::MAX),
-                dim,
-                &arr.data,
-                k.width,
-                k.height,
-            )
-            .with_context(|| p.display().to_string())?;
-            mapping::rgbd::integrate_frame(&mut integ, &k, &depth.depth, pose, &fm, &opt)
-                .with_context(|| p.display().to_string())?
-        };
-        stats += s;
-        pb.inc(1);
-    }
+    let n = poses::read_poses(&d.join("poses.txt"))?.trajectory.len();
+    let pb = super::progress::bar(n.min(a.frames.unwrap_or(usize::MAX)) as u64, "frames");
+    let (m, stats) =
+        pipeline::map_from_rgbd(&input, &a.build.params(), features, &mut |_| pb.inc(1))?;
     pb.finish_and_clear();
-    match &image {
-        // The map lives in the encoder's feature space: record its name.
-        Some(src) => {
-            let mut b = a.build.clone();
-            b.encoder = src.name.clone();
-            finish(integ, &b, stats)
-        }
-        None => finish(integ, &a.build, stats),
-    }
+    let mut b = a.build.clone();
+    b.encoder = m.encoder().to_string();
+    save(&m, &b, &stats)
 }
 
 /// Where prompt words get their features: a class table, or a text encoder.

@@ -134,6 +134,52 @@ impl FeatureCache {
     }
 }
 
+/// An image encoder over a sequence's frames with its optional feature
+/// cache: frame `i`'s features are read from the cache when the same
+/// encoder made them, computed from its image file otherwise.
+pub struct ImageSource {
+    encoder: super::ImageEncoder,
+    cache: Option<FeatureCache>,
+    /// The encoder's name (its card's), the map's feature space.
+    pub name: String,
+}
+
+impl ImageSource {
+    /// `encoder` with a cache in `cache_dir`, if given.
+    pub fn new(
+        encoder: super::ImageEncoder,
+        cache_dir: Option<&Path>,
+    ) -> Result<ImageSource, EncodeError> {
+        let name = encoder.card().name.clone();
+        let cache = cache_dir.map(|d| FeatureCache::new(d, &name)).transpose()?;
+        Ok(ImageSource {
+            encoder,
+            cache,
+            name,
+        })
+    }
+
+    /// Feature dimension of the encoder.
+    pub fn dim(&self) -> usize {
+        self.encoder.feature_dim()
+    }
+
+    /// Features of the image file `rgb` (frame `frame` of its sequence).
+    pub fn encode(&mut self, rgb: &Path, frame: usize) -> Result<FeatureMap, EncodeError> {
+        let id = format!("{frame:06}");
+        let enc = &mut self.encoder;
+        let mut compute = || {
+            let img =
+                crate::io::rgb::read_rgb(rgb).map_err(|e| EncodeError::Input(e.to_string()))?;
+            enc.encode(&img)
+        };
+        match &self.cache {
+            Some(c) => c.get_or_compute(&id, compute),
+            None => compute(),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

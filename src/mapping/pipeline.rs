@@ -1,7 +1,12 @@
-//! The map-from-a-cloud pipeline users run (`omcl map cloud`): read a
-//! point-cloud file or a SemanticKITTI sequence, drop the points the
-//! authors drop, attach or compute per-point features, and integrate them
-//! into an Octree Language Map on a grid anchored at the cloud's corner.
+//! The map-building pipelines users run, the paper's two input options:
+//! - from a cloud (`omcl map cloud`): read a point-cloud file or a
+//!   SemanticKITTI sequence, drop the points the authors drop, attach or
+//!   compute per-point features, integrate them on a grid anchored at the
+//!   cloud's corner ([`load_cloud`], [`map_from_cloud`]);
+//! - from posed RGB-D frames (`omcl map rgbd`): depth back-projected with
+//!   each frame's labels, feature files or encoder output
+//!   ([`map_from_rgbd`]).
+//!
 //! The command line only parses options, shows progress and saves.
 
 use std::path::PathBuf;
@@ -30,6 +35,12 @@ pub enum PipelineError {
         source_name: String,
         source: EncodeError,
     },
+    #[error(transparent)]
+    Mapping(#[from] super::MappingError),
+    #[error(transparent)]
+    Npy(#[from] crate::io::npy::NpyError),
+    #[error(transparent)]
+    Poses(#[from] crate::io::poses::PosesError),
     /// The inputs do not make a map (why, and what to pass).
     #[error("{0}")]
     Input(String),
@@ -236,4 +247,170 @@ pub fn finish(
         )));
     }
     Ok(integ.finish(encoder.to_string(), tau)?)
+}
+
+/// An RGB-D sequence folder and which of its pixels to use.
+#[derive(Debug, Clone)]
+pub struct RgbdInput {
+    /// `intrinsics.txt`, `poses.txt` (TUM), `depth/NNNNNN.png`, and
+    /// `labels/NNNNNN.png`, `features/NNNNNN.npy` or `rgb/NNNNNN.png`.
+    pub dir: PathBuf,
+    /// Depth PNG units per metre.
+    pub depth_scale: f64,
+    pub max_depth: f32,
+    /// Points above this world height are skipped (the ceiling crop).
+    pub max_height: Option<f64>,
+    /// Every `stride`-th pixel in each direction.
+    pub stride: u32,
+    /// At most this many frames.
+    pub frames: Option<usize>,
+}
+
+/// Where the frames' features come from.
+pub enum RgbdFeatures<'a> {
+    /// `labels/NNNNNN.png` through a class table (the ground-truth mode).
+    Labels(&'a EmbeddingTable),
+    /// An image encoder on `rgb/NNNNNN.png`.
+    Encoder(&'a mut crate::encode::cache::ImageSource),
+    /// `features/NNNNNN.npy` (`h x w x F`, any `h x w`).
+    Files,
+}
+
+/// Builds the map of an RGB-D sequence: every frame's depth back-projected
+/// with its pose, each used pixel's feature added to its voxel. `progress`
+/// hears each frame done (its index). A frame whose sizes disagree with
+/// the intrinsics is an error naming its file.
+pub fn map_from_rgbd(
+    input: &RgbdInput,
+    params: &BuildParams,
+    features: RgbdFeatures<'_>,
+    progress: &mut dyn FnMut(usize),
+) -> Result<(LanguageMap, IntegrationStats), PipelineError> {
+    use crate::io::{npy, poses, rgbd as rgbd_io};
+    let bad = |m: String| PipelineError::Input(m);
+    let d = &input.dir;
+    let k = rgbd_io::read_intrinsics(&d.join("intrinsics.txt"))?;
+    let traj = poses::read_poses(&d.join("poses.txt"))?.trajectory;
+    let n = traj.poses().len().min(input.frames.unwrap_or(usize::MAX));
+    let grid = GridSpec {
+        resolution: params.resolution,
+        // Any origin works; the first camera, snapped, keeps coordinates small.
+        origin: traj.poses()[0]
+            .translation
+            .vector
+            .map(|v| (v / params.resolution).floor())
+            * params.resolution,
+    };
+    let db = match &features {
+        RgbdFeatures::Labels(t) => FeatureDb::from_rows(t.dim, params.tau, t.data.clone())?,
+        RgbdFeatures::Encoder(src) => {
+            FeatureDb::new(src.dim(), params.tau)?.with_max_rows(params.max_rows)
+        }
+        RgbdFeatures::Files => {
+            let f0 = d.join("features").join(format!("{:06}.npy", 0));
+            let arr = npy::read_npy(&f0).map_err(|e| {
+                bad(format!(
+                    "no labels/ folder, so features/ is needed: {}: {e}",
+                    f0.display()
+                ))
+            })?;
+            FeatureDb::new(arr.as_matrix_dims().1, params.tau)?.with_max_rows(params.max_rows)
+        }
+    };
+    let mut name = params.encoder.clone();
+    let mut integ = Integrator::new(grid, db)?;
+    let opt = super::rgbd::FrameOptions {
+        min_depth: 0.05,
+        max_depth: input.max_depth,
+        max_height: input.max_height,
+        stride: input.stride,
+    };
+    let mut stats = IntegrationStats::default();
+    let mut features = features;
+    for (i, pose) in traj.poses().iter().take(n).enumerate() {
+        let depth_path = d.join("depth").join(format!("{i:06}.png"));
+        let depth = rgbd_io::read_depth_png(&depth_path, input.depth_scale)?;
+        if (depth.width, depth.height) != (k.width, k.height) {
+            return Err(bad(format!(
+                "{}: {}x{} pixels, intrinsics say {}x{}",
+                depth_path.display(),
+                depth.width,
+                depth.height,
+                k.width,
+                k.height
+            )));
+        }
+        let integrate = |integ: &mut Integrator, f: &dyn crate::frame::FrameFeatures| {
+            super::rgbd::integrate_frame(integ, &k, &depth.depth, pose, f, &opt)
+        };
+        let s = match &mut features {
+            RgbdFeatures::Labels(t) => {
+                let p = d.join("labels").join(format!("{i:06}.png"));
+                let (w, h, labels) = rgbd_io::read_label_png(&p)?;
+                if (w, h) != (k.width, k.height) {
+                    return Err(bad(format!(
+                        "{}: {w}x{h} pixels, expected {}x{}",
+                        p.display(),
+                        k.width,
+                        k.height
+                    )));
+                }
+                let rows = |l: u32| t.row_index(l).map(|r| r as u32);
+                let img = super::LabelImage {
+                    width: k.width,
+                    labels: &labels,
+                    row_of_label: &rows,
+                    feature_of_label: None,
+                };
+                integrate(&mut integ, &img)?
+            }
+            RgbdFeatures::Encoder(src) => {
+                let rgb = d.join("rgb").join(format!("{i:06}.png"));
+                let fm = src.encode(&rgb, i).map_err(|e| PipelineError::Encode {
+                    source_name: format!("encoding {}", rgb.display()),
+                    source: e,
+                })?;
+                name = src.name.clone();
+                let f = crate::encode::image::EncodedFrame {
+                    map: &fm,
+                    width: k.width,
+                    height: k.height,
+                };
+                integrate(&mut integ, &f)?
+            }
+            RgbdFeatures::Files => {
+                let p = d.join("features").join(format!("{i:06}.npy"));
+                let arr = npy::read_npy(&p)?;
+                if arr.shape.len() != 3 {
+                    return Err(bad(format!(
+                        "{}: expected h x w x F, got shape {:?}",
+                        p.display(),
+                        arr.shape
+                    )));
+                }
+                let dim = arr.shape[2];
+                if dim != integ.observation_db().dim() {
+                    return Err(bad(format!(
+                        "{}: features have dimension {dim}, earlier frames {}",
+                        p.display(),
+                        integ.observation_db().dim()
+                    )));
+                }
+                let fm = super::FeatureMap::new(
+                    u32::try_from(arr.shape[0]).unwrap_or(u32::MAX),
+                    u32::try_from(arr.shape[1]).unwrap_or(u32::MAX),
+                    dim,
+                    &arr.data,
+                    k.width,
+                    k.height,
+                )
+                .map_err(|e| bad(format!("{}: {e}", p.display())))?;
+                integrate(&mut integ, &fm).map_err(|e| bad(format!("{}: {e}", p.display())))?
+            }
+        };
+        stats += s;
+        progress(i);
+    }
+    // The map lives in the encoder's feature space: it records its name.
+    Ok((finish(integ, &name, params.tau, &stats)?, stats))
 }
