@@ -550,10 +550,28 @@ fn a_real_embree_error_is_named_and_does_not_go_stale() {
     assert_eq!(f.take_error(), None);
 }
 
+/// Whether a ray's origin lies on a voxel face (within float error) at
+/// resolution `res`. Such an origin belongs to two voxels: the reference's
+/// walk starts in the one the ray moves into, Embree's closed boxes also
+/// count the one it leaves, at t = 0. Both are right; random rays that land
+/// there (CI drew y = 0.35000002 once) are left out of the comparison.
+fn origin_on_a_face(r: &Ray, res: f32) -> bool {
+    r.origin.iter().any(|&c| {
+        let u = c / res;
+        (u - u.round()).abs() < 1e-4
+    })
+}
+
 /// Random scenes and rays: Embree agrees with the reference except where
 /// two voxels are hit at (numerically) the same distance.
 fn agree(cells: &[Cell], rays: &[Ray], geometry: Geometry) -> Result<(), TestCaseError> {
     let res = 0.05;
+    let rays: Vec<Ray> = rays
+        .iter()
+        .filter(|r| !origin_on_a_face(r, res))
+        .copied()
+        .collect();
+    let rays = &rays[..];
     let r = ReferenceCaster::new(res, cells).cast_vec(rays);
     let e = embree(res, cells, geometry).cast_vec(rays);
     // The AVX2 path of the brick callbacks (8-wide packets, the default)
