@@ -249,3 +249,59 @@ fn rgbd_mapping_with_an_image_encoder() {
         );
     }
 }
+
+/// `omcl map cloud --classes asprs --text-model`: the class names are
+/// embedded by the text encoder, the map's rows are those features and the
+/// map is named after the encoder.
+#[test]
+fn a_builtin_class_list_embedded_by_a_text_encoder() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply = dir.path().join("c.ply");
+    // Two well separated groups: ASPRS 2 (ground) at x < 0, 6 (building) at x > 5.
+    let mut text = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 40\nproperty float x\nproperty float y\n\
+         property float z\nproperty uchar classification\nend_header\n",
+    );
+    for i in 0..20 {
+        text.push_str(&format!("{} 0.5 0.5 2\n", -(i as f32) - 0.5));
+        text.push_str(&format!("{} 0.5 0.5 6\n", i as f32 + 5.5));
+    }
+    std::fs::write(&ply, text).unwrap();
+    let out = dir.path().join("m.omcl");
+    let model = data("tiny_text.onnx");
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        ply.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--resolution",
+        "1",
+        // The tiny model's features of two words are within the default
+        // tau of each other; keep every class its own row.
+        "--tau",
+        "0",
+        "--classes",
+        "asprs",
+        "--text-model",
+        model.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let m = map::load(&out).unwrap();
+    let rt = Runtime::init(None).unwrap_or_else(|e| panic!("{e}"));
+    let mut enc = TextEncoder::load(rt, &model, 1).unwrap();
+    let f = enc.encode(&["ground", "building"]).unwrap();
+    assert_eq!(m.encoder(), enc.card().name);
+    assert_eq!(m.db().dim(), f[0].len());
+    assert_eq!(m.len(), 40);
+    // Each voxel's row is the encoder's feature of its class name.
+    let g = m.similarity(&f[0]).unwrap();
+    let b = m.similarity(&f[1]).unwrap();
+    // (The tiny model's features of two words are close: compare which one
+    // a voxel is closest to, and that each at its best is 1.)
+    let ground = g.iter().zip(&b).filter(|(sg, sb)| sg > sb).count();
+    let building = g.iter().zip(&b).filter(|(sg, sb)| sb > sg).count();
+    assert_eq!((ground, building), (20, 20));
+    let best = |s: &[f32]| s.iter().copied().fold(f32::MIN, f32::max);
+    assert!(best(&g) > 0.99999 && best(&b) > 0.99999, "{g:?} {b:?}");
+}

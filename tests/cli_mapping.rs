@@ -452,3 +452,141 @@ fn a_single_kitti_scan_reads_the_labels_beside_it() {
     assert!(!ok && text.contains("000001.label"), "{text}");
     assert!(!d.exists());
 }
+
+/// The built-in class lists: the real SemanticKITTI scans map with every
+/// labelled point kept (all 34 classes are known), an aerial LAS maps with
+/// its ASPRS codes, and words find their class in the built-in table.
+#[test]
+fn builtin_class_lists_convert_real_scans_and_las_without_a_table() {
+    let Some(seq) = shared("semantickitti/sequences/00") else {
+        return;
+    };
+    let Some(las) = shared("las/autzen_trim.laz") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("kitti.omcl");
+    let o = out.to_str().unwrap();
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        seq.to_str().unwrap(),
+        "-o",
+        o,
+        "--resolution",
+        "0.2",
+        "--classes",
+        "semantickitti",
+    ]);
+    assert!(ok, "{text}");
+    // Every point of a static class is integrated: none skipped as an
+    // unknown class (a 9-class table skipped 7 %).
+    assert!(text.contains(" 0 skipped"), "{text}");
+    let m = map::load(&out).unwrap();
+    assert_eq!(m.db().dim(), 512);
+    // `omcl map classes` writes the same table as files: the map made from
+    // them is the same (voxels, rows, features to the bit).
+    let (ok, text) = omcl(&[
+        "map",
+        "classes",
+        "semantickitti",
+        "-o",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let again = dir.path().join("again.omcl");
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        seq.to_str().unwrap(),
+        "-o",
+        again.to_str().unwrap(),
+        "--resolution",
+        "0.2",
+        "--classes",
+        dir.path().join("classes.txt").to_str().unwrap(),
+        "--embeddings",
+        dir.path().join("embeddings.npy").to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    assert!(m == map::load(&again).unwrap(), "the maps differ");
+    let listed = std::fs::read_to_string(dir.path().join("classes.txt")).unwrap();
+    assert_eq!(listed.lines().count(), 34);
+    assert!(listed.lines().any(|l| l == "252 moving-car"), "{listed}");
+    // "road" and "traffic-sign" are known words of the same table; the road
+    // covers a large part of a street scan, a sign a small one.
+    let q = dir.path().join("q.ply");
+    let within = |word: &str| -> usize {
+        let (ok, text) = omcl(&[
+            "map",
+            "query",
+            o,
+            word,
+            "--classes",
+            "semantickitti",
+            "-o",
+            q.to_str().unwrap(),
+        ]);
+        assert!(ok, "{text}");
+        let n = text
+            .split('(')
+            .nth(1)
+            .and_then(|t| t.split_whitespace().next())
+            .and_then(|t| t.parse().ok())
+            .unwrap_or_else(|| panic!("{text}"));
+        n
+    };
+    let road = within("road");
+    let sign = within("traffic sign");
+    assert!(road * 10 > m.len(), "road {road} of {}", m.len());
+    assert!(
+        sign * 50 < m.len() && sign > 0,
+        "sign {sign} of {}",
+        m.len()
+    );
+
+    let out = dir.path().join("autzen.omcl");
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        las.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--resolution",
+        "1.0",
+        "--classes",
+        "asprs",
+    ]);
+    assert!(ok, "{text}");
+    assert!(text.contains(" 0 skipped"), "{text}");
+
+    // A list file needs its features; a name that is neither a file nor a
+    // built-in list is named.
+    let list = dir.path().join("classes.txt");
+    std::fs::write(&list, "1 unclassified\n2 ground\n").unwrap();
+    let bad = dir.path().join("bad.omcl");
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        las.to_str().unwrap(),
+        "-o",
+        bad.to_str().unwrap(),
+        "--classes",
+        list.to_str().unwrap(),
+    ]);
+    assert!(!ok && text.contains("--embeddings NPY"), "{text}");
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        las.to_str().unwrap(),
+        "-o",
+        bad.to_str().unwrap(),
+        "--classes",
+        "semantic-kitty",
+    ]);
+    assert!(
+        !ok && text.contains("semantic-kitty: no such class list"),
+        "{text}"
+    );
+    assert!(!bad.exists());
+}

@@ -8,6 +8,7 @@ use clap::Args;
 
 use omcl::encode::image::ImageEncoder;
 use omcl::encode::text::TextEncoder;
+use omcl::io::labels::{BuiltinClasses, EmbeddingTable, read_class_list};
 
 /// Options that select ONNX encoders.
 #[derive(Debug, Args, Default)]
@@ -55,4 +56,60 @@ pub fn text_features(
         .encode(&refs)
         .with_context(|| format!("encoding {words:?} with {}", model.display()))?;
     Ok((enc.card().name.clone(), rows))
+}
+
+/// A class list with one feature row per class, as the commands take it:
+/// `classes` is a class-list file or a built-in list's name (`semantickitti`,
+/// `asprs`; a file of that name wins); the rows come from `embeddings`
+/// (`N x F` `.npy`), from a text encoder embedding the class names, or, for
+/// a built-in list with neither, from the built-in CLIP-like table
+/// ([`omcl::sim::embeddings::builtin_label_table`]). With a text encoder,
+/// its name (the feature space the table is in) comes too.
+pub fn class_table(
+    classes: &str,
+    embeddings: Option<&Path>,
+    text_model: Option<&Path>,
+    ort_lib: Option<&Path>,
+) -> anyhow::Result<(EmbeddingTable, Option<String>)> {
+    let path = Path::new(classes);
+    let builtin = if path.exists() {
+        None
+    } else {
+        BuiltinClasses::from_name(classes)
+    };
+    let (ids, names) = match builtin {
+        Some(set) => set
+            .classes()
+            .iter()
+            .map(|&(i, n)| (i, n.to_string()))
+            .unzip(),
+        None => {
+            if !path.exists() {
+                anyhow::bail!(
+                    "{classes}: no such class list (built-in lists: {})",
+                    BuiltinClasses::ALL.map(|s| s.name()).join(", ")
+                );
+            }
+            read_class_list(path)?
+        }
+    };
+    match (embeddings, text_model, builtin) {
+        (Some(npy), _, _) => Ok((EmbeddingTable::with_npy(ids, names, path, npy)?, None)),
+        (None, Some(model), _) => {
+            let (name, rows) = text_features(model, ort_lib, &names)?;
+            let dim = rows.first().map_or(0, Vec::len);
+            let t = EmbeddingTable::new(ids, names, dim, rows.concat())
+                .map_err(|e| anyhow::anyhow!("{}: {e}", model.display()))?;
+            Ok((t, Some(name)))
+        }
+        (None, None, Some(set)) => {
+            let sim = omcl::sim::files::builtin_table()?;
+            Ok((omcl::sim::embeddings::builtin_label_table(set, &sim)?, None))
+        }
+        (None, None, None) => anyhow::bail!(
+            "{classes}: a class list needs its features: --embeddings NPY (one row a class) or \
+             --text-model ONNX (the built-in lists {} work without)",
+            BuiltinClasses::ALL.map(|s| s.name()).join(", ")
+        ),
+    }
 }

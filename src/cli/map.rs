@@ -32,6 +32,10 @@ pub enum MapCommand {
     /// over a height band into a 2-D grid (Table I's 2-D block), written as
     /// a versioned file and optionally a PNG.
     Floorplan(super::map_floorplan::FloorplanArgs),
+    /// Print a class list (built in: semantickitti, asprs) or write it with
+    /// its features as classes.txt + embeddings.npy, the table a sequence
+    /// folder's label images need
+    Classes(super::map_build::ClassesArgs),
 }
 
 #[derive(Debug, Args)]
@@ -64,6 +68,7 @@ pub fn run(cmd: MapCommand) -> anyhow::Result<()> {
         MapCommand::Query(a) => super::map_build::query(&a),
         MapCommand::Export(a) => super::map_build::export(&a),
         MapCommand::Floorplan(a) => super::map_floorplan::run(&a),
+        MapCommand::Classes(a) => super::map_build::classes(&a),
         MapCommand::Upgrade(a) => {
             anyhow::ensure!(
                 a.file != a.out,

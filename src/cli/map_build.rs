@@ -30,33 +30,67 @@ pub struct BuildOptions {
     /// Cap on observation rows for raw features (memory and time bound).
     #[arg(long, default_value_t = 4096)]
     pub max_rows: usize,
-    /// Class list (`<id> <name>` lines) of the embedding table that turns
-    /// labels into features (ground-truth mode).
-    #[arg(long)]
-    pub classes: Option<PathBuf>,
-    /// The embedding table (`.npy`, one row per class of --classes).
-    #[arg(long)]
+    /// The class list that turns labels into features (ground-truth mode):
+    /// a file (`<id> <name>` lines, or one name a line) or a built-in list,
+    /// `semantickitti` (all 34 SemanticKITTI classes, `.label` ids) or
+    /// `asprs` (LAS classification codes 0-22).
+    #[arg(long, value_name = "FILE|semantickitti|asprs")]
+    pub classes: Option<String>,
+    /// The features of --classes (`.npy`, one row a class, in list order).
+    /// Without it: --text-model, or for a built-in list the built-in
+    /// CLIP-like table (a quick start; not real CLIP for most classes).
+    #[arg(long, requires = "classes")]
     pub embeddings: Option<PathBuf>,
+    /// A text encoder (`.onnx` with its `.card.json`, e.g. CLIP's) that
+    /// embeds the class names of --classes.
+    #[arg(
+        long,
+        value_name = "ONNX",
+        requires = "classes",
+        conflicts_with = "embeddings"
+    )]
+    pub text_model: Option<PathBuf>,
     /// Name of the feature space, stored in the map (e.g. clip-vit-b32).
-    #[arg(long, default_value = "clip-vit-b32")]
+    #[arg(long, default_value = DEFAULT_ENCODER)]
     pub encoder: String,
 }
 
+const DEFAULT_ENCODER: &str = "clip-vit-b32";
+
 impl BuildOptions {
-    fn table(&self) -> anyhow::Result<Option<EmbeddingTable>> {
-        match (&self.classes, &self.embeddings) {
-            (Some(c), Some(e)) => Ok(Some(EmbeddingTable::read(c, e)?)),
-            (None, None) => Ok(None),
-            _ => bail!("--classes and --embeddings go together"),
-        }
+    /// The class table of --classes, if given (`ort_lib`: the command's
+    /// ONNX Runtime library, for --text-model), with the text encoder's
+    /// name when one made it.
+    fn table(
+        &self,
+        ort_lib: Option<&Path>,
+    ) -> anyhow::Result<Option<(EmbeddingTable, Option<String>)>> {
+        self.classes
+            .as_deref()
+            .map(|c| {
+                super::encoders::class_table(
+                    c,
+                    self.embeddings.as_deref(),
+                    self.text_model.as_deref(),
+                    ort_lib,
+                )
+            })
+            .transpose()
     }
 
-    fn params(&self) -> pipeline::BuildParams {
+    /// Build parameters; `text_encoder` (the name of the encoder that
+    /// embedded the class names) names the feature space unless --encoder
+    /// was given.
+    fn params(&self, text_encoder: Option<&str>) -> pipeline::BuildParams {
+        let encoder = match text_encoder {
+            Some(name) if self.encoder == DEFAULT_ENCODER => name.to_string(),
+            _ => self.encoder.clone(),
+        };
         pipeline::BuildParams {
             resolution: self.resolution,
             tau: self.tau,
             max_rows: self.max_rows,
-            encoder: self.encoder.clone(),
+            encoder,
         }
     }
 
@@ -160,7 +194,8 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     };
     let pb = super::progress::spinner(&format!("reading {}", a.input.display()));
     let c = pipeline::load_cloud(&input)?;
-    let table = a.build.table()?;
+    let (table, text_encoder) = a.build.table(a.ort_lib.as_deref())?.unzip();
+    let text_encoder = text_encoder.flatten();
     let mut encoder = match &a.point_model {
         Some(model) => {
             let rt = super::encode::init_runtime(a.ort_lib.as_deref())?;
@@ -172,7 +207,7 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     let (m, stats) = pipeline::map_from_cloud(
         c,
         &a.input.display().to_string(),
-        &a.build.params(),
+        &a.build.params(text_encoder.as_deref()),
         table.as_ref(),
         encoder.as_mut(),
     )?;
@@ -216,16 +251,19 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
     let d = &a.dir;
     let mut image = super::encoders::open_image_source(&a.encoder)?;
     let use_labels = image.is_none() && !a.use_features && d.join("labels").is_dir();
-    let table = if use_labels {
-        match a.build.table()? {
-            Some(t) => Some(t),
-            None => Some(EmbeddingTable::read(
-                &d.join("classes.txt"),
-                &d.join("embeddings.npy"),
-            )?),
+    let (table, text_encoder) = if use_labels {
+        match a.build.table(a.encoder.ort_lib.as_deref())? {
+            Some((t, name)) => (Some(t), name),
+            None => (
+                Some(EmbeddingTable::read(
+                    &d.join("classes.txt"),
+                    &d.join("embeddings.npy"),
+                )?),
+                None,
+            ),
         }
     } else {
-        None
+        (None, None)
     };
     let features = match (&table, image.as_mut()) {
         (Some(t), _) => pipeline::RgbdFeatures::Labels(t),
@@ -242,8 +280,12 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
     };
     let n = poses::read_poses(&d.join("poses.txt"))?.trajectory.len();
     let pb = super::progress::bar(n.min(a.frames.unwrap_or(usize::MAX)) as u64, "frames");
-    let (m, stats) =
-        pipeline::map_from_rgbd(&input, &a.build.params(), features, &mut |_| pb.inc(1))?;
+    let (m, stats) = pipeline::map_from_rgbd(
+        &input,
+        &a.build.params(text_encoder.as_deref()),
+        features,
+        &mut |_| pb.inc(1),
+    )?;
     pb.finish_and_clear();
     let mut b = a.build.clone();
     b.encoder = m.encoder().to_string();
@@ -253,11 +295,14 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
 /// Where prompt words get their features: a class table, or a text encoder.
 #[derive(Debug, Args)]
 pub struct WordSource {
-    /// Class list (`<id> <name>` or one name a line) whose names the words
-    /// are looked up in.
-    #[arg(long, requires = "embeddings")]
-    pub classes: Option<PathBuf>,
-    /// Text features, one row per class of --classes (`.npy`).
+    /// Class list whose names the words are looked up in: a file (`<id>
+    /// <name>` or one name a line) or a built-in list (`semantickitti`,
+    /// `asprs`).
+    #[arg(long, value_name = "FILE|semantickitti|asprs")]
+    pub classes: Option<String>,
+    /// Text features, one row per class of --classes (`.npy`); a built-in
+    /// list without it uses the built-in CLIP-like table (as `omcl map
+    /// cloud` does).
     #[arg(long, requires = "classes")]
     pub embeddings: Option<PathBuf>,
     /// A text encoder (`.onnx` with its `.card.json`, e.g. CLIP's) instead
@@ -286,26 +331,30 @@ impl WordSource {
                 }
                 rows.concat()
             }
-            (None, Some(classes), Some(embeddings)) => {
-                let t = EmbeddingTable::read(classes, embeddings)?;
+            (None, Some(classes), embeddings) => {
+                let (t, _) =
+                    super::encoders::class_table(classes, embeddings.as_deref(), None, None)?;
                 ensure!(
                     t.dim == dim,
                     "{}: text features have dimension {}, the map {dim}",
-                    embeddings.display(),
+                    embeddings
+                        .as_deref()
+                        .unwrap_or(Path::new(classes))
+                        .display(),
                     t.dim
                 );
+                let key = |n: &str| n.trim().to_ascii_lowercase().replace(['_', '-'], " ");
                 let mut rows = Vec::with_capacity(words.len() * dim);
                 for w in words {
                     let i = t
                         .names
                         .iter()
-                        .position(|n| n.eq_ignore_ascii_case(w.trim()))
+                        .position(|n| key(n) == key(w))
                         .with_context(|| {
                             let some: Vec<&str> =
                                 t.names.iter().take(12).map(String::as_str).collect();
                             format!(
-                                "word {w:?} is not in {} (known: {}, ...)",
-                                classes.display(),
+                                "word {w:?} is not in {classes} (known: {}, ...)",
                                 some.join(", ")
                             )
                         })?;
@@ -313,7 +362,9 @@ impl WordSource {
                 }
                 rows
             }
-            _ => bail!("words need features: pass --classes and --embeddings, or --text-model"),
+            _ => bail!(
+                "words need features: pass --classes (with --embeddings for a file), or --text-model"
+            ),
         };
         Ok(FeatureDb::from_rows(dim, 0.0, rows)?)
     }
@@ -439,6 +490,81 @@ pub fn export(a: &ExportArgs) -> anyhow::Result<()> {
         a.out.display(),
         m.len(),
         m.db().len()
+    );
+    Ok(())
+}
+
+#[derive(Debug, Args)]
+pub struct ClassesArgs {
+    /// A built-in class list (`semantickitti`, `asprs`) or a class-list file.
+    #[arg(value_name = "semantickitti|asprs|FILE")]
+    pub list: String,
+    /// Write `classes.txt` and `embeddings.npy` into this folder (e.g. a
+    /// KITTI sequence whose labels_2/ label images `omcl localize` reads);
+    /// without it the list is printed.
+    #[arg(long, short, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// The features of the list (`.npy`, one row a class); default for a
+    /// built-in list: the built-in CLIP-like table.
+    #[arg(long)]
+    pub embeddings: Option<PathBuf>,
+    /// A text encoder (`.onnx` with its `.card.json`) that embeds the names.
+    #[arg(long, value_name = "ONNX", conflicts_with = "embeddings")]
+    pub text_model: Option<PathBuf>,
+    /// ONNX Runtime library for --text-model.
+    #[arg(long, value_name = "PATH")]
+    pub ort_lib: Option<PathBuf>,
+    /// Replace classes.txt and embeddings.npy if they exist.
+    #[arg(long)]
+    pub force: bool,
+}
+
+pub fn classes(a: &ClassesArgs) -> anyhow::Result<()> {
+    let Some(dir) = &a.out else {
+        let (ids, names): (Vec<u32>, Vec<String>) =
+            match omcl::io::labels::BuiltinClasses::from_name(&a.list) {
+                Some(set) if !Path::new(&a.list).exists() => set
+                    .classes()
+                    .iter()
+                    .map(|&(i, n)| (i, n.to_string()))
+                    .unzip(),
+                _ => omcl::io::labels::read_class_list(Path::new(&a.list))?,
+            };
+        for (i, n) in ids.iter().zip(&names) {
+            println!("{i} {n}");
+        }
+        return Ok(());
+    };
+    let (t, _) = super::encoders::class_table(
+        &a.list,
+        a.embeddings.as_deref(),
+        a.text_model.as_deref(),
+        a.ort_lib.as_deref(),
+    )?;
+    ensure!(dir.is_dir(), "{}: not a folder", dir.display());
+    let (txt, npy) = (dir.join("classes.txt"), dir.join("embeddings.npy"));
+    for p in [&txt, &npy] {
+        ensure!(
+            a.force || !p.exists(),
+            "{} exists; pass --force to replace it",
+            p.display()
+        );
+    }
+    let text: String = t
+        .ids
+        .iter()
+        .zip(&t.names)
+        .map(|(i, n)| format!("{i} {n}\n"))
+        .collect();
+    omcl::io::npy::write_npy(&npy, &[t.ids.len(), t.dim], &t.data)?;
+    omcl::io::atomic::write(&txt, text.as_bytes())
+        .with_context(|| format!("writing {}", txt.display()))?;
+    println!(
+        "wrote {} and {}: {} classes x {} dims",
+        txt.display(),
+        npy.display(),
+        t.ids.len(),
+        t.dim
     );
     Ok(())
 }

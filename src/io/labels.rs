@@ -147,6 +147,90 @@ pub fn is_dropped_semantic_kitti(semantic: u32) -> bool {
     semantic == 0 || semantic == 1 || (252..=259).contains(&semantic)
 }
 
+/// ASPRS LAS point classification codes 0-22 (LAS 1.4 R15, table 17;
+/// point formats 6-10). Formats 0-5 share 0-12 (8 "model key-point", 12
+/// "overlap" there; here their 1.4 names).
+pub const ASPRS_CLASSES: [(u32, &str); 23] = [
+    (0, "never classified"),
+    (1, "unclassified"),
+    (2, "ground"),
+    (3, "low vegetation"),
+    (4, "medium vegetation"),
+    (5, "high vegetation"),
+    (6, "building"),
+    (7, "low point"),
+    (8, "model key-point"),
+    (9, "water"),
+    (10, "rail"),
+    (11, "road surface"),
+    (12, "overlap"),
+    (13, "wire guard"),
+    (14, "wire conductor"),
+    (15, "transmission tower"),
+    (16, "wire-structure connector"),
+    (17, "bridge deck"),
+    (18, "high noise"),
+    (19, "overhead structure"),
+    (20, "ignored ground"),
+    (21, "snow"),
+    (22, "temporal exclusion"),
+];
+
+/// The class lists built in, usable wherever a class list file is asked
+/// for (`--classes semantickitti`, `--classes asprs`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BuiltinClasses {
+    /// Every SemanticKITTI raw class (34, ids as in `.label` files).
+    SemanticKitti,
+    /// ASPRS LAS classification codes 0-22.
+    Asprs,
+}
+
+impl BuiltinClasses {
+    /// Every built-in list.
+    pub const ALL: [BuiltinClasses; 2] = [BuiltinClasses::SemanticKitti, BuiltinClasses::Asprs];
+
+    /// The list named `name` (`semantickitti`, `semantic-kitti`, `asprs`,
+    /// `las`; case-insensitive).
+    pub fn from_name(name: &str) -> Option<Self> {
+        match name
+            .trim()
+            .to_ascii_lowercase()
+            .replace(['-', '_'], "")
+            .as_str()
+        {
+            "semantickitti" | "kitti" => Some(BuiltinClasses::SemanticKitti),
+            "asprs" | "las" => Some(BuiltinClasses::Asprs),
+            _ => None,
+        }
+    }
+
+    /// The name users pass.
+    pub fn name(self) -> &'static str {
+        match self {
+            BuiltinClasses::SemanticKitti => "semantickitti",
+            BuiltinClasses::Asprs => "asprs",
+        }
+    }
+
+    /// `(id, name)` of every class, in row order.
+    pub fn classes(self) -> &'static [(u32, &'static str)] {
+        match self {
+            BuiltinClasses::SemanticKitti => &SEMANTIC_KITTI_CLASSES,
+            BuiltinClasses::Asprs => &ASPRS_CLASSES,
+        }
+    }
+
+    /// The list as `classes.txt` text (`<id> <name>` lines), the form
+    /// [`EmbeddingTable::read`] reads.
+    pub fn to_text(self) -> String {
+        self.classes()
+            .iter()
+            .map(|(id, n)| format!("{id} {n}\n"))
+            .collect()
+    }
+}
+
 /// Class names mapped to embedding vectors (ground-truth feature mode).
 #[derive(Debug, Clone, PartialEq)]
 pub struct EmbeddingTable {
@@ -197,46 +281,18 @@ impl EmbeddingTable {
     /// (counting only non-empty, non-comment lines); the first line decides,
     /// and mixing the two is an error.
     pub fn read(classes_path: &Path, npy_path: &Path) -> Result<Self, CloudError> {
-        let text =
-            std::fs::read_to_string(classes_path).map_err(|e| CloudError::io(classes_path, e))?;
-        let mut ids = Vec::new();
-        let mut names = Vec::new();
-        let mut with_ids: Option<bool> = None;
-        for (lineno, line) in text.lines().enumerate() {
-            let line = line.trim();
-            if line.is_empty() || line.starts_with('#') {
-                continue;
-            }
-            let split = line
-                .split_once(char::is_whitespace)
-                .and_then(|(id, name)| Some((id.parse::<u32>().ok()?, name.trim())));
-            let this_has_id = split.is_some();
-            let mode = *with_ids.get_or_insert(this_has_id);
-            if mode != this_has_id {
-                return Err(CloudError::format(
-                    classes_path,
-                    format!(
-                        "line {}: expected {}, got '{line}' (a file uses one form throughout)",
-                        lineno + 1,
-                        if mode {
-                            "'<id> <name>'"
-                        } else {
-                            "a class name without an id"
-                        }
-                    ),
-                ));
-            }
-            match split {
-                Some((id, name)) => {
-                    ids.push(id);
-                    names.push(name.to_string());
-                }
-                None => {
-                    ids.push(names.len() as u32);
-                    names.push(line.to_string());
-                }
-            }
-        }
+        let (ids, names) = read_class_list(classes_path)?;
+        Self::with_npy(ids, names, classes_path, npy_path)
+    }
+
+    /// The table of a class list (`ids`, `names`, read from `classes_path`
+    /// or built in) whose rows are in `npy_path` (`N x F`, one row a class).
+    pub fn with_npy(
+        ids: Vec<u32>,
+        names: Vec<String>,
+        classes_path: &Path,
+        npy_path: &Path,
+    ) -> Result<Self, CloudError> {
         let arr = read_npy(npy_path)?;
         if arr.shape.len() != 2 || arr.shape[0] != ids.len() {
             return Err(CloudError::mismatch(
@@ -285,9 +341,90 @@ impl EmbeddingTable {
     }
 }
 
+/// Reads a class list: `<id> <name>` lines, or one name a line with the
+/// id its line index (counting only non-empty, non-comment lines); the
+/// first line decides, and mixing the two is an error.
+pub fn read_class_list(classes_path: &Path) -> Result<(Vec<u32>, Vec<String>), CloudError> {
+    let text =
+        std::fs::read_to_string(classes_path).map_err(|e| CloudError::io(classes_path, e))?;
+    let mut ids = Vec::new();
+    let mut names = Vec::new();
+    let mut with_ids: Option<bool> = None;
+    for (lineno, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let split = line
+            .split_once(char::is_whitespace)
+            .and_then(|(id, name)| Some((id.parse::<u32>().ok()?, name.trim())));
+        let this_has_id = split.is_some();
+        let mode = *with_ids.get_or_insert(this_has_id);
+        if mode != this_has_id {
+            return Err(CloudError::format(
+                classes_path,
+                format!(
+                    "line {}: expected {}, got '{line}' (a file uses one form throughout)",
+                    lineno + 1,
+                    if mode {
+                        "'<id> <name>'"
+                    } else {
+                        "a class name without an id"
+                    }
+                ),
+            ));
+        }
+        match split {
+            Some((id, name)) => {
+                ids.push(id);
+                names.push(name.to_string());
+            }
+            None => {
+                ids.push(names.len() as u32);
+                names.push(line.to_string());
+            }
+        }
+    }
+    if ids.is_empty() {
+        return Err(CloudError::format(classes_path, "no classes in the list"));
+    }
+    Ok((ids, names))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn builtin_lists_have_unique_ids_and_names_and_parse_by_name() {
+        for set in BuiltinClasses::ALL {
+            let c = set.classes();
+            let ids: std::collections::BTreeSet<u32> = c.iter().map(|(i, _)| *i).collect();
+            let names: std::collections::BTreeSet<&str> = c.iter().map(|(_, n)| *n).collect();
+            assert_eq!(ids.len(), c.len(), "{set:?}");
+            assert_eq!(names.len(), c.len(), "{set:?}");
+            assert_eq!(BuiltinClasses::from_name(set.name()), Some(set));
+        }
+        assert_eq!(
+            BuiltinClasses::from_name("Semantic-KITTI"),
+            Some(BuiltinClasses::SemanticKitti)
+        );
+        assert_eq!(BuiltinClasses::from_name("classes.txt"), None);
+        // ASPRS: codes 0..=22 in order, the ones the LAS readers see.
+        let codes: Vec<u32> = ASPRS_CLASSES.iter().map(|(i, _)| *i).collect();
+        assert_eq!(codes, (0..=22).collect::<Vec<u32>>());
+        assert_eq!(ASPRS_CLASSES[2].1, "ground");
+        assert_eq!(ASPRS_CLASSES[6].1, "building");
+        // The text form reads back as the same ids and names.
+        let dir = tempfile::tempdir().unwrap();
+        let txt = dir.path().join("classes.txt");
+        std::fs::write(&txt, BuiltinClasses::Asprs.to_text()).unwrap();
+        let npy = dir.path().join("e.npy");
+        crate::io::npy::write_npy(&npy, &[23, 1], &[1.0; 23]).unwrap();
+        let t = EmbeddingTable::read(&txt, &npy).unwrap();
+        assert_eq!(t.ids, codes);
+        assert_eq!(t.names[16], "wire-structure connector");
+    }
 
     #[test]
     fn label_bits_split() {

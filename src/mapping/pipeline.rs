@@ -219,13 +219,14 @@ pub fn map_from_cloud(
         (integ, s)
     } else if cloud.labels.is_some() {
         return Err(PipelineError::Input(format!(
-            "{input}: points carry labels but no embedding table was given: pass --classes and \
-             --embeddings (a class list and its .npy of class features)"
+            "{input}: points carry labels but no class table was given: pass --classes \
+             semantickitti (SemanticKITTI ids) or asprs (LAS codes), or a class list file with \
+             --embeddings NPY or --text-model ONNX"
         )));
     } else {
         return Err(PipelineError::Input(format!(
             "{input}: points carry neither features nor labels: pass --features (N x F .npy), \
-             --point-model, or use a labelled cloud with --classes/--embeddings"
+             --point-model, or use a labelled cloud with --classes"
         )));
     };
     Ok((finish(integ, &name, params.tau, &stats)?, stats))

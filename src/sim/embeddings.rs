@@ -13,6 +13,8 @@
 //! "toilet" typed by a user lands on the row the synthetic images use.
 
 use rand::SeedableRng;
+
+use crate::io::labels::{BuiltinClasses, EmbeddingTable};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
@@ -420,6 +422,101 @@ pub fn build_table(
     )
 }
 
+/// The built-in CLIP-like table of a built-in class list, for a quick
+/// start without a text encoder (`--classes semantickitti` or `asprs`
+/// without `--embeddings`): a class the simulator's table has under the
+/// same meaning (road, building, car, ...) gets that row, so simulated and
+/// real maps share them; a moving class (SemanticKITTI 252-259) gets its
+/// static class's row; every other class is a draw from a Gaussian fitted
+/// to `sim_table`'s rows ([`build_table`] with `sim_table` as the bank),
+/// deterministic per list. Only the simulator's real rows are real CLIP
+/// features: for real images or text, embed the list with a text encoder.
+pub fn builtin_label_table(
+    set: BuiltinClasses,
+    sim_table: &ClassEmbeddings,
+) -> Result<EmbeddingTable, EmbeddingError> {
+    // Classes whose meaning a simulator class shares.
+    let alias = |id: u32| -> Option<&'static str> {
+        match (set, id) {
+            (BuiltinClasses::SemanticKitti, 10) => Some("car"),
+            (BuiltinClasses::SemanticKitti, 40) => Some("road"),
+            (BuiltinClasses::SemanticKitti, 48) => Some("sidewalk"),
+            (BuiltinClasses::SemanticKitti, 50) => Some("building"),
+            (BuiltinClasses::SemanticKitti, 51) => Some("fence"),
+            (BuiltinClasses::SemanticKitti, 70) => Some("vegetation"),
+            (BuiltinClasses::SemanticKitti, 72) => Some("terrain"),
+            (BuiltinClasses::SemanticKitti, 80) => Some("pole"),
+            (BuiltinClasses::SemanticKitti, 81) => Some("traffic sign"),
+            (BuiltinClasses::Asprs, 3) => Some("terrain"),
+            (BuiltinClasses::Asprs, 5) => Some("vegetation"),
+            (BuiltinClasses::Asprs, 6) => Some("building"),
+            (BuiltinClasses::Asprs, 11) => Some("road"),
+            _ => None,
+        }
+    };
+    // SemanticKITTI's moving classes and their static counterparts.
+    let moving = |id: u32| -> Option<u32> {
+        match (set, id) {
+            (BuiltinClasses::SemanticKitti, 252) => Some(10),
+            (BuiltinClasses::SemanticKitti, 253) => Some(31),
+            (BuiltinClasses::SemanticKitti, 254) => Some(30),
+            (BuiltinClasses::SemanticKitti, 255) => Some(32),
+            (BuiltinClasses::SemanticKitti, 256) => Some(16),
+            (BuiltinClasses::SemanticKitti, 257) => Some(13),
+            (BuiltinClasses::SemanticKitti, 258) => Some(18),
+            (BuiltinClasses::SemanticKitti, 259) => Some(20),
+            _ => None,
+        }
+    };
+    let bank = ClipBank::new(
+        sim_table.names.clone(),
+        sim_table.dim,
+        sim_table.rows.clone(),
+    )?;
+    let own: Vec<(u32, &str)> = set
+        .classes()
+        .iter()
+        .copied()
+        .filter(|(id, _)| moving(*id).is_none())
+        .collect();
+    let sources: Vec<ClassSource> = own
+        .iter()
+        .map(|&(id, name)| ClassSource {
+            name,
+            source: alias(id),
+        })
+        .collect();
+    let seed = match set {
+        BuiltinClasses::SemanticKitti => 1,
+        BuiltinClasses::Asprs => 2,
+    };
+    let table = build_table(&bank, &sources, seed)?;
+    let dim = table.dim;
+    let row_of = |id: u32| own.iter().position(|(i, _)| *i == id).map(|r| table.row(r));
+    let mut ids = Vec::new();
+    let mut names = Vec::new();
+    let mut data = Vec::new();
+    for &(id, name) in set.classes() {
+        let static_id = moving(id).unwrap_or(id);
+        // The simulator's own row, to the bit (the bank renormalizes).
+        let exact = alias(static_id).and_then(|n| sim_table.text_feature(n));
+        let row = exact
+            .or_else(|| row_of(static_id))
+            .ok_or(EmbeddingError::Unknown {
+                index: ids.len(),
+                name: name.to_string(),
+            })?;
+        ids.push(id);
+        names.push(name.to_string());
+        data.extend_from_slice(row);
+    }
+    EmbeddingTable::new(ids, names, dim, data).map_err(|_| EmbeddingError::Shape {
+        names: set.classes().len(),
+        dim,
+        rows: 0,
+    })
+}
+
 /// Dot product, summed in order (not `map::features::dot`, whose
 /// vectorized summation order would change the built-in table's bits).
 pub fn dot(a: &[f32], b: &[f32]) -> f32 {
@@ -488,6 +585,53 @@ mod tests {
         assert_eq!(t, t2);
         let t3 = build_table(&bank(), &classes, 2).unwrap();
         assert_ne!(t, t3);
+    }
+
+    #[test]
+    fn builtin_label_tables_share_the_simulator_rows_and_draw_the_rest() {
+        let sim = crate::sim::files::builtin_table().unwrap();
+        for set in BuiltinClasses::ALL {
+            let t = builtin_label_table(set, &sim).unwrap();
+            assert_eq!(t.ids.len(), set.classes().len());
+            assert_eq!(t.dim, sim.dim);
+            for r in t.data.chunks(t.dim) {
+                let n: f32 = r.iter().map(|x| x * x).sum();
+                assert!((n - 1.0).abs() < 1e-4, "{set:?}: norm {n}");
+            }
+            // Deterministic.
+            assert_eq!(t, builtin_label_table(set, &sim).unwrap());
+        }
+        let k = builtin_label_table(BuiltinClasses::SemanticKitti, &sim).unwrap();
+        let s = |n: &str| sim.text_feature(n).unwrap();
+        assert_eq!(k.row(40).unwrap(), s("road"));
+        assert_eq!(k.row(81).unwrap(), s("traffic sign"));
+        assert_eq!(k.row(252).unwrap(), k.row(10).unwrap());
+        assert_eq!(k.row(254).unwrap(), k.row(30).unwrap());
+        // Drawn rows are new: no two static classes share a row, and a drawn
+        // row is as similar to the others as the simulator's rows are to
+        // each other (CLIP-like: positive, well below 1).
+        let statics: Vec<u32> = k.ids.iter().copied().filter(|i| *i < 252).collect();
+        let mut cos = Vec::new();
+        for (a, &i) in statics.iter().enumerate() {
+            for &j in &statics[a + 1..] {
+                let c = dot(k.row(i).unwrap(), k.row(j).unwrap());
+                assert!(c < 0.999, "{i} and {j}: {c}");
+                cos.push(c);
+            }
+        }
+        let mean = cos.iter().sum::<f32>() / cos.len() as f32;
+        let mut sim_cos = Vec::new();
+        for i in 0..sim.len() {
+            for j in i + 1..sim.len() {
+                sim_cos.push(sim.cosine(i, j));
+            }
+        }
+        let sim_mean = sim_cos.iter().sum::<f32>() / sim_cos.len() as f32;
+        assert!((mean - sim_mean).abs() < 0.15, "{mean} vs {sim_mean}");
+        let a = builtin_label_table(BuiltinClasses::Asprs, &sim).unwrap();
+        assert_eq!(a.row(6).unwrap(), s("building"));
+        assert_eq!(a.row(11).unwrap(), s("road"));
+        assert_ne!(a.row(2).unwrap(), a.row(20).unwrap());
     }
 
     #[test]
