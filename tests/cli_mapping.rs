@@ -590,3 +590,69 @@ fn builtin_class_lists_convert_real_scans_and_las_without_a_table() {
     );
     assert!(!bad.exists());
 }
+
+/// A sequence folder mapped scan by scan (bounded memory) gives the map of
+/// the merged cloud: same grid, voxels and features, with and without the
+/// authors' class filter and a range cut.
+#[test]
+fn a_sequence_mapped_scan_by_scan_equals_the_merged_cloud() {
+    use omcl::mapping::pipeline::{self, BuildParams, CloudInput, SequencePass};
+    let Some(seq) = shared("semantickitti/sequences/00") else {
+        return;
+    };
+    let sim = omcl::sim::files::builtin_table().unwrap();
+    let table = omcl::sim::embeddings::builtin_label_table(
+        omcl::io::labels::BuiltinClasses::SemanticKitti,
+        &sim,
+    )
+    .unwrap();
+    let params = BuildParams {
+        resolution: 0.1,
+        tau: 0.02,
+        max_rows: 4096,
+        encoder: "clip-vit-b32".into(),
+    };
+    for (keep_all, max_range) in [(false, None), (true, Some(30.0))] {
+        let input = CloudInput {
+            path: seq.clone(),
+            keep_all,
+            max_range,
+            ..Default::default()
+        };
+        let merged = pipeline::load_cloud(&input).unwrap();
+        let n = merged.len();
+        let (a, sa) =
+            pipeline::map_from_cloud(merged, "merged", &params, Some(&table), None).unwrap();
+        let mut calls = Vec::new();
+        let (b, sb) = pipeline::map_from_sequence(&input, &params, Some(&table), &mut |p, d, t| {
+            calls.push((p, d, t))
+        })
+        .unwrap();
+        assert_eq!(sa.offered, n);
+        assert_eq!(
+            (sa.offered, sa.integrated, sa.skipped, sa.rejected),
+            (sb.offered, sb.integrated, sb.skipped, sb.rejected)
+        );
+        // The same voxels with the same features; a voxel seen by several
+        // scans sums its rows in another order, so equal to float error.
+        assert_eq!(a.grid(), b.grid());
+        assert_eq!(a.codes(), b.codes());
+        assert_eq!(a.db().len(), b.db().len());
+        for (i, (&ra, &rb)) in a.rows().iter().zip(b.rows()).enumerate() {
+            let (fa, fb) = (a.db().row(ra as usize), b.db().row(rb as usize));
+            let c: f32 = fa.iter().zip(fb).map(|(x, y)| x * y).sum();
+            assert!(c > 0.99999, "keep_all {keep_all}: voxel {i}: cosine {c}");
+        }
+        assert_eq!(
+            calls,
+            vec![
+                (SequencePass::Bounds, 1, 3),
+                (SequencePass::Bounds, 2, 3),
+                (SequencePass::Bounds, 3, 3),
+                (SequencePass::Mapping, 1, 3),
+                (SequencePass::Mapping, 2, 3),
+                (SequencePass::Mapping, 3, 3),
+            ]
+        );
+    }
+}

@@ -192,10 +192,31 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         keep_all: a.keep_all,
         max_range: a.max_range,
     };
-    let pb = super::progress::spinner(&format!("reading {}", a.input.display()));
-    let c = pipeline::load_cloud(&input)?;
     let (table, text_encoder) = a.build.table(a.ort_lib.as_deref())?.unzip();
     let text_encoder = text_encoder.flatten();
+    if a.input.is_dir() && a.point_model.is_none() {
+        // A sequence folder: scan by scan, never the merged cloud in memory.
+        let pb = super::progress::bar(0, "bounds");
+        let (m, stats) = pipeline::map_from_sequence(
+            &input,
+            &a.build.params(text_encoder.as_deref()),
+            table.as_ref(),
+            &mut |pass, done, total| {
+                if done == 1 {
+                    pb.set_length(total as u64);
+                    pb.set_prefix(match pass {
+                        pipeline::SequencePass::Bounds => "bounds",
+                        pipeline::SequencePass::Mapping => "mapping",
+                    });
+                }
+                pb.set_position(done as u64);
+            },
+        )?;
+        pb.finish_and_clear();
+        return save(&m, &a.build, &stats);
+    }
+    let pb = super::progress::spinner(&format!("reading {}", a.input.display()));
+    let c = pipeline::load_cloud(&input)?;
     let mut encoder = match &a.point_model {
         Some(model) => {
             let rt = super::encode::init_runtime(a.ort_lib.as_deref())?;

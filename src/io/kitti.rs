@@ -449,6 +449,44 @@ impl KittiSequence {
         Ok((cloud, range))
     }
 
+    /// Scan `frame` in the world frame, filtered as `opts` says (features
+    /// attached, dropped classes and far points gone; no down-sampling).
+    pub fn filtered_scan(
+        &self,
+        frame: usize,
+        opts: &AggregateOptions,
+    ) -> Result<PointCloud, CloudError> {
+        let (mut scan, range) = self.load_scan_with_range(frame)?;
+        if let Some(dir) = &opts.features_dir {
+            scan.attach_features_npy(&dir.join(format!("{frame:06}.npy")))?;
+        }
+        if opts.drop_unlabeled_outlier_moving {
+            let Some(labels) = scan.labels.as_ref() else {
+                return Err(CloudError::mismatch(
+                    &self.label_path(frame),
+                    "label file missing, but dropping unlabeled/outlier/moving classes needs labels",
+                ));
+            };
+            let keep: Vec<bool> = labels
+                .iter()
+                .map(|&l| !is_dropped_semantic_kitti(l))
+                .collect();
+            scan.retain_indices(|i| keep[i]);
+            let kept_range: Vec<f64> = range
+                .iter()
+                .zip(&keep)
+                .filter(|(_, k)| **k)
+                .map(|(r, _)| *r)
+                .collect();
+            if let Some(max) = opts.max_range {
+                scan.retain_indices(|i| kept_range[i] <= max);
+            }
+        } else if let Some(max) = opts.max_range {
+            scan.retain_indices(|i| range[i] <= max);
+        }
+        Ok(scan)
+    }
+
     /// Merges the scans of `frames` (all scans when empty) into one world-
     /// frame cloud, filtered and down-sampled as `opts` says. An empty result
     /// is an error.
@@ -464,35 +502,7 @@ impl KittiSequence {
         };
         let mut map = PointCloud::default();
         for &frame in frames {
-            let (mut scan, range) = self.load_scan_with_range(frame)?;
-            if let Some(dir) = &opts.features_dir {
-                scan.attach_features_npy(&dir.join(format!("{frame:06}.npy")))?;
-            }
-            if opts.drop_unlabeled_outlier_moving {
-                let Some(labels) = scan.labels.as_ref() else {
-                    return Err(CloudError::mismatch(
-                        &self.label_path(frame),
-                        "label file missing, but dropping unlabeled/outlier/moving classes needs labels",
-                    ));
-                };
-                let keep: Vec<bool> = labels
-                    .iter()
-                    .map(|&l| !is_dropped_semantic_kitti(l))
-                    .collect();
-                scan.retain_indices(|i| keep[i]);
-                let kept_range: Vec<f64> = range
-                    .iter()
-                    .zip(&keep)
-                    .filter(|(_, k)| **k)
-                    .map(|(r, _)| *r)
-                    .collect();
-                if let Some(max) = opts.max_range {
-                    scan.retain_indices(|i| kept_range[i] <= max);
-                }
-            } else if let Some(max) = opts.max_range {
-                scan.retain_indices(|i| range[i] <= max);
-            }
-            map.append(scan);
+            map.append(self.filtered_scan(frame, opts)?);
             // Down-sampling as we go bounds memory for long sequences.
             if let Some(v) = opts.voxel_size {
                 voxel_downsample(&mut map, v);

@@ -167,7 +167,33 @@ pub fn to_bytes(map: &LanguageMap) -> Vec<u8> {
             v.expect("tensor sizes follow from the map's own lengths"),
         )
     });
-    safetensors::serialize(views, Some(meta)).expect("a map always has a valid safetensors layout")
+    let bytes = safetensors::serialize(views, Some(meta))
+        .expect("a map always has a valid safetensors layout");
+    sorted_header(bytes)
+}
+
+/// The same safetensors bytes with the header's JSON keys sorted: the
+/// metadata is a `HashMap`, serialized in a per-process random order, so
+/// the same map would otherwise give different files from run to run.
+/// Sorting keeps the header's length (the same keys and values, compact),
+/// hence every offset.
+fn sorted_header(mut bytes: Vec<u8>) -> Vec<u8> {
+    let n = u64::from_le_bytes(bytes[..8].try_into().expect("8 bytes")) as usize;
+    let header = &bytes[8..8 + n];
+    let Ok(value) = serde_json::from_slice::<serde_json::Value>(header) else {
+        return bytes;
+    };
+    // serde_json's map is a BTreeMap (no `preserve_order`): keys sorted.
+    let Ok(text) = serde_json::to_string(&value) else {
+        return bytes;
+    };
+    if text.len() > n {
+        return bytes;
+    }
+    let mut sorted = text.into_bytes();
+    sorted.resize(n, b' ');
+    bytes[8..8 + n].copy_from_slice(&sorted);
+    bytes
 }
 
 /// Writes `map` to `path` atomically.
@@ -383,6 +409,38 @@ fn parse_map(bytes: &[u8], path: &Path, accept_v1: bool) -> Result<LanguageMap, 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_same_map_gives_the_same_bytes_and_reads_back() {
+        use crate::map::{FeatureDb, GridSpec};
+        let db = FeatureDb::from_rows(2, 0.0, vec![1.0, 0.0, 0.0, 1.0]).unwrap();
+        let grid = GridSpec {
+            resolution: 0.05,
+            origin: nalgebra::Vector3::new(1.0, -2.0, 3.0),
+        };
+        let m =
+            LanguageMap::from_cells(grid, db, "enc", (0..10).map(|i| ([i, 0, 1], i as u32 % 2)))
+                .unwrap();
+        let a = to_bytes(&m);
+        // Headers in every key order the HashMap may produce serialize the
+        // same: the header's keys are sorted.
+        let n = u64::from_le_bytes(a[..8].try_into().unwrap()) as usize;
+        let header: serde_json::Value = serde_json::from_slice(&a[8..8 + n]).unwrap();
+        let keys: Vec<&String> = header["__metadata__"].as_object().unwrap().keys().collect();
+        let mut sorted = keys.clone();
+        sorted.sort();
+        assert_eq!(keys, sorted);
+        let text = std::str::from_utf8(&a[8..8 + n]).unwrap();
+        let pos = |k: &str| text.find(&format!("\"{k}\"")).unwrap();
+        assert!(
+            pos("crc32") < pos("encoder") && pos("encoder") < pos("writer"),
+            "{text}"
+        );
+        for _ in 0..5 {
+            assert_eq!(to_bytes(&m), a);
+        }
+        assert_eq!(from_bytes(&a, Path::new("m.omcl")).unwrap(), m);
+    }
 
     fn sample() -> LanguageMap {
         let db = FeatureDb::from_rows(3, 0.05, vec![1.0, 0.0, 0.0, 0.0, 0.6, 0.8]).unwrap();

@@ -74,19 +74,7 @@ pub struct CloudInput {
 pub fn load_cloud(input: &CloudInput) -> Result<PointCloud, PipelineError> {
     let path = &input.path;
     if path.is_dir() {
-        let seq = KittiSequence::open(path)?;
-        let frames: Vec<usize> = seq
-            .frames
-            .iter()
-            .copied()
-            .take(input.frames.unwrap_or(usize::MAX))
-            .collect();
-        let opts = AggregateOptions {
-            voxel_size: None,
-            drop_unlabeled_outlier_moving: !input.keep_all,
-            max_range: input.max_range,
-            features_dir: input.features_dir.clone(),
-        };
+        let (seq, frames, opts) = open_sequence(input)?;
         return Ok(seq.aggregate(&frames, &opts)?);
     }
     let kitti_scan = input.format == Some(CloudFormat::KittiBin);
@@ -126,15 +114,151 @@ pub fn load_cloud(input: &CloudInput) -> Result<PointCloud, PipelineError> {
     Ok(c)
 }
 
-/// A grid whose origin is the cloud's lower corner snapped to the
-/// resolution, so that georeferenced coordinates (UTM) keep float precision.
-pub fn grid_for(points: &[[f64; 3]], resolution: f64) -> GridSpec {
+/// The sequence folder of `input`, the scans to use and how to filter them.
+fn open_sequence(
+    input: &CloudInput,
+) -> Result<(KittiSequence, Vec<usize>, AggregateOptions), PipelineError> {
+    let seq = KittiSequence::open(&input.path)?;
+    let frames: Vec<usize> = seq
+        .frames
+        .iter()
+        .copied()
+        .take(input.frames.unwrap_or(usize::MAX))
+        .collect();
+    let opts = AggregateOptions {
+        voxel_size: None,
+        drop_unlabeled_outlier_moving: !input.keep_all,
+        max_range: input.max_range,
+        features_dir: input.features_dir.clone(),
+    };
+    Ok((seq, frames, opts))
+}
+
+/// The two passes of [`map_from_sequence`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SequencePass {
+    /// Reading every scan for the bounds of the kept points.
+    Bounds,
+    /// Integrating every scan.
+    Mapping,
+}
+
+/// Builds the map of a SemanticKITTI sequence folder (`input.path`) one
+/// scan at a time, so memory holds one scan and the map being integrated,
+/// never the merged cloud (4541 scans of KITTI 00 are about 9 GB of
+/// points): a first pass reads every scan for the lower corner of the kept
+/// points (the grid's origin, as [`grid_for`] of the merged cloud), a
+/// second integrates each scan and drops it. Points, their order and the
+/// grid are those of `map_from_cloud(load_cloud(input))`, so the map is the
+/// same. `progress(pass, scans done, scans)` after every scan.
+pub fn map_from_sequence(
+    input: &CloudInput,
+    params: &BuildParams,
+    table: Option<&EmbeddingTable>,
+    progress: &mut dyn FnMut(SequencePass, usize, usize),
+) -> Result<(LanguageMap, IntegrationStats), PipelineError> {
+    let name = input.path.display().to_string();
+    let (seq, frames, opts) = open_sequence(input)?;
     let mut lo = [f64::INFINITY; 3];
+    let mut any = false;
+    for (done, &f) in frames.iter().enumerate() {
+        let scan = seq.filtered_scan(f, &opts)?;
+        any |= !scan.is_empty();
+        lower_corner(&mut lo, &scan.points);
+        progress(SequencePass::Bounds, done + 1, frames.len());
+    }
+    if !any {
+        return Err(PipelineError::Input(format!(
+            "{name}: empty result: no points left to map; no map written"
+        )));
+    }
+    let grid = grid_at(lo, params.resolution);
+    let mut integ: Option<Integrator> = None;
+    let mut stats = IntegrationStats::default();
+    for (done, &f) in frames.iter().enumerate() {
+        let scan = seq.filtered_scan(f, &opts)?;
+        let s = match (&scan.features, &scan.labels, table) {
+            (Some((dim, feats)), _, _) => {
+                let integ = match &mut integ {
+                    Some(i) => i,
+                    None => integ.insert(Integrator::new(
+                        grid.clone(),
+                        FeatureDb::new(*dim, params.tau)?.with_max_rows(params.max_rows),
+                    )?),
+                };
+                if integ.observation_db().dim() != *dim {
+                    return Err(PipelineError::Input(format!(
+                        "{name}: scan {f:06} has {dim}-d features, the scans before it {}-d",
+                        integ.observation_db().dim()
+                    )));
+                }
+                super::cloud::integrate_points(integ, &scan.points, |i| {
+                    Feature::Vector(&feats[i * dim..(i + 1) * dim])
+                })?
+            }
+            (None, Some(labels), Some(t)) => {
+                let integ = match &mut integ {
+                    Some(i) => i,
+                    None => integ.insert(Integrator::new(
+                        grid.clone(),
+                        FeatureDb::from_rows(t.dim, params.tau, t.data.clone())?,
+                    )?),
+                };
+                let rows: Vec<Option<u32>> = labels
+                    .iter()
+                    .map(|&l| t.row_index(l).map(|r| r as u32))
+                    .collect();
+                super::cloud::integrate_point_rows(integ, &scan.points, &rows)
+            }
+            (None, Some(_), None) => return Err(no_table(&name)),
+            (None, None, _) => return Err(no_features(&name)),
+        };
+        stats.offered += s.offered;
+        stats.integrated += s.integrated;
+        stats.skipped += s.skipped;
+        stats.rejected += s.rejected;
+        progress(SequencePass::Mapping, done + 1, frames.len());
+    }
+    let integ = integ.ok_or_else(|| {
+        PipelineError::Input(format!("{name}: empty result: no points left to map"))
+    })?;
+    Ok((finish(integ, &params.encoder, params.tau, &stats)?, stats))
+}
+
+fn no_table(input: &str) -> PipelineError {
+    PipelineError::Input(format!(
+        "{input}: points carry labels but no class table was given: pass --classes \
+         semantickitti (SemanticKITTI ids) or asprs (LAS codes), or a class list file with \
+         --embeddings NPY or --text-model ONNX"
+    ))
+}
+
+fn no_features(input: &str) -> PipelineError {
+    PipelineError::Input(format!(
+        "{input}: points carry neither features nor labels: pass --features (N x F .npy), \
+         --point-model, or use a labelled cloud with --classes"
+    ))
+}
+
+/// Lowers `lo` to the corner of `points`.
+fn lower_corner(lo: &mut [f64; 3], points: &[[f64; 3]]) {
     for p in points {
         for a in 0..3 {
             lo[a] = lo[a].min(p[a]);
         }
     }
+}
+
+/// A grid whose origin is the cloud's lower corner snapped to the
+/// resolution, so that georeferenced coordinates (UTM) keep float precision.
+pub fn grid_for(points: &[[f64; 3]], resolution: f64) -> GridSpec {
+    let mut lo = [f64::INFINITY; 3];
+    lower_corner(&mut lo, points);
+    grid_at(lo, resolution)
+}
+
+/// The grid of resolution `resolution` whose origin is `lo` snapped down.
+fn grid_at(lo: [f64; 3], resolution: f64) -> GridSpec {
     let snap = |v: f64| {
         if v.is_finite() {
             (v / resolution).floor() * resolution
@@ -218,16 +342,9 @@ pub fn map_from_cloud(
         let s = super::cloud::integrate_point_rows(&mut integ, &cloud.points, &rows);
         (integ, s)
     } else if cloud.labels.is_some() {
-        return Err(PipelineError::Input(format!(
-            "{input}: points carry labels but no class table was given: pass --classes \
-             semantickitti (SemanticKITTI ids) or asprs (LAS codes), or a class list file with \
-             --embeddings NPY or --text-model ONNX"
-        )));
+        return Err(no_table(input));
     } else {
-        return Err(PipelineError::Input(format!(
-            "{input}: points carry neither features nor labels: pass --features (N x F .npy), \
-             --point-model, or use a labelled cloud with --classes"
-        )));
+        return Err(no_features(input));
     };
     Ok((finish(integ, &name, params.tau, &stats)?, stats))
 }
