@@ -51,6 +51,19 @@ fn info_prints_header_and_statistics() {
     assert_eq!(v["leaves"], 40);
     assert_eq!(v["rows"], 3);
     assert_eq!(v["resolution_m"], 0.25);
+
+    // --scene builds the ray-casting scene and says how long it took; the
+    // JSON on stdout stays one document.
+    let (ok, json, err) = omcl(&["map", "info", p.to_str().unwrap(), "--json", "--scene"]);
+    assert!(ok, "{err}");
+    assert!(
+        serde_json::from_str::<serde_json::Value>(&json).is_ok(),
+        "{json}"
+    );
+    assert!(
+        err.contains("Embree scene built in") && err.contains("(40 voxels)"),
+        "{err}"
+    );
 }
 
 #[test]

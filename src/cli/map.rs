@@ -54,6 +54,11 @@ pub struct InfoArgs {
     /// Print machine-readable JSON instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Also build the map's ray-casting scene (Embree voxel bricks, as
+    /// `omcl localize` and `omcl serve` do) and report how long loading and
+    /// building took and the process's peak memory.
+    #[arg(long)]
+    pub scene: bool,
     /// How many of the most used feature rows to list.
     #[arg(long, default_value_t = 10)]
     pub top: usize,
@@ -147,8 +152,29 @@ pub fn map_info(path: &std::path::Path, map: &LanguageMap, top: usize) -> anyhow
 }
 
 fn info(a: &InfoArgs) -> anyhow::Result<()> {
+    let t0 = std::time::Instant::now();
     let map = file::load(&a.file)?;
+    let load_s = t0.elapsed().as_secs_f64();
+    let scene = if a.scene {
+        let t1 = std::time::Instant::now();
+        let caster =
+            omcl::mcl::SensorModel::embree_caster(map.grid().resolution as f32, &map.cells())?;
+        let build_s = t1.elapsed().as_secs_f64();
+        drop(caster);
+        Some((load_s, build_s, peak_rss_mib()))
+    } else {
+        None
+    };
     let i = map_info(&a.file, &map, a.top)?;
+    if let Some((load_s, build_s, peak)) = scene {
+        // On stderr, so --json stays one JSON document on stdout.
+        eprintln!(
+            "scene        loaded in {load_s:.2} s, Embree scene built in {build_s:.2} s \
+             ({} voxels), peak memory {}",
+            map.len(),
+            peak.map_or("unknown".into(), |m| format!("{m:.0} MiB"))
+        );
+    }
     if a.json {
         println!(
             "{}",
@@ -214,4 +240,12 @@ pub fn render_info(i: &MapInfo) -> String {
         );
     }
     s
+}
+
+/// The process's peak resident memory (Linux `VmHWM`), MiB.
+fn peak_rss_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib / 1024.0)
 }
