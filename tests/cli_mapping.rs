@@ -528,13 +528,11 @@ fn builtin_class_lists_convert_real_scans_and_las_without_a_table() {
             q.to_str().unwrap(),
         ]);
         assert!(ok, "{text}");
-        let n = text
-            .split('(')
+        text.split('(')
             .nth(1)
             .and_then(|t| t.split_whitespace().next())
             .and_then(|t| t.parse().ok())
-            .unwrap_or_else(|| panic!("{text}"));
-        n
+            .unwrap_or_else(|| panic!("{text}"))
     };
     let road = within("road");
     let sign = within("traffic sign");

@@ -41,8 +41,6 @@ pub fn open_image_source(args: &EncoderArgs) -> anyhow::Result<Option<ImageSourc
     )?))
 }
 
-pub use omcl::encode::image::EncodedFrame;
-
 /// Unit text features of `words` from a text encoder.
 pub fn text_features(
     model: &Path,

@@ -8,16 +8,15 @@ use clap::{Args, ValueEnum};
 
 use omcl::eval::ape::{PoseRelation, ape};
 use omcl::eval::localization::CompletionRule;
-use omcl::geometry::{Intrinsics, Pose};
-use omcl::io::kitti_camera::{CameraInput, KittiCameraSequence};
+use omcl::geometry::Pose;
+use omcl::io::kitti_camera::CameraInput;
 use omcl::io::labels::EmbeddingTable;
 use omcl::io::poses::{self, PoseFormat};
-use omcl::io::{npy, rgbd};
+use omcl::io::rgbd;
 use omcl::map;
 use omcl::mcl::{self, FilterConfig, FloorParams, MotionMode, PromptParams, SamplingStrategy};
-use omcl::session::{
-    LabelFrame, LabelTable, Session, SessionConfig, SessionError, SharedMap, Start,
-};
+use omcl::session::sequence::{self, CameraSequence, FrameSource, Odometry};
+use omcl::session::{LabelTable, Session, SessionConfig, SessionError, SharedMap, Start};
 use omcl::trajectory::Trajectory;
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -231,118 +230,33 @@ fn word_features(
         .collect()
 }
 
-/// Where a sequence's files are, in either layout, and what it says.
-struct Inputs {
-    k: Intrinsics,
-    /// Ground truth, `world_from_camera` in the map frame.
-    gt: Option<Trajectory>,
-    gt_path: PathBuf,
-    classes: PathBuf,
-    embeddings: PathBuf,
-    /// Folders of label images, feature files and RGB images.
-    labels_dir: PathBuf,
-    features_dir: PathBuf,
-    rgb_dir: PathBuf,
-    /// The KITTI sequence, for a KITTI layout.
-    kitti: Option<KittiCameraSequence>,
-}
-
-impl Inputs {
-    fn rgbd(d: &Path) -> anyhow::Result<Inputs> {
-        let k = rgbd::read_intrinsics(&d.join("intrinsics.txt"))?;
-        let gt_path = d.join("poses.txt");
-        let gt = gt_path
-            .exists()
-            .then(|| poses::read_poses(&gt_path))
-            .transpose()?
-            .map(|p| p.trajectory);
-        Ok(Inputs {
-            k,
-            gt,
-            gt_path,
-            classes: d.join("classes.txt"),
-            embeddings: d.join("embeddings.npy"),
-            labels_dir: d.join("labels"),
-            features_dir: d.join("features"),
-            rgb_dir: d.join("rgb"),
-            kitti: None,
-        })
-    }
-
-    /// A KITTI odometry folder; `input` picks the camera-2 folder read.
-    fn kitti(d: &Path, input: CameraInput) -> anyhow::Result<Inputs> {
-        let seq = KittiCameraSequence::open(d, input)?;
-        let gt = Trajectory::new(seq.times.clone(), seq.ground_truth())?;
-        Ok(Inputs {
-            k: seq.camera.intrinsics,
-            gt: Some(gt),
-            gt_path: d.join("poses.txt"),
-            classes: d.join("classes.txt"),
-            embeddings: d.join("embeddings.npy"),
-            labels_dir: d.join(CameraInput::Labels.folder()),
-            features_dir: d.join(CameraInput::Features.folder()),
-            rgb_dir: d.join(CameraInput::Images.folder()),
-            kitti: Some(seq),
-        })
-    }
-}
-
-/// The odometry poses: a pose file (`--odometry`, or odometry.txt beside
-/// an RGB-D sequence), or ground truth with the library's one definition
-/// of odometry noise.
-fn odometry(
-    a: &LocalizeArgs,
-    d: &Path,
-    is_kitti: bool,
-    gt: Option<&Trajectory>,
-    kitti: Option<&KittiCameraSequence>,
-) -> anyhow::Result<Vec<Pose>> {
+/// Where the odometry comes from: a pose file (`--odometry`, or
+/// odometry.txt beside an RGB-D sequence), or ground truth with the
+/// library's one definition of odometry noise (noise on camera x and z and
+/// on yaw about camera y, every frame, accumulated: the authors' form).
+fn odometry_source(a: &LocalizeArgs, d: &Path, is_kitti: bool) -> anyhow::Result<Odometry> {
     let odom_file = a.odometry.clone().or_else(|| {
         let p = d.join("odometry.txt");
         (!a.odom_from_gt && !is_kitti && p.exists()).then_some(p)
     });
-    Ok(match (&odom_file, gt, kitti) {
-        (Some(p), _, kitti) => {
-            let poses = poses::read_poses(p)?.trajectory.poses().to_vec();
-            ensure!(
-                a.odom_first < poses.len(),
-                "{}: --odom-first {} is past its {} poses",
-                p.display(),
-                a.odom_first,
-                poses.len()
-            );
-            let poses = &poses[a.odom_first..];
-            match kitti {
-                Some(seq) => seq.camera2_in_map(poses),
-                None => poses.to_vec(),
-            }
-        }
-        (None, Some(g), kitti) => {
-            // The library's one definition of noisy odometry: noise on
-            // camera x and z and on yaw about camera y, every frame,
-            // accumulated (the authors' form).
-            let default_deg = if kitti.is_some() {
-                0.1f64.to_degrees()
-            } else {
-                6.0
-            };
-            let cfg = omcl::sim::paths::OdometryConfig {
-                seed: a.seed ^ 0x0d0,
-                sigma_t: a.odom_noise_m,
-                sigma_r_deg: a.odom_noise_deg.unwrap_or(default_deg),
-                drift_scale: 1.0,
-            };
-            ensure!(
-                cfg.sigma_t >= 0.0 && cfg.sigma_r_deg >= 0.0,
-                "--odom-noise-m and --odom-noise-deg must be >= 0"
-            );
-            omcl::sim::paths::odometry(g.poses(), &[], &cfg)
-        }
-        (None, None, _) => bail!(
-            "{}: no odometry: pass --odometry FILE, or provide poses.txt to make it from ground truth",
-            d.display()
-        ),
-    })
+    if let Some(path) = odom_file {
+        return Ok(Odometry::File {
+            path,
+            first: a.odom_first,
+        });
+    }
+    let default_deg = if is_kitti { 0.1f64.to_degrees() } else { 6.0 };
+    let cfg = omcl::sim::paths::OdometryConfig {
+        seed: a.seed ^ 0x0d0,
+        sigma_t: a.odom_noise_m,
+        sigma_r_deg: a.odom_noise_deg.unwrap_or(default_deg),
+        drift_scale: 1.0,
+    };
+    ensure!(
+        cfg.sigma_t >= 0.0 && cfg.sigma_r_deg >= 0.0,
+        "--odom-noise-m and --odom-noise-deg must be >= 0"
+    );
+    Ok(Odometry::FromTruth(cfg))
 }
 
 /// Where the particles start: around a pose (`--init-pose` or the first
@@ -527,22 +441,18 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     let m = shared.map();
     let d = &a.sequence;
     let mut image = super::encoders::open_image_source(&a.encoder)?;
-    let is_kitti = d.join("calib.txt").exists();
-    let inputs = if is_kitti {
-        let input = if image.is_some() {
-            CameraInput::Images
-        } else if a.use_features || !d.join(CameraInput::Labels.folder()).is_dir() {
-            CameraInput::Features
-        } else {
-            CameraInput::Labels
-        };
-        Inputs::kitti(d, input)?
+    let is_kitti = CameraSequence::is_kitti(d);
+    let input = if image.is_some() {
+        CameraInput::Images
+    } else if a.use_features || !d.join(CameraInput::Labels.folder()).is_dir() {
+        CameraInput::Features
     } else {
-        Inputs::rgbd(d)?
+        CameraInput::Labels
     };
-    let k = inputs.k;
-    let gt = inputs.gt.clone();
-    let gt_path = &inputs.gt_path;
+    let inputs = CameraSequence::open(d, input)?;
+    let k = inputs.intrinsics;
+    let gt = inputs.ground_truth.clone();
+    let gt_path = &inputs.ground_truth_path;
     ensure!(
         a.plot.is_none() || gt.is_some(),
         "--plot needs ground truth: {} is missing",
@@ -584,25 +494,8 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         Some(t) => Some(LabelTable::new(t, m)?),
         None => None,
     };
-    let odom = odometry(&a, d, is_kitti, gt.as_ref(), inputs.kitti.as_ref())?;
-    let mut n = odom.len().min(a.frames.unwrap_or(usize::MAX));
-    if let Some(seq) = &inputs.kitti {
-        n = n.min(seq.len());
-    }
-    ensure!(n > 0, "{}: the sequence has no frames", d.display());
-    // Checked before any work: the trajectory is evaluated against ground
-    // truth frame by frame, so a short poses.txt is an error up front, not
-    // after the output is written.
-    if let Some(g) = &gt {
-        ensure!(
-            g.len() >= n,
-            "{}: {} ground-truth poses for {n} frames of odometry; pass --frames {} or a \
-             complete poses.txt",
-            gt_path.display(),
-            g.len(),
-            g.len()
-        );
-    }
+    let odom = inputs.odometry(&odometry_source(&a, d, is_kitti)?)?;
+    let n = inputs.frames(odom.len(), a.frames)?;
 
     let floor_params = FloorParams::default();
     let floor_feature = || -> anyhow::Result<Vec<f32>> {
@@ -637,11 +530,22 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             }
             e => e.into(),
         })?;
-    let stamps: Vec<f64> = match &gt {
-        Some(g) => g.stamps()[..n].to_vec(),
-        None => (0..n).map(|i| i as f64).collect(),
+    let stamps = inputs.stamps(n);
+    let mut source = match (image.as_mut(), table.as_ref()) {
+        (Some(src), _) => FrameSource::Images(src),
+        (None, Some(t)) if !a.use_features => FrameSource::Labels(t),
+        _ => FrameSource::Features,
     };
-
+    let pb = super::progress::bar(n as u64, "localizing");
+    let frames = sequence::localize(
+        &mut session,
+        &inputs,
+        &mut source,
+        &odom[..n],
+        &stamps,
+        &mut |_| pb.inc(1),
+    )?;
+    pb.finish_and_clear();
     let mut estimates = Vec::with_capacity(n);
     let mut diag = String::from(
         "frame,ess,spread_m,mean_likelihood,confidence,particles,rays,step_ms,input_ms\n",
@@ -649,57 +553,12 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     // Filter time and input time (reading the frame and running the image
     // encoder, if any), seconds, for the frame rates printed at the end.
     let (mut filter_s, mut input_s) = (0.0f64, 0.0f64);
-    let pb = super::progress::bar(n as u64, "localizing");
-    for i in 0..n {
-        let labels_frame = table.as_ref().filter(|_| !a.use_features);
-        let t_in = std::time::Instant::now();
-        let input: f64;
-        let (odom_i, stamp) = (&odom[i], stamps[i]);
-        let r = if let Some(src) = image.as_mut() {
-            let p = inputs.rgb_dir.join(format!("{i:06}.png"));
-            let fm = src
-                .encode(&p, i)
-                .with_context(|| format!("encoding {}", p.display()))?;
-            input = t_in.elapsed().as_secs_f64();
-            let f = super::encoders::EncodedFrame {
-                map: &fm,
-                width: k.width,
-                height: k.height,
-            };
-            session
-                .step(odom_i, stamp, &f)
-                .with_context(|| format!("frame {i} ({})", p.display()))?
-        } else if let Some(t) = labels_frame {
-            let p = inputs.labels_dir.join(format!("{i:06}.png"));
-            let (w, h, labels) = rgbd::read_label_png(&p)?;
-            input = t_in.elapsed().as_secs_f64();
-            let f = LabelFrame::new(w, h, &labels, t)
-                .with_context(|| format!("frame {i} ({})", p.display()))?;
-            session
-                .step(odom_i, stamp, &f)
-                .with_context(|| format!("frame {i} ({})", p.display()))?
-        } else {
-            let p = inputs.features_dir.join(format!("{i:06}.npy"));
-            let arr = npy::read_npy(&p)?;
-            input = t_in.elapsed().as_secs_f64();
-            ensure!(
-                arr.shape.len() == 3 && arr.shape.iter().all(|&x| x > 0),
-                "{}: expected h x w x F features with every size above 0, got shape {:?}",
-                p.display(),
-                arr.shape
-            );
-            let shape = [arr.shape[0], arr.shape[1], arr.shape[2]];
-            let f = omcl::session::feature_grid(k.width, k.height, shape, &arr.data)
-                .with_context(|| format!("frame {i} ({})", p.display()))?;
-            session
-                .step(odom_i, stamp, &f)
-                .with_context(|| format!("frame {i} ({})", p.display()))?
-        };
-        let report = &r.step;
+    for (i, f) in frames.iter().enumerate() {
+        let report = &f.report.step;
         let t = &report.timings;
         let step = (t.features + t.predict + t.weigh + t.update).as_secs_f64();
         filter_s += step;
-        input_s += input;
+        input_s += f.input_seconds;
         diag.push_str(&format!(
             "{i},{:.1},{:.4},{:.4},{:.3},{},{},{:.1},{:.1}\n",
             report.ess,
@@ -709,12 +568,10 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             report.n_particles,
             report.n_rays,
             1e3 * step,
-            1e3 * input
+            1e3 * f.input_seconds
         ));
         estimates.push(report.estimate);
-        pb.inc(1);
     }
-    pb.finish_and_clear();
     let est = Trajectory::new(stamps.clone(), estimates)?;
     let metric = gt
         .as_ref()

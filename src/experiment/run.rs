@@ -5,9 +5,6 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-
 use super::ExperimentError;
 use super::features::{GridFeatures, SimFrameFeatures};
 use super::sequence::BenchSequence;
@@ -16,8 +13,9 @@ use crate::eval::localization::CompletionRule;
 use crate::eval::localization::{SequenceSummary, summarize_sequences};
 use crate::geometry::Pose;
 use crate::map::LanguageMap;
-use crate::mcl::{self, Filter, FilterConfig, FloorParams, PromptParams};
+use crate::mcl::{FilterConfig, FloorParams, PromptParams};
 use crate::raycast::RayCaster;
+use crate::session::{self, Session, SessionConfig, SessionError, SharedMap};
 use crate::sim::features::{FeatureModel, Preset};
 
 /// How the particles start.
@@ -107,6 +105,14 @@ fn text(seq: &dyn BenchSequence, name: &str) -> Result<Vec<f32>, ExperimentError
         .ok_or_else(|| ExperimentError::Config(format!("class {name:?} is not in the table")))
 }
 
+/// The filter's own errors keep their kind (Table V records them per run).
+fn session_error(e: SessionError) -> ExperimentError {
+    match e {
+        SessionError::Init(e) | SessionError::Filter(e) => ExperimentError::Filter(e),
+        e => ExperimentError::Config(e.to_string()),
+    }
+}
+
 /// Runs the filter over `seq` in `map` (whose leaves `caster` indexes).
 pub fn run(
     seq: &dyn BenchSequence,
@@ -120,37 +126,41 @@ pub fn run(
     if last <= first {
         return Err(ExperimentError::Config("the run has no frames".into()));
     }
-    let mut rng = ChaCha8Rng::seed_from_u64(spec.filter.seed ^ 0x57a7);
-    let floor = FloorParams::default();
-    let particles = match &spec.start {
-        Start::Local { sigma_m, sigma_deg } => mcl::local_init(
-            &seq.poses()[first],
-            spec.particles,
-            *sigma_m,
-            sigma_deg.to_radians(),
-            &mut rng,
+    // The session loop `omcl localize` and `omcl serve` run, fed with the
+    // sequence's odometry increments; the initializations keep the
+    // benchmark's own random stream.
+    let (start, floor_feature) = match &spec.start {
+        Start::Local { sigma_m, sigma_deg } => (
+            session::Start::Pose {
+                pose: seq.poses()[first],
+                sigma_m: *sigma_m,
+                sigma_rad: sigma_deg.to_radians(),
+            },
+            None,
         ),
-        Start::Global => {
-            mcl::global_init(map, &text(seq, "floor")?, &floor, spec.particles, &mut rng)?
-        }
-        Start::Prompt(words) => {
-            let w: Vec<Vec<f32>> = words
-                .iter()
-                .map(|n| text(seq, n))
-                .collect::<Result<_, _>>()?;
-            mcl::prompt_init(
-                map,
-                &text(seq, "floor")?,
-                &w,
-                &floor,
-                &PromptParams::default(),
-                spec.particles,
-                &mut rng,
-            )?
-        }
+        Start::Global => (session::Start::Global, Some(text(seq, "floor")?)),
+        Start::Prompt(words) => (
+            session::Start::Prompt {
+                words: words
+                    .iter()
+                    .map(|n| text(seq, n))
+                    .collect::<Result<_, _>>()?,
+                params: PromptParams::default(),
+            },
+            Some(text(seq, "floor")?),
+        ),
     };
+    let config = SessionConfig {
+        intrinsics: seq.intrinsics(),
+        particles: spec.particles,
+        filter: spec.filter,
+        floor: FloorParams::default(),
+        floor_feature,
+    };
+    let shared = Arc::new(SharedMap::from_parts("benchmark", map.clone(), caster));
+    let mut session = Session::with_init_seed(shared, config, &start, spec.filter.seed ^ 0x57a7)
+        .map_err(session_error)?;
     let rows = class_rows(seq, map);
-    let mut filter = Filter::new(map, caster, seq.intrinsics(), spec.filter, particles)?;
     let mut estimates = Vec::with_capacity(last - first);
     let mut errors = Vec::with_capacity(last - first);
     let mut step_seconds = Vec::with_capacity(last - first);
@@ -170,7 +180,10 @@ pub fn run(
             seq.increment(i)
         };
         let t = Instant::now();
-        let r = filter.step(&inc, &f)?;
+        let r = session
+            .step_by(&inc, i as f64, &f)
+            .map_err(session_error)?
+            .step;
         step_seconds.push(t.elapsed().as_secs_f64());
         rays += r.n_rays;
         let truth = seq.poses()[i].translation.vector;

@@ -182,7 +182,7 @@ pub fn map_from_sequence(
                 let integ = match &mut integ {
                     Some(i) => i,
                     None => integ.insert(Integrator::new(
-                        grid.clone(),
+                        grid,
                         FeatureDb::new(*dim, params.tau)?.with_max_rows(params.max_rows),
                     )?),
                 };
@@ -200,7 +200,7 @@ pub fn map_from_sequence(
                 let integ = match &mut integ {
                     Some(i) => i,
                     None => integ.insert(Integrator::new(
-                        grid.clone(),
+                        grid,
                         FeatureDb::from_rows(t.dim, params.tau, t.data.clone())?,
                     )?),
                 };

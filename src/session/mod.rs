@@ -12,11 +12,15 @@
 //!
 //! Odometry is given as poses (`odom_from_camera`, as a robot's odometry
 //! frame publishes them); the session turns consecutive poses into the
-//! filter's increments, so the first frame moves nothing. Noisy odometry
+//! filter's increments, so the first frame moves nothing
+//! ([`Session::step_by`] takes the increments themselves, as the
+//! benchmark's runs in [`crate::experiment::run`] do). [`sequence`] reads a
+//! recorded sequence from disk and localizes it (`omcl localize`). Noisy odometry
 //! made from ground truth has one definition in the library,
 //! [`crate::sim::paths::odometry`].
 
 pub mod frames;
+pub mod sequence;
 
 use std::path::Path;
 use std::sync::{Arc, Mutex};
@@ -89,6 +93,22 @@ impl SharedMap {
             classes: None,
             encoder: None,
         })
+    }
+
+    /// A map whose scene is already built: `caster` must index `map`'s
+    /// leaves in order (e.g. an experiment's own caster, or a planar one).
+    pub fn from_parts(
+        name: impl Into<String>,
+        map: LanguageMap,
+        caster: Arc<dyn RayCaster>,
+    ) -> Self {
+        SharedMap {
+            name: name.into(),
+            map,
+            caster,
+            classes: None,
+            encoder: None,
+        }
     }
 
     /// Reads the map file at `path` and builds its scene.
@@ -227,7 +247,20 @@ impl Session {
         config: SessionConfig,
         start: &Start,
     ) -> Result<Self, SessionError> {
-        let mut init_rng = ChaCha8Rng::seed_from_u64(config.filter.seed);
+        let seed = config.filter.seed;
+        Self::with_init_seed(map, config, start, seed)
+    }
+
+    /// [`Session::new`] with the initializations drawn from `init_seed`
+    /// rather than `config.filter.seed` (the benchmark's runs keep their
+    /// own stream).
+    pub fn with_init_seed(
+        map: Arc<SharedMap>,
+        config: SessionConfig,
+        start: &Start,
+        init_seed: u64,
+    ) -> Result<Self, SessionError> {
+        let mut init_rng = ChaCha8Rng::seed_from_u64(init_seed);
         let particles = initial_particles(&map, &config, start, &mut init_rng)?;
         let mut filter = Filter::new(
             &map.map,
@@ -304,14 +337,36 @@ impl Session {
             Some(prev) => prev.inverse() * odom,
             None => Pose::identity(),
         };
-        let step = self.filter.step(&increment, frame).map_err(|e| match e {
+        let report = self.step_by(&increment, stamp, frame)?;
+        self.last_odom = Some(*odom);
+        Ok(report)
+    }
+
+    /// One frame with the odometry given as the increment since the
+    /// previous frame (`camera_prev_from_camera`, e.g. a visual odometry's
+    /// frame-to-frame motion). The next [`Session::step`] takes its
+    /// odometry pose as a new reference.
+    pub fn step_by(
+        &mut self,
+        increment: &Pose,
+        stamp: f64,
+        frame: &dyn FrameFeatures,
+    ) -> Result<PoseReport, SessionError> {
+        if !stamp.is_finite() {
+            return Err(SessionError::BadStamp(stamp));
+        }
+        mcl::motion::check_pose(increment).map_err(|e| match e {
+            MclError::BadOdometry(s) => SessionError::BadOdometry(s),
+            e => SessionError::Filter(e),
+        })?;
+        let step = self.filter.step(increment, frame).map_err(|e| match e {
             MclError::DimMismatch { .. } | MclError::ImageSize { .. } => {
                 SessionError::BadFrame(e.to_string())
             }
             MclError::BadOdometry(s) => SessionError::BadOdometry(s),
             e => SessionError::Filter(e),
         })?;
-        self.last_odom = Some(*odom);
+        self.last_odom = None;
         self.frames += 1;
         Ok(PoseReport {
             stamp,

@@ -1,0 +1,324 @@
+//! A recorded camera sequence localized frame by frame: the pipeline of
+//! `omcl localize`, in the library.
+//!
+//! [`CameraSequence`] reads either layout as it is on disk:
+//!
+//! ```text
+//! RGB-D folder  intrinsics.txt, poses.txt (TUM, ground truth, optional),
+//!               labels/NNNNNN.png | features/NNNNNN.npy | rgb/NNNNNN.png,
+//!               classes.txt + embeddings.npy for label images
+//! KITTI folder  calib.txt (camera 2 from P2), poses.txt (camera 0),
+//!               times.txt, labels_2/ | features_2/ | image_2/
+//!               (see crate::io::kitti_camera)
+//! ```
+//!
+//! [`FrameSource`] says what each frame is read as (label images through a
+//! class table, feature files, or RGB images through an image encoder) and
+//! [`localize`] runs a [`Session`] over the frames: the same loop
+//! `omcl serve` runs per camera and the benchmark's experiments run in
+//! memory. Odometry comes from a pose file or from ground truth with the
+//! library's one definition of odometry noise ([`Odometry`]).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use super::{LabelFrame, LabelTable, PoseReport, Session, SessionError, feature_grid};
+use crate::encode::EncodeError;
+use crate::encode::cache::ImageSource;
+use crate::encode::image::EncodedFrame;
+use crate::geometry::{Intrinsics, Pose};
+use crate::io::cloud::CloudError;
+use crate::io::kitti_camera::{CameraInput, KittiCameraSequence};
+use crate::io::npy::{NpyError, read_npy};
+use crate::io::poses::{self, PosesError};
+use crate::io::rgbd;
+use crate::sim::paths::OdometryConfig;
+use crate::trajectory::{Trajectory, TrajectoryError};
+
+/// Errors reading or localizing a sequence; each names its file or frame.
+#[derive(Debug, thiserror::Error)]
+pub enum SequenceError {
+    #[error(transparent)]
+    Cloud(#[from] CloudError),
+    #[error(transparent)]
+    Poses(#[from] PosesError),
+    #[error(transparent)]
+    Npy(#[from] NpyError),
+    #[error(transparent)]
+    Trajectory(#[from] TrajectoryError),
+    #[error("{path}: {source}")]
+    Encode { path: String, source: EncodeError },
+    #[error("frame {frame} ({path}): {source}")]
+    Frame {
+        frame: usize,
+        path: String,
+        source: Box<SessionError>,
+    },
+    #[error("{0}")]
+    Input(String),
+}
+
+/// Where a sequence's files are, in either layout, and what it says.
+#[derive(Debug)]
+pub struct CameraSequence {
+    /// The sequence folder.
+    pub dir: PathBuf,
+    /// The camera (KITTI: camera 2).
+    pub intrinsics: Intrinsics,
+    /// Ground truth, `world_from_camera` in the map frame.
+    pub ground_truth: Option<Trajectory>,
+    /// Where ground truth is (or would be).
+    pub ground_truth_path: PathBuf,
+    /// The class table of label images: `classes.txt`, `embeddings.npy`.
+    pub classes: PathBuf,
+    pub embeddings: PathBuf,
+    /// Folders of label images, feature files and RGB images.
+    pub labels_dir: PathBuf,
+    pub features_dir: PathBuf,
+    pub rgb_dir: PathBuf,
+    /// The KITTI sequence, for a KITTI layout.
+    pub kitti: Option<KittiCameraSequence>,
+}
+
+impl CameraSequence {
+    /// Whether `dir` is in KITTI layout (it has `calib.txt`).
+    pub fn is_kitti(dir: &Path) -> bool {
+        dir.join("calib.txt").exists()
+    }
+
+    /// The folder `dir` in the layout it is in; on KITTI, `input` picks
+    /// the camera-2 folder read.
+    pub fn open(dir: &Path, input: CameraInput) -> Result<Self, SequenceError> {
+        if Self::is_kitti(dir) {
+            Self::kitti(dir, input)
+        } else {
+            Self::rgbd(dir)
+        }
+    }
+
+    /// An RGB-D folder.
+    pub fn rgbd(d: &Path) -> Result<Self, SequenceError> {
+        let intrinsics = rgbd::read_intrinsics(&d.join("intrinsics.txt"))?;
+        let gt_path = d.join("poses.txt");
+        let ground_truth = gt_path
+            .exists()
+            .then(|| poses::read_poses(&gt_path))
+            .transpose()?
+            .map(|p| p.trajectory);
+        Ok(CameraSequence {
+            dir: d.to_path_buf(),
+            intrinsics,
+            ground_truth,
+            ground_truth_path: gt_path,
+            classes: d.join("classes.txt"),
+            embeddings: d.join("embeddings.npy"),
+            labels_dir: d.join("labels"),
+            features_dir: d.join("features"),
+            rgb_dir: d.join("rgb"),
+            kitti: None,
+        })
+    }
+
+    /// A KITTI odometry folder; `input` picks the camera-2 folder read.
+    pub fn kitti(d: &Path, input: CameraInput) -> Result<Self, SequenceError> {
+        let seq = KittiCameraSequence::open(d, input)?;
+        let gt = Trajectory::new(seq.times.clone(), seq.ground_truth())?;
+        Ok(CameraSequence {
+            dir: d.to_path_buf(),
+            intrinsics: seq.camera.intrinsics,
+            ground_truth: Some(gt),
+            ground_truth_path: d.join("poses.txt"),
+            classes: d.join("classes.txt"),
+            embeddings: d.join("embeddings.npy"),
+            labels_dir: d.join(CameraInput::Labels.folder()),
+            features_dir: d.join(CameraInput::Features.folder()),
+            rgb_dir: d.join(CameraInput::Images.folder()),
+            kitti: Some(seq),
+        })
+    }
+
+    /// The odometry poses of the frames, in the map frame (camera 2 on
+    /// KITTI).
+    pub fn odometry(&self, odometry: &Odometry) -> Result<Vec<Pose>, SequenceError> {
+        match odometry {
+            Odometry::File { path, first } => {
+                let poses = poses::read_poses(path)?.trajectory.poses().to_vec();
+                if *first >= poses.len() {
+                    return Err(SequenceError::Input(format!(
+                        "{}: --odom-first {first} is past its {} poses",
+                        path.display(),
+                        poses.len()
+                    )));
+                }
+                let poses = &poses[*first..];
+                Ok(match &self.kitti {
+                    Some(seq) => seq.camera2_in_map(poses),
+                    None => poses.to_vec(),
+                })
+            }
+            Odometry::FromTruth(cfg) => {
+                let g = self.ground_truth.as_ref().ok_or_else(|| {
+                    SequenceError::Input(format!(
+                        "{}: no odometry: pass --odometry FILE, or provide poses.txt to make \
+                         it from ground truth",
+                        self.dir.display()
+                    ))
+                })?;
+                Ok(crate::sim::paths::odometry(g.poses(), &[], cfg))
+            }
+        }
+    }
+
+    /// Frames that can be localized: the odometry's, capped by `limit`
+    /// and the KITTI folder's frame count; ground truth, when present, must
+    /// cover them (checked before any work, not after the output).
+    pub fn frames(&self, odometry: usize, limit: Option<usize>) -> Result<usize, SequenceError> {
+        let mut n = odometry.min(limit.unwrap_or(usize::MAX));
+        if let Some(seq) = &self.kitti {
+            n = n.min(seq.len());
+        }
+        if n == 0 {
+            return Err(SequenceError::Input(format!(
+                "{}: the sequence has no frames",
+                self.dir.display()
+            )));
+        }
+        if let Some(g) = &self.ground_truth
+            && g.len() < n
+        {
+            return Err(SequenceError::Input(format!(
+                "{}: {} ground-truth poses for {n} frames of odometry; pass --frames {} or a \
+                 complete poses.txt",
+                self.ground_truth_path.display(),
+                g.len(),
+                g.len()
+            )));
+        }
+        Ok(n)
+    }
+
+    /// The stamps of the first `n` frames (ground truth's, else indices).
+    pub fn stamps(&self, n: usize) -> Vec<f64> {
+        match &self.ground_truth {
+            Some(g) => g.stamps()[..n].to_vec(),
+            None => (0..n).map(|i| i as f64).collect(),
+        }
+    }
+}
+
+/// Where the odometry comes from.
+#[derive(Debug, Clone)]
+pub enum Odometry {
+    /// A pose file (TUM or KITTI; KITTI poses are camera 0's), from its
+    /// pose `first` on.
+    File { path: PathBuf, first: usize },
+    /// Ground truth with noise ([`crate::sim::paths::odometry`]).
+    FromTruth(OdometryConfig),
+}
+
+/// What the frames are read as.
+pub enum FrameSource<'a> {
+    /// Label images through the sequence's class table.
+    Labels(&'a LabelTable),
+    /// Per-pixel feature files (`h x w x F`).
+    Features,
+    /// RGB images through an image encoder.
+    Images(&'a mut ImageSource),
+}
+
+/// One localized frame.
+#[derive(Debug, Clone, Copy)]
+pub struct LocalizedFrame {
+    pub report: PoseReport,
+    /// Seconds reading the frame (and encoding it, for images).
+    pub input_seconds: f64,
+}
+
+/// Reads frame `i` of `seq` as `source` says and steps `session` with it.
+pub fn step_frame(
+    session: &mut Session,
+    seq: &CameraSequence,
+    source: &mut FrameSource<'_>,
+    i: usize,
+    odom: &Pose,
+    stamp: f64,
+) -> Result<LocalizedFrame, SequenceError> {
+    let k = seq.intrinsics;
+    let t_in = Instant::now();
+    let frame_error = |path: &Path, source: SessionError| SequenceError::Frame {
+        frame: i,
+        path: path.display().to_string(),
+        source: Box::new(source),
+    };
+    let (report, input_seconds) = match source {
+        FrameSource::Images(src) => {
+            let p = seq.rgb_dir.join(format!("{i:06}.png"));
+            let fm = src.encode(&p, i).map_err(|source| SequenceError::Encode {
+                path: p.display().to_string(),
+                source,
+            })?;
+            let input = t_in.elapsed().as_secs_f64();
+            let f = EncodedFrame {
+                map: &fm,
+                width: k.width,
+                height: k.height,
+            };
+            let r = session
+                .step(odom, stamp, &f)
+                .map_err(|e| frame_error(&p, e))?;
+            (r, input)
+        }
+        FrameSource::Labels(t) => {
+            let p = seq.labels_dir.join(format!("{i:06}.png"));
+            let (w, h, labels) = rgbd::read_label_png(&p)?;
+            let input = t_in.elapsed().as_secs_f64();
+            let f = LabelFrame::new(w, h, &labels, t).map_err(|e| frame_error(&p, e))?;
+            let r = session
+                .step(odom, stamp, &f)
+                .map_err(|e| frame_error(&p, e))?;
+            (r, input)
+        }
+        FrameSource::Features => {
+            let p = seq.features_dir.join(format!("{i:06}.npy"));
+            let arr = read_npy(&p)?;
+            let input = t_in.elapsed().as_secs_f64();
+            if arr.shape.len() != 3 || arr.shape.contains(&0) {
+                return Err(SequenceError::Input(format!(
+                    "{}: expected h x w x F features with every size above 0, got shape {:?}",
+                    p.display(),
+                    arr.shape
+                )));
+            }
+            let shape = [arr.shape[0], arr.shape[1], arr.shape[2]];
+            let f = feature_grid(k.width, k.height, shape, &arr.data)
+                .map_err(|e| frame_error(&p, e))?;
+            let r = session
+                .step(odom, stamp, &f)
+                .map_err(|e| frame_error(&p, e))?;
+            (r, input)
+        }
+    };
+    Ok(LocalizedFrame {
+        report,
+        input_seconds,
+    })
+}
+
+/// Localizes frames `0..odom.len()` of `seq`: every frame read as
+/// `source` says and stepped with its odometry pose and stamp;
+/// `progress(i)` after frame `i`.
+pub fn localize(
+    session: &mut Session,
+    seq: &CameraSequence,
+    source: &mut FrameSource<'_>,
+    odom: &[Pose],
+    stamps: &[f64],
+    progress: &mut dyn FnMut(usize),
+) -> Result<Vec<LocalizedFrame>, SequenceError> {
+    let mut out = Vec::with_capacity(odom.len());
+    for (i, (o, &stamp)) in odom.iter().zip(stamps).enumerate() {
+        out.push(step_frame(session, seq, source, i, o, stamp)?);
+        progress(i);
+    }
+    Ok(out)
+}
