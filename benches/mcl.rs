@@ -14,11 +14,11 @@ use std::time::Instant;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
+use omcl::frame::{LabelImage, LabelLookup};
 use omcl::geometry::{Intrinsics, Pose, camera_ray, level_camera};
 use omcl::map::{FeatureDb, GridSpec, LanguageMap};
 use omcl::mcl::{
-    Filter, FilterConfig, FloorParams, FrameFeatures, PromptParams, RayOrder, SensorModel,
-    local_init, prompt_init,
+    Filter, FilterConfig, FloorParams, PromptParams, RayOrder, SensorModel, local_init, prompt_init,
 };
 use omcl::raycast::{Packet, RayCaster};
 use omcl::scene::{self, RoomsConfig, rooms};
@@ -28,30 +28,20 @@ use rand_distr::StandardNormal;
 
 const DIM: usize = 512;
 
-/// A label image and a label-to-feature table.
-struct LabelFrame {
-    width: u32,
-    height: u32,
-    labels: Vec<u32>,
-    table: Vec<f32>,
-}
+/// Label to feature (the map's rows); no row known ahead, so the sampler
+/// computes each pixel's nearest row as it would for an encoder's output.
+struct MapRows<'a>(&'a [f32]);
 
-impl FrameFeatures for LabelFrame {
-    fn width(&self) -> u32 {
-        self.width
+impl LabelLookup for MapRows<'_> {
+    fn row(&self, _label: u32) -> Option<u32> {
+        None
     }
-    fn height(&self) -> u32 {
-        self.height
+    fn feature(&self, label: u32) -> Option<&[f32]> {
+        let l = label as usize;
+        self.0.get(l * DIM..(l + 1) * DIM)
     }
     fn dim(&self) -> usize {
         DIM
-    }
-    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
-        let l = self.labels[(v * self.width + u) as usize] as usize;
-        match self.table.get(l * DIM..(l + 1) * DIM) {
-            Some(f) => out.copy_from_slice(f),
-            None => out.fill(0.0),
-        }
     }
 }
 
@@ -97,17 +87,13 @@ fn bench(c: &mut Criterion) {
         .flat_map(|v| (0..k.width).map(move |u| (u, v)))
         .map(|(u, v)| camera_ray(&k, &truth, &Vector3::zeros(), u, v))
         .collect();
-    let labels = caster
+    let labels: Vec<u32> = caster
         .cast_vec(&rays)
         .iter()
         .map(|h| map.rows().get(h.leaf as usize).copied().unwrap_or(u32::MAX))
         .collect();
-    let frame = LabelFrame {
-        width: k.width,
-        height: k.height,
-        labels,
-        table: map.db().rows().to_vec(),
-    };
+    let rows = MapRows(map.db().rows());
+    let frame = LabelImage::new(k.width, k.height, &labels, &rows).unwrap();
 
     let config = FilterConfig {
         resample: omcl::mcl::ResamplePolicy {

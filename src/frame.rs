@@ -6,8 +6,8 @@
 //!
 //! Sources: [`DenseFeatures`] (owned, one feature per pixel),
 //! [`crate::mapping::FeatureMap`] (borrowed, any resolution: encoders and
-//! feature files), [`crate::mapping::LabelImage`] (labels looked up in a
-//! table: the ground-truth mode), the simulator's
+//! feature files), [`LabelImage`] (labels looked up through a
+//! [`LabelLookup`]: the ground-truth mode, mapping and localization alike), the simulator's
 //! [`crate::experiment::SimFrameFeatures`] and
 //! [`crate::experiment::GridFeatures`], and the ONNX encoders' feature maps
 //! (whose cells follow the encoder's resize and crop:
@@ -34,6 +34,122 @@ pub trait FrameFeatures: Sync {
     /// pixel cropped away by the encoder): mapping skips the others.
     fn known(&self, _u: u32, _v: u32) -> bool {
         true
+    }
+}
+
+/// How a label image's class ids become features: the row a label names
+/// (the database row when mapping with a class table; the nearest map row,
+/// for the sampler's clustering, when localizing) and, where the source has
+/// one, the label's feature. A closure `Fn(u32) -> Option<u32>` is a lookup
+/// of rows only.
+pub trait LabelLookup: Sync {
+    /// The row label `label` names, `None` for labels without one (those
+    /// pixels are unknown: mapping skips them).
+    fn row(&self, label: u32) -> Option<u32>;
+    /// The feature of `label`, if the lookup has features.
+    fn feature(&self, _label: u32) -> Option<&[f32]> {
+        None
+    }
+    /// Dimension of [`LabelLookup::feature`] (0 without features).
+    fn dim(&self) -> usize {
+        0
+    }
+}
+
+impl<F: Fn(u32) -> Option<u32> + Sync> LabelLookup for F {
+    fn row(&self, label: u32) -> Option<u32> {
+        self(label)
+    }
+}
+
+/// A class table as a lookup: the table's own rows (a map database made
+/// from the table, as ground-truth mapping makes it) and its features.
+impl LabelLookup for crate::io::labels::EmbeddingTable {
+    fn row(&self, label: u32) -> Option<u32> {
+        self.row_index(label).map(|r| r as u32)
+    }
+    fn feature(&self, label: u32) -> Option<&[f32]> {
+        self.row(label)
+    }
+    fn dim(&self) -> usize {
+        self.dim
+    }
+}
+
+/// A label image whose pixels hold `width x height` labels the wrong length.
+#[derive(Debug, Clone, thiserror::Error, PartialEq, Eq)]
+#[error("label image of {width}x{height} pixels needs {needed} labels, got {got}")]
+pub struct LabelImageSize {
+    pub width: u32,
+    pub height: u32,
+    pub needed: usize,
+    pub got: usize,
+}
+
+/// A label image (row-major class ids) read through a [`LabelLookup`]: the
+/// one label-image frame of mapping and localization. A pixel's feature is
+/// its label's (zeros where the lookup has none), its nearest row the
+/// label's row, and it is known where the label has a row.
+#[derive(Clone, Copy)]
+pub struct LabelImage<'a> {
+    width: u32,
+    height: u32,
+    labels: &'a [u32],
+    lookup: &'a dyn LabelLookup,
+}
+
+impl<'a> LabelImage<'a> {
+    /// A `width x height` image; fails if `labels` has another length or
+    /// the image is empty.
+    pub fn new(
+        width: u32,
+        height: u32,
+        labels: &'a [u32],
+        lookup: &'a dyn LabelLookup,
+    ) -> Result<Self, LabelImageSize> {
+        let needed = width as usize * height as usize;
+        if needed == 0 || labels.len() != needed {
+            return Err(LabelImageSize {
+                width,
+                height,
+                needed,
+                got: labels.len(),
+            });
+        }
+        Ok(LabelImage {
+            width,
+            height,
+            labels,
+            lookup,
+        })
+    }
+
+    fn label(&self, u: u32, v: u32) -> u32 {
+        self.labels[v as usize * self.width as usize + u as usize]
+    }
+}
+
+impl FrameFeatures for LabelImage<'_> {
+    fn width(&self) -> u32 {
+        self.width
+    }
+    fn height(&self) -> u32 {
+        self.height
+    }
+    fn dim(&self) -> usize {
+        self.lookup.dim()
+    }
+    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
+        match self.lookup.feature(self.label(u, v)) {
+            Some(f) => out.copy_from_slice(f),
+            None => out.fill(0.0),
+        }
+    }
+    fn nearest_row(&self, u: u32, v: u32) -> Option<u32> {
+        self.lookup.row(self.label(u, v))
+    }
+    fn known(&self, u: u32, v: u32) -> bool {
+        self.nearest_row(u, v).is_some()
     }
 }
 

@@ -70,55 +70,7 @@ pub fn pixel_feature<'b>(f: &dyn FrameFeatures, u: u32, v: u32, buf: &'b mut [f3
     Feature::Vector(buf)
 }
 
-/// The feature of a label (`None`: the label has none).
-pub type LabelFeature<'a> = dyn Fn(u32) -> Option<&'a [f32]> + Sync;
-
-/// A label image: each pixel's label names a database row through
-/// `row_of_label` (the ground-truth mode) and, for localization against a
-/// map whose rows are not the table's, a feature through `feature_of_label`.
-pub struct LabelImage<'a> {
-    pub width: u32,
-    pub labels: &'a [u32],
-    /// Row of each label, `None` for labels without a row.
-    pub row_of_label: &'a (dyn Fn(u32) -> Option<u32> + Sync),
-    /// Feature of each label and their dimension (`None`: rows only, dimension 0).
-    pub feature_of_label: Option<(usize, &'a LabelFeature<'a>)>,
-}
-
-impl LabelImage<'_> {
-    fn label(&self, u: u32, v: u32) -> Option<u32> {
-        self.labels
-            .get(v as usize * self.width as usize + u as usize)
-            .copied()
-    }
-}
-
-impl FrameFeatures for LabelImage<'_> {
-    fn width(&self) -> u32 {
-        self.width
-    }
-    fn height(&self) -> u32 {
-        (self.labels.len() / self.width.max(1) as usize) as u32
-    }
-    fn dim(&self) -> usize {
-        self.feature_of_label.map_or(0, |(d, _)| d)
-    }
-    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
-        let f = self
-            .feature_of_label
-            .and_then(|(_, f)| self.label(u, v).and_then(f));
-        match f {
-            Some(f) => out.copy_from_slice(f),
-            None => out.fill(0.0),
-        }
-    }
-    fn nearest_row(&self, u: u32, v: u32) -> Option<u32> {
-        self.label(u, v).and_then(|l| (self.row_of_label)(l))
-    }
-    fn known(&self, u: u32, v: u32) -> bool {
-        self.nearest_row(u, v).is_some()
-    }
-}
+pub use crate::frame::{LabelImage, LabelLookup};
 
 /// A dense `h x w x dim` feature map, possibly smaller than the depth image
 /// (encoders often work at reduced resolution): pixel `(u, v)` of a

@@ -473,13 +473,9 @@ pub fn map_from_rgbd(
                         k.height
                     )));
                 }
-                let rows = |l: u32| t.row_index(l).map(|r| r as u32);
-                let img = super::LabelImage {
-                    width: k.width,
-                    labels: &labels,
-                    row_of_label: &rows,
-                    feature_of_label: None,
-                };
+                // The database is the table: a label's row is its table row.
+                let img = super::LabelImage::new(k.width, k.height, &labels, *t)
+                    .map_err(|e| bad(format!("{}: {e}", p.display())))?;
                 integrate(&mut integ, &img)?
             }
             RgbdFeatures::Encoder(src) => {

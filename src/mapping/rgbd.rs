@@ -120,12 +120,7 @@ mod tests {
                 seen.extend(view.hits.iter().filter(|h| h.is_hit()).map(|h| h.leaf));
                 let (depth, labels) = (view.depth, view.labels);
                 let rows = |l: u32| (l != u32::MAX).then_some(l);
-                let img = LabelImage {
-                    width: k.width,
-                    labels: &labels,
-                    row_of_label: &rows,
-                    feature_of_label: None,
-                };
+                let img = LabelImage::new(k.width, k.height, &labels, &rows).unwrap();
                 total += integrate_frame(
                     &mut integ,
                     &k,
@@ -194,12 +189,7 @@ mod tests {
         let depth = [1.0, 1.0, 1.0, 50.0, 1.0, 1.0, 0.0, 1.0];
         let labels = [0u32; 8];
         let rows = |l: u32| Some(l);
-        let img = LabelImage {
-            width: 4,
-            labels: &labels,
-            row_of_label: &rows,
-            feature_of_label: None,
-        };
+        let img = LabelImage::new(4, 2, &labels, &rows).unwrap();
         let opt = FrameOptions {
             max_height: Some(1.0),
             ..FrameOptions::default()

@@ -19,7 +19,7 @@ use tokio::sync::{mpsc, oneshot};
 use tonic::Status;
 
 use crate::geometry::Intrinsics;
-use crate::session::{LabelFrame, Session, SessionError, SharedMap, feature_grid};
+use crate::session::{Session, SessionError, SharedMap, feature_grid, label_frame};
 
 use super::convert::{Features, FrameInput};
 use super::metrics::Metrics;
@@ -391,7 +391,7 @@ impl State {
                 height,
                 labels,
             } => match classes {
-                Some(t) => LabelFrame::new(*width, *height, labels, t)
+                Some(t) => label_frame(*width, *height, labels, t)
                     .and_then(|f| session.step(&frame.odom, frame.stamp, &f)),
                 None => Err(SessionError::BadFrame(format!(
                     "map {:?} has no class table for label images",

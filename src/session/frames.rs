@@ -1,9 +1,10 @@
 //! Per-frame feature sources a session consumes: a label image looked up in
-//! a class table, and a dense `h x w x F` feature grid at any resolution.
-//! Both implement [`crate::mcl::FrameFeatures`] and check their sizes when
-//! made, so a malformed frame is an error before it reaches the filter.
+//! a class table bound to the map ([`LabelTable`] as the crate's one
+//! [`LabelImage`]'s lookup), and a dense `h x w x F` feature grid at any
+//! resolution. Both check their sizes when made, so a malformed frame is an
+//! error before it reaches the filter.
 
-use crate::frame::FrameFeatures;
+use crate::frame::{LabelImage, LabelLookup};
 use crate::io::labels::EmbeddingTable;
 use crate::map::LanguageMap;
 use crate::mapping::FeatureMap;
@@ -53,61 +54,30 @@ impl LabelTable {
     }
 }
 
-/// Features of one frame: a label image looked up in a [`LabelTable`].
-/// Labels missing from the table have a zero feature.
-pub struct LabelFrame<'a> {
+/// The table's rows are looked up in the map: a label's row is the map row
+/// nearest its feature, its feature the table's (zeros for labels the
+/// table lacks).
+impl LabelLookup for LabelTable {
+    fn row(&self, label: u32) -> Option<u32> {
+        self.table.row_index(label).map(|r| self.map_row[r])
+    }
+    fn feature(&self, label: u32) -> Option<&[f32]> {
+        self.table.row(label)
+    }
+    fn dim(&self) -> usize {
+        self.table.dim
+    }
+}
+
+/// A label image looked up in `table`, checked: `labels` holds `width x
+/// height` ids (the crate's one label frame, [`LabelImage`]).
+pub fn label_frame<'a>(
     width: u32,
     height: u32,
     labels: &'a [u32],
     table: &'a LabelTable,
-}
-
-impl<'a> LabelFrame<'a> {
-    /// A `width x height` label image (row-major); fails if `labels` has
-    /// another length.
-    pub fn new(
-        width: u32,
-        height: u32,
-        labels: &'a [u32],
-        table: &'a LabelTable,
-    ) -> Result<Self, SessionError> {
-        if width == 0 || height == 0 || labels.len() != width as usize * height as usize {
-            return Err(SessionError::BadFrame(format!(
-                "label image of {width}x{height} pixels needs {} labels, got {}",
-                width as usize * height as usize,
-                labels.len()
-            )));
-        }
-        Ok(LabelFrame {
-            width,
-            height,
-            labels,
-            table,
-        })
-    }
-}
-
-impl FrameFeatures for LabelFrame<'_> {
-    fn width(&self) -> u32 {
-        self.width
-    }
-    fn height(&self) -> u32 {
-        self.height
-    }
-    fn dim(&self) -> usize {
-        self.table.table.dim
-    }
-    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
-        let l = self.labels[(v * self.width + u) as usize];
-        match self.table.table.row(l) {
-            Some(f) => out.copy_from_slice(f),
-            None => out.fill(0.0),
-        }
-    }
-    fn nearest_row(&self, u: u32, v: u32) -> Option<u32> {
-        let l = self.labels[(v * self.width + u) as usize];
-        self.table.table.row_index(l).map(|r| self.table.map_row[r])
-    }
+) -> Result<LabelImage<'a>, SessionError> {
+    LabelImage::new(width, height, labels, table).map_err(|e| SessionError::BadFrame(e.to_string()))
 }
 
 /// A dense feature map of `h x w x dim` (row-major, features last) for an
@@ -133,6 +103,8 @@ pub fn feature_grid(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::frame::FrameFeatures;
+    use crate::map::{FeatureDb, GridSpec};
 
     #[test]
     fn feature_grid_reads_the_nearest_cell_centre() {
@@ -160,5 +132,48 @@ mod tests {
         assert!(e.to_string().contains("needs 8 values, got 6"), "{e}");
         let e = feature_grid(4, 4, [0, 2, 3], &data).err().unwrap();
         assert!(e.to_string().contains("at least 1"), "{e}");
+        let table = LabelTable::new(
+            EmbeddingTable::new(vec![7], vec!["x".into()], 2, vec![1.0, 0.0]).unwrap(),
+            &one_row_map(),
+        )
+        .unwrap();
+        let e = label_frame(2, 2, &[7, 7, 7], &table).err().unwrap();
+        assert!(e.to_string().contains("needs 4 labels, got 3"), "{e}");
+    }
+
+    fn one_row_map() -> LanguageMap {
+        // Rows: (0, 1) and (1, 0); a table row (1, 0) is nearest map row 1.
+        let db = FeatureDb::from_rows(2, 0.0, vec![0.0, 1.0, 1.0, 0.0]).unwrap();
+        let grid = GridSpec {
+            resolution: 1.0,
+            origin: nalgebra::Vector3::zeros(),
+        };
+        LanguageMap::from_cells(grid, db, "t", [([0, 0, 0], 0u32), ([1, 0, 0], 1)]).unwrap()
+    }
+
+    #[test]
+    fn a_label_frame_reads_the_table_through_the_map() {
+        // Class 7 has feature (1, 0), nearest map row 1; class 9 (0.6, 0.8)
+        // nearest row 0; class 3 is not in the table.
+        let t = EmbeddingTable::new(
+            vec![7, 9],
+            vec!["a".into(), "b".into()],
+            2,
+            vec![1.0, 0.0, 0.6, 0.8],
+        )
+        .unwrap();
+        let table = LabelTable::new(t, &one_row_map()).unwrap();
+        let labels = [7, 9, 3, 7];
+        let f = label_frame(2, 2, &labels, &table).unwrap();
+        assert_eq!((f.width(), f.height(), f.dim()), (2, 2, 2));
+        assert_eq!(f.nearest_row(0, 0), Some(1));
+        assert_eq!(f.nearest_row(1, 0), Some(0));
+        assert_eq!(f.nearest_row(0, 1), None);
+        assert!(f.known(1, 1) && !f.known(0, 1));
+        let mut out = [9.0f32; 2];
+        f.feature(1, 0, &mut out);
+        assert_eq!(out, [0.6, 0.8]);
+        f.feature(0, 1, &mut out);
+        assert_eq!(out, [0.0, 0.0]);
     }
 }

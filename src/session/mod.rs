@@ -4,7 +4,7 @@
 //! A [`SharedMap`] is opened once (the map and its Embree scene, read-only,
 //! shared by `Arc` between any number of sessions and threads). A
 //! [`Session`] starts on it from a pose, from prompt words or globally,
-//! takes frames (any [`FrameFeatures`]: [`LabelFrame`], [`feature_grid`], an
+//! takes frames (any [`FrameFeatures`]: [`label_frame`], [`feature_grid`], an
 //! encoder's output) with an odometry pose and a stamp, and answers each
 //! with a [`PoseReport`]: the pose, its 6x6 covariance and the filter's
 //! confidence. It can be reinitialized from a new pose or prompt at any
@@ -38,7 +38,7 @@ use crate::mcl::{
 };
 use crate::raycast::RayCaster;
 
-pub use frames::{LabelFrame, LabelTable, feature_grid};
+pub use frames::{LabelTable, feature_grid, label_frame};
 
 /// Errors of a session. [`SessionError::BadFrame`], [`SessionError::BadOdometry`]
 /// and [`SessionError::BadStamp`] reject one input and leave the session as

@@ -22,7 +22,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use super::{LabelFrame, LabelTable, PoseReport, Session, SessionError, feature_grid};
+use super::{LabelTable, PoseReport, Session, SessionError, feature_grid, label_frame};
 use crate::encode::EncodeError;
 use crate::encode::cache::ImageSource;
 use crate::encode::image::EncodedFrame;
@@ -272,7 +272,7 @@ pub fn step_frame(
             let p = seq.labels_dir.join(format!("{i:06}.png"));
             let (w, h, labels) = rgbd::read_label_png(&p)?;
             let input = t_in.elapsed().as_secs_f64();
-            let f = LabelFrame::new(w, h, &labels, t).map_err(|e| frame_error(&p, e))?;
+            let f = label_frame(w, h, &labels, t).map_err(|e| frame_error(&p, e))?;
             let r = session
                 .step(odom, stamp, &f)
                 .map_err(|e| frame_error(&p, e))?;
