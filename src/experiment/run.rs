@@ -106,7 +106,7 @@ fn text(seq: &dyn BenchSequence, name: &str) -> Result<Vec<f32>, ExperimentError
 }
 
 /// The filter's own errors keep their kind (Table V records them per run).
-fn session_error(e: SessionError) -> ExperimentError {
+pub(crate) fn session_error(e: SessionError) -> ExperimentError {
     match e {
         SessionError::Init(e) | SessionError::Filter(e) => ExperimentError::Filter(e),
         e => ExperimentError::Config(e.to_string()),

@@ -172,7 +172,7 @@ pub fn track_2d(
     Ok((r, cast))
 }
 
-/// The OMCL loop of [`super::run::run`] from the paper's local start with
+/// The session loop of [`super::run::run`] from the paper's local start with
 /// planar motion, on any map and caster, optionally with the 2-D mode's
 /// pixel selection; returns the run and its total cast time, seconds (for
 /// comparing 2-D and 3-D casting on the same sequence).
@@ -185,20 +185,27 @@ pub fn track_with(
     particles: usize,
     two_d: Option<&TwoDParams>,
 ) -> Result<(RunResult, f64), ExperimentError> {
-    use rand::SeedableRng;
+    use crate::session::{self, Session, SessionConfig, SharedMap};
     use std::time::Instant;
     let model = feature_model(seq, preset, 0x10c);
     let mut filter = filter;
     filter.motion.mode = MotionMode::Planar;
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(filter.seed ^ 0x57a7);
-    let ps = crate::mcl::local_init(
-        &seq.poses()[0],
+    // The session loop, as every run steps it, on this map and caster.
+    let start = session::Start::Pose {
+        pose: seq.poses()[0],
+        sigma_m: 0.3,
+        sigma_rad: 17f64.to_radians(),
+    };
+    let config = SessionConfig {
+        intrinsics: seq.intrinsics,
         particles,
-        0.3,
-        17f64.to_radians(),
-        &mut rng,
-    );
-    let mut f = crate::mcl::Filter::new(map, caster, seq.intrinsics, filter, ps)?;
+        filter,
+        floor: crate::mcl::FloorParams::default(),
+        floor_feature: None,
+    };
+    let shared = Arc::new(SharedMap::from_parts("floor plan", map.clone(), caster));
+    let mut f = Session::with_init_seed(shared, config, &start, filter.seed ^ 0x57a7)
+        .map_err(super::run::session_error)?;
     let out_of_band: Vec<Vec<f32>> = match two_d {
         Some(_) => OUT_OF_BAND_WORDS
             .iter()
@@ -228,7 +235,10 @@ pub fn track_with(
             rho,
         };
         let t = Instant::now();
-        let r = f.step(&seq.increment(i), &inband)?;
+        let r = f
+            .step_by(&seq.increment(i), i as f64, &inband)
+            .map_err(super::run::session_error)?
+            .step;
         step_seconds.push(t.elapsed().as_secs_f64());
         cast += r.timings.cast.as_secs_f64();
         rays += r.n_rays;
