@@ -15,7 +15,7 @@ use omcl::io::poses::{self, PoseFormat};
 use omcl::io::rgbd;
 use omcl::map;
 use omcl::mcl::{self, FilterConfig, FloorParams, MotionMode, PromptParams, SamplingStrategy};
-use omcl::session::sequence::{self, CameraSequence, FrameSource, Odometry};
+use omcl::session::sequence::{self, CameraSequence, FrameSource, LocalizedFrame, Odometry};
 use omcl::session::{LabelTable, Session, SessionConfig, SessionError, SharedMap, Start};
 use omcl::trajectory::Trajectory;
 
@@ -436,6 +436,103 @@ fn report_against_truth(
     Ok(())
 }
 
+/// The class table of label images (bound to the map), when the frames
+/// are label images or a prompt, global start or recovery needs words.
+fn class_table(
+    a: &LocalizeArgs,
+    inputs: &CameraSequence,
+    has_image_encoder: bool,
+    m: &omcl::map::LanguageMap,
+) -> anyhow::Result<Option<LabelTable>> {
+    let classes = &inputs.classes;
+    let is_kitti = inputs.kitti.is_some();
+    let wants_table = inputs.labels_dir.is_dir() && (!has_image_encoder || classes.exists());
+    if !wants_table || (is_kitti && a.use_features) {
+        return Ok(None);
+    }
+    let t = EmbeddingTable::read(classes, &inputs.embeddings)?;
+    ensure!(
+        t.dim == m.db().dim(),
+        "{}: features have dimension {}, the map {} has {}",
+        inputs.embeddings.display(),
+        t.dim,
+        a.map.display(),
+        m.db().dim()
+    );
+    Ok(Some(LabelTable::new(t, m)?))
+}
+
+/// The session of the run: its start, filter and floor (with advice when
+/// the start cannot place particles).
+fn open_session(
+    a: &LocalizeArgs,
+    shared: Arc<SharedMap>,
+    k: omcl::geometry::Intrinsics,
+    gt: Option<&Trajectory>,
+    table: Option<&LabelTable>,
+    classes: &Path,
+) -> anyhow::Result<Session> {
+    let is_kitti = CameraSequence::is_kitti(&a.sequence);
+    let start = start(a, gt, table, classes, is_kitti)?;
+    let floor_feature = match (a.init, a.recovery) {
+        (InitArg::Local, false) => None,
+        _ => {
+            let t = table
+                .context("global and prompt initialization need classes.txt with \"floor\"")?;
+            Some(word_features(t.table(), "floor", classes)?.remove(0))
+        }
+    };
+    let config = SessionConfig {
+        intrinsics: k,
+        particles: a.particles,
+        filter: filter_config(a, is_kitti),
+        floor: FloorParams::default(),
+        floor_feature,
+    };
+    Session::new(shared, config, &start).map_err(|e| match e {
+        SessionError::Init(e) => match &a.prompt {
+            Some(words) if matches!(a.init, InitArg::Prompt) => {
+                init_advice(e).context(format!("prompt {words:?}"))
+            }
+            _ => init_advice(e),
+        },
+        SessionError::Recovery(e) => {
+            init_advice(e).context("--recovery injects poses over the floor")
+        }
+        e => e.into(),
+    })
+}
+
+/// The estimates, the `--diagnostics` CSV, and the filter's and the
+/// input's total seconds (reading frames, running the image encoder).
+fn diagnostics(frames: &[LocalizedFrame]) -> (Vec<Pose>, String, f64, f64) {
+    let mut estimates = Vec::with_capacity(frames.len());
+    let mut diag = String::from(
+        "frame,ess,spread_m,mean_likelihood,confidence,particles,rays,step_ms,input_ms\n",
+    );
+    let (mut filter_s, mut input_s) = (0.0f64, 0.0f64);
+    for (i, f) in frames.iter().enumerate() {
+        let report = &f.report.step;
+        let t = &report.timings;
+        let step = (t.features + t.predict + t.weigh + t.update).as_secs_f64();
+        filter_s += step;
+        input_s += f.input_seconds;
+        diag.push_str(&format!(
+            "{i},{:.1},{:.4},{:.4},{:.3},{},{},{:.1},{:.1}\n",
+            report.ess,
+            report.spread,
+            report.mean_likelihood,
+            report.confidence,
+            report.n_particles,
+            report.n_rays,
+            1e3 * step,
+            1e3 * f.input_seconds
+        ));
+        estimates.push(report.estimate);
+    }
+    (estimates, diag, filter_s, input_s)
+}
+
 pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     let shared = Arc::new(SharedMap::new("map", map::load(&a.map)?)?);
     let m = shared.map();
@@ -474,62 +571,11 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             m.db().dim()
         );
     }
-    let wants_table = inputs.labels_dir.is_dir() && (image.is_none() || classes.exists());
-    let table = if wants_table && !(is_kitti && a.use_features) {
-        Some(EmbeddingTable::read(classes, &inputs.embeddings)?)
-    } else {
-        None
-    };
-    if let Some(t) = &table {
-        ensure!(
-            t.dim == m.db().dim(),
-            "{}: features have dimension {}, the map {} has {}",
-            inputs.embeddings.display(),
-            t.dim,
-            a.map.display(),
-            m.db().dim()
-        );
-    }
-    let table = match table {
-        Some(t) => Some(LabelTable::new(t, m)?),
-        None => None,
-    };
+    let table = class_table(&a, &inputs, image.is_some(), m)?;
     let odom = inputs.odometry(&odometry_source(&a, d, is_kitti)?)?;
     let n = inputs.frames(odom.len(), a.frames)?;
 
-    let floor_params = FloorParams::default();
-    let floor_feature = || -> anyhow::Result<Vec<f32>> {
-        let t = table
-            .as_ref()
-            .context("global and prompt initialization need classes.txt with \"floor\"")?;
-        Ok(word_features(t.table(), "floor", classes)?.remove(0))
-    };
-    let start = start(&a, gt.as_ref(), table.as_ref(), classes, is_kitti)?;
-    let floor_feature = match (a.init, a.recovery) {
-        (InitArg::Local, false) => None,
-        _ => Some(floor_feature()?),
-    };
-    let config = filter_config(&a, is_kitti);
-    let session_config = SessionConfig {
-        intrinsics: k,
-        particles: a.particles,
-        filter: config,
-        floor: floor_params,
-        floor_feature,
-    };
-    let mut session =
-        Session::new(shared.clone(), session_config, &start).map_err(|e| match e {
-            SessionError::Init(e) => match &a.prompt {
-                Some(words) if matches!(a.init, InitArg::Prompt) => {
-                    init_advice(e).context(format!("prompt {words:?}"))
-                }
-                _ => init_advice(e),
-            },
-            SessionError::Recovery(e) => {
-                init_advice(e).context("--recovery injects poses over the floor")
-            }
-            e => e.into(),
-        })?;
+    let mut session = open_session(&a, shared.clone(), k, gt.as_ref(), table.as_ref(), classes)?;
     let stamps = inputs.stamps(n);
     let mut source = match (image.as_mut(), table.as_ref()) {
         (Some(src), _) => FrameSource::Images(src),
@@ -546,32 +592,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         &mut |_| pb.inc(1),
     )?;
     pb.finish_and_clear();
-    let mut estimates = Vec::with_capacity(n);
-    let mut diag = String::from(
-        "frame,ess,spread_m,mean_likelihood,confidence,particles,rays,step_ms,input_ms\n",
-    );
-    // Filter time and input time (reading the frame and running the image
-    // encoder, if any), seconds, for the frame rates printed at the end.
-    let (mut filter_s, mut input_s) = (0.0f64, 0.0f64);
-    for (i, f) in frames.iter().enumerate() {
-        let report = &f.report.step;
-        let t = &report.timings;
-        let step = (t.features + t.predict + t.weigh + t.update).as_secs_f64();
-        filter_s += step;
-        input_s += f.input_seconds;
-        diag.push_str(&format!(
-            "{i},{:.1},{:.4},{:.4},{:.3},{},{},{:.1},{:.1}\n",
-            report.ess,
-            report.spread,
-            report.mean_likelihood,
-            report.confidence,
-            report.n_particles,
-            report.n_rays,
-            1e3 * step,
-            1e3 * f.input_seconds
-        ));
-        estimates.push(report.estimate);
-    }
+    let (estimates, diag, filter_s, input_s) = diagnostics(&frames);
     let est = Trajectory::new(stamps.clone(), estimates)?;
     let metric = gt
         .as_ref()

@@ -401,11 +401,10 @@ pub enum RgbdFeatures<'a> {
 pub fn map_from_rgbd(
     input: &RgbdInput,
     params: &BuildParams,
-    features: RgbdFeatures<'_>,
+    mut features: RgbdFeatures<'_>,
     progress: &mut dyn FnMut(usize),
 ) -> Result<(LanguageMap, IntegrationStats), PipelineError> {
-    use crate::io::{npy, poses, rgbd as rgbd_io};
-    let bad = |m: String| PipelineError::Input(m);
+    use crate::io::{poses, rgbd as rgbd_io};
     let d = &input.dir;
     let k = rgbd_io::read_intrinsics(&d.join("intrinsics.txt"))?;
     let traj = poses::read_poses(&d.join("poses.txt"))?.trajectory;
@@ -419,22 +418,7 @@ pub fn map_from_rgbd(
             .map(|v| (v / params.resolution).floor())
             * params.resolution,
     };
-    let db = match &features {
-        RgbdFeatures::Labels(t) => FeatureDb::from_rows(t.dim, params.tau, t.data.clone())?,
-        RgbdFeatures::Encoder(src) => {
-            FeatureDb::new(src.dim(), params.tau)?.with_max_rows(params.max_rows)
-        }
-        RgbdFeatures::Files => {
-            let f0 = d.join("features").join(format!("{:06}.npy", 0));
-            let arr = npy::read_npy(&f0).map_err(|e| {
-                bad(format!(
-                    "no labels/ folder, so features/ is needed: {}: {e}",
-                    f0.display()
-                ))
-            })?;
-            FeatureDb::new(arr.as_matrix_dims().1, params.tau)?.with_max_rows(params.max_rows)
-        }
-    };
+    let db = observation_db(&features, d, params)?;
     let mut name = params.encoder.clone();
     let mut integ = Integrator::new(grid, db)?;
     let opt = super::rgbd::FrameOptions {
@@ -444,12 +428,11 @@ pub fn map_from_rgbd(
         stride: input.stride,
     };
     let mut stats = IntegrationStats::default();
-    let mut features = features;
     for (i, pose) in traj.poses().iter().take(n).enumerate() {
         let depth_path = d.join("depth").join(format!("{i:06}.png"));
         let depth = rgbd_io::read_depth_png(&depth_path, input.depth_scale)?;
         if (depth.width, depth.height) != (k.width, k.height) {
-            return Err(bad(format!(
+            return Err(PipelineError::Input(format!(
                 "{}: {}x{} pixels, intrinsics say {}x{}",
                 depth_path.display(),
                 depth.width,
@@ -458,10 +441,73 @@ pub fn map_from_rgbd(
                 k.height
             )));
         }
-        let integrate = |integ: &mut Integrator, f: &dyn crate::frame::FrameFeatures| {
-            super::rgbd::integrate_frame(integ, &k, &depth.depth, pose, f, &opt)
+        let frame = RgbdFrame {
+            dir: d,
+            index: i,
+            intrinsics: &k,
+            depth: &depth.depth,
+            pose,
+            options: &opt,
         };
-        let s = match &mut features {
+        stats += frame.integrate(&mut integ, &mut features, &mut name)?;
+        progress(i);
+    }
+    // The map lives in the encoder's feature space: it records its name.
+    Ok((finish(integ, &name, params.tau, &stats)?, stats))
+}
+
+/// The observation database of an RGB-D map: the class table's rows, or
+/// an empty database of the encoder's or the feature files' dimension.
+fn observation_db(
+    features: &RgbdFeatures<'_>,
+    d: &std::path::Path,
+    params: &BuildParams,
+) -> Result<FeatureDb, PipelineError> {
+    Ok(match features {
+        RgbdFeatures::Labels(t) => FeatureDb::from_rows(t.dim, params.tau, t.data.clone())?,
+        RgbdFeatures::Encoder(src) => {
+            FeatureDb::new(src.dim(), params.tau)?.with_max_rows(params.max_rows)
+        }
+        RgbdFeatures::Files => {
+            let f0 = d.join("features").join(format!("{:06}.npy", 0));
+            let arr = crate::io::npy::read_npy(&f0).map_err(|e| {
+                PipelineError::Input(format!(
+                    "no labels/ folder, so features/ is needed: {}: {e}",
+                    f0.display()
+                ))
+            })?;
+            FeatureDb::new(arr.as_matrix_dims().1, params.tau)?.with_max_rows(params.max_rows)
+        }
+    })
+}
+
+/// One posed depth frame of an RGB-D folder.
+struct RgbdFrame<'a> {
+    dir: &'a std::path::Path,
+    index: usize,
+    intrinsics: &'a crate::geometry::Intrinsics,
+    depth: &'a [f32],
+    pose: &'a crate::geometry::Pose,
+    options: &'a super::rgbd::FrameOptions,
+}
+
+impl RgbdFrame<'_> {
+    /// Integrates the frame's pixels with their features from `features`
+    /// (its label image, its RGB image through the encoder, whose name goes
+    /// to `name`, or its feature file).
+    fn integrate(
+        &self,
+        integ: &mut Integrator,
+        features: &mut RgbdFeatures<'_>,
+        name: &mut String,
+    ) -> Result<IntegrationStats, PipelineError> {
+        use crate::io::{npy, rgbd as rgbd_io};
+        let bad = |m: String| PipelineError::Input(m);
+        let (d, i, k) = (self.dir, self.index, self.intrinsics);
+        let integrate = |integ: &mut Integrator, f: &dyn crate::frame::FrameFeatures| {
+            super::rgbd::integrate_frame(integ, k, self.depth, self.pose, f, self.options)
+        };
+        Ok(match features {
             RgbdFeatures::Labels(t) => {
                 let p = d.join("labels").join(format!("{i:06}.png"));
                 let (w, h, labels) = rgbd_io::read_label_png(&p)?;
@@ -476,7 +522,7 @@ pub fn map_from_rgbd(
                 // The database is the table: a label's row is its table row.
                 let img = super::LabelImage::new(k.width, k.height, &labels, *t)
                     .map_err(|e| bad(format!("{}: {e}", p.display())))?;
-                integrate(&mut integ, &img)?
+                integrate(integ, &img)?
             }
             RgbdFeatures::Encoder(src) => {
                 let rgb = d.join("rgb").join(format!("{i:06}.png"));
@@ -484,13 +530,13 @@ pub fn map_from_rgbd(
                     source_name: format!("encoding {}", rgb.display()),
                     source: e,
                 })?;
-                name = src.name.clone();
+                *name = src.name.clone();
                 let f = crate::encode::image::EncodedFrame {
                     map: &fm,
                     width: k.width,
                     height: k.height,
                 };
-                integrate(&mut integ, &f)?
+                integrate(integ, &f)?
             }
             RgbdFeatures::Files => {
                 let p = d.join("features").join(format!("{i:06}.npy"));
@@ -519,12 +565,8 @@ pub fn map_from_rgbd(
                     k.height,
                 )
                 .map_err(|e| bad(format!("{}: {e}", p.display())))?;
-                integrate(&mut integ, &fm).map_err(|e| bad(format!("{}: {e}", p.display())))?
+                integrate(integ, &fm).map_err(|e| bad(format!("{}: {e}", p.display())))?
             }
-        };
-        stats += s;
-        progress(i);
+        })
     }
-    // The map lives in the encoder's feature space: it records its name.
-    Ok((finish(integ, &name, params.tau, &stats)?, stats))
 }
