@@ -98,3 +98,72 @@ fn corrupt_truncated_and_foreign_files_fail_with_the_file_named() {
     let (ok, _, err) = omcl(&["map", "info", "/nonexistent/x.omcl"]);
     assert!(!ok && err.contains("/nonexistent/x.omcl"), "{err}");
 }
+
+/// `omcl map floorplan`: a hand-made room (a floor layer, a wall column up
+/// to 3 m, a ceiling) projects to the wall's cells only (the default band,
+/// 0.10 to 2.00 m above the floor, leaves floor and ceiling out), with the
+/// wall's feature; the plan file reads back and the PNG has one pixel a
+/// cell; a file that is not a map is refused by name with nothing written.
+#[test]
+fn floorplan_projects_the_band_and_refuses_a_non_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("room.omcl");
+    // Rows: floor (1, 0, 0), wall (0, 1, 0), ceiling (0, 0, 1).
+    let db =
+        FeatureDb::from_rows(3, 0.0, vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]).unwrap();
+    let grid = GridSpec {
+        resolution: 0.1,
+        origin: Vector3::new(0.0, 0.0, 0.0),
+    };
+    let mut leaves = Vec::new();
+    for i in 0..6 {
+        for j in 0..4 {
+            leaves.push(([i, j, 0], 0u32)); // floor, z in [0, 0.1)
+            leaves.push(([i, j, 29], 2u32)); // ceiling, z in [2.9, 3.0)
+        }
+    }
+    for j in 0..4 {
+        for k in 1..29 {
+            leaves.push(([4, j, k], 1u32)); // wall at x in [0.4, 0.5)
+        }
+    }
+    let m = LanguageMap::from_cells(grid, db, "unit-test", leaves).unwrap();
+    map::save(&m, &p).unwrap();
+    let plan = dir.path().join("room.plan");
+    let png = dir.path().join("room.png");
+    let (ok, out, err) = omcl(&[
+        "map",
+        "floorplan",
+        p.to_str().unwrap(),
+        "-o",
+        plan.to_str().unwrap(),
+        "--png",
+        png.to_str().unwrap(),
+    ]);
+    assert!(ok, "{out}{err}");
+    let f = omcl::map::floorplan::load(&plan).unwrap();
+    assert_eq!(f.len(), 4, "{:?}", f.cells());
+    for c in f.cells() {
+        let x = f.origin[0] + (c[0] as f64 + 0.5) * f.resolution;
+        assert!((x - 0.45).abs() < 1e-9, "cell {c:?} at x = {x}");
+    }
+    for &r in f.rows() {
+        let feat = f.db().row(r as usize);
+        assert!(feat[1] > 0.999 && feat[0].abs() < 1e-6, "{feat:?}");
+    }
+    let img = image::open(&png).unwrap();
+    assert_eq!((img.width(), img.height()), (1, 4));
+
+    let bad_plan = dir.path().join("bad.plan");
+    let not_a_map = dir.path().join("cloud.ply");
+    std::fs::write(&not_a_map, "ply\nformat ascii 1.0\nend_header\n").unwrap();
+    let (ok, _, err) = omcl(&[
+        "map",
+        "floorplan",
+        not_a_map.to_str().unwrap(),
+        "-o",
+        bad_plan.to_str().unwrap(),
+    ]);
+    assert!(!ok && err.contains("cloud.ply"), "{err}");
+    assert!(!bad_plan.exists());
+}
