@@ -56,6 +56,32 @@ pub fn text_features(
     Ok((enc.card().name.clone(), rows))
 }
 
+/// The class list `classes` names: a file, or (when no file has that name)
+/// a built-in list; its ids and names.
+pub fn class_list(
+    classes: &str,
+) -> anyhow::Result<(Option<BuiltinClasses>, Vec<u32>, Vec<String>)> {
+    let path = Path::new(classes);
+    if !path.exists()
+        && let Some(set) = BuiltinClasses::from_name(classes)
+    {
+        let (ids, names) = set
+            .classes()
+            .iter()
+            .map(|&(i, n)| (i, n.to_string()))
+            .unzip();
+        return Ok((Some(set), ids, names));
+    }
+    if !path.exists() {
+        anyhow::bail!(
+            "{classes}: no such class list (built-in lists: {})",
+            BuiltinClasses::ALL.map(|s| s.name()).join(", ")
+        );
+    }
+    let (ids, names) = read_class_list(path)?;
+    Ok((None, ids, names))
+}
+
 /// A class list with one feature row per class, as the commands take it:
 /// `classes` is a class-list file or a built-in list's name (`semantickitti`,
 /// `asprs`; a file of that name wins); the rows come from `embeddings`
@@ -70,27 +96,7 @@ pub fn class_table(
     ort_lib: Option<&Path>,
 ) -> anyhow::Result<(EmbeddingTable, Option<String>)> {
     let path = Path::new(classes);
-    let builtin = if path.exists() {
-        None
-    } else {
-        BuiltinClasses::from_name(classes)
-    };
-    let (ids, names) = match builtin {
-        Some(set) => set
-            .classes()
-            .iter()
-            .map(|&(i, n)| (i, n.to_string()))
-            .unzip(),
-        None => {
-            if !path.exists() {
-                anyhow::bail!(
-                    "{classes}: no such class list (built-in lists: {})",
-                    BuiltinClasses::ALL.map(|s| s.name()).join(", ")
-                );
-            }
-            read_class_list(path)?
-        }
-    };
+    let (builtin, ids, names) = class_list(classes)?;
     match (embeddings, text_model, builtin) {
         (Some(npy), _, _) => Ok((EmbeddingTable::with_npy(ids, names, path, npy)?, None)),
         (None, Some(model), _) => {

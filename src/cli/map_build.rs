@@ -542,15 +542,7 @@ pub struct ClassesArgs {
 
 pub fn classes(a: &ClassesArgs) -> anyhow::Result<()> {
     let Some(dir) = &a.out else {
-        let (ids, names): (Vec<u32>, Vec<String>) =
-            match omcl::io::labels::BuiltinClasses::from_name(&a.list) {
-                Some(set) if !Path::new(&a.list).exists() => set
-                    .classes()
-                    .iter()
-                    .map(|&(i, n)| (i, n.to_string()))
-                    .unzip(),
-                _ => omcl::io::labels::read_class_list(Path::new(&a.list))?,
-            };
+        let (_, ids, names) = super::encoders::class_list(&a.list)?;
         for (i, n) in ids.iter().zip(&names) {
             println!("{i} {n}");
         }

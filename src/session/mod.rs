@@ -326,13 +326,7 @@ impl Session {
         stamp: f64,
         frame: &dyn FrameFeatures,
     ) -> Result<PoseReport, SessionError> {
-        if !stamp.is_finite() {
-            return Err(SessionError::BadStamp(stamp));
-        }
-        mcl::motion::check_pose(odom).map_err(|e| match e {
-            MclError::BadOdometry(s) => SessionError::BadOdometry(s),
-            e => SessionError::Filter(e),
-        })?;
+        check_input(odom, stamp)?;
         let increment = match &self.last_odom {
             Some(prev) => prev.inverse() * odom,
             None => Pose::identity(),
@@ -352,13 +346,7 @@ impl Session {
         stamp: f64,
         frame: &dyn FrameFeatures,
     ) -> Result<PoseReport, SessionError> {
-        if !stamp.is_finite() {
-            return Err(SessionError::BadStamp(stamp));
-        }
-        mcl::motion::check_pose(increment).map_err(|e| match e {
-            MclError::BadOdometry(s) => SessionError::BadOdometry(s),
-            e => SessionError::Filter(e),
-        })?;
+        check_input(increment, stamp)?;
         let step = self.filter.step(increment, frame).map_err(|e| match e {
             MclError::DimMismatch { .. } | MclError::ImageSize { .. } => {
                 SessionError::BadFrame(e.to_string())
@@ -376,6 +364,17 @@ impl Session {
             step,
         })
     }
+}
+
+/// A frame's stamp must be finite and its odometry a finite rigid motion.
+fn check_input(odometry: &Pose, stamp: f64) -> Result<(), SessionError> {
+    if !stamp.is_finite() {
+        return Err(SessionError::BadStamp(stamp));
+    }
+    mcl::motion::check_pose(odometry).map_err(|e| match e {
+        MclError::BadOdometry(s) => SessionError::BadOdometry(s),
+        e => SessionError::Filter(e),
+    })
 }
 
 fn initial_particles(
