@@ -36,6 +36,11 @@ pub enum MapCommand {
     /// its features as classes.txt + embeddings.npy, the table a sequence
     /// folder's label images need
     Classes(super::map_build::ClassesArgs),
+    /// Project a labelled SemanticKITTI sequence (its aggregated LiDAR
+    /// labels) into camera 2 at every pose: ground-truth label images
+    /// labels_2/NNNNNN.png for `omcl localize` (z-buffer, splats sized to
+    /// the point spacing), plus the built-in class table if none is there
+    Project(super::map_build::ProjectArgs),
 }
 
 #[derive(Debug, Args)]
@@ -74,6 +79,7 @@ pub fn run(cmd: MapCommand) -> anyhow::Result<()> {
         MapCommand::Export(a) => super::map_build::export(&a),
         MapCommand::Floorplan(a) => super::map_floorplan::run(&a),
         MapCommand::Classes(a) => super::map_build::classes(&a),
+        MapCommand::Project(a) => super::map_build::project(&a),
         MapCommand::Upgrade(a) => {
             anyhow::ensure!(
                 a.file != a.out,

@@ -554,11 +554,17 @@ pub fn classes(a: &ClassesArgs) -> anyhow::Result<()> {
         a.text_model.as_deref(),
         a.ort_lib.as_deref(),
     )?;
+    write_table(dir, &t, a.force)
+}
+
+/// Writes `dir/classes.txt` and `dir/embeddings.npy` (refusing to replace
+/// them unless `force`).
+fn write_table(dir: &Path, t: &EmbeddingTable, force: bool) -> anyhow::Result<()> {
     ensure!(dir.is_dir(), "{}: not a folder", dir.display());
     let (txt, npy) = (dir.join("classes.txt"), dir.join("embeddings.npy"));
     for p in [&txt, &npy] {
         ensure!(
-            a.force || !p.exists(),
+            force || !p.exists(),
             "{} exists; pass --force to replace it",
             p.display()
         );
@@ -579,5 +585,92 @@ pub fn classes(a: &ClassesArgs) -> anyhow::Result<()> {
         t.ids.len(),
         t.dim
     );
+    Ok(())
+}
+
+#[derive(Debug, Args)]
+pub struct ProjectArgs {
+    /// A SemanticKITTI sequence folder: velodyne/, labels/, calib.txt (with
+    /// P2), poses.txt.
+    pub sequence: PathBuf,
+    /// Folder of the label images (default: SEQUENCE/labels_2, what
+    /// `omcl localize` reads).
+    #[arg(long, short)]
+    pub out: Option<PathBuf>,
+    /// Use at most this many scans (and make that many images).
+    #[arg(long)]
+    pub frames: Option<usize>,
+    /// Points farther than this from the camera are left out (m).
+    #[arg(long, default_value_t = 80.0)]
+    pub max_range: f64,
+    /// Spacing the aggregated scans are down-sampled to, which sizes the
+    /// splats (m).
+    #[arg(long, default_value_t = 0.1)]
+    pub spacing: f64,
+    /// Keep the classes the authors drop (unlabeled, outlier, moving).
+    #[arg(long)]
+    pub keep_all: bool,
+    /// Replace label images already in the output folder.
+    #[arg(long)]
+    pub force: bool,
+}
+
+pub fn project(a: &ProjectArgs) -> anyhow::Result<()> {
+    use omcl::mapping::projection::ProjectionParams;
+    ensure!(
+        a.max_range.is_finite() && a.max_range > 0.0,
+        "--max-range must be a positive number of metres, got {}",
+        a.max_range
+    );
+    ensure!(
+        a.spacing.is_finite() && a.spacing > 0.0,
+        "--spacing must be a positive number of metres, got {}",
+        a.spacing
+    );
+    let out = a.out.clone().unwrap_or_else(|| a.sequence.join("labels_2"));
+    let has_images = std::fs::read_dir(&out)
+        .map(|mut d| d.any(|e| e.is_ok_and(|e| e.path().extension().is_some_and(|x| x == "png"))))
+        .unwrap_or(false);
+    ensure!(
+        a.force || !has_images,
+        "{} already holds label images; pass --force to replace them",
+        out.display()
+    );
+    let input = CloudInput {
+        path: a.sequence.clone(),
+        frames: a.frames,
+        keep_all: a.keep_all,
+        ..Default::default()
+    };
+    let params = ProjectionParams {
+        max_range: a.max_range,
+        spacing: a.spacing,
+        ..ProjectionParams::default()
+    };
+    // Checked before anything is written: the folder opens as a sequence.
+    omcl::io::kitti::KittiSequence::open(&a.sequence)?;
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let t0 = std::time::Instant::now();
+    let pb = super::progress::bar(0, "projecting");
+    let s = pipeline::project_sequence_labels(&input, &params, &out, &mut |done, total| {
+        pb.set_length(total as u64);
+        pb.set_position(done as u64);
+    })?;
+    pb.finish_and_clear();
+    let secs = t0.elapsed().as_secs_f64();
+    println!(
+        "wrote {} label images to {} from {} labelled points ({:.1} % of pixels labelled; {:.2} s, {:.0} ms a frame)",
+        s.frames,
+        out.display(),
+        s.points,
+        100.0 * s.coverage,
+        secs,
+        1e3 * secs / s.frames.max(1) as f64
+    );
+    let dir = &a.sequence;
+    if !dir.join("classes.txt").exists() && !dir.join("embeddings.npy").exists() {
+        let (t, _) = super::encoders::class_table("semantickitti", None, None, None)?;
+        write_table(dir, &t, false)?;
+    }
     Ok(())
 }

@@ -155,12 +155,7 @@ impl KittiCameraSequence {
     /// KITTI camera-0 poses (`poses.txt`'s frame) as camera-2 poses in the
     /// map frame: `Tr^-1 * P_i * C`.
     pub fn camera2_in_map(&self, camera0_poses: &[Pose]) -> Vec<Pose> {
-        let map_from_kitti = self.calib.camera_from_lidar.inverse();
-        let c = self.camera.camera0_from_camera;
-        camera0_poses
-            .iter()
-            .map(|p| map_from_kitti * p * c)
-            .collect()
+        camera_in_map(&self.calib, &self.camera, camera0_poses)
     }
 
     /// The inverse of [`Self::camera2_in_map`]: camera-2 poses in the map
@@ -179,6 +174,21 @@ impl KittiCameraSequence {
     pub fn ground_truth(&self) -> Vec<Pose> {
         self.camera2_in_map(&self.camera0_poses)
     }
+}
+
+/// KITTI camera-0 poses as poses of `camera` in the map frame (the first
+/// LiDAR frame): `Tr^-1 * P_i * C`.
+pub fn camera_in_map(
+    calib: &KittiCalib,
+    camera: &KittiCamera,
+    camera0_poses: &[Pose],
+) -> Vec<Pose> {
+    let map_from_kitti = calib.camera_from_lidar.inverse();
+    let c = camera.camera0_from_camera;
+    camera0_poses
+        .iter()
+        .map(|p| map_from_kitti * p * c)
+        .collect()
 }
 
 /// Number of `NNNNNN.ext` files in `folder`, which must be `000000` to

@@ -14,6 +14,7 @@
 pub mod cloud;
 pub mod colors;
 pub mod pipeline;
+pub mod projection;
 pub mod rgbd;
 
 /// Errors of the mapping front doors: inputs whose sizes disagree, and the

@@ -570,3 +570,66 @@ impl RgbdFrame<'_> {
         })
     }
 }
+
+/// What [`project_sequence_labels`] did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProjectionSummary {
+    /// Label images written.
+    pub frames: usize,
+    /// Points of the aggregated, down-sampled labelled map.
+    pub points: usize,
+    /// Fraction of all pixels that got a label.
+    pub coverage: f64,
+}
+
+/// Ground-truth label images of camera 2 from a SemanticKITTI sequence
+/// folder (`input.path`: `velodyne/`, `labels/`, `calib.txt` with `P2`,
+/// `poses.txt`): the labelled scans aggregated in the map frame
+/// (down-sampled to `params.spacing`, the authors' dropped classes gone
+/// unless `input.keep_all`), projected at every camera-2 pose
+/// ([`super::projection`]) and written to `out/NNNNNN.png` (16-bit ids,
+/// 0 = no point), each written atomically. `input.frames` caps the scans
+/// aggregated and the images made.
+pub fn project_sequence_labels(
+    input: &CloudInput,
+    params: &super::projection::ProjectionParams,
+    out: &std::path::Path,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<ProjectionSummary, PipelineError> {
+    use super::projection::{PointIndex, project_labels};
+    use crate::io::kitti::{KITTI_IMAGE_SIZE, read_calib, read_kitti_poses};
+    let dir = &input.path;
+    let (seq, frames, mut opts) = open_sequence(input)?;
+    let calib_path = dir.join("calib.txt");
+    let calib = read_calib(&calib_path)?;
+    let (w, h) = KITTI_IMAGE_SIZE;
+    let camera = calib.camera("P2", w, h, &calib_path)?;
+    let poses = read_kitti_poses(&dir.join("poses.txt"))?;
+    let n = frames.len().min(poses.len());
+    opts.voxel_size = Some(params.spacing);
+    let cloud = seq.aggregate(&frames, &opts)?;
+    let labels = cloud.labels.as_ref().ok_or_else(|| {
+        PipelineError::Input(format!(
+            "{}: the scans carry no labels (labels/NNNNNN.label)",
+            dir.display()
+        ))
+    })?;
+    let cameras = crate::io::kitti_camera::camera_in_map(&calib, &camera, &poses[..n]);
+    let index = PointIndex::new(&cloud.points, params.max_range.max(1.0) / 2.0);
+    let k = camera.intrinsics;
+    let mut labelled = 0usize;
+    for (i, pose) in cameras.iter().enumerate() {
+        let near = index.near(&pose.translation.vector, params.max_range);
+        let img = project_labels(&cloud.points, labels, &near, pose, &k, params);
+        labelled += img.iter().filter(|&&l| l != 0).count();
+        let data: Vec<u16> = img.iter().map(|&l| l.min(u16::MAX as u32) as u16).collect();
+        crate::sim::files::write_png_gray16(&out.join(format!("{i:06}.png")), w, h, &data)
+            .map_err(|e| PipelineError::Input(e.to_string()))?;
+        progress(i + 1, n);
+    }
+    Ok(ProjectionSummary {
+        frames: n,
+        points: cloud.len(),
+        coverage: labelled as f64 / (n.max(1) * (w * h) as usize) as f64,
+    })
+}

@@ -1,0 +1,213 @@
+//! `omcl map project`: ground-truth camera-2 label images from the real
+//! labelled SemanticKITTI scans in ../shared/data (the paper's GT setting on
+//! real sequences), checked against what a street seen from a car's camera
+//! must look like, and read back by `omcl localize`'s KITTI reader.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use omcl::io::kitti_camera::{CameraInput, KittiCameraSequence};
+use omcl::io::rgbd::read_label_png;
+
+fn shared(rel: &str) -> PathBuf {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(rel);
+    assert!(
+        p.exists(),
+        "{} is missing: the tests need ../shared/data",
+        p.display()
+    );
+    p
+}
+
+fn omcl(args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(args)
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), text)
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let t = to.join(e.file_name());
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &t);
+        } else {
+            std::fs::copy(e.path(), &t).unwrap();
+        }
+    }
+}
+
+/// Share of each label among `pixels` (0 = none counted as its own key).
+fn shares(pixels: &[u32]) -> BTreeMap<u32, f64> {
+    let mut m = BTreeMap::new();
+    for &l in pixels {
+        *m.entry(l).or_insert(0.0) += 1.0 / pixels.len() as f64;
+    }
+    m
+}
+
+#[test]
+fn real_scans_project_into_camera_2_as_a_street() {
+    let real = shared("semantickitti/sequences/00");
+    let dir = tempfile::tempdir().unwrap();
+    let seq = dir.path().join("00");
+    copy_dir(&real, &seq);
+    // The shared folder has the poses of the whole drive and three scans:
+    // keep the poses and times of the three, as a localizer needs.
+    for f in ["poses.txt", "times.txt"] {
+        let text = std::fs::read_to_string(seq.join(f)).unwrap();
+        let first: String = text.lines().take(3).map(|l| format!("{l}\n")).collect();
+        std::fs::write(seq.join(f), first).unwrap();
+    }
+    let (ok, text) = omcl(&["map", "project", seq.to_str().unwrap()]);
+    assert!(ok, "{text}");
+    assert!(text.contains("wrote 3 label images"), "{text}");
+    // Every label written is a class the scans carry (static ones: the
+    // authors' filter drops unlabeled, outlier and moving points).
+    let scan_classes: std::collections::BTreeSet<u32> = (0..3)
+        .flat_map(|i| {
+            let bytes = std::fs::read(seq.join(format!("labels/{i:06}.label"))).unwrap();
+            bytes
+                .chunks(4)
+                .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]) & 0xffff)
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let road_like = [40u32, 44, 48, 49, 60, 72];
+    for i in 0..3 {
+        let (w, h, px) = read_label_png(&seq.join(format!("labels_2/{i:06}.png"))).unwrap();
+        assert_eq!((w, h), (1241, 376));
+        for &l in &px {
+            assert!(
+                l == 0 || (scan_classes.contains(&l) && l > 1 && l < 252),
+                "label {l}"
+            );
+        }
+        let rows = |a: f64, b: f64| -> Vec<u32> {
+            let (r0, r1) = ((a * h as f64) as usize, (b * h as f64) as usize);
+            px[r0 * w as usize..r1 * w as usize].to_vec()
+        };
+        // The bottom quarter is the road ahead of the car: mostly labelled,
+        // and mostly ground classes.
+        let bottom = shares(&rows(0.75, 1.0));
+        let labelled = 1.0 - bottom.get(&0).copied().unwrap_or(0.0);
+        let ground: f64 = road_like.iter().filter_map(|l| bottom.get(l)).sum();
+        eprintln!("frame {i}: bottom {bottom:?}");
+        assert!(labelled > 0.8, "frame {i}: bottom labelled {labelled}");
+        assert!(ground > 0.6, "frame {i}: bottom ground share {ground}");
+        // The top third is above the HDL-64E's field of view (+2 degrees
+        // at most; the image's top third looks 5 to 14 degrees up): almost
+        // no point lands there.
+        let top = shares(&rows(0.0, 0.33));
+        eprintln!("frame {i}: top {top:?}");
+        assert!(
+            top.get(&0).copied().unwrap_or(0.0) > 0.9,
+            "frame {i}: top {top:?}"
+        );
+        // At the horizon's band, the sides are what stands along a street
+        // (buildings, fences, vegetation, trunks, poles, signs, parked
+        // cars), not ground.
+        for (side, u0, u1) in [("left", 0, w / 4), ("right", 3 * w / 4, w)] {
+            let band: Vec<u32> = (h as usize * 2 / 5..h as usize / 2)
+                .flat_map(|v| (u0..u1).map(move |u| (v, u)))
+                .map(|(v, u)| px[v * w as usize + u as usize])
+                .collect();
+            let s = shares(&band);
+            eprintln!("frame {i}: {side} {s:?}");
+            let upright: f64 = [10u32, 50, 51, 52, 70, 71, 80, 81, 99]
+                .iter()
+                .filter_map(|l| s.get(l))
+                .sum();
+            let ground: f64 = road_like.iter().filter_map(|l| s.get(l)).sum();
+            assert!(
+                upright > 0.5 && upright > 2.0 * ground,
+                "frame {i} {side}: {s:?}"
+            );
+        }
+    }
+    // The folder now opens for `omcl localize` with label images, and the
+    // built-in class table was written beside them.
+    let k = KittiCameraSequence::open(&seq, CameraInput::Labels).unwrap();
+    assert_eq!(k.len(), 3);
+    assert!(seq.join("classes.txt").exists() && seq.join("embeddings.npy").exists());
+    // The real GT setting end to end: the scans' map, camera 2 localized
+    // in it from its label images (three frames from the paper's start).
+    let map = dir.path().join("00.omcl");
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        seq.to_str().unwrap(),
+        "--classes",
+        "semantickitti",
+        "--resolution",
+        "0.2",
+        "-o",
+        map.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let est = dir.path().join("est.txt");
+    let (ok, text) = omcl(&[
+        "localize",
+        "--map",
+        map.to_str().unwrap(),
+        "--sequence",
+        seq.to_str().unwrap(),
+        "-o",
+        est.to_str().unwrap(),
+        "--particles",
+        "256",
+        "--rays",
+        "1024",
+    ]);
+    assert!(ok, "{text}");
+    let mean: f64 = text
+        .split("translation error mean ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("{text}"));
+    assert!(mean < 0.3, "{text}");
+    // A second run refuses to overwrite; --force replaces.
+    let (ok, text) = omcl(&["map", "project", seq.to_str().unwrap()]);
+    assert!(!ok && text.contains("--force"), "{text}");
+    let (ok, text) = omcl(&["map", "project", seq.to_str().unwrap(), "--force"]);
+    assert!(ok, "{text}");
+}
+
+#[test]
+fn bad_sequences_are_refused_by_name_with_nothing_written() {
+    let real = shared("semantickitti/sequences/00");
+    let dir = tempfile::tempdir().unwrap();
+    // calib.txt without P2.
+    let seq = dir.path().join("nop2");
+    copy_dir(&real, &seq);
+    let calib = std::fs::read_to_string(seq.join("calib.txt")).unwrap();
+    let kept: String = calib
+        .lines()
+        .filter(|l| !l.starts_with("P2"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(seq.join("calib.txt"), kept).unwrap();
+    let (ok, text) = omcl(&["map", "project", seq.to_str().unwrap()]);
+    assert!(
+        !ok && text.contains("calib.txt") && text.contains("P2"),
+        "{text}"
+    );
+    // Not a sequence at all.
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let (ok, text) = omcl(&["map", "project", empty.to_str().unwrap()]);
+    assert!(!ok && text.contains("empty"), "{text}");
+    assert!(!empty.join("labels_2").exists());
+}
