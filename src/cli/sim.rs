@@ -13,103 +13,117 @@ use omcl::sim::files;
 #[derive(Debug, clap::Subcommand)]
 pub enum SimCommand {
     /// An apartment and an RGB-D sequence through its rooms.
-    Indoor {
-        /// Output directory (created).
-        #[arg(long)]
-        out: PathBuf,
-        #[arg(long, default_value_t = 0)]
-        seed: u64,
-        /// Number of rooms.
-        #[arg(long, default_value_t = 5)]
-        rooms: usize,
-        /// Voxel edge, metres.
-        #[arg(long, default_value_t = 0.05)]
-        resolution: f64,
-        /// Number of frames.
-        #[arg(long, default_value_t = 300)]
-        frames: usize,
-        #[arg(long, default_value_t = 540)]
-        width: u32,
-        #[arg(long, default_value_t = 540)]
-        height: u32,
-        /// Horizontal field of view, degrees.
-        #[arg(long, default_value_t = 90.0)]
-        hfov: f64,
-        /// Feature preset: exact, gt or lseg-like.
-        #[arg(long, default_value = "lseg-like")]
-        preset: Preset,
-        /// Write per-frame feature .npy files (large: 9.2 MB a 540x540 frame
-        /// at stride 8, 600 MB at stride 1).
-        #[arg(long)]
-        features: bool,
-        /// Pixel stride of the written features.
-        #[arg(long, default_value_t = 8)]
-        feature_stride: u32,
-        /// Odometry noise per frame: translation (m) and rotation (degrees).
-        #[arg(long, default_value_t = 0.10)]
-        odom_sigma_t: f64,
-        #[arg(long, default_value_t = 6.0)]
-        odom_sigma_r: f64,
-        /// Folder with KITTI_00_gt.txt and KITTI_00_ORB.txt whose relative
-        /// motion errors are replayed as odometry drift; default: the shared
-        /// data beside the source tree when it exists; `none` disables.
-        #[arg(long)]
-        trajectories: Option<String>,
-        /// Embedding table (classes.txt + embeddings.npy folder); default:
-        /// the built-in table made from real CLIP text embeddings.
-        #[arg(long)]
-        table: Option<PathBuf>,
-    },
+    Indoor(IndoorArgs),
+
     /// A street along a real driving path and a KITTI odometry sequence
     /// (LiDAR scans, SemanticKITTI labels, camera-2 images) on it.
-    Outdoor {
-        /// Output directory (created); the sequence goes to DIR/sequences/00.
-        #[arg(long)]
-        out: PathBuf,
-        #[arg(long, default_value_t = 0)]
-        seed: u64,
-        /// KITTI poses file of the driving path (default: KITTI 00 ground
-        /// truth in the shared data beside the source tree).
-        #[arg(long)]
-        path: Option<PathBuf>,
-        /// First frame of the path and number of frames.
-        #[arg(long, default_value_t = 0)]
-        start: usize,
-        #[arg(long, default_value_t = 200)]
-        frames: usize,
-        /// Voxel edge, metres.
-        #[arg(long, default_value_t = 0.2)]
-        resolution: f64,
-        /// LiDAR directions per revolution (64 beams each).
-        #[arg(long, default_value_t = 2048)]
-        azimuth_steps: u32,
-        /// Skip camera 2 (its images, label images and features).
-        #[arg(long)]
-        no_images: bool,
-        /// Write camera 2's per-pixel features (features_2/NNNNNN.npy;
-        /// 15 MB of float32 a 1241 x 376 frame at stride 8).
-        #[arg(long, conflicts_with = "no_images")]
-        features: bool,
-        /// Feature preset of --features: exact, gt or lseg-like.
-        #[arg(long, default_value = "gt")]
-        preset: Preset,
-        /// Pixel stride of the written features.
-        #[arg(long, default_value_t = 8)]
-        feature_stride: u32,
-        /// Embedding table folder (classes.txt + embeddings.npy); default built in.
-        #[arg(long)]
-        table: Option<PathBuf>,
-    },
+    Outdoor(OutdoorArgs),
+
     /// Writes the simulator's class embedding table from real CLIP text
     /// embeddings (folder in the layout of shared/data/clip_text).
-    Classes {
-        #[arg(long)]
-        clip_dir: PathBuf,
-        #[arg(long)]
-        out: PathBuf,
-        #[arg(long, default_value_t = 0)]
-        seed: u64,
-    },
+    Classes(ClassesArgs),
+}
+
+/// The options of `omcl sim indoor`.
+#[derive(Debug, clap::Args)]
+pub struct IndoorArgs {
+    /// Output directory (created).
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Number of rooms.
+    #[arg(long, default_value_t = 5)]
+    pub rooms: usize,
+    /// Voxel edge, metres.
+    #[arg(long, default_value_t = 0.05)]
+    pub resolution: f64,
+    /// Number of frames.
+    #[arg(long, default_value_t = 300)]
+    pub frames: usize,
+    #[arg(long, default_value_t = 540)]
+    pub width: u32,
+    #[arg(long, default_value_t = 540)]
+    pub height: u32,
+    /// Horizontal field of view, degrees.
+    #[arg(long, default_value_t = 90.0)]
+    pub hfov: f64,
+    /// Feature preset: exact, gt or lseg-like.
+    #[arg(long, default_value = "lseg-like")]
+    pub preset: Preset,
+    /// Write per-frame feature .npy files (large: 9.2 MB a 540x540 frame
+    /// at stride 8, 600 MB at stride 1).
+    #[arg(long)]
+    pub features: bool,
+    /// Pixel stride of the written features.
+    #[arg(long, default_value_t = 8)]
+    pub feature_stride: u32,
+    /// Odometry noise per frame: translation (m) and rotation (degrees).
+    #[arg(long, default_value_t = 0.10)]
+    pub odom_sigma_t: f64,
+    #[arg(long, default_value_t = 6.0)]
+    pub odom_sigma_r: f64,
+    /// Folder with KITTI_00_gt.txt and KITTI_00_ORB.txt whose relative
+    /// motion errors are replayed as odometry drift; default: the shared
+    /// data beside the source tree when it exists; `none` disables.
+    #[arg(long)]
+    pub trajectories: Option<String>,
+    /// Embedding table (classes.txt + embeddings.npy folder); default:
+    /// the built-in table made from real CLIP text embeddings.
+    #[arg(long)]
+    pub table: Option<PathBuf>,
+}
+
+/// The options of `omcl sim outdoor`.
+#[derive(Debug, clap::Args)]
+pub struct OutdoorArgs {
+    /// Output directory (created); the sequence goes to DIR/sequences/00.
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// KITTI poses file of the driving path (default: KITTI 00 ground
+    /// truth in the shared data beside the source tree).
+    #[arg(long)]
+    pub path: Option<PathBuf>,
+    /// First frame of the path and number of frames.
+    #[arg(long, default_value_t = 0)]
+    pub start: usize,
+    #[arg(long, default_value_t = 200)]
+    pub frames: usize,
+    /// Voxel edge, metres.
+    #[arg(long, default_value_t = 0.2)]
+    pub resolution: f64,
+    /// LiDAR directions per revolution (64 beams each).
+    #[arg(long, default_value_t = 2048)]
+    pub azimuth_steps: u32,
+    /// Skip camera 2 (its images, label images and features).
+    #[arg(long)]
+    pub no_images: bool,
+    /// Write camera 2's per-pixel features (features_2/NNNNNN.npy;
+    /// 15 MB of float32 a 1241 x 376 frame at stride 8).
+    #[arg(long, conflicts_with = "no_images")]
+    pub features: bool,
+    /// Feature preset of --features: exact, gt or lseg-like.
+    #[arg(long, default_value = "gt")]
+    pub preset: Preset,
+    /// Pixel stride of the written features.
+    #[arg(long, default_value_t = 8)]
+    pub feature_stride: u32,
+    /// Embedding table folder (classes.txt + embeddings.npy); default built in.
+    #[arg(long)]
+    pub table: Option<PathBuf>,
+}
+
+/// The options of `omcl sim classes`.
+#[derive(Debug, clap::Args)]
+pub struct ClassesArgs {
+    #[arg(long)]
+    pub clip_dir: PathBuf,
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
 }
 
 fn default_trajectories() -> Option<PathBuf> {
@@ -135,142 +149,149 @@ fn progress_bar(n: usize) -> ProgressBar {
 /// Runs one `omcl sim` command.
 pub fn run(cmd: SimCommand) -> anyhow::Result<()> {
     match cmd {
-        SimCommand::Indoor {
-            out,
-            seed,
-            rooms,
-            resolution,
-            frames,
-            width,
-            height,
-            hfov,
-            preset,
-            features,
-            feature_stride,
-            odom_sigma_t,
-            odom_sigma_r,
-            trajectories,
-            table,
-        } => {
-            anyhow::ensure!(rooms >= 1, "--rooms must be at least 1");
-            anyhow::ensure!(
-                resolution > 0.005 && resolution <= 0.5,
-                "--resolution {resolution} m is outside (0.005, 0.5]"
-            );
-            let mut cfg = IndoorDatasetConfig::new(seed);
-            cfg.world.rooms = rooms;
-            cfg.world.resolution = resolution;
-            cfg.path.frames = frames;
-            cfg.width = width;
-            cfg.height = height;
-            cfg.hfov_deg = hfov;
-            cfg.preset = preset;
-            cfg.features = features;
-            cfg.feature_stride = feature_stride.max(1);
-            cfg.odometry.sigma_t = odom_sigma_t;
-            cfg.odometry.sigma_r_deg = odom_sigma_r;
-            let traj = match trajectories.as_deref() {
-                Some("none") => None,
-                Some(p) => Some(PathBuf::from(p)),
-                None => default_trajectories(),
-            };
-            let (drift, source) = match traj {
-                Some(p) => {
-                    let (d, s) = dataset::load_drift(&p)
-                        .with_context(|| format!("reading drift from {}", p.display()))?;
-                    (d, Some(s))
-                }
-                None => (Vec::new(), None),
-            };
-            let table = load_table(table.as_deref())?;
-            if features {
-                eprintln!(
-                    "note: --features writes {} MB of float32 per frame",
-                    (width / cfg.feature_stride) as usize
-                        * (height / cfg.feature_stride) as usize
-                        * table.dim
-                        * 4
-                        / 1_000_000
-                );
-            }
-            let pb = progress_bar(frames);
-            pb.set_message("rendering");
-            let summary = dataset::write_indoor(&out, &cfg, &table, (&drift, source), &|n| {
-                pb.set_position(n as u64)
-            })
-            .with_context(|| format!("writing the indoor dataset to {}", out.display()))?;
-            pb.finish_and_clear();
-            println!("{summary}");
-        }
-        SimCommand::Outdoor {
-            out,
-            seed,
-            path,
-            start,
-            frames,
-            resolution,
-            azimuth_steps,
-            no_images,
-            features,
-            preset,
-            feature_stride,
-            table,
-        } => {
-            anyhow::ensure!(
-                (0.02..=1.0).contains(&resolution),
-                "--resolution {resolution} m is outside [0.02, 1]"
-            );
-            let path = match path {
-                Some(p) => p,
-                None => Path::new(env!("CARGO_MANIFEST_DIR"))
-                    .join("../shared/data/trajectories/KITTI_00_gt.txt"),
-            };
-            let gt = files::read_kitti_poses(&path)
-                .with_context(|| format!("reading the driving path {}", path.display()))?;
-            anyhow::ensure!(
-                start < gt.len(),
-                "--start {start} is past the path's {} poses",
-                gt.len()
-            );
-            let mut cfg = dataset::OutdoorDatasetConfig::new(seed);
-            cfg.world.start = start;
-            cfg.world.frames = frames;
-            cfg.world.resolution = resolution;
-            cfg.lidar.azimuth_steps = azimuth_steps.max(1);
-            cfg.images = !no_images;
-            cfg.features = features;
-            cfg.preset = preset;
-            cfg.feature_stride = feature_stride.max(1);
-            let table = load_table(table.as_deref())?;
-            let pb = progress_bar(frames.min(gt.len() - start));
-            pb.set_message("scanning");
-            let summary =
-                dataset::write_outdoor(&out, &cfg, &gt, &table, &|n| pb.set_position(n as u64))
-                    .with_context(|| format!("writing the outdoor dataset to {}", out.display()))?;
-            pb.finish_and_clear();
-            println!("{summary}");
-        }
-        SimCommand::Classes {
-            clip_dir,
-            out,
-            seed,
-        } => {
-            let bank = files::load_clip_bank(&clip_dir)?;
-            let table = omcl::sim::embeddings::build_table(
-                &bank,
-                omcl::sim::embeddings::SIM_CLASSES,
-                seed,
-            )?;
-            files::create_dir(&out)?;
-            files::save_table(&out, &table)?;
-            println!(
-                "{}: {} classes x {} from {} real rows",
-                out.display(),
-                table.len(),
-                table.dim,
-                bank.names.len()
-            );
-        }
+        SimCommand::Indoor(a) => indoor(a),
+        SimCommand::Outdoor(a) => outdoor(a),
+        SimCommand::Classes(a) => classes(a),
     }
+}
+
+fn indoor(a: IndoorArgs) -> anyhow::Result<()> {
+    let IndoorArgs {
+        out,
+        seed,
+        rooms,
+        resolution,
+        frames,
+        width,
+        height,
+        hfov,
+        preset,
+        features,
+        feature_stride,
+        odom_sigma_t,
+        odom_sigma_r,
+        trajectories,
+        table,
+    } = a;
+    anyhow::ensure!(rooms >= 1, "--rooms must be at least 1");
+    anyhow::ensure!(
+        resolution > 0.005 && resolution <= 0.5,
+        "--resolution {resolution} m is outside (0.005, 0.5]"
+    );
+    let mut cfg = IndoorDatasetConfig::new(seed);
+    cfg.world.rooms = rooms;
+    cfg.world.resolution = resolution;
+    cfg.path.frames = frames;
+    cfg.width = width;
+    cfg.height = height;
+    cfg.hfov_deg = hfov;
+    cfg.preset = preset;
+    cfg.features = features;
+    cfg.feature_stride = feature_stride.max(1);
+    cfg.odometry.sigma_t = odom_sigma_t;
+    cfg.odometry.sigma_r_deg = odom_sigma_r;
+    let traj = match trajectories.as_deref() {
+        Some("none") => None,
+        Some(p) => Some(PathBuf::from(p)),
+        None => default_trajectories(),
+    };
+    let (drift, source) = match traj {
+        Some(p) => {
+            let (d, s) = dataset::load_drift(&p)
+                .with_context(|| format!("reading drift from {}", p.display()))?;
+            (d, Some(s))
+        }
+        None => (Vec::new(), None),
+    };
+    let table = load_table(table.as_deref())?;
+    if features {
+        eprintln!(
+            "note: --features writes {} MB of float32 per frame",
+            (width / cfg.feature_stride) as usize
+                * (height / cfg.feature_stride) as usize
+                * table.dim
+                * 4
+                / 1_000_000
+        );
+    }
+    let pb = progress_bar(frames);
+    pb.set_message("rendering");
+    let summary = dataset::write_indoor(&out, &cfg, &table, (&drift, source), &|n| {
+        pb.set_position(n as u64)
+    })
+    .with_context(|| format!("writing the indoor dataset to {}", out.display()))?;
+    pb.finish_and_clear();
+    println!("{summary}");
+    Ok(())
+}
+
+fn outdoor(a: OutdoorArgs) -> anyhow::Result<()> {
+    let OutdoorArgs {
+        out,
+        seed,
+        path,
+        start,
+        frames,
+        resolution,
+        azimuth_steps,
+        no_images,
+        features,
+        preset,
+        feature_stride,
+        table,
+    } = a;
+    anyhow::ensure!(
+        (0.02..=1.0).contains(&resolution),
+        "--resolution {resolution} m is outside [0.02, 1]"
+    );
+    let path = match path {
+        Some(p) => p,
+        None => Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/data/trajectories/KITTI_00_gt.txt"),
+    };
+    let gt = files::read_kitti_poses(&path)
+        .with_context(|| format!("reading the driving path {}", path.display()))?;
+    anyhow::ensure!(
+        start < gt.len(),
+        "--start {start} is past the path's {} poses",
+        gt.len()
+    );
+    let mut cfg = dataset::OutdoorDatasetConfig::new(seed);
+    cfg.world.start = start;
+    cfg.world.frames = frames;
+    cfg.world.resolution = resolution;
+    cfg.lidar.azimuth_steps = azimuth_steps.max(1);
+    cfg.images = !no_images;
+    cfg.features = features;
+    cfg.preset = preset;
+    cfg.feature_stride = feature_stride.max(1);
+    let table = load_table(table.as_deref())?;
+    let pb = progress_bar(frames.min(gt.len() - start));
+    pb.set_message("scanning");
+    let summary = dataset::write_outdoor(&out, &cfg, &gt, &table, &|n| pb.set_position(n as u64))
+        .with_context(|| format!("writing the outdoor dataset to {}", out.display()))?;
+    pb.finish_and_clear();
+    println!("{summary}");
+    Ok(())
+}
+
+fn classes(a: ClassesArgs) -> anyhow::Result<()> {
+    let ClassesArgs {
+        clip_dir,
+        out,
+        seed,
+    } = a;
+    let bank = files::load_clip_bank(&clip_dir)?;
+    let table =
+        omcl::sim::embeddings::build_table(&bank, omcl::sim::embeddings::SIM_CLASSES, seed)?;
+    files::create_dir(&out)?;
+    files::save_table(&out, &table)?;
+    println!(
+        "{}: {} classes x {} from {} real rows",
+        out.display(),
+        table.len(),
+        table.dim,
+        bank.names.len()
+    );
     Ok(())
 }
