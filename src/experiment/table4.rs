@@ -285,6 +285,8 @@ pub struct Table4Run {
     pub length_m: f64,
     pub translation_mean_m: f64,
     pub translation_std_m: f64,
+    /// The largest translation error of any frame (a lost track shows here).
+    pub translation_max_m: f64,
     pub rotation_mean_deg: f64,
     pub rotation_std_deg: f64,
     pub completed: bool,
@@ -382,12 +384,8 @@ fn odometry_variants(
 /// odometry variant's run; writes `table4.json` and the first seed's path
 /// over the map (`table4_<odometry>.png`) into `p.out`. `status` hears what
 /// is being computed, `done` a line per finished run.
-pub fn table4(
-    p: &Table4Params,
-    table: &ClassEmbeddings,
-    status: &dyn Fn(&str),
-    done: &dyn Fn(&str),
-) -> Result<Table4, ExperimentError> {
+/// The KITTI 00 driving path, checked against the street's options.
+fn driving_path(p: &Table4Params) -> Result<Vec<Pose>, ExperimentError> {
     let gt_path = p.trajectories.join("KITTI_00_gt.txt");
     let gt = files::read_kitti_poses(&gt_path).map_err(|e| {
         cfg_err(format!(
@@ -408,6 +406,46 @@ pub fn table4(
             p.street_resolution
         )));
     }
+    Ok(gt)
+}
+
+/// The figure of one run: the estimated path over the map's road plan,
+/// coloured by translation error.
+fn plot_run(
+    path: &std::path::Path,
+    title: &str,
+    map: &crate::map::LanguageMap,
+    seq: &StreetSequence,
+    estimates: &[Pose],
+    errors_m: &[f64],
+) -> Result<(), ExperimentError> {
+    let n = estimates.len();
+    let plan = FloorPlan::from_map(map, seq.table.text_feature("road"), 0.9);
+    let xy = |q: &[Pose]| -> Vec<[f64; 2]> {
+        q.iter()
+            .map(|q| [q.translation.vector.x, q.translation.vector.y])
+            .collect()
+    };
+    plot::trajectory_plot(
+        path,
+        &TrajectoryPanel {
+            title,
+            plan: plan.as_ref(),
+            gt_xy: &xy(&seq.ground_truth[..n]),
+            est_xy: &xy(estimates),
+            errors_m,
+        },
+    )
+    .map_err(|e| cfg_err(format!("{}: {e}", path.display())))
+}
+
+pub fn table4(
+    p: &Table4Params,
+    table: &ClassEmbeddings,
+    status: &dyn Fn(&str),
+    done: &dyn Fn(&str),
+) -> Result<Table4, ExperimentError> {
+    let gt = driving_path(p)?;
     let variants = odometry_variants(&p.odometry, &p.trajectories)?;
     let (config, preset) = (p.filter, p.preset);
     let mut runs: Vec<Table4Run> = Vec::new();
@@ -453,10 +491,11 @@ pub fn table4(
                 .map_err(|e| cfg_err(e.to_string()))?;
             done(&format!(
                 "street {s} ({frames} frames, {length_m:.0} m), odometry {name}: translation \
-                 {:.3} +- {:.3} m, rotation {:.2} +- {:.2} deg, completed {}, {:.1} steps/s \
-                 (odometry alone: {:.3} m, {:.2} deg)",
+                 {:.3} +- {:.3} m (max {:.2}), rotation {:.2} +- {:.2} deg, completed {}, \
+                 {:.1} steps/s (odometry alone: {:.3} m, {:.2} deg)",
                 m.translation.mean,
                 m.translation.std,
+                m.translation_m.iter().copied().fold(0.0, f64::max),
                 m.rotation.mean,
                 m.rotation.std,
                 m.completed,
@@ -465,28 +504,19 @@ pub fn table4(
                 odo.rotation.mean
             ));
             if s == p.first_seed {
-                let plan = FloorPlan::from_map(&map, seq.table.text_feature("road"), 0.9);
-                let xy = |q: &[Pose]| -> Vec<[f64; 2]> {
-                    q.iter()
-                        .map(|q| [q.translation.vector.x, q.translation.vector.y])
-                        .collect()
-                };
+                let path = p.out.join(format!("table4_{name}.png"));
                 let title = format!(
                     "street {s}, odometry {name}: translation {:.2} m, rotation {:.2} deg",
                     m.translation.mean, m.rotation.mean
                 );
-                let path = p.out.join(format!("table4_{name}.png"));
-                plot::trajectory_plot(
+                plot_run(
                     &path,
-                    &TrajectoryPanel {
-                        title: &title,
-                        plan: plan.as_ref(),
-                        gt_xy: &xy(&seq.ground_truth[..n]),
-                        est_xy: &xy(&r.run.estimates),
-                        errors_m: &m.translation_m,
-                    },
-                )
-                .map_err(|e| cfg_err(format!("{}: {e}", path.display())))?;
+                    &title,
+                    &map,
+                    &seq,
+                    &r.run.estimates,
+                    &m.translation_m,
+                )?;
             }
             runs.push(Table4Run {
                 odometry: name.clone(),
@@ -495,6 +525,7 @@ pub fn table4(
                 length_m,
                 translation_mean_m: m.translation.mean,
                 translation_std_m: m.translation.std,
+                translation_max_m: m.translation_m.iter().copied().fold(0.0, f64::max),
                 rotation_mean_deg: m.rotation.mean,
                 rotation_std_deg: m.rotation.std,
                 completed: m.completed,
