@@ -23,6 +23,8 @@ use std::path::{Path, PathBuf};
 use nalgebra::Vector3;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 
+use super::container::{Container, HeaderError, le_4, le_8};
+
 use super::features::FeatureDb;
 use super::key::GridSpec;
 use super::octree::{LanguageMap, MapError};
@@ -247,30 +249,9 @@ pub fn upgrade(path: &Path, out: &Path) -> Result<LanguageMap, MapFileError> {
 
 fn parse_map(bytes: &[u8], path: &Path, accept_v1: bool) -> Result<LanguageMap, MapFileError> {
     let p = || path.to_path_buf();
-    let st = SafeTensors::deserialize(bytes).map_err(|e| MapFileError::NotSafetensors {
-        path: p(),
-        reason: e.to_string(),
-    })?;
-    let (_, header) =
-        SafeTensors::read_metadata(bytes).map_err(|e| MapFileError::NotSafetensors {
-            path: p(),
-            reason: e.to_string(),
-        })?;
-    let meta = header.metadata().clone().unwrap_or_default();
-    let format = meta.get("format");
-    if format.map(String::as_str) != Some(FORMAT) {
-        return Err(MapFileError::Foreign {
-            path: p(),
-            found: format.cloned(),
-        });
-    }
-    let field = |name: &'static str| -> Result<&String, MapFileError> {
-        meta.get(name).ok_or(MapFileError::MissingField {
-            path: p(),
-            field: name,
-        })
-    };
-    let version = field("version")?;
+    let header = |e| MapFileError::from_header(path, e);
+    let c = Container::open(bytes, FORMAT).map_err(header)?;
+    let version = c.field("version").map_err(header)?;
     let header_checked = match version.parse::<u32>() {
         Ok(VERSION) => true,
         Ok(1) if accept_v1 => false,
@@ -278,106 +259,34 @@ fn parse_map(bytes: &[u8], path: &Path, accept_v1: bool) -> Result<LanguageMap, 
         _ => {
             return Err(MapFileError::Version {
                 path: p(),
-                found: version.clone(),
+                found: version.to_string(),
             });
         }
     };
-    fn parse<T: std::str::FromStr>(
-        path: &Path,
-        name: &'static str,
-        v: &str,
-        expected: &'static str,
-        ok: impl Fn(&T) -> bool,
-    ) -> Result<T, MapFileError> {
-        v.parse::<T>()
-            .ok()
-            .filter(|x| ok(x))
-            .ok_or(MapFileError::BadField {
-                path: path.to_path_buf(),
-                field: name,
-                value: v.to_string(),
-                expected,
-            })
-    }
-    let finite = |x: &f64| x.is_finite();
-    let resolution: f64 = parse(
-        path,
-        "resolution",
-        field("resolution")?,
-        "a positive number",
-        |x: &f64| x.is_finite() && *x > 0.0,
-    )?;
-    let ox: f64 = parse(
-        path,
-        "origin_x",
-        field("origin_x")?,
-        "a finite number",
-        finite,
-    )?;
-    let oy: f64 = parse(
-        path,
-        "origin_y",
-        field("origin_y")?,
-        "a finite number",
-        finite,
-    )?;
-    let oz: f64 = parse(
-        path,
-        "origin_z",
-        field("origin_z")?,
-        "a finite number",
-        finite,
-    )?;
-    let dim: usize = parse(
-        path,
-        "feature_dim",
-        field("feature_dim")?,
-        "a positive integer",
-        |d| *d > 0,
-    )?;
-    let tau: f32 = parse(
-        path,
-        "tau",
-        field("tau")?,
-        "a cosine distance in [0, 2]",
-        |t: &f32| (0.0..=2.0).contains(t),
-    )?;
-    let leaves: usize = parse(path, "leaves", field("leaves")?, "an integer", |_| true)?;
-    let nrows: usize = parse(path, "rows", field("rows")?, "an integer", |_| true)?;
-    let stored: u32 =
-        u32::from_str_radix(field("crc32")?, 16).map_err(|_| MapFileError::BadField {
-            path: p(),
-            field: "crc32",
-            value: meta["crc32"].clone(),
-            expected: "8 hex digits",
-        })?;
-    let encoder = field("encoder")?.clone();
-
-    let tensor = |name: &'static str, dtype: Dtype, shape: Vec<usize>| {
-        let t = st.tensor(name).map_err(|e| MapFileError::Tensor {
-            path: p(),
-            name,
-            reason: e.to_string(),
-        })?;
-        if t.dtype() != dtype || t.shape() != shape.as_slice() {
-            return Err(MapFileError::Tensor {
-                path: p(),
-                name,
-                reason: format!(
-                    "is {:?} {:?}, header promises {:?} {:?}",
-                    t.dtype(),
-                    t.shape(),
-                    dtype,
-                    shape
-                ),
-            });
-        }
-        Ok(t.data())
-    };
-    let codes_b = tensor("codes", Dtype::U64, vec![leaves])?;
-    let rows_b = tensor("rows", Dtype::U32, vec![leaves])?;
-    let feat_b = tensor("features", Dtype::F32, vec![nrows, dim])?;
-    let computed = checksum(&meta, [codes_b, rows_b, feat_b], header_checked);
+    let resolution = c.positive("resolution").map_err(header)?;
+    let origin = Vector3::new(
+        c.finite("origin_x").map_err(header)?,
+        c.finite("origin_y").map_err(header)?,
+        c.finite("origin_z").map_err(header)?,
+    );
+    let dim: usize = c
+        .parse("feature_dim", "a positive integer", |d| *d > 0)
+        .map_err(header)?;
+    let tau: f32 = c
+        .parse("tau", "a cosine distance in [0, 2]", |t: &f32| {
+            (0.0..=2.0).contains(t)
+        })
+        .map_err(header)?;
+    let leaves: usize = c.parse("leaves", "an integer", |_| true).map_err(header)?;
+    let nrows: usize = c.parse("rows", "an integer", |_| true).map_err(header)?;
+    let stored = c.crc32().map_err(header)?;
+    let encoder = c.field("encoder").map_err(header)?.to_string();
+    let codes_b = c.tensor("codes", Dtype::U64, &[leaves]).map_err(header)?;
+    let rows_b = c.tensor("rows", Dtype::U32, &[leaves]).map_err(header)?;
+    let feat_b = c
+        .tensor("features", Dtype::F32, &[nrows, dim])
+        .map_err(header)?;
+    let computed = checksum(&c.meta, [codes_b, rows_b, feat_b], header_checked);
     if computed != stored {
         return Err(MapFileError::Checksum {
             path: p(),
@@ -385,25 +294,36 @@ fn parse_map(bytes: &[u8], path: &Path, accept_v1: bool) -> Result<LanguageMap, 
             computed,
         });
     }
-    let codes: Vec<u64> = codes_b
-        .chunks_exact(8)
-        .map(|c| u64::from_le_bytes(c.try_into().expect("chunks of 8")))
-        .collect();
-    let rows: Vec<u32> = rows_b
-        .chunks_exact(4)
-        .map(|c| u32::from_le_bytes(c.try_into().expect("chunks of 4")))
-        .collect();
-    let feats: Vec<f32> = feat_b
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes(c.try_into().expect("chunks of 4")))
-        .collect();
+    let codes = le_8(codes_b, u64::from_le_bytes);
+    let rows = le_4(rows_b, u32::from_le_bytes);
+    let feats = le_4(feat_b, f32::from_le_bytes);
     let invalid = |source: MapError| MapFileError::Invalid { path: p(), source };
     let db = FeatureDb::from_rows(dim, tau, feats).map_err(|e| invalid(e.into()))?;
-    let grid = GridSpec {
-        resolution,
-        origin: Vector3::new(ox, oy, oz),
-    };
+    let grid = GridSpec { resolution, origin };
     LanguageMap::from_sorted(grid, db, encoder, codes, rows).map_err(invalid)
+}
+
+impl MapFileError {
+    /// The error of container problem `e` in the map file at `path`.
+    fn from_header(path: &Path, e: HeaderError) -> Self {
+        let path = path.to_path_buf();
+        match e {
+            HeaderError::NotSafetensors(reason) => MapFileError::NotSafetensors { path, reason },
+            HeaderError::Foreign(found) => MapFileError::Foreign { path, found },
+            HeaderError::MissingField(field) => MapFileError::MissingField { path, field },
+            HeaderError::BadField {
+                field,
+                value,
+                expected,
+            } => MapFileError::BadField {
+                path,
+                field,
+                value,
+                expected,
+            },
+            HeaderError::Tensor { name, reason } => MapFileError::Tensor { path, name, reason },
+        }
+    }
 }
 
 #[cfg(test)]

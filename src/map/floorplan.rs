@@ -36,7 +36,9 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use nalgebra::Vector3;
-use safetensors::tensor::{Dtype, SafeTensors, TensorView};
+use safetensors::tensor::{Dtype, TensorView};
+
+use super::container::{Container, HeaderError, le_4};
 
 use super::features::{FeatureDb, FeatureDbError};
 use super::key::GridSpec;
@@ -470,116 +472,43 @@ pub fn load(path: &Path) -> Result<FloorPlan, FloorPlanFileError> {
 pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<FloorPlan, FloorPlanFileError> {
     use FloorPlanFileError as E;
     let p = || path.to_path_buf();
-    let st = SafeTensors::deserialize(bytes).map_err(|e| E::NotSafetensors {
-        path: p(),
-        reason: e.to_string(),
-    })?;
-    let (_, header) = SafeTensors::read_metadata(bytes).map_err(|e| E::NotSafetensors {
-        path: p(),
-        reason: e.to_string(),
-    })?;
-    let meta = header.metadata().clone().unwrap_or_default();
-    let format = meta.get("format");
-    if format.map(String::as_str) != Some(FORMAT) {
-        return Err(E::Foreign {
-            path: p(),
-            found: format.cloned(),
-        });
-    }
-    let field = |name: &'static str| -> Result<&String, E> {
-        meta.get(name).ok_or(E::MissingField {
-            path: p(),
-            field: name,
-        })
-    };
-    let version = field("version")?;
+    let header = |e| E::from_header(path, e);
+    let c = Container::open(bytes, FORMAT).map_err(header)?;
+    let version = c.field("version").map_err(header)?;
     if version.parse::<u32>().ok() != Some(VERSION) {
         return Err(E::Version {
             path: p(),
-            found: version.clone(),
+            found: version.to_string(),
         });
     }
-    fn num<T: std::str::FromStr>(
-        path: &Path,
-        name: &'static str,
-        v: &str,
-        expected: &'static str,
-        ok: impl Fn(&T) -> bool,
-    ) -> Result<T, FloorPlanFileError> {
-        v.parse::<T>()
-            .ok()
-            .filter(|x| ok(x))
-            .ok_or(FloorPlanFileError::BadField {
-                path: path.to_path_buf(),
-                field: name,
-                value: v.to_string(),
-                expected,
-            })
-    }
-    let finite = |x: &f64| x.is_finite();
-    let f64_field = |name: &'static str| -> Result<f64, E> {
-        num(path, name, field(name)?, "a finite number", finite)
-    };
-    let resolution: f64 = num(
-        path,
-        "resolution",
-        field("resolution")?,
-        "a positive number",
-        |x: &f64| x.is_finite() && *x > 0.0,
-    )?;
-    let origin = [f64_field("origin_x")?, f64_field("origin_y")?];
-    let floor_z = f64_field("floor_z")?;
+    let resolution = c.positive("resolution").map_err(header)?;
+    let origin = [
+        c.finite("origin_x").map_err(header)?,
+        c.finite("origin_y").map_err(header)?,
+    ];
+    let floor_z = c.finite("floor_z").map_err(header)?;
     let params = FloorPlanParams {
-        band_min: f64_field("band_min")?,
-        band_max: f64_field("band_max")?,
+        band_min: c.finite("band_min").map_err(header)?,
+        band_max: c.finite("band_max").map_err(header)?,
     };
-    let dim: usize = num(
-        path,
-        "feature_dim",
-        field("feature_dim")?,
-        "a positive integer",
-        |d| *d > 0,
-    )?;
-    let tau: f32 = num(
-        path,
-        "tau",
-        field("tau")?,
-        "a cosine distance in [0, 2]",
-        |t: &f32| (0.0..=2.0).contains(t),
-    )?;
-    let n: usize = num(path, "cells", field("cells")?, "an integer", |_| true)?;
-    let k: usize = num(path, "rows", field("rows")?, "an integer", |_| true)?;
-    let crc_text = field("crc32")?;
-    let stored = u32::from_str_radix(crc_text, 16).map_err(|_| E::BadField {
-        path: p(),
-        field: "crc32",
-        value: crc_text.clone(),
-        expected: "8 hex digits",
-    })?;
-    let encoder = field("encoder")?.clone();
-    let tensor = |name: &'static str, dtype: Dtype, shape: Vec<usize>| -> Result<&[u8], E> {
-        let t = st.tensor(name).map_err(|e| E::Tensor {
-            path: p(),
-            name,
-            reason: e.to_string(),
-        })?;
-        if t.dtype() != dtype || t.shape() != shape.as_slice() {
-            return Err(E::Tensor {
-                path: p(),
-                name,
-                reason: format!(
-                    "expected {dtype:?} of shape {shape:?}, found {:?} of shape {:?}",
-                    t.dtype(),
-                    t.shape()
-                ),
-            });
-        }
-        Ok(t.data())
-    };
-    let cells_b = tensor("cells", Dtype::I32, vec![n, 2])?;
-    let rows_b = tensor("rows", Dtype::U32, vec![n])?;
-    let feat_b = tensor("features", Dtype::F32, vec![k, dim])?;
-    let computed = checksum(&meta, [cells_b, rows_b, feat_b]);
+    let dim: usize = c
+        .parse("feature_dim", "a positive integer", |d| *d > 0)
+        .map_err(header)?;
+    let tau: f32 = c
+        .parse("tau", "a cosine distance in [0, 2]", |t: &f32| {
+            (0.0..=2.0).contains(t)
+        })
+        .map_err(header)?;
+    let n: usize = c.parse("cells", "an integer", |_| true).map_err(header)?;
+    let k: usize = c.parse("rows", "an integer", |_| true).map_err(header)?;
+    let stored = c.crc32().map_err(header)?;
+    let encoder = c.field("encoder").map_err(header)?.to_string();
+    let cells_b = c.tensor("cells", Dtype::I32, &[n, 2]).map_err(header)?;
+    let rows_b = c.tensor("rows", Dtype::U32, &[n]).map_err(header)?;
+    let feat_b = c
+        .tensor("features", Dtype::F32, &[k, dim])
+        .map_err(header)?;
+    let computed = checksum(&c.meta, [cells_b, rows_b, feat_b]);
     if computed != stored {
         return Err(E::Checksum {
             path: p(),
@@ -587,25 +516,39 @@ pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<FloorPlan, FloorPlanFileE
             computed,
         });
     }
-    let i32s: Vec<i32> = cells_b
-        .chunks_exact(4)
-        .map(|b| i32::from_le_bytes(b.try_into().expect("4 bytes")))
-        .collect();
+    let i32s = le_4(cells_b, i32::from_le_bytes);
     let cells: Vec<[i32; 2]> = i32s.chunks_exact(2).map(|c| [c[0], c[1]]).collect();
-    let rows: Vec<u32> = rows_b
-        .chunks_exact(4)
-        .map(|b| u32::from_le_bytes(b.try_into().expect("4 bytes")))
-        .collect();
-    let feats: Vec<f32> = feat_b
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes(b.try_into().expect("4 bytes")))
-        .collect();
+    let rows = le_4(rows_b, u32::from_le_bytes);
+    let feats = le_4(feat_b, f32::from_le_bytes);
     let invalid = |source: FloorPlanError| E::Invalid { path: p(), source };
     let db = FeatureDb::from_rows(dim, tau, feats).map_err(|e| invalid(e.into()))?;
     FloorPlan::from_parts(
         resolution, origin, floor_z, params, db, encoder, cells, rows,
     )
     .map_err(invalid)
+}
+
+impl FloorPlanFileError {
+    /// The error of container problem `e` in the plan file at `path`.
+    fn from_header(path: &Path, e: HeaderError) -> Self {
+        let path = path.to_path_buf();
+        match e {
+            HeaderError::NotSafetensors(reason) => Self::NotSafetensors { path, reason },
+            HeaderError::Foreign(found) => Self::Foreign { path, found },
+            HeaderError::MissingField(field) => Self::MissingField { path, field },
+            HeaderError::BadField {
+                field,
+                value,
+                expected,
+            } => Self::BadField {
+                path,
+                field,
+                value,
+                expected,
+            },
+            HeaderError::Tensor { name, reason } => Self::Tensor { path, name, reason },
+        }
+    }
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! The Octree Language Map: voxel keys, the feature database, the sorted
 //! leaves, integration of observations, grounding, queries, and the file
 //! format.
+mod container;
 pub mod features;
 pub mod file;
 pub mod floorplan;

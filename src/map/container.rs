@@ -1,0 +1,143 @@
+//! The container both map files use (`.omcl` language maps and floor
+//! plans): a safetensors file whose header metadata names the format and
+//! holds typed fields, and whose tensors have the dtype and shape the
+//! header promises. Reading it is written once here; each file type maps
+//! [`HeaderError`] into its own error, which names the file.
+
+use std::collections::HashMap;
+use std::str::FromStr;
+
+use safetensors::tensor::{Dtype, SafeTensors};
+
+/// What is wrong with a container, before the file's name is added.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum HeaderError {
+    /// Not a safetensors file at all.
+    NotSafetensors(String),
+    /// A safetensors file of another format (or none).
+    Foreign(Option<String>),
+    MissingField(&'static str),
+    BadField {
+        field: &'static str,
+        value: String,
+        expected: &'static str,
+    },
+    Tensor {
+        name: &'static str,
+        reason: String,
+    },
+}
+
+/// An opened container of the expected format.
+pub(crate) struct Container<'a> {
+    tensors: SafeTensors<'a>,
+    /// The header's metadata (the fields and the format's name).
+    pub meta: HashMap<String, String>,
+}
+
+impl<'a> Container<'a> {
+    /// Opens `bytes` as a container whose `format` field is `format`.
+    pub fn open(bytes: &'a [u8], format: &str) -> Result<Self, HeaderError> {
+        let tensors = SafeTensors::deserialize(bytes)
+            .map_err(|e| HeaderError::NotSafetensors(e.to_string()))?;
+        let (_, header) = SafeTensors::read_metadata(bytes)
+            .map_err(|e| HeaderError::NotSafetensors(e.to_string()))?;
+        let meta = header.metadata().clone().unwrap_or_default();
+        let found = meta.get("format");
+        if found.map(String::as_str) != Some(format) {
+            return Err(HeaderError::Foreign(found.cloned()));
+        }
+        Ok(Container { tensors, meta })
+    }
+
+    /// The text of header field `name`.
+    pub fn field(&self, name: &'static str) -> Result<&str, HeaderError> {
+        self.meta
+            .get(name)
+            .map(String::as_str)
+            .ok_or(HeaderError::MissingField(name))
+    }
+
+    /// Header field `name` parsed as a `T` that passes `ok` (`expected`
+    /// says what a valid value is).
+    pub fn parse<T: FromStr>(
+        &self,
+        name: &'static str,
+        expected: &'static str,
+        ok: impl Fn(&T) -> bool,
+    ) -> Result<T, HeaderError> {
+        let v = self.field(name)?;
+        v.parse::<T>()
+            .ok()
+            .filter(|x| ok(x))
+            .ok_or_else(|| HeaderError::BadField {
+                field: name,
+                value: v.to_string(),
+                expected,
+            })
+    }
+
+    /// A finite number.
+    pub fn finite(&self, name: &'static str) -> Result<f64, HeaderError> {
+        self.parse(name, "a finite number", |x: &f64| x.is_finite())
+    }
+
+    /// A positive finite number (a resolution).
+    pub fn positive(&self, name: &'static str) -> Result<f64, HeaderError> {
+        self.parse(name, "a positive number", |x: &f64| {
+            x.is_finite() && *x > 0.0
+        })
+    }
+
+    /// The stored CRC-32 (`crc32`, 8 hex digits).
+    pub fn crc32(&self) -> Result<u32, HeaderError> {
+        let v = self.field("crc32")?;
+        u32::from_str_radix(v, 16).map_err(|_| HeaderError::BadField {
+            field: "crc32",
+            value: v.to_string(),
+            expected: "8 hex digits",
+        })
+    }
+
+    /// The bytes of tensor `name`, which must be of `dtype` and `shape`.
+    pub fn tensor(
+        &self,
+        name: &'static str,
+        dtype: Dtype,
+        shape: &[usize],
+    ) -> Result<&'a [u8], HeaderError> {
+        let t = self.tensors.tensor(name).map_err(|e| HeaderError::Tensor {
+            name,
+            reason: e.to_string(),
+        })?;
+        if t.dtype() != dtype || t.shape() != shape {
+            return Err(HeaderError::Tensor {
+                name,
+                reason: format!(
+                    "is {:?} {:?}, header promises {:?} {:?}",
+                    t.dtype(),
+                    t.shape(),
+                    dtype,
+                    shape
+                ),
+            });
+        }
+        Ok(t.data())
+    }
+}
+
+/// Little-endian 4-byte values.
+pub(crate) fn le_4<T>(bytes: &[u8], from: fn([u8; 4]) -> T) -> Vec<T> {
+    bytes
+        .chunks_exact(4)
+        .map(|c| from(c.try_into().expect("chunks of 4")))
+        .collect()
+}
+
+/// Little-endian 8-byte values.
+pub(crate) fn le_8<T>(bytes: &[u8], from: fn([u8; 8]) -> T) -> Vec<T> {
+    bytes
+        .chunks_exact(8)
+        .map(|c| from(c.try_into().expect("chunks of 8")))
+        .collect()
+}
