@@ -141,3 +141,36 @@ pub(crate) fn le_8<T>(bytes: &[u8], from: fn([u8; 8]) -> T) -> Vec<T> {
         .map(|c| from(c.try_into().expect("chunks of 8")))
         .collect()
 }
+
+/// `impl $ty { fn from_header(path, HeaderError) -> $ty }` for a file
+/// type's error enum with the variants `NotSafetensors`, `Foreign`,
+/// `MissingField`, `BadField` and `Tensor` (each with the file's `path`),
+/// whose messages name the file type.
+macro_rules! header_errors {
+    ($ty:ident) => {
+        impl $ty {
+            /// The error of container problem `e` in the file at `path`.
+            fn from_header(path: &std::path::Path, e: super::container::HeaderError) -> Self {
+                use super::container::HeaderError as H;
+                let path = path.to_path_buf();
+                match e {
+                    H::NotSafetensors(reason) => Self::NotSafetensors { path, reason },
+                    H::Foreign(found) => Self::Foreign { path, found },
+                    H::MissingField(field) => Self::MissingField { path, field },
+                    H::BadField {
+                        field,
+                        value,
+                        expected,
+                    } => Self::BadField {
+                        path,
+                        field,
+                        value,
+                        expected,
+                    },
+                    H::Tensor { name, reason } => Self::Tensor { path, name, reason },
+                }
+            }
+        }
+    };
+}
+pub(crate) use header_errors;

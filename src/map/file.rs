@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::Vector3;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 
-use super::container::{Container, HeaderError, le_4, le_8};
+use super::container::{Container, le_4, le_8};
 
 use super::features::FeatureDb;
 use super::key::GridSpec;
@@ -303,28 +303,7 @@ fn parse_map(bytes: &[u8], path: &Path, accept_v1: bool) -> Result<LanguageMap, 
     LanguageMap::from_sorted(grid, db, encoder, codes, rows).map_err(invalid)
 }
 
-impl MapFileError {
-    /// The error of container problem `e` in the map file at `path`.
-    fn from_header(path: &Path, e: HeaderError) -> Self {
-        let path = path.to_path_buf();
-        match e {
-            HeaderError::NotSafetensors(reason) => MapFileError::NotSafetensors { path, reason },
-            HeaderError::Foreign(found) => MapFileError::Foreign { path, found },
-            HeaderError::MissingField(field) => MapFileError::MissingField { path, field },
-            HeaderError::BadField {
-                field,
-                value,
-                expected,
-            } => MapFileError::BadField {
-                path,
-                field,
-                value,
-                expected,
-            },
-            HeaderError::Tensor { name, reason } => MapFileError::Tensor { path, name, reason },
-        }
-    }
-}
+super::container::header_errors!(MapFileError);
 
 #[cfg(test)]
 mod tests {

@@ -38,7 +38,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::Vector3;
 use safetensors::tensor::{Dtype, TensorView};
 
-use super::container::{Container, HeaderError, le_4};
+use super::container::{Container, le_4};
 
 use super::features::{FeatureDb, FeatureDbError};
 use super::key::GridSpec;
@@ -528,28 +528,7 @@ pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<FloorPlan, FloorPlanFileE
     .map_err(invalid)
 }
 
-impl FloorPlanFileError {
-    /// The error of container problem `e` in the plan file at `path`.
-    fn from_header(path: &Path, e: HeaderError) -> Self {
-        let path = path.to_path_buf();
-        match e {
-            HeaderError::NotSafetensors(reason) => Self::NotSafetensors { path, reason },
-            HeaderError::Foreign(found) => Self::Foreign { path, found },
-            HeaderError::MissingField(field) => Self::MissingField { path, field },
-            HeaderError::BadField {
-                field,
-                value,
-                expected,
-            } => Self::BadField {
-                path,
-                field,
-                value,
-                expected,
-            },
-            HeaderError::Tensor { name, reason } => Self::Tensor { path, name, reason },
-        }
-    }
-}
+super::container::header_errors!(FloorPlanFileError);
 
 #[cfg(test)]
 mod tests {
