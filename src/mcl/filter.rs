@@ -227,15 +227,8 @@ impl Filter {
         Ok(())
     }
 
-    /// One filter step with the odometry `increment`
-    /// (`prev_camera_from_camera`) and the new frame's features. On error
-    /// the particles are unchanged.
-    pub fn step(
-        &mut self,
-        increment: &Pose,
-        frame: &dyn FrameFeatures,
-    ) -> Result<StepReport, MclError> {
-        check_pose(increment)?;
+    /// The frame must have the camera's size.
+    fn check_frame_size(&self, frame: &dyn FrameFeatures) -> Result<(), MclError> {
         let k = self.sensor.intrinsics();
         if (frame.width(), frame.height()) != (k.width, k.height) {
             return Err(MclError::ImageSize {
@@ -245,6 +238,84 @@ impl Filter {
                 want_h: k.height,
             });
         }
+        Ok(())
+    }
+
+    /// Measurement update (Eq. 5-7): each particle's weight times its
+    /// likelihood raised to the sharpening exponent. Returns the mean
+    /// likelihood; on a casting error the particles are put back as they
+    /// were before the step.
+    fn weigh(&mut self, pixels: &[(u32, u32)], table: &SimilarityTable) -> Result<f64, MclError> {
+        let l = self.sensor.likelihoods(&self.particles, pixels, table);
+        let mean_l = l.iter().map(|&x| x as f64).sum::<f64>() / l.len().max(1) as f64;
+        let sharpen = self.config.sharpen;
+        for (p, &li) in self.particles.iter_mut().zip(l) {
+            p.weight *= (li.max(0.0) as f64).powf(sharpen);
+        }
+        self.undo_on_cast_error()?;
+        Ok(mean_l)
+    }
+
+    /// After a cast: on a casting error, the particles as they were before
+    /// the step, and the error.
+    fn undo_on_cast_error(&mut self) -> Result<(), MclError> {
+        if let Some(e) = self.sensor.take_cast_error() {
+            std::mem::swap(&mut self.particles, &mut self.undo);
+            return Err(MclError::Cast(e));
+        }
+        Ok(())
+    }
+
+    /// Recovery: each particle is replaced with probability `fraction` by a
+    /// pose from the injection sampler; with `per` > 1 candidates a slot, the
+    /// ones this frame agrees with most are kept. Returns how many were
+    /// injected.
+    fn inject(
+        &mut self,
+        fraction: f64,
+        per: usize,
+        pixels: &[(u32, u32)],
+        table: &SimilarityTable,
+    ) -> Result<usize, MclError> {
+        let Some(sampler) = self.injection.as_ref() else {
+            return Ok(0);
+        };
+        let slots: Vec<usize> = (0..self.particles.len())
+            .filter(|_| self.rng.random::<f64>() < fraction)
+            .collect();
+        let per = per.max(1);
+        let mut candidates: Vec<Particle> = (0..slots.len() * per)
+            .filter_map(|_| sampler.sample(&mut self.rng))
+            .map(|pose| Particle::new(pose, 1.0))
+            .collect();
+        if per > 1 && !candidates.is_empty() {
+            let l = self.sensor.likelihoods(&candidates, pixels, table);
+            let mut order: Vec<usize> = (0..candidates.len()).collect();
+            order.sort_by(|&a, &b| l[b].total_cmp(&l[a]).then(a.cmp(&b)));
+            order.truncate(slots.len());
+            candidates = order.into_iter().map(|i| candidates[i]).collect();
+            self.undo_on_cast_error()?;
+        }
+        let w = 1.0 / self.particles.len() as f64;
+        let mut injected = 0;
+        for (&slot, c) in slots.iter().zip(candidates) {
+            self.particles[slot] = Particle::new(c.pose, w);
+            injected += 1;
+        }
+        normalize(&mut self.particles);
+        Ok(injected)
+    }
+
+    /// One filter step with the odometry `increment`
+    /// (`prev_camera_from_camera`) and the new frame's features. On error
+    /// the particles are unchanged.
+    pub fn step(
+        &mut self,
+        increment: &Pose,
+        frame: &dyn FrameFeatures,
+    ) -> Result<StepReport, MclError> {
+        check_pose(increment)?;
+        self.check_frame_size(frame)?;
         let t0 = Instant::now();
         let pixels = sample_pixels(frame, &self.db, &self.config.sampling, &mut self.rng)?;
         let table = SimilarityTable::new(frame, &pixels, &self.db, self.config.sensor.contrast)?;
@@ -256,16 +327,7 @@ impl Filter {
             .predict(&mut self.particles, increment, &mut self.rng)?;
         sort_spatially(&mut self.particles, self.sort_cell);
         let t2 = Instant::now();
-        let l = self.sensor.likelihoods(&self.particles, &pixels, &table);
-        let mean_l = l.iter().map(|&x| x as f64).sum::<f64>() / l.len().max(1) as f64;
-        let sharpen = self.config.sharpen;
-        for (p, &li) in self.particles.iter_mut().zip(l) {
-            p.weight *= (li.max(0.0) as f64).powf(sharpen);
-        }
-        if let Some(e) = self.sensor.take_cast_error() {
-            std::mem::swap(&mut self.particles, &mut self.undo);
-            return Err(MclError::Cast(e));
-        }
+        let mean_l = self.weigh(&pixels, &table)?;
         // Read now: scoring injection candidates below casts again.
         let cast = self.sensor.last_cast();
         self.pixel_major = self.sensor.last_pixel_major();
@@ -299,35 +361,11 @@ impl Filter {
                 &mut self.rng,
             );
         }
-        let mut injected = 0;
-        if let Some(sampler) = self.injection.as_ref().filter(|_| inject > 0.0) {
-            let slots: Vec<usize> = (0..self.particles.len())
-                .filter(|_| self.rng.random::<f64>() < inject)
-                .collect();
-            let per = rates.candidates.max(1);
-            let mut candidates: Vec<Particle> = (0..slots.len() * per)
-                .filter_map(|_| sampler.sample(&mut self.rng))
-                .map(|pose| Particle::new(pose, 1.0))
-                .collect();
-            if per > 1 && !candidates.is_empty() {
-                // Keep the candidates this frame agrees with most.
-                let l = self.sensor.likelihoods(&candidates, &pixels, &table);
-                let mut order: Vec<usize> = (0..candidates.len()).collect();
-                order.sort_by(|&a, &b| l[b].total_cmp(&l[a]).then(a.cmp(&b)));
-                order.truncate(slots.len());
-                candidates = order.into_iter().map(|i| candidates[i]).collect();
-                if let Some(e) = self.sensor.take_cast_error() {
-                    std::mem::swap(&mut self.particles, &mut self.undo);
-                    return Err(MclError::Cast(e));
-                }
-            }
-            let w = 1.0 / self.particles.len() as f64;
-            for (&slot, c) in slots.iter().zip(candidates) {
-                self.particles[slot] = Particle::new(c.pose, w);
-                injected += 1;
-            }
-            normalize(&mut self.particles);
-        }
+        let injected = if inject > 0.0 {
+            self.inject(inject, rates.candidates, &pixels, &table)?
+        } else {
+            0
+        };
         let t4 = Instant::now();
         Ok(StepReport {
             estimate: est.pose,

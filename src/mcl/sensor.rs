@@ -396,13 +396,6 @@ impl SensorModel {
             .iter()
             .map(|&(u, v)| self.intrinsics.pixel_dir(u, v).cast::<f32>())
             .collect();
-        let (caster, origin) = (&*self.caster, self.origin);
-        let (rows, miss, t_max) = (
-            &*self.leaf_rows,
-            self.params.miss_score,
-            self.params.max_range,
-        );
-        let (k, cos) = (table.rows, &table.cos);
         let t0 = std::time::Instant::now();
         // Pixel-major packets take the particles in packet order (compact
         // runs of PACKET); the scores go back to the caller's order at the
@@ -415,6 +408,17 @@ impl SensorModel {
             RayOrder::PixelMajor => true,
         };
         self.last_pixel_major = pixel_major;
+        let cast = GroupCast {
+            caster: &*self.caster,
+            origin: self.origin,
+            dirs: &dirs,
+            rows: &self.leaf_rows,
+            cos: &table.cos,
+            k: table.rows,
+            miss: self.params.miss_score,
+            t_max: self.params.max_range,
+            pixel_major,
+        };
         let (cast_particles, mut cast_scores) = if pixel_major {
             (&grouped[..], vec![0.0f32; np])
         } else {
@@ -438,70 +442,7 @@ impl SensorModel {
                         vec![Hit::miss(); nj * RAY_GROUP],
                     )
                 },
-                |(rays, hits), (out, group)| {
-                    let m = group.len();
-                    let frames: Vec<(Matrix3<f32>, [f32; 3])> = group
-                        .iter()
-                        .map(|p| {
-                            let r = p.pose.rotation.to_rotation_matrix().into_inner();
-                            let o = p.pose.translation.vector - origin;
-                            (r.cast::<f32>(), [o.x as f32, o.y as f32, o.z as f32])
-                        })
-                        .collect();
-                    let ray = |(r, o): &(Matrix3<f32>, [f32; 3]), d: &Vector3<f32>| {
-                        let w = r * d;
-                        Ray {
-                            origin: *o,
-                            dir: [w.x, w.y, w.z],
-                            t_min: 0.0,
-                            t_max,
-                        }
-                    };
-                    // Written in place (nested loops over exact slices), which
-                    // the compiler turns into tight code, unlike a flat_map.
-                    rays.resize(nj * m, Ray::new([0.0; 3], [1.0, 0.0, 0.0]));
-                    if pixel_major {
-                        for (row, d) in rays.chunks_exact_mut(m).zip(&dirs) {
-                            for (r, f) in row.iter_mut().zip(&frames) {
-                                *r = ray(f, d);
-                            }
-                        }
-                    } else {
-                        for (row, f) in rays.chunks_exact_mut(nj).zip(&frames) {
-                            for (r, d) in row.iter_mut().zip(&dirs) {
-                                *r = ray(f, d);
-                            }
-                        }
-                    }
-                    let hits = &mut hits[..nj * m];
-                    caster.cast_serial(rays, hits);
-                    let score = |h: &Hit, j: usize| match rows.get(h.leaf as usize) {
-                        Some(&r) if (r as usize) < k => {
-                            cos.get(j * k + r as usize).copied().unwrap_or(miss)
-                        }
-                        _ => miss,
-                    };
-                    // Each particle sums its pixels in order in either
-                    // layout, so both give the same floats.
-                    out.fill(0.0);
-                    if pixel_major {
-                        for (j, row) in hits.chunks_exact(m).enumerate() {
-                            for (o, h) in out.iter_mut().zip(row) {
-                                *o += score(h, j);
-                            }
-                        }
-                    } else {
-                        for (o, row) in out.iter_mut().zip(hits.chunks_exact(nj)) {
-                            *o = row
-                                .iter()
-                                .enumerate()
-                                .fold(0.0, |a, (j, h)| a + score(h, j));
-                        }
-                    }
-                    for o in out.iter_mut() {
-                        *o /= nj as f32;
-                    }
-                },
+                |(rays, hits), (out, group)| cast.group(group, out, rays, hits),
             );
         if pixel_major {
             for (&i, &v) in order.iter().zip(&cast_scores) {
@@ -510,5 +451,106 @@ impl SensorModel {
         }
         self.last_cast = t0.elapsed();
         &self.scores
+    }
+}
+
+/// What the groups of particles share in one call of
+/// [`SensorModel::likelihoods`]: the caster, the pixels' directions in the
+/// camera frame, the leaf-to-row map and the similarity table.
+struct GroupCast<'a> {
+    caster: &'a dyn RayCaster,
+    origin: Vector3<f64>,
+    dirs: &'a [Vector3<f32>],
+    rows: &'a [u32],
+    /// `cos[j * k + r]`: pixel `j`'s score against feature row `r`.
+    cos: &'a [f32],
+    k: usize,
+    miss: f32,
+    t_max: f32,
+    pixel_major: bool,
+}
+
+impl GroupCast<'_> {
+    /// Makes, casts and scores the rays of one group of particles; `out`
+    /// gets each particle's mean score. `rays` and `hits` are the task's
+    /// reused buffers.
+    fn group(&self, group: &[Particle], out: &mut [f32], rays: &mut Vec<Ray>, hits: &mut [Hit]) {
+        let nj = self.dirs.len();
+        self.rays(group, rays);
+        let hits = &mut hits[..nj * group.len()];
+        self.caster.cast_serial(rays, hits);
+        self.score(hits, out);
+    }
+
+    /// Every ray of the group, pixel-major (a row a pixel) or
+    /// particle-major (a row a particle).
+    fn rays(&self, group: &[Particle], rays: &mut Vec<Ray>) {
+        let (m, nj) = (group.len(), self.dirs.len());
+        let frames: Vec<(Matrix3<f32>, [f32; 3])> = group
+            .iter()
+            .map(|p| {
+                let r = p.pose.rotation.to_rotation_matrix().into_inner();
+                let o = p.pose.translation.vector - self.origin;
+                (r.cast::<f32>(), [o.x as f32, o.y as f32, o.z as f32])
+            })
+            .collect();
+        let t_max = self.t_max;
+        let ray = |(r, o): &(Matrix3<f32>, [f32; 3]), d: &Vector3<f32>| {
+            let w = r * d;
+            Ray {
+                origin: *o,
+                dir: [w.x, w.y, w.z],
+                t_min: 0.0,
+                t_max,
+            }
+        };
+        // Written in place (nested loops over exact slices), which the
+        // compiler turns into tight code, unlike a flat_map.
+        rays.resize(nj * m, Ray::new([0.0; 3], [1.0, 0.0, 0.0]));
+        if self.pixel_major {
+            for (row, d) in rays.chunks_exact_mut(m).zip(self.dirs) {
+                for (r, f) in row.iter_mut().zip(&frames) {
+                    *r = ray(f, d);
+                }
+            }
+        } else {
+            for (row, f) in rays.chunks_exact_mut(nj).zip(&frames) {
+                for (r, d) in row.iter_mut().zip(self.dirs) {
+                    *r = ray(f, d);
+                }
+            }
+        }
+    }
+
+    /// Each particle's mean score over its pixels. Each particle sums its
+    /// pixels in order in either layout, so both give the same floats.
+    fn score(&self, hits: &[Hit], out: &mut [f32]) {
+        let (m, nj, k) = (out.len(), self.dirs.len(), self.k);
+        let score = |h: &Hit, j: usize| match self.rows.get(h.leaf as usize) {
+            Some(&r) if (r as usize) < k => self
+                .cos
+                .get(j * k + r as usize)
+                .copied()
+                .unwrap_or(self.miss),
+            _ => self.miss,
+        };
+        out.fill(0.0);
+        if self.pixel_major {
+            for (j, row) in hits.chunks_exact(m).enumerate() {
+                for (o, h) in out.iter_mut().zip(row) {
+                    *o += score(h, j);
+                }
+            }
+        } else {
+            for (o, row) in out.iter_mut().zip(hits.chunks_exact(nj)) {
+                *o = row
+                    .iter()
+                    .enumerate()
+                    .fold(0.0, |a, (j, h)| a + score(h, j));
+            }
+        }
+        for o in out.iter_mut() {
+            *o /= nj as f32;
+        }
     }
 }
