@@ -17,6 +17,7 @@ use super::lidar::{self, LidarConfig};
 use super::outdoor::{self, OUTDOOR_CLASSES, OutdoorConfig, SEMANTIC_KITTI_IDS};
 use super::paths::{self, IndoorPathConfig, OdometryConfig};
 use super::render::{self, Frame, NO_LABEL};
+use super::world::VoxelWorld;
 use crate::geometry::{Intrinsics, Pose};
 use crate::io::kitti::{KITTI_IMAGE_SIZE, KittiCamera, parse_calib};
 use crate::raycast::{EmbreeCaster, EmbreeError};
@@ -376,21 +377,15 @@ pub const CAMERA_NO_LABEL: u16 = 0;
 /// use; [`CAMERA_NO_LABEL`] for sky) and, with `cfg.features`,
 /// `features_2/`; the sequence folder gets the class table the labels index
 /// (`classes.txt` with `<id> <name>` lines, `embeddings.npy`).
-pub fn write_outdoor(
+/// The outdoor dataset's files other than the frames: folders, calibration,
+/// poses, times, class tables and the world.
+fn write_outdoor_layout(
     dir: &Path,
+    seq: &Path,
     cfg: &OutdoorDatasetConfig,
-    kitti_gt: &[Pose],
+    world: &outdoor::OutdoorWorld,
     table: &ClassEmbeddings,
-    progress: &(dyn Fn(usize) + Sync),
-) -> Result<Summary, SimError> {
-    let start = Instant::now();
-    if kitti_gt.is_empty() {
-        return Err(SimError::Config("the driving path has no poses".into()));
-    }
-    let table = table.subset(OUTDOOR_CLASSES)?;
-    let world = outdoor::generate(&cfg.world, kitti_gt);
-    let caster = EmbreeCaster::new(world.voxels.resolution as f32, &world.voxels.cells)?;
-    let seq = dir.join("sequences").join("00");
+) -> Result<(), SimError> {
     files::create_dir(&seq.join("velodyne"))?;
     files::create_dir(&seq.join("labels"))?;
     if cfg.images {
@@ -410,7 +405,7 @@ pub fn write_outdoor(
         .map(|i| format!("{:.6e}\n", i as f64 * 0.1))
         .collect();
     files::write_atomic(&seq.join("times.txt"), times.as_bytes())?;
-    files::save_table(dir, &table)?;
+    files::save_table(dir, table)?;
     let ids: String = OUTDOOR_CLASSES
         .iter()
         .zip(SEMANTIC_KITTI_IDS)
@@ -426,63 +421,134 @@ pub fn write_outdoor(
         &table.rows,
     )
     .map_err(SimIoError::from)?;
+    files::write_world(&dir.join("world"), &world.voxels)?;
+    Ok(())
+}
+
+/// Frame `i`'s LiDAR scan and its point labels (SemanticKITTI ids).
+fn write_scan(
+    seq: &Path,
+    name: &str,
+    caster: &EmbreeCaster,
+    voxels: &VoxelWorld,
+    world_from_lidar: &Pose,
+    cfg: &OutdoorDatasetConfig,
+    i: usize,
+) -> Result<(), SimError> {
+    let pts = lidar::scan(
+        caster,
+        voxels,
+        world_from_lidar,
+        &cfg.lidar,
+        cfg.seed.wrapping_add(i as u64),
+    );
+    let xyzr: Vec<[f32; 4]> = pts
+        .iter()
+        .map(|p| [p.xyz[0], p.xyz[1], p.xyz[2], p.reflectance])
+        .collect();
+    let labels: Vec<u32> = pts
+        .iter()
+        .map(|p| {
+            SEMANTIC_KITTI_IDS
+                .get(p.label as usize)
+                .copied()
+                .unwrap_or(0)
+        })
+        .collect();
+    files::write_velodyne(&seq.join("velodyne").join(format!("{name}.bin")), &xyzr)?;
+    files::write_labels(&seq.join("labels").join(format!("{name}.label")), &labels)?;
+    Ok(())
+}
+
+/// What camera 2's frames are rendered with.
+struct Camera2<'a> {
+    caster: &'a EmbreeCaster,
+    voxels: &'a VoxelWorld,
+    intrinsics: &'a Intrinsics,
+    model: Option<&'a FeatureModel>,
+    stride: u32,
+}
+
+impl Camera2<'_> {
+    /// Frame `i`'s image, label image and, with a feature model, its
+    /// feature file.
+    fn write_frame(
+        &self,
+        seq: &Path,
+        name: &str,
+        world_from_camera: &Pose,
+        i: usize,
+    ) -> Result<(), SimError> {
+        let f = render::render_frame(self.caster, self.voxels, self.intrinsics, world_from_camera);
+        let colour = |l: u16| render::class_colour(l + 29);
+        let rgb = render::rgb_image(&f, &colour);
+        files::write_png_rgb(
+            &seq.join("image_2").join(format!("{name}.png")),
+            f.width,
+            f.height,
+            &rgb,
+        )?;
+        files::write_png_gray16(
+            &seq.join("labels_2").join(format!("{name}.png")),
+            f.width,
+            f.height,
+            &camera_labels(&f.labels),
+        )?;
+        if let Some(m) = self.model {
+            let (feat, w, h) = m.image_features(i as u64, &f, self.stride);
+            crate::io::npy::write_npy(
+                &seq.join("features_2").join(format!("{name}.npy")),
+                &[h as usize, w as usize, m.dim()],
+                &feat,
+            )
+            .map_err(SimIoError::from)?;
+        }
+        Ok(())
+    }
+}
+
+pub fn write_outdoor(
+    dir: &Path,
+    cfg: &OutdoorDatasetConfig,
+    kitti_gt: &[Pose],
+    table: &ClassEmbeddings,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<Summary, SimError> {
+    let start = Instant::now();
+    if kitti_gt.is_empty() {
+        return Err(SimError::Config("the driving path has no poses".into()));
+    }
+    let table = table.subset(OUTDOOR_CLASSES)?;
+    let world = outdoor::generate(&cfg.world, kitti_gt);
+    let caster = EmbreeCaster::new(world.voxels.resolution as f32, &world.voxels.cells)?;
+    let seq = dir.join("sequences").join("00");
+    write_outdoor_layout(dir, &seq, cfg, &world, &table)?;
     let model = (cfg.images && cfg.features)
         .then(|| FeatureModel::preset(table.clone(), cfg.preset, cfg.seed.wrapping_add(3)));
-    files::write_world(&dir.join("world"), &world.voxels)?;
     let cam_from_velo = kitti00_camera_from_velodyne();
     let cam2 = kitti00_camera2()?;
     let (k2, cam0_from_cam2) = (cam2.intrinsics, cam2.camera0_from_camera);
+    let camera = Camera2 {
+        caster: &caster,
+        voxels: &world.voxels,
+        intrinsics: &k2,
+        model: model.as_ref(),
+        stride: cfg.feature_stride,
+    };
     let done = std::sync::atomic::AtomicUsize::new(0);
     for (i, pose) in world.poses.iter().enumerate() {
-        let world_from_lidar = pose * cam_from_velo;
-        let pts = lidar::scan(
+        let name = format!("{i:06}");
+        write_scan(
+            &seq,
+            &name,
             &caster,
             &world.voxels,
-            &world_from_lidar,
-            &cfg.lidar,
-            cfg.seed.wrapping_add(i as u64),
-        );
-        let xyzr: Vec<[f32; 4]> = pts
-            .iter()
-            .map(|p| [p.xyz[0], p.xyz[1], p.xyz[2], p.reflectance])
-            .collect();
-        let labels: Vec<u32> = pts
-            .iter()
-            .map(|p| {
-                SEMANTIC_KITTI_IDS
-                    .get(p.label as usize)
-                    .copied()
-                    .unwrap_or(0)
-            })
-            .collect();
-        let name = format!("{i:06}");
-        files::write_velodyne(&seq.join("velodyne").join(format!("{name}.bin")), &xyzr)?;
-        files::write_labels(&seq.join("labels").join(format!("{name}.label")), &labels)?;
+            &(pose * cam_from_velo),
+            cfg,
+            i,
+        )?;
         if cfg.images {
-            let f = render::render_frame(&caster, &world.voxels, &k2, &(pose * cam0_from_cam2));
-            let colour = |l: u16| render::class_colour(l + 29);
-            let rgb = render::rgb_image(&f, &colour);
-            files::write_png_rgb(
-                &seq.join("image_2").join(format!("{name}.png")),
-                f.width,
-                f.height,
-                &rgb,
-            )?;
-            files::write_png_gray16(
-                &seq.join("labels_2").join(format!("{name}.png")),
-                f.width,
-                f.height,
-                &camera_labels(&f.labels),
-            )?;
-            if let Some(m) = &model {
-                let (feat, w, h) = m.image_features(i as u64, &f, cfg.feature_stride);
-                crate::io::npy::write_npy(
-                    &seq.join("features_2").join(format!("{name}.npy")),
-                    &[h as usize, w as usize, m.dim()],
-                    &feat,
-                )
-                .map_err(SimIoError::from)?;
-            }
+            camera.write_frame(&seq, &name, &(pose * cam0_from_cam2), i)?;
         }
         progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
     }

@@ -154,55 +154,10 @@ pub fn generate(config: &IndoorConfig) -> IndoorWorld {
     let h = config.wall_height;
     let t = (2.0 * config.resolution).max(0.08);
     let n = config.rooms.max(1);
-    let mut kinds = vec![
-        RoomKind::Living,
-        RoomKind::Kitchen,
-        RoomKind::Bathroom,
-        RoomKind::Bedroom,
-        RoomKind::Office,
-    ];
-    let extra = [
-        RoomKind::Bedroom,
-        RoomKind::Office,
-        RoomKind::Bathroom,
-        RoomKind::Living,
-    ];
-    while kinds.len() < n {
-        kinds.push(extra[rng.random_range(0..extra.len())]);
-    }
-    kinds.truncate(n);
-    kinds.shuffle(&mut rng);
+    let kinds = room_kinds(n, &mut rng);
 
     let cw = rng.random_range(1.4..1.7);
-    let mut rooms = Vec::new();
-    let mut x_side = [0.0f64, 0.0];
-    for (i, &kind) in kinds.iter().enumerate() {
-        let side = i % 2; // 0: south (y < 0), 1: north (y > cw)
-        let (w, d): (f64, f64) = match kind {
-            RoomKind::Bathroom => (rng.random_range(2.3..3.0), rng.random_range(2.6..3.2)),
-            RoomKind::Living => (rng.random_range(4.0..5.0), rng.random_range(3.8..4.6)),
-            _ => (rng.random_range(3.2..4.2), rng.random_range(3.4..4.4)),
-        };
-        let x0 = x_side[side];
-        let x1 = x0 + w;
-        x_side[side] = x1;
-        let (y0, y1, door_y, inward) = if side == 0 {
-            (-d, 0.0, 0.0, [0.0, -1.0])
-        } else {
-            (cw, cw + d, cw, [0.0, 1.0])
-        };
-        let door_x = rng.random_range(x0 + 0.8..x1 - 0.8);
-        let depth_in = rng.random_range(1.3..(d - 1.1).max(1.4));
-        let viewpoint = [door_x, door_y + inward[1] * depth_in];
-        rooms.push(Room {
-            kind,
-            min: [x0, y0],
-            max: [x1, y1],
-            door: [door_x, door_y],
-            inward,
-            viewpoint,
-        });
-    }
+    let (rooms, x_side) = lay_out_rooms(&kinds, cw, &mut rng);
     let length = x_side[0].max(x_side[1]);
     let mut scene = Scene {
         classes: INDOOR_CLASSES.iter().map(|s| s.to_string()).collect(),
@@ -214,33 +169,7 @@ pub fn generate(config: &IndoorConfig) -> IndoorWorld {
     scene.add_box(FLOOR, [-t, y_min - t, -r], [length + t, y_max + t, 0.0]);
     scene.add_box(CEILING, [-t, y_min - t, h], [length + t, y_max + t, h + r]);
 
-    // Corridor walls with the doors of the rooms on each side.
-    for (side, y) in [(0usize, 0.0), (1, cw)] {
-        let doors: Vec<Opening> = rooms
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| i % 2 == side)
-            .map(|(_, rm)| Opening::door(rm.door[0]))
-            .collect();
-        wall_x(&mut scene, y, 0.0, length, t, h, &doors);
-    }
-    wall_y(&mut scene, 0.0, 0.0, cw, t, h, &[]);
-    wall_y(
-        &mut scene,
-        length,
-        0.0,
-        cw,
-        t,
-        h,
-        &[Opening::window(0.5 * cw, 0.8)],
-    );
-    // Blind walls where one side of the corridor is shorter than the other.
-    for (side, &x_end) in x_side.iter().enumerate() {
-        if x_end < length - 1e-9 {
-            let (ya, yb) = if side == 0 { (y_min, 0.0) } else { (cw, y_max) };
-            wall_y(&mut scene, x_end, ya, yb, t, h, &[]);
-        }
-    }
+    corridor_walls(&mut scene, &rooms, x_side, cw, [y_min, y_max], t, h);
     for rm in &rooms {
         let outer_y = if rm.inward[1] < 0.0 {
             rm.min[1]
@@ -269,22 +198,7 @@ pub fn generate(config: &IndoorConfig) -> IndoorWorld {
         let window = (wx, ww, outer_y);
         furnish(&mut scene, rm, window, &mut rng);
     }
-    // Pictures along the corridor walls, between doors.
-    for _ in 0..(length / 3.0).ceil() as usize {
-        let x = rng.random_range(0.5..(length - 0.5).max(0.6));
-        let side_y = if rng.random_bool(0.5) {
-            t / 2.0
-        } else {
-            cw - t / 2.0
-        };
-        let clear = rooms
-            .iter()
-            .all(|rm| (rm.door[0] - x).abs() > 1.0 || (rm.door[1] - side_y).abs() > 0.5);
-        if clear {
-            let dy = if side_y < cw / 2.0 { 0.03 } else { -0.03 };
-            scene.add_box(PICTURE, [x - 0.3, side_y, 1.3], [x + 0.3, side_y + dy, 1.8]);
-        }
-    }
+    corridor_pictures(&mut scene, &rooms, length, cw, t, &mut rng);
     let layout = IndoorLayout {
         rooms,
         corridor_length: length,
@@ -539,6 +453,133 @@ impl Furnisher<'_> {
     }
 }
 
+/// The kinds of `n` rooms: one of each kind first, then bedrooms, offices,
+/// bathrooms or living rooms at random; shuffled.
+fn room_kinds(n: usize, rng: &mut ChaCha8Rng) -> Vec<RoomKind> {
+    let mut kinds = vec![
+        RoomKind::Living,
+        RoomKind::Kitchen,
+        RoomKind::Bathroom,
+        RoomKind::Bedroom,
+        RoomKind::Office,
+    ];
+    let extra = [
+        RoomKind::Bedroom,
+        RoomKind::Office,
+        RoomKind::Bathroom,
+        RoomKind::Living,
+    ];
+    while kinds.len() < n {
+        kinds.push(extra[rng.random_range(0..extra.len())]);
+    }
+    kinds.truncate(n);
+    kinds.shuffle(rng);
+    kinds
+}
+
+/// The rooms along both sides of a corridor of width `cw` (even rooms
+/// south, odd rooms north), each with its door on the corridor and a
+/// viewpoint inside; and where each side of the corridor ends.
+fn lay_out_rooms(kinds: &[RoomKind], cw: f64, rng: &mut ChaCha8Rng) -> (Vec<Room>, [f64; 2]) {
+    let mut rooms = Vec::new();
+    let mut x_side = [0.0f64, 0.0];
+    for (i, &kind) in kinds.iter().enumerate() {
+        let side = i % 2; // 0: south (y < 0), 1: north (y > cw)
+        let (w, d): (f64, f64) = match kind {
+            RoomKind::Bathroom => (rng.random_range(2.3..3.0), rng.random_range(2.6..3.2)),
+            RoomKind::Living => (rng.random_range(4.0..5.0), rng.random_range(3.8..4.6)),
+            _ => (rng.random_range(3.2..4.2), rng.random_range(3.4..4.4)),
+        };
+        let x0 = x_side[side];
+        let x1 = x0 + w;
+        x_side[side] = x1;
+        let (y0, y1, door_y, inward) = if side == 0 {
+            (-d, 0.0, 0.0, [0.0, -1.0])
+        } else {
+            (cw, cw + d, cw, [0.0, 1.0])
+        };
+        let door_x = rng.random_range(x0 + 0.8..x1 - 0.8);
+        let depth_in = rng.random_range(1.3..(d - 1.1).max(1.4));
+        let viewpoint = [door_x, door_y + inward[1] * depth_in];
+        rooms.push(Room {
+            kind,
+            min: [x0, y0],
+            max: [x1, y1],
+            door: [door_x, door_y],
+            inward,
+            viewpoint,
+        });
+    }
+    (rooms, x_side)
+}
+
+/// The corridor's walls: its long walls with the rooms' doors, its ends
+/// (a window at the far one), and blind walls where one side is shorter.
+fn corridor_walls(
+    scene: &mut Scene,
+    rooms: &[Room],
+    x_side: [f64; 2],
+    cw: f64,
+    [y_min, y_max]: [f64; 2],
+    t: f64,
+    h: f64,
+) {
+    let length = x_side[0].max(x_side[1]);
+    // Corridor walls with the doors of the rooms on each side.
+    for (side, y) in [(0usize, 0.0), (1, cw)] {
+        let doors: Vec<Opening> = rooms
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| i % 2 == side)
+            .map(|(_, rm)| Opening::door(rm.door[0]))
+            .collect();
+        wall_x(scene, y, 0.0, length, t, h, &doors);
+    }
+    wall_y(scene, 0.0, 0.0, cw, t, h, &[]);
+    wall_y(
+        scene,
+        length,
+        0.0,
+        cw,
+        t,
+        h,
+        &[Opening::window(0.5 * cw, 0.8)],
+    );
+    // Blind walls where one side of the corridor is shorter than the other.
+    for (side, &x_end) in x_side.iter().enumerate() {
+        if x_end < length - 1e-9 {
+            let (ya, yb) = if side == 0 { (y_min, 0.0) } else { (cw, y_max) };
+            wall_y(scene, x_end, ya, yb, t, h, &[]);
+        }
+    }
+}
+
+/// Pictures along the corridor walls, away from the doors.
+fn corridor_pictures(
+    scene: &mut Scene,
+    rooms: &[Room],
+    length: f64,
+    cw: f64,
+    t: f64,
+    rng: &mut ChaCha8Rng,
+) {
+    for _ in 0..(length / 3.0).ceil() as usize {
+        let x = rng.random_range(0.5..(length - 0.5).max(0.6));
+        let side_y = if rng.random_bool(0.5) {
+            t / 2.0
+        } else {
+            cw - t / 2.0
+        };
+        let clear = rooms
+            .iter()
+            .all(|rm| (rm.door[0] - x).abs() > 1.0 || (rm.door[1] - side_y).abs() > 0.5);
+        if clear {
+            let dy = if side_y < cw / 2.0 { 0.03 } else { -0.03 };
+            scene.add_box(PICTURE, [x - 0.3, side_y, 1.3], [x + 0.3, side_y + dy, 1.8]);
+        }
+    }
+}
+
 fn furnish(scene: &mut Scene, rm: &Room, window: (f64, f64, f64), rng: &mut ChaCha8Rng) {
     let south = rm.inward[1] < 0.0;
     // The door is on the corridor side; the window on the opposite wall.
@@ -572,162 +613,178 @@ fn furnish(scene: &mut Scene, rm: &Room, window: (f64, f64, f64), rng: &mut ChaC
         }
     }
     match rm.kind {
-        RoomKind::Living => {
-            if let Some(p) = f.against_wall(rng, 2.1, 0.95, true) {
-                sofa(scene, &p, 2.1, 0.95);
-                // Coffee table in front of the sofa, rug under both.
-                scene.add(RUG, p.bx(-1.3, 1.3, 0.3, 2.2, 0.0, 0.012));
-                table(scene, &p.shift(0.0, 1.3), 1.0, 0.55, 0.45, TABLE);
-            }
-            if let Some(p) = f.against_wall(rng, 1.4, 0.45, false) {
-                scene.add(CABINET, p.bx(-0.7, 0.7, 0.0, 0.45, 0.0, 0.55));
-                scene.add(TV, p.bx(-0.55, 0.55, 0.1, 0.16, 0.6, 1.25));
-                scene.add(TV, p.bx(-0.1, 0.1, 0.05, 0.25, 0.55, 0.6));
-            }
-            if let Some(p) = f.against_wall(rng, 0.9, 0.35, true) {
-                shelving(scene, &p, 0.9, 0.35, 1.9);
-            }
-            plant_and_lamp(scene, &mut f, rng);
-            pictures(scene, &mut f, rng, 2);
-        }
-        RoomKind::Kitchen => {
-            let run = (rm.max[1] - rm.min[1] - 1.0).min(3.0);
-            if let Some(p) = f.against_wall(rng, run, 0.62, true) {
-                kitchen_run(scene, &p, run, rng);
-            }
-            if let Some(c) = f.anywhere(rng, 1.8, 1.6) {
-                let p = Place {
-                    o: [c[0], c[1] - 0.4],
+        RoomKind::Living => furnish_living(scene, &mut f, rng),
+        RoomKind::Kitchen => furnish_kitchen(scene, &mut f, rng),
+        RoomKind::Bathroom => furnish_bathroom(scene, &mut f, rng),
+        RoomKind::Bedroom => furnish_bedroom(scene, &mut f, rng),
+        RoomKind::Office => furnish_office(scene, &mut f, rng),
+    }
+}
+
+/// A sofa with a coffee table on a rug, a TV on a cabinet, shelving, a plant, a lamp and pictures.
+fn furnish_living(scene: &mut Scene, f: &mut Furnisher, rng: &mut ChaCha8Rng) {
+    if let Some(p) = f.against_wall(rng, 2.1, 0.95, true) {
+        sofa(scene, &p, 2.1, 0.95);
+        // Coffee table in front of the sofa, rug under both.
+        scene.add(RUG, p.bx(-1.3, 1.3, 0.3, 2.2, 0.0, 0.012));
+        table(scene, &p.shift(0.0, 1.3), 1.0, 0.55, 0.45, TABLE);
+    }
+    if let Some(p) = f.against_wall(rng, 1.4, 0.45, false) {
+        scene.add(CABINET, p.bx(-0.7, 0.7, 0.0, 0.45, 0.0, 0.55));
+        scene.add(TV, p.bx(-0.55, 0.55, 0.1, 0.16, 0.6, 1.25));
+        scene.add(TV, p.bx(-0.1, 0.1, 0.05, 0.25, 0.55, 0.6));
+    }
+    if let Some(p) = f.against_wall(rng, 0.9, 0.35, true) {
+        shelving(scene, &p, 0.9, 0.35, 1.9);
+    }
+    plant_and_lamp(scene, f, rng);
+    pictures(scene, f, rng, 2);
+}
+
+/// A kitchen run along a wall, a dining table with chairs, a plant, a lamp and a picture.
+fn furnish_kitchen(scene: &mut Scene, f: &mut Furnisher, rng: &mut ChaCha8Rng) {
+    let rm = f.rm;
+    let run = (rm.max[1] - rm.min[1] - 1.0).min(3.0);
+    if let Some(p) = f.against_wall(rng, run, 0.62, true) {
+        kitchen_run(scene, &p, run, rng);
+    }
+    if let Some(c) = f.anywhere(rng, 1.8, 1.6) {
+        let p = Place {
+            o: [c[0], c[1] - 0.4],
+            u: [1.0, 0.0],
+            n: [0.0, 1.0],
+        };
+        table(scene, &p, 1.2, 0.8, 0.75, TABLE);
+        chair(
+            scene,
+            &Place {
+                o: [c[0] - 0.3, c[1] - 0.75],
+                u: [1.0, 0.0],
+                n: [0.0, 1.0],
+            },
+        );
+        chair(
+            scene,
+            &Place {
+                o: [c[0] + 0.3, c[1] + 0.75],
+                u: [-1.0, 0.0],
+                n: [0.0, -1.0],
+            },
+        );
+        if rng.random_bool(0.5) {
+            chair(
+                scene,
+                &Place {
+                    o: [c[0] + 0.3, c[1] - 0.75],
                     u: [1.0, 0.0],
                     n: [0.0, 1.0],
-                };
-                table(scene, &p, 1.2, 0.8, 0.75, TABLE);
-                chair(
-                    scene,
-                    &Place {
-                        o: [c[0] - 0.3, c[1] - 0.75],
-                        u: [1.0, 0.0],
-                        n: [0.0, 1.0],
-                    },
-                );
-                chair(
-                    scene,
-                    &Place {
-                        o: [c[0] + 0.3, c[1] + 0.75],
-                        u: [-1.0, 0.0],
-                        n: [0.0, -1.0],
-                    },
-                );
-                if rng.random_bool(0.5) {
-                    chair(
-                        scene,
-                        &Place {
-                            o: [c[0] + 0.3, c[1] - 0.75],
-                            u: [1.0, 0.0],
-                            n: [0.0, 1.0],
-                        },
-                    );
-                }
-            }
-            plant_and_lamp(scene, &mut f, rng);
-            pictures(scene, &mut f, rng, 1);
-        }
-        RoomKind::Bathroom => {
-            if let Some(p) = f.against_wall(rng, 1.7, 0.75, true) {
-                scene.add(BATHTUB, p.bx(-0.85, 0.85, 0.0, 0.75, 0.0, 0.55));
-            }
-            if let Some(p) = f.against_wall(rng, 0.45, 0.7, false) {
-                scene.add(TOILET, p.bx(-0.2, 0.2, 0.0, 0.2, 0.35, 0.8));
-                let c = p.at(0.0, 0.45);
-                scene.add(
-                    TOILET,
-                    Shape::Cylinder {
-                        x: c[0],
-                        y: c[1],
-                        radius: 0.2,
-                        z0: 0.0,
-                        z1: 0.42,
-                    },
-                );
-            }
-            if let Some(p) = f.against_wall(rng, 1.3, 0.5, true) {
-                scene.add(CABINET, p.bx(-0.32, 0.32, 0.0, 0.48, 0.0, 0.8));
-                scene.add(SINK, p.bx(-0.3, 0.3, 0.02, 0.5, 0.8, 0.9));
-                scene.add(MIRROR, p.bx(-0.3, 0.3, 0.0, 0.02, 1.1, 1.8));
-                scene.add(TOWEL, p.bx(0.4, 0.65, 0.0, 0.04, 0.8, 1.4));
-            }
-            if let Some(p) = f.against_wall(rng, 0.6, 0.05, true) {
-                scene.add(TOWEL, p.bx(-0.3, 0.3, 0.0, 0.05, 0.9, 1.6));
-            }
-        }
-        RoomKind::Bedroom => {
-            if let Some(p) = f.against_wall(rng, 2.8, 2.1, true) {
-                bed(scene, &p, 1.6, 2.05);
-                for s in [-1.0, 1.0] {
-                    let q = p.shift(s * 1.1, 0.0);
-                    scene.add(NIGHTSTAND, q.bx(-0.22, 0.22, 0.0, 0.4, 0.0, 0.55));
-                    let c = q.at(0.0, 0.2);
-                    scene.add(
-                        LAMP,
-                        Shape::Cylinder {
-                            x: c[0],
-                            y: c[1],
-                            radius: 0.06,
-                            z0: 0.55,
-                            z1: 0.75,
-                        },
-                    );
-                    scene.add(
-                        LAMP,
-                        Shape::Cylinder {
-                            x: c[0],
-                            y: c[1],
-                            radius: 0.14,
-                            z0: 0.75,
-                            z1: 0.95,
-                        },
-                    );
-                }
-            }
-            if let Some(p) = f.against_wall(rng, 1.2, 0.6, true) {
-                scene.add(WARDROBE, p.bx(-0.6, 0.6, 0.0, 0.6, 0.0, 2.0));
-            }
-            if let Some(c) = f.anywhere(rng, 1.6, 1.0) {
-                scene.add_box(
-                    RUG,
-                    [c[0] - 0.8, c[1] - 0.5, 0.0],
-                    [c[0] + 0.8, c[1] + 0.5, 0.012],
-                );
-            }
-            pictures(scene, &mut f, rng, 2);
-            plant_and_lamp(scene, &mut f, rng);
-        }
-        RoomKind::Office => {
-            if let Some(p) = f.against_wall(rng, 1.4, 1.3, false) {
-                table(scene, &p, 1.4, 0.7, 0.74, DESK);
-                scene.add(TV, p.bx(-0.3, 0.3, 0.12, 0.16, 0.85, 1.2));
-                scene.add(TV, p.bx(-0.08, 0.08, 0.1, 0.22, 0.74, 0.85));
-                chair(
-                    scene,
-                    &Place {
-                        o: p.at(0.0, 1.2),
-                        u: [-p.u[0], -p.u[1]],
-                        n: [-p.n[0], -p.n[1]],
-                    },
-                );
-            }
-            for _ in 0..2 {
-                if let Some(p) = f.against_wall(rng, 0.9, 0.35, true) {
-                    shelving(scene, &p, 0.9, 0.35, 1.9);
-                }
-            }
-            if let Some(p) = f.against_wall(rng, 0.8, 0.45, false) {
-                scene.add(CABINET, p.bx(-0.4, 0.4, 0.0, 0.45, 0.0, 0.75));
-            }
-            plant_and_lamp(scene, &mut f, rng);
-            pictures(scene, &mut f, rng, 1);
+                },
+            );
         }
     }
+    plant_and_lamp(scene, f, rng);
+    pictures(scene, f, rng, 1);
+}
+
+/// A bathtub, a toilet, a sink under a mirror on a cabinet, towels.
+fn furnish_bathroom(scene: &mut Scene, f: &mut Furnisher, rng: &mut ChaCha8Rng) {
+    if let Some(p) = f.against_wall(rng, 1.7, 0.75, true) {
+        scene.add(BATHTUB, p.bx(-0.85, 0.85, 0.0, 0.75, 0.0, 0.55));
+    }
+    if let Some(p) = f.against_wall(rng, 0.45, 0.7, false) {
+        scene.add(TOILET, p.bx(-0.2, 0.2, 0.0, 0.2, 0.35, 0.8));
+        let c = p.at(0.0, 0.45);
+        scene.add(
+            TOILET,
+            Shape::Cylinder {
+                x: c[0],
+                y: c[1],
+                radius: 0.2,
+                z0: 0.0,
+                z1: 0.42,
+            },
+        );
+    }
+    if let Some(p) = f.against_wall(rng, 1.3, 0.5, true) {
+        scene.add(CABINET, p.bx(-0.32, 0.32, 0.0, 0.48, 0.0, 0.8));
+        scene.add(SINK, p.bx(-0.3, 0.3, 0.02, 0.5, 0.8, 0.9));
+        scene.add(MIRROR, p.bx(-0.3, 0.3, 0.0, 0.02, 1.1, 1.8));
+        scene.add(TOWEL, p.bx(0.4, 0.65, 0.0, 0.04, 0.8, 1.4));
+    }
+    if let Some(p) = f.against_wall(rng, 0.6, 0.05, true) {
+        scene.add(TOWEL, p.bx(-0.3, 0.3, 0.0, 0.05, 0.9, 1.6));
+    }
+}
+
+/// A bed between nightstands with lamps, a wardrobe, a rug, pictures, a plant and a lamp.
+fn furnish_bedroom(scene: &mut Scene, f: &mut Furnisher, rng: &mut ChaCha8Rng) {
+    if let Some(p) = f.against_wall(rng, 2.8, 2.1, true) {
+        bed(scene, &p, 1.6, 2.05);
+        for s in [-1.0, 1.0] {
+            let q = p.shift(s * 1.1, 0.0);
+            scene.add(NIGHTSTAND, q.bx(-0.22, 0.22, 0.0, 0.4, 0.0, 0.55));
+            let c = q.at(0.0, 0.2);
+            scene.add(
+                LAMP,
+                Shape::Cylinder {
+                    x: c[0],
+                    y: c[1],
+                    radius: 0.06,
+                    z0: 0.55,
+                    z1: 0.75,
+                },
+            );
+            scene.add(
+                LAMP,
+                Shape::Cylinder {
+                    x: c[0],
+                    y: c[1],
+                    radius: 0.14,
+                    z0: 0.75,
+                    z1: 0.95,
+                },
+            );
+        }
+    }
+    if let Some(p) = f.against_wall(rng, 1.2, 0.6, true) {
+        scene.add(WARDROBE, p.bx(-0.6, 0.6, 0.0, 0.6, 0.0, 2.0));
+    }
+    if let Some(c) = f.anywhere(rng, 1.6, 1.0) {
+        scene.add_box(
+            RUG,
+            [c[0] - 0.8, c[1] - 0.5, 0.0],
+            [c[0] + 0.8, c[1] + 0.5, 0.012],
+        );
+    }
+    pictures(scene, f, rng, 2);
+    plant_and_lamp(scene, f, rng);
+}
+
+/// A desk with a screen and a chair, shelving, a cabinet, a plant, a lamp and a picture.
+fn furnish_office(scene: &mut Scene, f: &mut Furnisher, rng: &mut ChaCha8Rng) {
+    if let Some(p) = f.against_wall(rng, 1.4, 1.3, false) {
+        table(scene, &p, 1.4, 0.7, 0.74, DESK);
+        scene.add(TV, p.bx(-0.3, 0.3, 0.12, 0.16, 0.85, 1.2));
+        scene.add(TV, p.bx(-0.08, 0.08, 0.1, 0.22, 0.74, 0.85));
+        chair(
+            scene,
+            &Place {
+                o: p.at(0.0, 1.2),
+                u: [-p.u[0], -p.u[1]],
+                n: [-p.n[0], -p.n[1]],
+            },
+        );
+    }
+    for _ in 0..2 {
+        if let Some(p) = f.against_wall(rng, 0.9, 0.35, true) {
+            shelving(scene, &p, 0.9, 0.35, 1.9);
+        }
+    }
+    if let Some(p) = f.against_wall(rng, 0.8, 0.45, false) {
+        scene.add(CABINET, p.bx(-0.4, 0.4, 0.0, 0.45, 0.0, 0.75));
+    }
+    plant_and_lamp(scene, f, rng);
+    pictures(scene, f, rng, 1);
 }
 
 impl Place {
