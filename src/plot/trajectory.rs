@@ -328,15 +328,7 @@ fn draw_panel<DB: DrawingBackend>(
         .build_cartesian_2d(0f64..1f64, 0f64..1f64)?
         .plotting_area()
         .dim_in_pixel();
-    let (x0, x1, y0, y1) = panel.padded_extent();
-    let metres_per_pixel = ((x1 - x0) / pw.max(1) as f64).max((y1 - y0) / ph.max(1) as f64);
-    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
-    let half = (
-        metres_per_pixel * pw as f64 / 2.0,
-        metres_per_pixel * ph as f64 / 2.0,
-    );
-    let x_range = (cx - half.0, cx + half.0);
-    let y_range = (cy - half.1, cy + half.1);
+    let (x_range, y_range, metres_per_pixel) = equal_aspect(panel.padded_extent(), (pw, ph));
 
     let mut chart =
         chart_builder().build_cartesian_2d(x_range.0..x_range.1, y_range.0..y_range.1)?;
@@ -352,31 +344,107 @@ fn draw_panel<DB: DrawingBackend>(
         .draw()?;
 
     if let Some(plan) = panel.plan {
-        // Cells smaller than a pixel are merged first: that bounds the
-        // number of rectangles (and the SVG's size) by the pixel count.
-        let factor = (metres_per_pixel / plan.cell).ceil().max(1.0) as usize;
-        let plan = if factor > 1 {
-            std::borrow::Cow::Owned(plan.coarsened(factor))
-        } else {
-            std::borrow::Cow::Borrowed(plan)
-        };
-        let (c, o) = (plan.cell, plan.min_xy);
-        chart.draw_series(plan.runs().into_iter().map(|(row, start, end, kind)| {
-            let colour = if kind == PlanCell::Obstacle {
-                OBSTACLE
-            } else {
-                FLOOR
-            };
-            Rectangle::new(
-                [
-                    (o[0] + start as f64 * c, o[1] + row as f64 * c),
-                    (o[0] + end as f64 * c, o[1] + (row + 1) as f64 * c),
-                ],
-                colour.filled(),
-            )
-        }))?;
+        draw_plan(&mut chart, plan, metres_per_pixel)?;
     }
 
+    draw_paths(&mut chart, panel)?;
+    let fraction = |x: f64, y: f64| {
+        (
+            (x - x_range.0) / (x_range.1 - x_range.0),
+            (y - y_range.0) / (y_range.1 - y_range.0),
+        )
+    };
+    chart
+        .configure_series_labels()
+        .position(style::emptiest_corner(
+            panel.est.iter().map(|e| fraction(e.1, e.2)),
+        ))
+        .label_font((FONT, style::TICK_SIZE))
+        .background_style(WHITE.mix(0.85))
+        .border_style(RGBColor(160, 160, 160))
+        .legend_area_size(26)
+        .draw()?;
+
+    let (px, py) = chart.plotting_area().get_pixel_range();
+    let mut est_pixels = vec![None; est_len];
+    for &(k, x, y, _) in &panel.est {
+        est_pixels[k] = Some(chart.backend_coord(&(x, y)));
+    }
+    let colour_bar = draw_colour_bar(&bar_area, panel.top)?;
+    Ok(PanelLayout {
+        x_range,
+        y_range,
+        pixels_x: (px.start, px.end),
+        pixels_y: (py.start, py.end),
+        est_pixels,
+        colour_bar,
+    })
+}
+
+/// The panel's world ranges with equal metres per pixel on both axes (the
+/// shorter range widened to fit the plotting rectangle of `pw` x `ph`
+/// pixels), and the metres per pixel.
+fn equal_aspect(
+    (x0, x1, y0, y1): (f64, f64, f64, f64),
+    (pw, ph): (u32, u32),
+) -> ((f64, f64), (f64, f64), f64) {
+    let metres_per_pixel = ((x1 - x0) / pw.max(1) as f64).max((y1 - y0) / ph.max(1) as f64);
+    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    let half = (
+        metres_per_pixel * pw as f64 / 2.0,
+        metres_per_pixel * ph as f64 / 2.0,
+    );
+    (
+        (cx - half.0, cx + half.0),
+        (cy - half.1, cy + half.1),
+        metres_per_pixel,
+    )
+}
+
+type Chart<'a, DB> = ChartContext<
+    'a,
+    DB,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// The floor plan under the paths: floor and obstacle runs as rectangles.
+fn draw_plan<DB: DrawingBackend>(
+    chart: &mut Chart<'_, DB>,
+    plan: &FloorPlan,
+    metres_per_pixel: f64,
+) -> Result<(), DrawError> {
+    // Cells smaller than a pixel are merged first: that bounds the
+    // number of rectangles (and the SVG's size) by the pixel count.
+    let factor = (metres_per_pixel / plan.cell).ceil().max(1.0) as usize;
+    let plan = if factor > 1 {
+        std::borrow::Cow::Owned(plan.coarsened(factor))
+    } else {
+        std::borrow::Cow::Borrowed(plan)
+    };
+    let (c, o) = (plan.cell, plan.min_xy);
+    chart.draw_series(plan.runs().into_iter().map(|(row, start, end, kind)| {
+        let colour = if kind == PlanCell::Obstacle {
+            OBSTACLE
+        } else {
+            FLOOR
+        };
+        Rectangle::new(
+            [
+                (o[0] + start as f64 * c, o[1] + row as f64 * c),
+                (o[0] + end as f64 * c, o[1] + (row + 1) as f64 * c),
+            ],
+            colour.filled(),
+        )
+    }))?;
+    Ok(())
+}
+
+/// The ground truth as lines, the estimates as dots coloured by their
+/// error, and the start, each with its legend entry.
+fn draw_paths<DB: DrawingBackend>(
+    chart: &mut Chart<'_, DB>,
+    panel: &Panel,
+) -> Result<(), DrawError> {
     let gt_style = BLACK.stroke_width(1);
     for (k, line) in panel.gt_lines.iter().enumerate() {
         let annotation =
@@ -411,37 +479,7 @@ fn draw_panel<DB: DrawingBackend>(
             .label("start")
             .legend(move |(x, y)| Circle::new((x + 10, y), 6, START.stroke_width(2)));
     }
-    let fraction = |x: f64, y: f64| {
-        (
-            (x - x_range.0) / (x_range.1 - x_range.0),
-            (y - y_range.0) / (y_range.1 - y_range.0),
-        )
-    };
-    chart
-        .configure_series_labels()
-        .position(style::emptiest_corner(
-            panel.est.iter().map(|e| fraction(e.1, e.2)),
-        ))
-        .label_font((FONT, style::TICK_SIZE))
-        .background_style(WHITE.mix(0.85))
-        .border_style(RGBColor(160, 160, 160))
-        .legend_area_size(26)
-        .draw()?;
-
-    let (px, py) = chart.plotting_area().get_pixel_range();
-    let mut est_pixels = vec![None; est_len];
-    for &(k, x, y, _) in &panel.est {
-        est_pixels[k] = Some(chart.backend_coord(&(x, y)));
-    }
-    let colour_bar = draw_colour_bar(&bar_area, top)?;
-    Ok(PanelLayout {
-        x_range,
-        y_range,
-        pixels_x: (px.start, px.end),
-        pixels_y: (py.start, py.end),
-        est_pixels,
-        colour_bar,
-    })
+    Ok(())
 }
 
 /// The error scale: viridis from 0 m (bottom) to `top` metres, ticks in
