@@ -110,50 +110,8 @@ fn split(spec: &str, what: &str) -> anyhow::Result<(String, PathBuf)> {
 }
 
 pub fn run(a: ServeArgs) -> anyhow::Result<()> {
-    let token = match (&a.token_file, std::env::var(TOKEN_ENV)) {
-        (Some(p), _) => Token::from_file(p).map_err(anyhow::Error::msg)?,
-        (None, Ok(t)) => Token::new(&t).map_err(|e| anyhow::anyhow!("${TOKEN_ENV}: {e}"))?,
-        (None, Err(_)) => bail!(
-            "no token: pass --token-file FILE or set {TOKEN_ENV} (tokens are never taken from \
-             the command line)"
-        ),
-    };
-    let mut maps: Vec<SharedMap> = Vec::new();
-    for spec in &a.maps {
-        let (name, path) = split(spec, "--map")?;
-        if maps.iter().any(|m| m.name() == name) {
-            bail!("--map {spec:?}: a map named {name:?} is already given");
-        }
-        maps.push(SharedMap::open(name, &path)?);
-    }
-    for spec in &a.classes {
-        let (name, dir) = split(spec, "--classes")?;
-        let i = maps
-            .iter()
-            .position(|m| m.name() == name)
-            .with_context(|| format!("--classes {spec:?}: no --map named {name:?}"))?;
-        let table = EmbeddingTable::read(&dir.join("classes.txt"), &dir.join("embeddings.npy"))?;
-        let bound =
-            LabelTable::new(table, maps[i].map()).with_context(|| format!("--classes {spec:?}"))?;
-        let m = maps.remove(i);
-        maps.insert(i, m.with_classes(bound));
-    }
-    for spec in &a.image_models {
-        let (name, model) = split(spec, "--image-model")?;
-        let i = maps
-            .iter()
-            .position(|m| m.name() == name)
-            .with_context(|| format!("--image-model {spec:?}: no --map named {name:?}"))?;
-        let rt = super::encode::init_runtime(a.ort_lib.as_deref())?;
-        let enc = omcl::encode::ImageEncoder::load(rt, &model, 0)
-            .with_context(|| format!("--image-model {spec:?}"))?;
-        let m = maps.remove(i);
-        maps.insert(
-            i,
-            m.with_encoder(enc)
-                .with_context(|| format!("--image-model {spec:?}"))?,
-        );
-    }
+    let token = read_token(&a)?;
+    let maps = open_maps(&a)?;
     let tls = match (&a.tls_cert, &a.tls_key) {
         (Some(c), Some(k)) => Some(TlsFiles {
             cert_pem: std::fs::read(c).with_context(|| format!("--tls-cert {}", c.display()))?,
@@ -214,6 +172,61 @@ pub fn run(a: ServeArgs) -> anyhow::Result<()> {
     ))?;
     println!("omcl serve: stopped");
     Ok(())
+}
+
+/// The bearer token, from --token-file or the environment (never from the
+/// command line).
+fn read_token(a: &ServeArgs) -> anyhow::Result<Token> {
+    Ok(match (&a.token_file, std::env::var(TOKEN_ENV)) {
+        (Some(p), _) => Token::from_file(p).map_err(anyhow::Error::msg)?,
+        (None, Ok(t)) => Token::new(&t).map_err(|e| anyhow::anyhow!("${TOKEN_ENV}: {e}"))?,
+        (None, Err(_)) => bail!(
+            "no token: pass --token-file FILE or set {TOKEN_ENV} (tokens are never taken from \
+             the command line)"
+        ),
+    })
+}
+
+/// The maps of --map, with their --classes tables and --image-model
+/// encoders.
+fn open_maps(a: &ServeArgs) -> anyhow::Result<Vec<SharedMap>> {
+    let mut maps: Vec<SharedMap> = Vec::new();
+    for spec in &a.maps {
+        let (name, path) = split(spec, "--map")?;
+        if maps.iter().any(|m| m.name() == name) {
+            bail!("--map {spec:?}: a map named {name:?} is already given");
+        }
+        maps.push(SharedMap::open(name, &path)?);
+    }
+    for spec in &a.classes {
+        let (name, dir) = split(spec, "--classes")?;
+        let i = maps
+            .iter()
+            .position(|m| m.name() == name)
+            .with_context(|| format!("--classes {spec:?}: no --map named {name:?}"))?;
+        let table = EmbeddingTable::read(&dir.join("classes.txt"), &dir.join("embeddings.npy"))?;
+        let bound =
+            LabelTable::new(table, maps[i].map()).with_context(|| format!("--classes {spec:?}"))?;
+        let m = maps.remove(i);
+        maps.insert(i, m.with_classes(bound));
+    }
+    for spec in &a.image_models {
+        let (name, model) = split(spec, "--image-model")?;
+        let i = maps
+            .iter()
+            .position(|m| m.name() == name)
+            .with_context(|| format!("--image-model {spec:?}: no --map named {name:?}"))?;
+        let rt = super::encode::init_runtime(a.ort_lib.as_deref())?;
+        let enc = omcl::encode::ImageEncoder::load(rt, &model, 0)
+            .with_context(|| format!("--image-model {spec:?}"))?;
+        let m = maps.remove(i);
+        maps.insert(
+            i,
+            m.with_encoder(enc)
+                .with_context(|| format!("--image-model {spec:?}"))?,
+        );
+    }
+    Ok(maps)
 }
 
 async fn shutdown_signal() {

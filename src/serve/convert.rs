@@ -250,96 +250,10 @@ pub fn frame_input(f: proto::Frame, k: &Intrinsics, map: &SharedMap) -> Result<F
     let received = Instant::now();
     let odom = pose_from_msg(f.odometry.as_ref(), "odometry")?;
     let stamp_msg = f.header.as_ref().and_then(|h| h.stamp);
-    let dim = map.map().db().dim();
     let features = match f.features {
-        Some(proto::frame::Features::Grid(g)) => {
-            let shape = [g.height as usize, g.width as usize, g.dim as usize];
-            if g.dim as usize != dim {
-                return Err(Status::invalid_argument(format!(
-                    "feature dimension {} does not match map {:?}'s {dim}",
-                    g.dim,
-                    map.name()
-                )));
-            }
-            if shape.contains(&0) {
-                return Err(Status::invalid_argument(format!(
-                    "feature grid of {}x{}x{}: every size must be above 0",
-                    g.height, g.width, g.dim
-                )));
-            }
-            let want = shape[0] * shape[1] * shape[2];
-            if g.data.len() != want {
-                return Err(Status::invalid_argument(format!(
-                    "feature grid of {}x{}x{} needs {want} values, got {}",
-                    g.height,
-                    g.width,
-                    g.dim,
-                    g.data.len()
-                )));
-            }
-            if let Some(i) = g.data.iter().position(|x| !x.is_finite()) {
-                return Err(Status::invalid_argument(format!(
-                    "feature grid value {i} is not finite"
-                )));
-            }
-            Features::Grid {
-                shape,
-                data: g.data,
-            }
-        }
-        Some(proto::frame::Features::Labels(l)) => {
-            if (l.width, l.height) != (k.width, k.height) {
-                return Err(Status::invalid_argument(format!(
-                    "label image is {}x{} pixels, the session's camera {}x{}",
-                    l.width, l.height, k.width, k.height
-                )));
-            }
-            if l.labels.len() != l.width as usize * l.height as usize {
-                return Err(Status::invalid_argument(format!(
-                    "label image of {}x{} pixels needs {} labels, got {}",
-                    l.width,
-                    l.height,
-                    l.width as usize * l.height as usize,
-                    l.labels.len()
-                )));
-            }
-            if map.classes().is_none() {
-                return Err(Status::failed_precondition(format!(
-                    "map {:?} has no class table for label images (serve it with --classes)",
-                    map.name()
-                )));
-            }
-            Features::Labels {
-                width: l.width,
-                height: l.height,
-                labels: l.labels,
-            }
-        }
-        Some(proto::frame::Features::Image(img)) => {
-            if (img.width, img.height) != (k.width, k.height) {
-                return Err(Status::invalid_argument(format!(
-                    "RGB image is {}x{} pixels, the session's camera {}x{}",
-                    img.width, img.height, k.width, k.height
-                )));
-            }
-            if !map.has_encoder() {
-                return Err(Status::failed_precondition(format!(
-                    "map {:?} has no image encoder for raw frames (serve it with --image-model)",
-                    map.name()
-                )));
-            }
-            let want = img.width as usize * img.height as usize * 3;
-            let got = img.rgb.len();
-            let rgb = image::RgbImage::from_raw(img.width, img.height, img.rgb)
-                .filter(|_| got == want)
-                .ok_or_else(|| {
-                    Status::invalid_argument(format!(
-                        "RGB image of {}x{} pixels needs {want} bytes, got {got}",
-                        img.width, img.height
-                    ))
-                })?;
-            Features::Image(rgb)
-        }
+        Some(proto::frame::Features::Grid(g)) => grid_features(g, map)?,
+        Some(proto::frame::Features::Labels(l)) => label_features(l, k, map)?,
+        Some(proto::frame::Features::Image(img)) => image_features(img, k, map)?,
         None => return Err(Status::invalid_argument("frame without features")),
     };
     Ok(FrameInput {
@@ -350,4 +264,107 @@ pub fn frame_input(f: proto::Frame, k: &Intrinsics, map: &SharedMap) -> Result<F
         want_particles: f.want_particles,
         received,
     })
+}
+
+/// A feature grid of the map's dimension, every value finite.
+fn grid_features(g: proto::FeatureGrid, map: &SharedMap) -> Result<Features, Status> {
+    let dim = map.map().db().dim();
+    let shape = [g.height as usize, g.width as usize, g.dim as usize];
+    if g.dim as usize != dim {
+        return Err(Status::invalid_argument(format!(
+            "feature dimension {} does not match map {:?}'s {dim}",
+            g.dim,
+            map.name()
+        )));
+    }
+    if shape.contains(&0) {
+        return Err(Status::invalid_argument(format!(
+            "feature grid of {}x{}x{}: every size must be above 0",
+            g.height, g.width, g.dim
+        )));
+    }
+    let want = shape[0] * shape[1] * shape[2];
+    if g.data.len() != want {
+        return Err(Status::invalid_argument(format!(
+            "feature grid of {}x{}x{} needs {want} values, got {}",
+            g.height,
+            g.width,
+            g.dim,
+            g.data.len()
+        )));
+    }
+    if let Some(i) = g.data.iter().position(|x| !x.is_finite()) {
+        return Err(Status::invalid_argument(format!(
+            "feature grid value {i} is not finite"
+        )));
+    }
+    Ok(Features::Grid {
+        shape,
+        data: g.data,
+    })
+}
+
+/// A label image of the camera's size, for a map with a class table.
+fn label_features(
+    l: proto::LabelImage,
+    k: &Intrinsics,
+    map: &SharedMap,
+) -> Result<Features, Status> {
+    if (l.width, l.height) != (k.width, k.height) {
+        return Err(Status::invalid_argument(format!(
+            "label image is {}x{} pixels, the session's camera {}x{}",
+            l.width, l.height, k.width, k.height
+        )));
+    }
+    if l.labels.len() != l.width as usize * l.height as usize {
+        return Err(Status::invalid_argument(format!(
+            "label image of {}x{} pixels needs {} labels, got {}",
+            l.width,
+            l.height,
+            l.width as usize * l.height as usize,
+            l.labels.len()
+        )));
+    }
+    if map.classes().is_none() {
+        return Err(Status::failed_precondition(format!(
+            "map {:?} has no class table for label images (serve it with --classes)",
+            map.name()
+        )));
+    }
+    Ok(Features::Labels {
+        width: l.width,
+        height: l.height,
+        labels: l.labels,
+    })
+}
+
+/// An RGB image of the camera's size, for a map with an image encoder.
+fn image_features(
+    img: proto::RgbImage,
+    k: &Intrinsics,
+    map: &SharedMap,
+) -> Result<Features, Status> {
+    if (img.width, img.height) != (k.width, k.height) {
+        return Err(Status::invalid_argument(format!(
+            "RGB image is {}x{} pixels, the session's camera {}x{}",
+            img.width, img.height, k.width, k.height
+        )));
+    }
+    if !map.has_encoder() {
+        return Err(Status::failed_precondition(format!(
+            "map {:?} has no image encoder for raw frames (serve it with --image-model)",
+            map.name()
+        )));
+    }
+    let want = img.width as usize * img.height as usize * 3;
+    let got = img.rgb.len();
+    let rgb = image::RgbImage::from_raw(img.width, img.height, img.rgb)
+        .filter(|_| got == want)
+        .ok_or_else(|| {
+            Status::invalid_argument(format!(
+                "RGB image of {}x{} pixels needs {want} bytes, got {got}",
+                img.width, img.height
+            ))
+        })?;
+    Ok(Features::Image(rgb))
 }

@@ -17,7 +17,7 @@ use crate::session::{Session, SessionConfig, Start};
 use super::auth::{MISPLACED, Token};
 use super::convert;
 use super::proto::{self, localization_server::Localization};
-use super::state::{Reply, State};
+use super::state::{Reply, Slot, State};
 
 pub struct Service {
     pub state: Arc<State>,
@@ -70,6 +70,22 @@ fn camera(c: Option<&proto::CameraInfo>) -> Result<Intrinsics, Status> {
         width: c.width,
         height: c.height,
     })
+}
+
+impl Service {
+    /// Restarts a session's filter from `start`.
+    async fn reinitialize(
+        &self,
+        slot: Arc<Slot>,
+        start: Start,
+    ) -> Result<Response<proto::ReinitializeResponse>, Status> {
+        slot.touch();
+        self.state
+            .with_session(slot, move |s| s.reinitialize(&start))
+            .await?
+            .map_err(|e| super::state::status_of(&e))?;
+        Ok(Response::new(proto::ReinitializeResponse {}))
+    }
 }
 
 #[tonic::async_trait]
@@ -177,12 +193,7 @@ impl Localization for Service {
             .as_ref()
             .ok_or_else(|| Status::invalid_argument("pose: missing"))?;
         let start = convert::initial_pose(pose)?;
-        slot.touch();
-        self.state
-            .with_session(slot, move |s| s.reinitialize(&start))
-            .await?
-            .map_err(|e| super::state::status_of(&e))?;
-        Ok(Response::new(proto::ReinitializeResponse {}))
+        self.reinitialize(slot, start).await
     }
 
     async fn global_localization(
@@ -195,12 +206,7 @@ impl Localization for Service {
             Some(p) if !p.words.is_empty() => convert::prompt(p, &slot.map)?,
             _ => Start::Global,
         };
-        slot.touch();
-        self.state
-            .with_session(slot, move |s| s.reinitialize(&start))
-            .await?
-            .map_err(|e| super::state::status_of(&e))?;
-        Ok(Response::new(proto::ReinitializeResponse {}))
+        self.reinitialize(slot, start).await
     }
 
     async fn localize(

@@ -158,20 +158,42 @@ pub async fn serve(
         let _ = rx.wait_for(|s| *s).await;
     };
 
-    // Idle sessions expire.
-    {
-        let state = state.clone();
-        let every = (config.limits.idle_timeout / 4)
-            .clamp(Duration::from_millis(50), Duration::from_secs(5));
-        tokio::spawn(async move {
-            let mut t = tokio::time::interval(every);
-            loop {
-                t.tick().await;
-                state.expire_idle();
-            }
-        });
-    }
+    spawn_expiry(state.clone(), config.limits.idle_timeout);
 
+    let grpc_task = tokio::spawn(grpc_server(
+        &config,
+        &state,
+        grpc_l,
+        stopped(stop_rx.clone()),
+    )?);
+    let http_task = spawn_http(&config, &state, http_l, stopped(stop_rx.clone()))?;
+    on_bound(bound);
+
+    stopped(stop_rx).await;
+    drain(&state, config.drain_timeout, grpc_task, http_task).await
+}
+
+/// Expires idle sessions, checking a few times per idle timeout.
+fn spawn_expiry(state: Arc<State>, idle_timeout: Duration) {
+    let every = (idle_timeout / 4).clamp(Duration::from_millis(50), Duration::from_secs(5));
+    tokio::spawn(async move {
+        let mut t = tokio::time::interval(every);
+        loop {
+            t.tick().await;
+            state.expire_idle();
+        }
+    });
+}
+
+/// The gRPC server on `listener` (message caps, bearer tokens, TLS,
+/// TCP_NODELAY, the unary deadline), until `stop`.
+fn grpc_server(
+    config: &ServeConfig,
+    state: &Arc<State>,
+    listener: TcpListener,
+    stop: impl Future<Output = ()> + Send + 'static,
+) -> Result<impl Future<Output = Result<(), tonic::transport::Error>> + Send + 'static, ServeError>
+{
     let n = config.limits.max_message_bytes;
     let svc = proto::localization_server::LocalizationServer::new(grpc::Service {
         state: state.clone(),
@@ -191,38 +213,46 @@ pub async fn serve(
     }
     // Small answers go out at once: without TCP_NODELAY, Nagle's algorithm
     // and the client's delayed ACK add about 40 ms to every pose.
-    let incoming = TcpListenerStream::new(grpc_l).map(|s| {
+    let incoming = TcpListenerStream::new(listener).map(|s| {
         let s = s?;
         s.set_nodelay(true)?;
         Ok::<_, std::io::Error>(s)
     });
-    let grpc_fut = builder
+    Ok(builder
         .timeout(config.limits.deadline)
         .add_service(svc)
-        .serve_with_incoming_shutdown(incoming, stopped(stop_rx.clone()));
+        .serve_with_incoming_shutdown(incoming, stop))
+}
+
+/// The HTTP control plane on `listener` (HTTPS with TLS), until `stop`.
+fn spawn_http(
+    config: &ServeConfig,
+    state: &Arc<State>,
+    listener: TcpListener,
+    stop: impl Future<Output = ()> + Send + 'static,
+) -> Result<tokio::task::JoinHandle<std::io::Result<()>>, ServeError> {
     let router = http::router(state.clone(), config.token.clone());
-    let grpc_task = tokio::spawn(grpc_fut);
-    let http_task = match &config.tls {
+    Ok(match &config.tls {
         Some(tls) => {
             let cfg = http::tls_config(tls)?;
-            tokio::spawn(http::serve_https(
-                http_l,
-                router,
-                cfg,
-                stopped(stop_rx.clone()),
-            ))
+            tokio::spawn(http::serve_https(listener, router, cfg, stop))
         }
         None => {
-            let http_fut =
-                axum::serve(http_l, router).with_graceful_shutdown(stopped(stop_rx.clone()));
+            let http_fut = axum::serve(listener, router).with_graceful_shutdown(stop);
             tokio::spawn(async move { http_fut.await })
         }
-    };
-    on_bound(bound);
+    })
+}
 
-    stopped(stop_rx).await;
-    // Drain: calls in flight (bounded), then the pool's steps.
-    let deadline = Instant::now() + config.drain_timeout;
+/// Drain after the stop: the calls in flight (bounded by `timeout`), then
+/// the pool's steps; the servers' errors.
+async fn drain(
+    state: &State,
+    timeout: Duration,
+    grpc_task: tokio::task::JoinHandle<Result<(), tonic::transport::Error>>,
+    http_task: tokio::task::JoinHandle<std::io::Result<()>>,
+) -> Result<(), ServeError> {
+    let deadline = Instant::now() + timeout;
     let left = || deadline.saturating_duration_since(Instant::now());
     let grpc_res = tokio::time::timeout(left(), grpc_task).await;
     let http_res = tokio::time::timeout(left(), http_task).await;
