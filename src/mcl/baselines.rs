@@ -129,17 +129,7 @@ impl LabelledPlan {
             })
             .collect();
         let leaf_labels: Vec<u16> = rows.iter().map(|&r| row_label[r as usize]).collect();
-        let (mut lo, mut hi) = ([i32::MAX; 2], [i32::MIN; 2]);
-        for c in cells {
-            for a in 0..2 {
-                lo[a] = lo[a].min(c[a]);
-                hi[a] = hi[a].max(c[a]);
-            }
-        }
-        if cells.is_empty() {
-            lo = [0, 0];
-            hi = [-1, -1];
-        }
+        let (lo, hi) = crate::raycast::column_bounds(cells);
         let size = [(hi[0] - lo[0] + 1) as usize, (hi[1] - lo[1] + 1) as usize];
         let r = plan.resolution;
         let k = classes.len();

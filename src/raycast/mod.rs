@@ -21,7 +21,7 @@ pub use embree::{
     BuildOptions, BuildQuality, EmbreeCaster, EmbreeError, Geometry, Packet, misaligned_masks,
     thread_float_mode,
 };
-pub use planar::PlanarCaster;
+pub use planar::{PlanarCaster, column_bounds};
 pub use reference::ReferenceCaster;
 
 use rayon::prelude::*;
@@ -55,6 +55,35 @@ impl Hit {
     pub fn is_hit(&self) -> bool {
         self.leaf != Self::MISS
     }
+}
+
+/// Slab test: the part of the ray parameter interval `t` inside the box
+/// `[lo, hi]` on the axes `lo` has (origin `o`, direction `d`), or `None`
+/// when the ray misses it. On an axis the ray runs parallel to, it misses
+/// when its origin lies outside the slab.
+pub(crate) fn clip_to_box(
+    o: &[f64],
+    d: &[f64],
+    lo: &[f64],
+    hi: &[f64],
+    (mut t0, mut t1): (f64, f64),
+) -> Option<(f64, f64)> {
+    for a in 0..lo.len() {
+        let (l, h) = (lo[a], hi[a]);
+        if d[a] == 0.0 {
+            if o[a] < l || o[a] > h {
+                return None;
+            }
+        } else {
+            let (mut ta, mut tb) = ((l - o[a]) / d[a], (h - o[a]) / d[a]);
+            if ta > tb {
+                std::mem::swap(&mut ta, &mut tb);
+            }
+            t0 = t0.max(ta);
+            t1 = t1.min(tb);
+        }
+    }
+    if t0 > t1 { None } else { Some((t0, t1)) }
 }
 
 /// Rays per parallel work item: large enough to amortize scheduling,

@@ -52,18 +52,7 @@ impl PlanarCaster {
     /// the z index ignored); hit `leaf` values index `cells`. For a
     /// repeated column the first index wins.
     pub fn new(resolution: f32, cells: &[Cell]) -> Self {
-        let mut lo = [i32::MAX; 2];
-        let mut hi = [i32::MIN; 2];
-        for c in cells {
-            for a in 0..2 {
-                lo[a] = lo[a].min(c[a]);
-                hi[a] = hi[a].max(c[a]);
-            }
-        }
-        if cells.is_empty() {
-            lo = [0, 0];
-            hi = [-1, -1];
-        }
+        let (lo, hi) = column_bounds(cells);
         let size = [hi[0] - lo[0] + 1, hi[1] - lo[1] + 1];
         let total = (size[0].max(0) as usize) * (size[1].max(0) as usize);
         let mut leaf = vec![Hit::MISS; total];
@@ -99,26 +88,12 @@ impl PlanarCaster {
         if dxy <= 1e-6 * d3 {
             return Hit::miss();
         }
-        let (mut t0, mut t1) = (ray.t_min as f64, ray.t_max as f64);
-        for a in 0..2 {
-            let l = self.lo[a] as f64 * r;
-            let h = (self.lo[a] + self.size[a]) as f64 * r;
-            if d[a] == 0.0 {
-                if o[a] < l || o[a] > h {
-                    return Hit::miss();
-                }
-            } else {
-                let (mut ta, mut tb) = ((l - o[a]) / d[a], (h - o[a]) / d[a]);
-                if ta > tb {
-                    std::mem::swap(&mut ta, &mut tb);
-                }
-                t0 = t0.max(ta);
-                t1 = t1.min(tb);
-            }
-        }
-        if t0 > t1 {
+        let lo = [0, 1].map(|a| self.lo[a] as f64 * r);
+        let hi = [0, 1].map(|a| (self.lo[a] + self.size[a]) as f64 * r);
+        let t = (ray.t_min as f64, ray.t_max as f64);
+        let Some((t0, t1)) = super::clip_to_box(&o, &d, &lo, &hi, t) else {
             return Hit::miss();
-        }
+        };
         let step = [d[0].signum() as i32, d[1].signum() as i32];
         let delta = [r / d[0].abs(), r / d[1].abs()];
         let jump_per_cell = r / d[0].abs().max(d[1].abs());
@@ -257,6 +232,22 @@ impl RayCaster for PlanarCaster {
     fn len(&self) -> usize {
         self.n
     }
+}
+
+/// The smallest and largest column index (`[i, j]`) of `cells`, both
+/// inclusive; `([0, 0], [-1, -1])` (no columns) for none.
+pub fn column_bounds(cells: &[Cell]) -> ([i32; 2], [i32; 2]) {
+    if cells.is_empty() {
+        return ([0, 0], [-1, -1]);
+    }
+    let (mut lo, mut hi) = ([i32::MAX; 2], [i32::MIN; 2]);
+    for c in cells {
+        for a in 0..2 {
+            lo[a] = lo[a].min(c[a]);
+            hi[a] = hi[a].max(c[a]);
+        }
+    }
+    (lo, hi)
 }
 
 #[cfg(test)]

@@ -52,25 +52,12 @@ impl ReferenceCaster {
         let o = ray.origin.map(|v| v as f64);
         let d = ray.dir.map(|v| v as f64);
         // Clip [t_min, t_max] to the bounding box of all cells.
-        let (mut t0, mut t1) = (ray.t_min as f64, ray.t_max as f64);
-        for a in 0..3 {
-            let (l, h) = (self.lo[a] as f64 * r, (self.hi[a] + 1) as f64 * r);
-            if d[a] == 0.0 {
-                if o[a] < l || o[a] > h {
-                    return Hit::miss();
-                }
-            } else {
-                let (mut ta, mut tb) = ((l - o[a]) / d[a], (h - o[a]) / d[a]);
-                if ta > tb {
-                    std::mem::swap(&mut ta, &mut tb);
-                }
-                t0 = t0.max(ta);
-                t1 = t1.min(tb);
-            }
-        }
-        if t0 > t1 {
+        let lo = self.lo.map(|l| l as f64 * r);
+        let hi = self.hi.map(|h| (h + 1) as f64 * r);
+        let t = (ray.t_min as f64, ray.t_max as f64);
+        let Some((t0, t1)) = super::clip_to_box(&o, &d, &lo, &hi, t) else {
             return Hit::miss();
-        }
+        };
         // The cell at the entry point, kept inside the box against rounding.
         // A ray running inside a cell plane (zero direction component, origin
         // exactly on the plane) touches the closed cubes on both sides:
