@@ -9,23 +9,41 @@ use std::str::FromStr;
 
 use safetensors::tensor::{Dtype, SafeTensors};
 
-/// What is wrong with a container, before the file's name is added.
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) enum HeaderError {
-    /// Not a safetensors file at all.
-    NotSafetensors(String),
-    /// A safetensors file of another format (or none).
-    Foreign(Option<String>),
+/// What is wrong with a container's content, the same for both file
+/// types: a header field, a tensor, or the checksum. The file's error adds
+/// its name.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ContainerProblem {
+    #[error("header field `{0}` is missing")]
     MissingField(&'static str),
+    #[error("header field `{field}` = {value:?} is not valid: {expected}")]
     BadField {
         field: &'static str,
         value: String,
         expected: &'static str,
     },
-    Tensor {
-        name: &'static str,
-        reason: String,
-    },
+    #[error("tensor `{name}`: {reason}")]
+    Tensor { name: &'static str, reason: String },
+    #[error(
+        "checksum mismatch (header says {stored:08x}, data gives {computed:08x}): the file is corrupt"
+    )]
+    Checksum { stored: u32, computed: u32 },
+}
+
+/// What is wrong with a container, before the file's name is added: not a
+/// container, another format (their messages name the file type), or a
+/// problem with its content.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum HeaderError {
+    NotSafetensors(String),
+    Foreign(Option<String>),
+    Content(ContainerProblem),
+}
+
+impl From<ContainerProblem> for HeaderError {
+    fn from(p: ContainerProblem) -> Self {
+        HeaderError::Content(p)
+    }
 }
 
 /// An opened container of the expected format.
@@ -55,7 +73,7 @@ impl<'a> Container<'a> {
         self.meta
             .get(name)
             .map(String::as_str)
-            .ok_or(HeaderError::MissingField(name))
+            .ok_or(ContainerProblem::MissingField(name).into())
     }
 
     /// Header field `name` parsed as a `T` that passes `ok` (`expected`
@@ -67,14 +85,14 @@ impl<'a> Container<'a> {
         ok: impl Fn(&T) -> bool,
     ) -> Result<T, HeaderError> {
         let v = self.field(name)?;
-        v.parse::<T>()
-            .ok()
-            .filter(|x| ok(x))
-            .ok_or_else(|| HeaderError::BadField {
+        v.parse::<T>().ok().filter(|x| ok(x)).ok_or_else(|| {
+            ContainerProblem::BadField {
                 field: name,
                 value: v.to_string(),
                 expected,
-            })
+            }
+            .into()
+        })
     }
 
     /// A finite number.
@@ -92,10 +110,13 @@ impl<'a> Container<'a> {
     /// The stored CRC-32 (`crc32`, 8 hex digits).
     pub fn crc32(&self) -> Result<u32, HeaderError> {
         let v = self.field("crc32")?;
-        u32::from_str_radix(v, 16).map_err(|_| HeaderError::BadField {
-            field: "crc32",
-            value: v.to_string(),
-            expected: "8 hex digits",
+        u32::from_str_radix(v, 16).map_err(|_| {
+            ContainerProblem::BadField {
+                field: "crc32",
+                value: v.to_string(),
+                expected: "8 hex digits",
+            }
+            .into()
         })
     }
 
@@ -106,12 +127,15 @@ impl<'a> Container<'a> {
         dtype: Dtype,
         shape: &[usize],
     ) -> Result<&'a [u8], HeaderError> {
-        let t = self.tensors.tensor(name).map_err(|e| HeaderError::Tensor {
-            name,
-            reason: e.to_string(),
-        })?;
+        let t = self
+            .tensors
+            .tensor(name)
+            .map_err(|e| ContainerProblem::Tensor {
+                name,
+                reason: e.to_string(),
+            })?;
         if t.dtype() != dtype || t.shape() != shape {
-            return Err(HeaderError::Tensor {
+            return Err(ContainerProblem::Tensor {
                 name,
                 reason: format!(
                     "is {:?} {:?}, header promises {:?} {:?}",
@@ -120,7 +144,8 @@ impl<'a> Container<'a> {
                     dtype,
                     shape
                 ),
-            });
+            }
+            .into());
         }
         Ok(t.data())
     }
@@ -143,9 +168,9 @@ pub(crate) fn le_8<T>(bytes: &[u8], from: fn([u8; 8]) -> T) -> Vec<T> {
 }
 
 /// `impl $ty { fn from_header(path, HeaderError) -> $ty }` for a file
-/// type's error enum with the variants `NotSafetensors`, `Foreign`,
-/// `MissingField`, `BadField` and `Tensor` (each with the file's `path`),
-/// whose messages name the file type.
+/// type's error enum with the variants `NotSafetensors`, `Foreign` (whose
+/// messages name the file type) and `Container`, each with the file's
+/// `path`.
 macro_rules! header_errors {
     ($ty:ident) => {
         impl $ty {
@@ -156,18 +181,7 @@ macro_rules! header_errors {
                 match e {
                     H::NotSafetensors(reason) => Self::NotSafetensors { path, reason },
                     H::Foreign(found) => Self::Foreign { path, found },
-                    H::MissingField(field) => Self::MissingField { path, field },
-                    H::BadField {
-                        field,
-                        value,
-                        expected,
-                    } => Self::BadField {
-                        path,
-                        field,
-                        value,
-                        expected,
-                    },
-                    H::Tensor { name, reason } => Self::Tensor { path, name, reason },
+                    H::Content(problem) => Self::Container { path, problem },
                 }
             }
         }

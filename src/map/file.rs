@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::Vector3;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 
-use super::container::{Container, le_4, le_8};
+use super::container::{Container, ContainerProblem, le_4, le_8};
 
 use super::features::FeatureDb;
 use super::key::GridSpec;
@@ -92,28 +92,10 @@ pub enum MapFileError {
          convert it with `omcl map upgrade {path} -o NEW.omcl`, or rebuild the map"
     )]
     OldVersion { path: PathBuf },
-    #[error("{path}: header field `{field}` is missing")]
-    MissingField { path: PathBuf, field: &'static str },
-    #[error("{path}: header field `{field}` = {value:?} is not valid: {expected}")]
-    BadField {
+    #[error("{path}: {problem}")]
+    Container {
         path: PathBuf,
-        field: &'static str,
-        value: String,
-        expected: &'static str,
-    },
-    #[error("{path}: tensor `{name}`: {reason}")]
-    Tensor {
-        path: PathBuf,
-        name: &'static str,
-        reason: String,
-    },
-    #[error(
-        "{path}: checksum mismatch (header says {stored:08x}, data gives {computed:08x}): the file is corrupt"
-    )]
-    Checksum {
-        path: PathBuf,
-        stored: u32,
-        computed: u32,
+        problem: ContainerProblem,
     },
     #[error("{path}: inconsistent map: {source}")]
     Invalid { path: PathBuf, source: MapError },
@@ -288,10 +270,9 @@ fn parse_map(bytes: &[u8], path: &Path, accept_v1: bool) -> Result<LanguageMap, 
         .map_err(header)?;
     let computed = checksum(&c.meta, [codes_b, rows_b, feat_b], header_checked);
     if computed != stored {
-        return Err(MapFileError::Checksum {
+        return Err(MapFileError::Container {
             path: p(),
-            stored,
-            computed,
+            problem: ContainerProblem::Checksum { stored, computed },
         });
     }
     let codes = le_8(codes_b, u64::from_le_bytes);
@@ -410,7 +391,16 @@ mod tests {
             let mut b = bytes.clone();
             b[i] ^= 0x10;
             let e = from_bytes(&b, Path::new("x.omcl")).unwrap_err();
-            assert!(matches!(e, MapFileError::Checksum { .. }), "byte {i}: {e}");
+            assert!(
+                matches!(
+                    e,
+                    MapFileError::Container {
+                        problem: ContainerProblem::Checksum { .. },
+                        ..
+                    }
+                ),
+                "byte {i}: {e}"
+            );
             assert!(e.to_string().contains("x.omcl"));
         }
     }
@@ -483,7 +473,16 @@ mod tests {
             ("clip-vit-b32", "clip-vit-b16"),
         ] {
             let e = from_bytes(&edit(&bytes, from, to), Path::new("h.omcl")).unwrap_err();
-            assert!(matches!(e, MapFileError::Checksum { .. }), "{to}: {e}");
+            assert!(
+                matches!(
+                    e,
+                    MapFileError::Container {
+                        problem: ContainerProblem::Checksum { .. },
+                        ..
+                    }
+                ),
+                "{to}: {e}"
+            );
         }
         // The informational writer field is not covered.
         let w = format!("omcl {}", env!("CARGO_PKG_VERSION"));
@@ -542,7 +541,10 @@ mod tests {
         std::fs::write(&old, bad).unwrap();
         assert!(matches!(
             upgrade(&old, &new),
-            Err(MapFileError::Checksum { .. })
+            Err(MapFileError::Container {
+                problem: ContainerProblem::Checksum { .. },
+                ..
+            })
         ));
     }
 

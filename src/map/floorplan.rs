@@ -38,7 +38,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::Vector3;
 use safetensors::tensor::{Dtype, TensorView};
 
-use super::container::{Container, le_4};
+use super::container::{Container, ContainerProblem, le_4};
 
 use super::features::{FeatureDb, FeatureDbError};
 use super::key::GridSpec;
@@ -357,28 +357,10 @@ pub enum FloorPlanFileError {
         "{path}: floor-plan format version {found} is not supported (this build reads version {VERSION})"
     )]
     Version { path: PathBuf, found: String },
-    #[error("{path}: header field `{field}` is missing")]
-    MissingField { path: PathBuf, field: &'static str },
-    #[error("{path}: header field `{field}` = {value:?} is not valid: {expected}")]
-    BadField {
+    #[error("{path}: {problem}")]
+    Container {
         path: PathBuf,
-        field: &'static str,
-        value: String,
-        expected: &'static str,
-    },
-    #[error("{path}: tensor `{name}`: {reason}")]
-    Tensor {
-        path: PathBuf,
-        name: &'static str,
-        reason: String,
-    },
-    #[error(
-        "{path}: checksum mismatch (header says {stored:08x}, data gives {computed:08x}): the file is corrupt"
-    )]
-    Checksum {
-        path: PathBuf,
-        stored: u32,
-        computed: u32,
+        problem: ContainerProblem,
     },
     #[error("{path}: inconsistent floor plan: {source}")]
     Invalid {
@@ -510,10 +492,9 @@ pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<FloorPlan, FloorPlanFileE
         .map_err(header)?;
     let computed = checksum(&c.meta, [cells_b, rows_b, feat_b]);
     if computed != stored {
-        return Err(E::Checksum {
+        return Err(E::Container {
             path: p(),
-            stored,
-            computed,
+            problem: ContainerProblem::Checksum { stored, computed },
         });
     }
     let i32s = le_4(cells_b, i32::from_le_bytes);
@@ -666,7 +647,10 @@ mod tests {
         bad[n - 2] ^= 0x40;
         assert!(matches!(
             from_bytes(&bad, path),
-            Err(FloorPlanFileError::Checksum { .. })
+            Err(FloorPlanFileError::Container {
+                problem: ContainerProblem::Checksum { .. },
+                ..
+            })
         ));
         // A future version is refused by name.
         let find = |pat: &[u8]| bytes.windows(pat.len()).position(|w| w == pat).unwrap();
@@ -688,7 +672,10 @@ mod tests {
         moved[at + 12] = b'3';
         assert!(matches!(
             from_bytes(&moved, path),
-            Err(FloorPlanFileError::Checksum { .. })
+            Err(FloorPlanFileError::Container {
+                problem: ContainerProblem::Checksum { .. },
+                ..
+            })
         ));
     }
 }

@@ -11,6 +11,7 @@ pub mod key;
 pub mod octree;
 pub mod query;
 
+pub use container::ContainerProblem;
 pub use features::{FeatureDb, FeatureDbError};
 pub use file::{MapFileError, load, save};
 pub use floorplan::{FloorPlan, FloorPlanParams};
