@@ -55,6 +55,41 @@ fn s(p: &Path) -> String {
 pub fn run(a: DemoArgs) -> anyhow::Result<()> {
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let t = Instant::now();
+    indoor(&a)?;
+    if a.street_frames > 0 {
+        outdoor(&a)?;
+    }
+    if a.bench_sequences > 0 {
+        let n = a.bench_sequences.to_string();
+        step(
+            "7/7 the paper's Table I and Figure 4 on fresh synthetic apartments (omcl bench)",
+            &[
+                "bench",
+                "table1",
+                "--variants",
+                "OMCL_GT,OMCL_LSeg,OMCL_Open_LSeg",
+                "--sequences",
+                &n,
+                "--frames",
+                "100",
+                "--particles",
+                "512",
+                "-o",
+                &s(&a.out.join("bench")),
+            ],
+        )?;
+    }
+    println!(
+        "\ndemo done in {:.0} s; outputs in {}/",
+        t.elapsed().as_secs_f64(),
+        a.out.display()
+    );
+    Ok(())
+}
+
+/// Steps 1 to 6: an apartment and a camera path through it, its map, the
+/// camera localized in it, the error, and a query.
+fn indoor(a: &DemoArgs) -> anyhow::Result<()> {
     let seq = a.out.join("apartment");
     let map = a.out.join("apartment.omcl");
     let est = a.out.join("estimate.txt");
@@ -125,34 +160,6 @@ pub fn run(a: DemoArgs) -> anyhow::Result<()> {
             &s(&a.out.join("toilet_heat.ply")),
         ],
     )?;
-    if a.street_frames > 0 {
-        outdoor(&a)?;
-    }
-    if a.bench_sequences > 0 {
-        let n = a.bench_sequences.to_string();
-        step(
-            "7/7 the paper's Table I and Figure 4 on fresh synthetic apartments (omcl bench)",
-            &[
-                "bench",
-                "table1",
-                "--variants",
-                "OMCL_GT,OMCL_LSeg,OMCL_Open_LSeg",
-                "--sequences",
-                &n,
-                "--frames",
-                "100",
-                "--particles",
-                "512",
-                "-o",
-                &s(&a.out.join("bench")),
-            ],
-        )?;
-    }
-    println!(
-        "\ndemo done in {:.0} s; outputs in {}/",
-        t.elapsed().as_secs_f64(),
-        a.out.display()
-    );
     Ok(())
 }
 

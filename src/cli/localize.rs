@@ -539,27 +539,10 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     let d = &a.sequence;
     let mut image = super::encoders::open_image_source(&a.encoder)?;
     let is_kitti = CameraSequence::is_kitti(d);
-    let input = if image.is_some() {
-        CameraInput::Images
-    } else if a.use_features || !d.join(CameraInput::Labels.folder()).is_dir() {
-        CameraInput::Features
-    } else {
-        CameraInput::Labels
-    };
-    let inputs = CameraSequence::open(d, input)?;
+    let inputs = CameraSequence::open(d, camera_input(&a, image.is_some()))?;
     let k = inputs.intrinsics;
     let gt = inputs.ground_truth.clone();
-    let gt_path = &inputs.ground_truth_path;
-    ensure!(
-        a.plot.is_none() || gt.is_some(),
-        "--plot needs ground truth: {} is missing",
-        gt_path.display()
-    );
-    ensure!(
-        a.metrics.is_none() || gt.is_some(),
-        "--metrics needs ground truth: {} is missing",
-        gt_path.display()
-    );
+    check_truth_given(&a, &inputs)?;
     let classes = &inputs.classes;
     if let Some(src) = &image {
         ensure!(
@@ -637,5 +620,35 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         }
         None => println!(),
     }
+    Ok(())
+}
+
+/// What the camera gives: images through --encoder, else label images
+/// when the sequence has them (and --use-features is not given), else
+/// feature files.
+fn camera_input(a: &LocalizeArgs, has_encoder: bool) -> CameraInput {
+    if has_encoder {
+        CameraInput::Images
+    } else if a.use_features || !a.sequence.join(CameraInput::Labels.folder()).is_dir() {
+        CameraInput::Features
+    } else {
+        CameraInput::Labels
+    }
+}
+
+/// --plot and --metrics need the sequence's ground truth.
+fn check_truth_given(a: &LocalizeArgs, inputs: &CameraSequence) -> anyhow::Result<()> {
+    let gt_path = &inputs.ground_truth_path;
+    let has_gt = inputs.ground_truth.is_some();
+    ensure!(
+        a.plot.is_none() || has_gt,
+        "--plot needs ground truth: {} is missing",
+        gt_path.display()
+    );
+    ensure!(
+        a.metrics.is_none() || has_gt,
+        "--metrics needs ground truth: {} is missing",
+        gt_path.display()
+    );
     Ok(())
 }

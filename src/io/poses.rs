@@ -133,45 +133,10 @@ pub fn parse_poses(
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        values.clear();
-        for (col, tok) in line
-            .split(|c: char| c.is_whitespace() || c == ',')
-            .filter(|t| !t.is_empty())
-            .enumerate()
-        {
-            let v: f64 = tok.parse().map_err(|_| {
-                parse_err(
-                    line_no,
-                    format!("column {}: '{tok}' is not a number", col + 1),
-                )
-            })?;
-            if !v.is_finite() {
-                return Err(parse_err(
-                    line_no,
-                    format!("column {}: '{tok}' is not finite", col + 1),
-                ));
-            }
-            values.push(v);
-        }
+        numbers(line, &mut values).map_err(|r| parse_err(line_no, r))?;
         let fmt = match format {
             Some(f) => f,
-            None => {
-                let f = match values.len() {
-                    8 => PoseFormat::Tum,
-                    12 => PoseFormat::Kitti,
-                    n => {
-                        return Err(parse_err(
-                            line_no,
-                            format!(
-                                "{n} columns: expected 8 (TUM: t tx ty tz qx qy qz qw) \
-                                 or 12 (KITTI: row-major 3x4 matrix)"
-                            ),
-                        ));
-                    }
-                };
-                format = Some(f);
-                f
-            }
+            None => *format.insert(format_of(values.len()).map_err(|r| parse_err(line_no, r))?),
         };
         if values.len() != fmt.columns() {
             return Err(parse_err(
@@ -216,6 +181,38 @@ pub fn parse_poses(
         source,
     })?;
     Ok(PoseFile { format, trajectory })
+}
+
+/// A line's numbers (separated by white space or commas) into `values`;
+/// each must be finite.
+fn numbers(line: &str, values: &mut Vec<f64>) -> Result<(), String> {
+    values.clear();
+    for (col, tok) in line
+        .split(|c: char| c.is_whitespace() || c == ',')
+        .filter(|t| !t.is_empty())
+        .enumerate()
+    {
+        let v: f64 = tok
+            .parse()
+            .map_err(|_| format!("column {}: '{tok}' is not a number", col + 1))?;
+        if !v.is_finite() {
+            return Err(format!("column {}: '{tok}' is not finite", col + 1));
+        }
+        values.push(v);
+    }
+    Ok(())
+}
+
+/// The format a first line of `n` columns says.
+fn format_of(n: usize) -> Result<PoseFormat, String> {
+    match n {
+        8 => Ok(PoseFormat::Tum),
+        12 => Ok(PoseFormat::Kitti),
+        n => Err(format!(
+            "{n} columns: expected 8 (TUM: t tx ty tz qx qy qz qw) \
+             or 12 (KITTI: row-major 3x4 matrix)"
+        )),
+    }
 }
 
 /// `tx ty tz qx qy qz qw` to a pose, normalizing the quaternion.
