@@ -9,55 +9,79 @@ use anyhow::Context;
 use clap::{Args, ValueEnum};
 
 use omcl::experiment::sweep::{self, BenchPlan};
+use omcl::experiment::variant::named_in;
 use omcl::mcl::FilterConfig;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+/// The experiments on the command line: the library's planned ones
+/// ([`sweep::Experiment`]) and those that run in this process.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Experiment {
-    /// Table I: tracking APE of the variants from the paper's local start,
-    /// with Figure 4 (trajectories coloured by APE over the floor plan).
-    Table1,
-    /// Table II: measurement-map consistency of the variants.
-    Table2,
-    /// Table V: steps until global localization reaches 2 ... 0.1 m,
-    /// without and with a prompt.
-    Table5,
-    /// Figure: APE and FPS against particles for several ray counts.
-    ParticlesRays,
-    /// Figure: stratified against equal and uniform ray sampling.
-    Sampling,
-    /// Table IV: camera 2 on the street world along the real KITTI 00
-    /// path (--street-*), the odometry variants of --odometry; translation
-    /// and rotation error, completion, filter steps/s, and the estimated
-    /// path over the map. Runs in this process (not planned as a sweep);
-    /// not part of `all`.
+    Planned(sweep::Experiment),
     Table4,
-    /// Table I's 2-D block: OMCL variants on floor plans projected from
-    /// their maps (x, y, yaw; planar rays), beside the paper's rows. Runs
-    /// in this process; not part of `all`.
     Table1Floorplan,
-    /// Table I's 3-D block: the full 6-DoF pose (height, roll, pitch
-    /// included) on sequences with height and pitch changes and odometry
-    /// noise on all six degrees of freedom. Runs in this process; not part
-    /// of `all`.
     Table1Sixdof,
-    /// Everything above but table4, table1-floorplan and table1-sixdof.
-    All,
+}
+
+/// The in-process experiments: value, name, help.
+const IN_PROCESS: [(Experiment, &str, &str); 3] = [
+    (
+        Experiment::Table4,
+        "table4",
+        "Table IV: camera 2 on the street world along the real KITTI 00 path (--street-*), the \
+         odometry variants of --odometry; translation and rotation error, completion, filter \
+         steps/s, and the estimated path over the map. Runs in this process (not planned as a \
+         sweep); not part of `all`",
+    ),
+    (
+        Experiment::Table1Floorplan,
+        "table1-floorplan",
+        "Table I's 2-D block: OMCL variants on floor plans projected from their maps (x, y, yaw; \
+         planar rays), beside the paper's rows. Runs in this process; not part of `all`",
+    ),
+    (
+        Experiment::Table1Sixdof,
+        "table1-sixdof",
+        "Table I's 3-D block: the full 6-DoF pose (height, roll, pitch included) on sequences \
+         with height and pitch changes and odometry noise on all six degrees of freedom. Runs in \
+         this process; not part of `all`",
+    ),
+];
+
+impl ValueEnum for Experiment {
+    fn value_variants<'a>() -> &'a [Self] {
+        use sweep::Experiment as S;
+        &[
+            Experiment::Planned(S::Table1),
+            Experiment::Planned(S::Table2),
+            Experiment::Planned(S::Table5),
+            Experiment::Planned(S::ParticlesRays),
+            Experiment::Planned(S::Sampling),
+            Experiment::Table4,
+            Experiment::Table1Floorplan,
+            Experiment::Table1Sixdof,
+            Experiment::Planned(S::All),
+        ]
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        let (name, help) = match self {
+            Experiment::Planned(e) => (e.name(), e.description()),
+            other => IN_PROCESS
+                .iter()
+                .find(|(e, ..)| e == other)
+                .map(|&(_, n, h)| (n, h))?,
+        };
+        Some(clap::builder::PossibleValue::new(name).help(help))
+    }
 }
 
 impl Experiment {
-    /// The sweep's experiment; `None` for table4, which runs on its own.
+    /// The sweep's experiment; `None` for those that run in this process.
     pub fn to_library(self) -> Option<sweep::Experiment> {
-        Some(match self {
-            Experiment::Table1 => sweep::Experiment::Table1,
-            Experiment::Table2 => sweep::Experiment::Table2,
-            Experiment::Table5 => sweep::Experiment::Table5,
-            Experiment::ParticlesRays => sweep::Experiment::ParticlesRays,
-            Experiment::Sampling => sweep::Experiment::Sampling,
-            Experiment::All => sweep::Experiment::All,
-            Experiment::Table4 | Experiment::Table1Floorplan | Experiment::Table1Sixdof => {
-                return None;
-            }
-        })
+        match self {
+            Experiment::Planned(e) => Some(e),
+            _ => None,
+        }
     }
 }
 
@@ -131,11 +155,7 @@ impl PlanArgs {
         let names = TABLE_VARIANT_NAMES;
         let variants: Vec<String> = names
             .iter()
-            .filter(|n| {
-                self.variants
-                    .as_deref()
-                    .is_none_or(|s| s.split(',').any(|x| x.trim() == **n))
-            })
+            .filter(|n| named_in(self.variants.as_deref(), n))
             .map(|n| n.to_string())
             .collect();
         anyhow::ensure!(!variants.is_empty(), "--variants matches none of {names:?}");

@@ -47,37 +47,10 @@ pub fn collect(
                 format!("{} line {}: {}", manifest.path.display(), b.line, b.reason),
             )),
             ManifestLine::Run(entry) => {
-                let record = match results.read(&entry.id) {
-                    Ok(Some(r)) if outcome_fits(&r, entry) => Some(r),
-                    Ok(Some(_)) => {
-                        let p = results.result_path(&entry.id);
-                        failed.push((
-                            i,
-                            format!(
-                                "{}: run {}: the result is of another kind",
-                                p.display(),
-                                entry.id
-                            ),
-                        ));
-                        None
-                    }
-                    Ok(None) => {
-                        let why = results.failure(&entry.id).map_or_else(
-                            || "no result".to_string(),
-                            |w| format!("failed: {}", w.trim()),
-                        );
-                        failed.push((
-                            i,
-                            format!(
-                                "{}: run {}: {why}",
-                                results.result_path(&entry.id).display(),
-                                entry.id
-                            ),
-                        ));
-                        None
-                    }
-                    Err(e) => {
-                        failed.push((i, e.to_string()));
+                let record = match read_result(results, entry) {
+                    Ok(r) => Some(r),
+                    Err(why) => {
+                        failed.push((i, why));
                         None
                     }
                 };
@@ -132,6 +105,31 @@ pub fn collect(
         done,
         failed,
     })
+}
+
+/// A run's result, or why there is none: missing, failed (with the
+/// failure's text), unreadable, or of another kind than the run.
+fn read_result(results: &ResultDir, entry: &RunEntry) -> Result<RunRecord, String> {
+    match results.read(&entry.id) {
+        Ok(Some(r)) if outcome_fits(&r, entry) => Ok(r),
+        Ok(Some(_)) => Err(format!(
+            "{}: run {}: the result is of another kind",
+            results.result_path(&entry.id).display(),
+            entry.id
+        )),
+        Ok(None) => {
+            let why = results.failure(&entry.id).map_or_else(
+                || "no result".to_string(),
+                |w| format!("failed: {}", w.trim()),
+            );
+            Err(format!(
+                "{}: run {}: {why}",
+                results.result_path(&entry.id).display(),
+                entry.id
+            ))
+        }
+        Err(e) => Err(e.to_string()),
+    }
 }
 
 /// The Markdown report's file name: `all.md`, `<experiment>.md` for one,

@@ -43,6 +43,32 @@ pub fn track(
     run(seq, &map.map, map.caster.clone(), &model, &spec)
 }
 
+/// A row of the paper's Table I: variant, APE RMSE, STD, Mean, Median, min
+/// RMSE, max RMSE (m), SSE (m^2), and how many sequences completed.
+pub struct PaperRow {
+    pub variant: &'static str,
+    pub ape: [f64; 7],
+    pub completed: &'static str,
+}
+
+/// A tracking row's APE cells: RMSE, STD, Mean, Median, min and max RMSE,
+/// SSE and the completed sequences, `|`-separated.
+fn ape_cells(r: &TrackingRow) -> Option<String> {
+    let m = r.summary.as_ref()?;
+    Some(format!(
+        "{:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {}/{}",
+        m.mean.rmse,
+        m.mean.std,
+        m.mean.mean,
+        m.mean.median,
+        m.min_rmse,
+        m.max_rmse,
+        m.mean.sse,
+        r.completed,
+        r.per_sequence.len(),
+    ))
+}
+
 /// Table I as Markdown.
 pub fn table1_markdown(rows: &[TrackingRow]) -> String {
     let mut s = String::from(
@@ -51,27 +77,37 @@ pub fn table1_markdown(rows: &[TrackingRow]) -> String {
          |---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
-        if let Some(m) = &r.summary {
+        if let Some(cells) = ape_cells(r) {
             let _ = writeln!(
                 s,
-                "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {}/{} | {:.1} | {:.1} | {:.0} |",
-                r.variant,
-                m.mean.rmse,
-                m.mean.std,
-                m.mean.mean,
-                m.mean.median,
-                m.min_rmse,
-                m.max_rmse,
-                m.mean.sse,
-                r.completed,
-                r.per_sequence.len(),
-                r.fps,
-                r.fps_with_encoder,
-                r.map_rows
+                "| {} | {cells} | {:.1} | {:.1} | {:.0} |",
+                r.variant, r.fps, r.fps_with_encoder, r.map_rows
             );
         }
     }
     s.push('\n');
+    s
+}
+
+/// One of Table I's blocks as Markdown: each of our rows followed by the
+/// paper's row of the same variant.
+pub fn block_markdown(title: &str, ours: &[TrackingRow], paper: &[PaperRow]) -> String {
+    let mut s = format!(
+        "## {title}\n\n| variant | RMSE | STD | Mean | Median | min RMSE | max RMSE | SSE (m^2) | completed | steps/s |\n|---|---|---|---|---|---|---|---|---|---|\n"
+    );
+    for r in ours {
+        if let Some(cells) = ape_cells(r) {
+            let _ = writeln!(s, "| {}, omcl | {cells} | {:.1} |", r.variant, r.fps);
+        }
+        for p in paper.iter().filter(|p| p.variant == r.variant) {
+            let v = p.ape;
+            let _ = writeln!(
+                s,
+                "| {}, paper | {} | {} | {} | {} | {} | {} | {} | {} | |",
+                p.variant, v[0], v[1], v[2], v[3], v[4], v[5], v[6], p.completed
+            );
+        }
+    }
     s
 }
 

@@ -26,8 +26,9 @@ use super::mapping::BenchMap;
 use super::run::RunResult;
 use super::run::TrackingRow;
 use super::sequence::SimSequence;
-use super::table1::track;
-use super::variant::Variant;
+use super::table1::{PaperRow, block_markdown, track};
+use super::table1_floorplan::BlockSpec;
+use super::variant::{TABLE1_VARIANTS, Variant, named_in};
 use crate::geometry::Pose;
 use crate::mcl::{FilterConfig, MotionMode};
 
@@ -154,6 +155,54 @@ pub fn rows_3d(
         .zip(runs)
         .map(|(v, r)| TrackingRow::new(v.name, r))
         .collect())
+}
+
+/// The paper's 3-D rows of Table I.
+pub const PAPER_3D: [PaperRow; 4] = [
+    PaperRow {
+        variant: "OMCL_GT",
+        ape: [0.15, 0.09, 0.12, 0.1, 0.1, 0.3, 30.45],
+        completed: "10/10",
+    },
+    PaperRow {
+        variant: "OMCL_LSeg",
+        ape: [0.2, 0.1, 0.18, 0.17, 0.17, 0.41, 59.53],
+        completed: "10/10",
+    },
+    PaperRow {
+        variant: "OMCL_Open_LSeg",
+        ape: [0.42, 0.25, 0.31, 0.25, 0.22, 0.75, 223.32],
+        completed: "8/10",
+    },
+    PaperRow {
+        variant: "RTAB-Map",
+        ape: [5.23, 2.97, 4.30, 3.6, 0.31, 8.14, 25781.93],
+        completed: "10/10",
+    },
+];
+
+/// Table I's 3-D block: OMCL_GT, OMCL_LSeg and OMCL_Open_LSeg, those of
+/// them in `names` (comma-separated; `None`: all), and the block as
+/// Markdown beside the paper's rows.
+pub fn block(
+    spec: &BlockSpec,
+    motion: &SixDofMotion,
+    names: Option<&str>,
+    progress: &dyn Fn(&str),
+) -> Result<(Vec<TrackingRow>, String), ExperimentError> {
+    let variants: Vec<_> = TABLE1_VARIANTS
+        .iter()
+        .filter(|v| ["OMCL_GT", "OMCL_LSeg", "OMCL_Open_LSeg"].contains(&v.name))
+        .filter(|v| named_in(names, v.name))
+        .copied()
+        .collect();
+    let rows = rows_3d(spec, motion, &variants, progress)?;
+    let md = block_markdown(
+        "Table I, 3-D block: APE (m) of the full 6-DoF pose",
+        &rows,
+        &PAPER_3D,
+    );
+    Ok((rows, md))
 }
 
 #[cfg(test)]

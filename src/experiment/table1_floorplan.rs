@@ -17,14 +17,19 @@ use std::sync::Arc;
 use super::ExperimentError;
 use super::features::{builtin_table, feature_model};
 use super::mapping::BenchMap;
-use super::run::RunResult;
+use super::run::{RunResult, TrackingRow};
 use super::sequence::SimSequence;
+use super::table1::{PaperRow, block_markdown};
+use super::variant::{TABLE1_VARIANTS, named_in};
 use crate::eval::ErrorStats;
 use crate::eval::localization::CompletionRule;
 use crate::map::{FloorPlan, FloorPlanParams, LanguageMap};
+use crate::mcl::baselines::Baseline;
 use crate::mcl::{FilterConfig, FrameFeatures, MotionMode};
 use crate::raycast::{PlanarCaster, RayCaster};
+use crate::sim::embeddings::ClassEmbeddings;
 use crate::sim::features::Preset;
+use crate::sim::render::Frame;
 
 /// A variant's floor plan with its one-layer map and planar caster.
 pub struct PlanBench {
@@ -378,6 +383,40 @@ pub fn omcl_rows(
         .collect())
 }
 
+/// The class table as a feature database (a row a class): the baselines
+/// label each pixel with its nearest class.
+fn class_db(table: &ClassEmbeddings) -> Result<crate::map::FeatureDb, ExperimentError> {
+    let dim = table.row(0).len();
+    Ok(crate::map::FeatureDb::from_rows(
+        dim,
+        0.0,
+        (0..table.len())
+            .flat_map(|c| table.row(c).to_vec())
+            .collect(),
+    )?)
+}
+
+/// The baselines' observations of the sampled pixels: each pixel's
+/// direction, nearest class and (simulated sensor) depth.
+fn observe(
+    f: &dyn FrameFeatures,
+    frame: &Frame,
+    pixels: &[(u32, u32)],
+    classes: &crate::map::FeatureDb,
+    k: &crate::geometry::Intrinsics,
+) -> Result<Vec<crate::mcl::baselines::PixelObservation>, ExperimentError> {
+    use crate::mcl::baselines::{NO_LABEL, observations};
+    let mut buf = vec![0.0f32; classes.dim()];
+    let mut labels = Vec::with_capacity(pixels.len());
+    let mut depths = Vec::with_capacity(pixels.len());
+    for &(u, v) in pixels {
+        f.feature(u, v, &mut buf);
+        labels.push(classes.nearest(&buf)?.map_or(NO_LABEL, |(c, _)| c as u16));
+        depths.push(frame.depth[(v * frame.width + u) as usize]);
+    }
+    Ok(observations(k, pixels, &labels, &depths))
+}
+
 /// Tracks `seq` on `plan` with a baseline sensor model
 /// ([`crate::mcl::baselines`]): the same local start, planar motion
 /// model, pixel sampling (on the plan's database), estimate and
@@ -392,22 +431,14 @@ pub fn track_baseline(
     filter: FilterConfig,
     particles: usize,
 ) -> Result<RunResult, ExperimentError> {
-    use crate::mcl::baselines::{self, LabelledPlan, NO_LABEL};
+    use crate::mcl::baselines::{self, LabelledPlan};
     use crate::mcl::{estimate, local_init, motion::MotionModel, resample, sampling};
     use rand::SeedableRng;
     use rayon::prelude::*;
     use std::time::Instant;
 
     let model = feature_model(seq, preset, 0x10c);
-    let table = &seq.table;
-    let dim = table.row(0).len();
-    let classes = crate::map::FeatureDb::from_rows(
-        dim,
-        0.0,
-        (0..table.len())
-            .flat_map(|c| table.row(c).to_vec())
-            .collect(),
-    )?;
+    let classes = class_db(&seq.table)?;
     let cells = plan.map.cells();
     let labelled = LabelledPlan::new(
         &plan.plan,
@@ -434,10 +465,8 @@ pub fn track_baseline(
         &mut rng,
     );
     let rows = super::run::class_rows(seq, &plan.map);
-    let k = seq.intrinsics;
     let (mut estimates, mut step_seconds, mut encoder_seconds) = (vec![], vec![], vec![]);
     let mut rays = 0usize;
-    let mut buf = vec![0.0f32; dim];
     for i in 0..seq.len() {
         let frame = seq.render(i);
         let t = Instant::now();
@@ -451,14 +480,7 @@ pub fn track_baseline(
             motion.predict(&mut ps, &seq.increment(i), &mut rng)?;
         }
         let pixels = sampling::sample_pixels(&f, plan.map.db(), &filter.sampling, &mut rng)?;
-        let mut labels = Vec::with_capacity(pixels.len());
-        let mut depths = Vec::with_capacity(pixels.len());
-        for &(u, v) in &pixels {
-            crate::mcl::FrameFeatures::feature(&f, u, v, &mut buf);
-            labels.push(classes.nearest(&buf)?.map_or(NO_LABEL, |(c, _)| c as u16));
-            depths.push(frame.depth[(v * frame.width + u) as usize]);
-        }
-        let obs = baselines::observations(&k, &pixels, &labels, &depths);
+        let obs = observe(&f, &frame, &pixels, &classes, &seq.intrinsics)?;
         let log_l: Vec<f64> = ps
             .par_iter()
             .map(|p| {
@@ -496,4 +518,64 @@ pub fn track_baseline(
     };
     planar_errors(&mut r, seq.poses(), 0);
     Ok(r)
+}
+
+/// The paper's 2-D rows of Table I.
+pub const PAPER_2D: [PaperRow; 6] = [
+    PaperRow {
+        variant: "OMCL_GT",
+        ape: [0.11, 0.07, 0.09, 0.08, 0.08, 0.18, 17.38],
+        completed: "10/10",
+    },
+    PaperRow {
+        variant: "OMCL_LSeg",
+        ape: [0.15, 0.09, 0.13, 0.12, 0.11, 0.28, 33.07],
+        completed: "10/10",
+    },
+    PaperRow {
+        variant: "OMCL_auto_LSeg",
+        ape: [0.24, 0.15, 0.18, 0.15, 0.14, 0.52, 95.0],
+        completed: "10/10",
+    },
+    PaperRow {
+        variant: "OMCL_Open_LSeg",
+        ape: [0.36, 0.24, 0.27, 0.22, 0.15, 0.62, 164.07],
+        completed: "8/10",
+    },
+    PaperRow {
+        variant: "SeDAR*_GT",
+        ape: [0.79, 0.46, 0.64, 0.54, 0.24, 2.33, 1891.2],
+        completed: "6/10",
+    },
+    PaperRow {
+        variant: "SIMP*_GT",
+        ape: [1.39, 1.03, 0.79, 0.94, 0.45, 2.81, 2898.15],
+        completed: "4/10",
+    },
+];
+
+/// Table I's 2-D block: the OMCL variants (OMCL_GT_exact aside) and the
+/// baselines whose names are in `names` (comma-separated; `None`: all),
+/// and the block as Markdown beside the paper's rows.
+pub fn block(
+    spec: &BlockSpec,
+    names: Option<&str>,
+    progress: &dyn Fn(&str),
+) -> Result<(Vec<TrackingRow>, String), ExperimentError> {
+    let variants: Vec<_> = TABLE1_VARIANTS
+        .iter()
+        .filter(|v| v.name != "OMCL_GT_exact" && named_in(names, v.name))
+        .copied()
+        .collect();
+    let baselines: Vec<Baseline> = [Baseline::Sedar, Baseline::Simp]
+        .into_iter()
+        .filter(|b| named_in(names, b.name()))
+        .collect();
+    let rows = omcl_rows(spec, &variants, &baselines, progress)?;
+    let md = block_markdown(
+        "Table I, 2-D block: APE (m, horizontal) on floor plans",
+        &rows,
+        &PAPER_2D,
+    );
+    Ok((rows, md))
 }

@@ -439,6 +439,119 @@ fn plot_run(
     .map_err(|e| cfg_err(format!("{}: {e}", path.display())))
 }
 
+/// One street of Table IV: its sequence, LiDAR map (and the caster over
+/// its leaves), feature model and seed.
+struct Street<'a> {
+    seq: &'a StreetSequence,
+    map: &'a LanguageMap,
+    caster: Arc<dyn crate::raycast::RayCaster>,
+    model: &'a FeatureModel,
+    seed: u64,
+}
+
+impl Street<'_> {
+    /// The filter along the street with the sequence's current odometry
+    /// (`name`); scored, reported through `done`, plotted on the first
+    /// street.
+    fn run(
+        &self,
+        p: &Table4Params,
+        name: &str,
+        status: &dyn Fn(&str),
+        done: &dyn Fn(&str),
+    ) -> Result<Table4Run, ExperimentError> {
+        let (s, seq, map) = (self.seed, self.seq, self.map);
+        let (frames, length_m) = (seq.ground_truth.len(), seq.length_m());
+        let spec = RunSpec {
+            filter: FilterConfig {
+                seed: s,
+                ..p.filter
+            },
+            particles: p.particles,
+            // The authors' initial spread: 0.3 m and 0.1 rad.
+            start: Start::Local {
+                sigma_m: 0.3,
+                sigma_deg: 0.1f64.to_degrees(),
+            },
+            first: 0,
+            frames: usize::MAX,
+            preset: p.preset,
+        };
+        status(&format!("street {s}, odometry {name}"));
+        let r = run_street(seq, map, self.caster.clone(), self.model, &spec)?;
+        let m = &r.metric;
+        let n = r.run.estimates.len();
+        let odo = crate::eval::outdoor_metric(&seq.ground_truth[..n], &seq.odometry[..n])
+            .map_err(|e| cfg_err(e.to_string()))?;
+        done(&format!(
+            "street {s} ({frames} frames, {length_m:.0} m), odometry {name}: translation \
+             {:.3} +- {:.3} m (max {:.2}), rotation {:.2} +- {:.2} deg, completed {}, \
+             {:.1} steps/s (odometry alone: {:.3} m, {:.2} deg)",
+            m.translation.mean,
+            m.translation.std,
+            m.translation_m.iter().copied().fold(0.0, f64::max),
+            m.rotation.mean,
+            m.rotation.std,
+            m.completed,
+            r.run.fps(),
+            odo.translation.mean,
+            odo.rotation.mean
+        ));
+        if s == p.first_seed {
+            let path = p.out.join(format!("table4_{name}.png"));
+            let title = format!(
+                "street {s}, odometry {name}: translation {:.2} m, rotation {:.2} deg",
+                m.translation.mean, m.rotation.mean
+            );
+            plot_run(&path, &title, map, seq, &r.run.estimates, &m.translation_m)?;
+        }
+        Ok(Table4Run {
+            odometry: name.to_string(),
+            seed: s,
+            frames,
+            length_m,
+            translation_mean_m: m.translation.mean,
+            translation_std_m: m.translation.std,
+            translation_max_m: m.translation_m.iter().copied().fold(0.0, f64::max),
+            rotation_mean_deg: m.rotation.mean,
+            rotation_std_deg: m.rotation.std,
+            completed: m.completed,
+            odometry_translation_mean_m: odo.translation.mean,
+            odometry_rotation_mean_deg: odo.rotation.mean,
+            filter_steps_per_s: r.run.fps(),
+            map_voxels: map.len(),
+            map_rows: r.run.map_rows,
+        })
+    }
+}
+
+/// `table4.json`: the setting and every run.
+fn write_table4_json(
+    p: &Table4Params,
+    runs: &[Table4Run],
+    frames: usize,
+    length_m: f64,
+) -> Result<(), ExperimentError> {
+    let (config, preset) = (p.filter, p.preset);
+    let json = serde_json::json!({
+        "what": "a synthetic street along the real KITTI 00 path (camera 2, LiDAR-built map), not KITTI's images",
+        "street_start": p.street_start,
+        "frames": frames,
+        "length_m": length_m,
+        "resolution_m": p.street_resolution,
+        "particles": p.particles,
+        "rays": config.sampling.rays,
+        "features": preset.name(),
+        "filter": config,
+        "runs": runs,
+    });
+    let path = p.out.join("table4.json");
+    let text = serde_json::to_string_pretty(&json).map_err(|e| cfg_err(e.to_string()))?;
+    files::write_atomic(&path, text.as_bytes())
+        .map_err(|e| cfg_err(format!("writing {}: {e}", path.display())))?;
+    Ok(())
+}
+
 pub fn table4(
     p: &Table4Params,
     table: &ClassEmbeddings,
@@ -447,7 +560,7 @@ pub fn table4(
 ) -> Result<Table4, ExperimentError> {
     let gt = driving_path(p)?;
     let variants = odometry_variants(&p.odometry, &p.trajectories)?;
-    let (config, preset) = (p.filter, p.preset);
+    let preset = p.preset;
     let mut runs: Vec<Table4Run> = Vec::new();
     let mut length_m = 0.0;
     let mut frames = 0;
@@ -471,88 +584,17 @@ pub fn table4(
         let model = FeatureModel::preset(seq.table.clone(), preset, s.wrapping_add(3));
         for (name, v) in &variants {
             seq.set_odometry(v, s)?;
-            let spec = RunSpec {
-                filter: FilterConfig { seed: s, ..config },
-                particles: p.particles,
-                // The authors' initial spread: 0.3 m and 0.1 rad.
-                start: Start::Local {
-                    sigma_m: 0.3,
-                    sigma_deg: 0.1f64.to_degrees(),
-                },
-                first: 0,
-                frames: usize::MAX,
-                preset,
-            };
-            status(&format!("street {s}, odometry {name}"));
-            let r = run_street(&seq, &map, caster.clone(), &model, &spec)?;
-            let m = &r.metric;
-            let n = r.run.estimates.len();
-            let odo = crate::eval::outdoor_metric(&seq.ground_truth[..n], &seq.odometry[..n])
-                .map_err(|e| cfg_err(e.to_string()))?;
-            done(&format!(
-                "street {s} ({frames} frames, {length_m:.0} m), odometry {name}: translation \
-                 {:.3} +- {:.3} m (max {:.2}), rotation {:.2} +- {:.2} deg, completed {}, \
-                 {:.1} steps/s (odometry alone: {:.3} m, {:.2} deg)",
-                m.translation.mean,
-                m.translation.std,
-                m.translation_m.iter().copied().fold(0.0, f64::max),
-                m.rotation.mean,
-                m.rotation.std,
-                m.completed,
-                r.run.fps(),
-                odo.translation.mean,
-                odo.rotation.mean
-            ));
-            if s == p.first_seed {
-                let path = p.out.join(format!("table4_{name}.png"));
-                let title = format!(
-                    "street {s}, odometry {name}: translation {:.2} m, rotation {:.2} deg",
-                    m.translation.mean, m.rotation.mean
-                );
-                plot_run(
-                    &path,
-                    &title,
-                    &map,
-                    &seq,
-                    &r.run.estimates,
-                    &m.translation_m,
-                )?;
-            }
-            runs.push(Table4Run {
-                odometry: name.clone(),
+            let street = Street {
+                seq: &seq,
+                map: &map,
+                caster: caster.clone(),
+                model: &model,
                 seed: s,
-                frames,
-                length_m,
-                translation_mean_m: m.translation.mean,
-                translation_std_m: m.translation.std,
-                translation_max_m: m.translation_m.iter().copied().fold(0.0, f64::max),
-                rotation_mean_deg: m.rotation.mean,
-                rotation_std_deg: m.rotation.std,
-                completed: m.completed,
-                odometry_translation_mean_m: odo.translation.mean,
-                odometry_rotation_mean_deg: odo.rotation.mean,
-                filter_steps_per_s: r.run.fps(),
-                map_voxels: map.len(),
-                map_rows: r.run.map_rows,
-            });
+            };
+            runs.push(street.run(p, name, status, done)?);
         }
     }
-    let json = serde_json::json!({
-        "what": "a synthetic street along the real KITTI 00 path (camera 2, LiDAR-built map), not KITTI's images",
-        "street_start": p.street_start,
-        "frames": frames,
-        "length_m": length_m,
-        "resolution_m": p.street_resolution,
-        "particles": p.particles,
-        "rays": config.sampling.rays,
-        "features": preset.name(),
-        "filter": config,
-        "runs": runs,
-    });
-    let path = p.out.join("table4.json");
-    let text = serde_json::to_string_pretty(&json).map_err(|e| cfg_err(e.to_string()))?;
-    files::write_atomic(&path, text.as_bytes())
-        .map_err(|e| cfg_err(format!("writing {}: {e}", path.display())))?;
+    write_table4_json(p, &runs, frames, length_m)?;
     let markdown = markdown(p, &runs, &variants, frames, length_m);
     Ok(Table4 { runs, markdown })
 }

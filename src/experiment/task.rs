@@ -66,28 +66,33 @@ pub(super) fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> SweepError +
     }
 }
 
-/// The experiments of `omcl bench`.
+/// The experiments of `omcl bench` that are planned as sweeps of runs
+/// (the others run in one process: `omcl bench table4`, `table1-floorplan`,
+/// `table1-sixdof`). [`Experiment::description`] says what each gives.
 #[derive(
     Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
 )]
 #[serde(rename_all = "kebab-case")]
 pub enum Experiment {
-    /// Table I: tracking APE of the variants from the paper's local start
-    /// (and Figure 4).
     Table1,
-    /// Table II: measurement-map consistency of the variants.
     Table2,
-    /// Table V: steps until global localization reaches 2 ... 0.1 m.
     Table5,
-    /// Ablation: APE and FPS against particles for several ray counts.
     ParticlesRays,
-    /// Ablation: stratified against equal and uniform ray sampling.
     Sampling,
-    /// Everything above.
     All,
 }
 
 impl Experiment {
+    /// Every experiment, `All` last.
+    pub const ALL: [Experiment; 6] = [
+        Experiment::Table1,
+        Experiment::Table2,
+        Experiment::Table5,
+        Experiment::ParticlesRays,
+        Experiment::Sampling,
+        Experiment::All,
+    ];
+
     /// The name on the command line and in file names.
     pub fn name(self) -> &'static str {
         match self {
@@ -97,6 +102,26 @@ impl Experiment {
             Experiment::ParticlesRays => "particles-rays",
             Experiment::Sampling => "sampling",
             Experiment::All => "all",
+        }
+    }
+
+    /// What the experiment gives, in a sentence.
+    pub fn description(self) -> &'static str {
+        match self {
+            Experiment::Table1 => {
+                "Table I: tracking APE of the variants from the paper's local start, with \
+                 Figure 4 (trajectories coloured by APE over the floor plan)"
+            }
+            Experiment::Table2 => "Table II: measurement-map consistency of the variants",
+            Experiment::Table5 => {
+                "Table V: steps until global localization reaches 2 ... 0.1 m, without and \
+                 with a prompt"
+            }
+            Experiment::ParticlesRays => {
+                "Figure: APE and FPS against particles for several ray counts"
+            }
+            Experiment::Sampling => "Figure: stratified against equal and uniform ray sampling",
+            Experiment::All => "Everything above but table4, table1-floorplan and table1-sixdof",
         }
     }
 }

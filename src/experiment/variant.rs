@@ -49,3 +49,9 @@ pub const TABLE1_VARIANTS: [Variant; 5] = [
         localize: Preset::Exact,
     },
 ];
+
+/// Whether `name` is in a comma-separated list of names (`None`: every
+/// name is).
+pub fn named_in(list: Option<&str>, name: &str) -> bool {
+    list.is_none_or(|s| s.split(',').any(|x| x.trim() == name))
+}
