@@ -314,6 +314,33 @@ fn recovery_tracks_like_the_plain_filter() {
 }
 
 #[test]
+fn early_rejection_tracks_like_the_plain_filter() {
+    let f = Fixture::new();
+    let frames = FRAMES.to_string();
+    let mean_error = |flags: &[&str]| {
+        let out = f.dir.path().join(format!("est{}.txt", flags.len()));
+        let mut args = vec!["--frames", &frames];
+        args.extend_from_slice(flags);
+        let r = f.localize(&f.map, &f.seq, &out, &args);
+        assert!(r.ok(), "{}", r.text());
+        let est = read_tum(&out);
+        let gt = read_tum(&f.seq.join("poses.txt"));
+        let errors: Vec<f64> = est
+            .iter()
+            .zip(&gt)
+            .map(|((_, e), (_, g))| distance(e, g))
+            .collect();
+        assert_eq!(errors.len(), FRAMES);
+        errors.iter().sum::<f64>() / errors.len() as f64
+    };
+    let (full, two) = (mean_error(&[]), mean_error(&["--early-reject"]));
+    assert!(
+        two < 0.5 && two < 1.25 * full + 0.02,
+        "two-pass {two:.3} m, full {full:.3} m"
+    );
+}
+
+#[test]
 fn a_missing_frame_is_an_error_naming_the_file() {
     let f = Fixture::new();
     let out = f.existing_out("est.txt");

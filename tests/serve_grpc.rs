@@ -19,11 +19,17 @@ fn s(p: &std::path::Path) -> &str {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn two_sessions_give_the_trajectories_of_two_cli_runs() {
     let f = Fixture::new();
-    // The CLI, seeds 3 and 4.
+    // The CLI, seeds 3 and 4 (4 with two-pass likelihoods).
     let mut cli = Vec::new();
     for seed in [3u64, 4] {
         let out = f.dir.path().join(format!("est{seed}.txt"));
-        let r = omcl(&[
+        let (particles, rays, seed_s, frames) = (
+            PARTICLES.to_string(),
+            RAYS.to_string(),
+            seed.to_string(),
+            FRAMES.to_string(),
+        );
+        let mut args = vec![
             "localize",
             "--map",
             s(&f.map),
@@ -32,14 +38,18 @@ async fn two_sessions_give_the_trajectories_of_two_cli_runs() {
             "-o",
             s(&out),
             "--particles",
-            &PARTICLES.to_string(),
+            &particles,
             "--rays",
-            &RAYS.to_string(),
+            &rays,
             "--seed",
-            &seed.to_string(),
+            &seed_s,
             "--frames",
-            &FRAMES.to_string(),
-        ]);
+            &frames,
+        ];
+        if seed == 4 {
+            args.push("--early-reject");
+        }
+        let r = omcl(&args);
         assert!(r.status.success(), "{r:?}");
         cli.push(read_tum(&out));
     }
@@ -48,7 +58,14 @@ async fn two_sessions_give_the_trajectories_of_two_cli_runs() {
     let server = Server::start(&f, &[]);
     let mut c = server.client(Auth::good()).await;
     let a = c.create_session(f.create(3)).await.unwrap().into_inner();
-    let b = c.create_session(f.create(4)).await.unwrap().into_inner();
+    let b = c
+        .create_session(proto::CreateSessionRequest {
+            early_reject: true,
+            ..f.create(4)
+        })
+        .await
+        .unwrap()
+        .into_inner();
     // Session a through unary calls, session b through a stream, frame by
     // frame side by side.
     let (tx, rx) = tokio::sync::mpsc::channel(4);

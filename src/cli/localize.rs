@@ -14,7 +14,9 @@ use omcl::io::labels::EmbeddingTable;
 use omcl::io::poses::{self, PoseFormat};
 use omcl::io::rgbd;
 use omcl::map;
-use omcl::mcl::{self, FilterConfig, FloorParams, MotionMode, PromptParams, SamplingStrategy};
+use omcl::mcl::{
+    self, EarlyReject, FilterConfig, FloorParams, MotionMode, PromptParams, SamplingStrategy,
+};
 use omcl::session::sequence::{self, CameraSequence, FrameSource, LocalizedFrame, Odometry};
 use omcl::session::{LabelTable, Session, SessionConfig, SessionError, SharedMap, Start};
 use omcl::trajectory::Trajectory;
@@ -144,6 +146,12 @@ pub struct LocalizeArgs {
     /// contrast-rescaled cosine (see `SensorParams::contrast`).
     #[arg(long)]
     pub no_contrast: bool,
+    /// Two-pass likelihoods: a quarter of the pixels first, the rest only
+    /// for particles within 15 % of the best (`sensor::EarlyReject`). About
+    /// 1.4 times the steps/s on the synthetic benchmark at the same APE; off
+    /// by default, as the paper's filter casts every ray.
+    #[arg(long)]
+    pub early_reject: bool,
     /// Seed of every random draw.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -338,6 +346,7 @@ fn filter_config(a: &LocalizeArgs, is_kitti: bool) -> FilterConfig {
         config.sharpen = s;
     }
     config.sensor.contrast = !a.no_contrast;
+    config.sensor.early_reject = a.early_reject.then(EarlyReject::default);
     if a.recovery {
         config.recovery = Some(mcl::recovery::RecoveryParams::default());
     }

@@ -61,8 +61,8 @@ pub use particles::Particle;
 pub use resample::ResamplePolicy;
 pub use sampling::{SamplingParams, SamplingStrategy};
 pub use sensor::{
-    FOOTPRINT_DEPTH, RAY_GROUP, RayOrder, SensorModel, SensorParams, SimilarityTable, packet_order,
-    pixel_major_pays,
+    EarlyReject, FOOTPRINT_DEPTH, RAY_GROUP, RayOrder, SensorModel, SensorParams, SimilarityTable,
+    packet_order, pixel_major_pays,
 };
 
 /// Errors of the localization filter.

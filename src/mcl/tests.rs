@@ -147,6 +147,82 @@ fn the_true_pose_scores_highest() {
 }
 
 #[test]
+fn early_rejection_stops_only_particles_far_below_the_best() {
+    let w = world();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let (truth, pixels, table) = sampled_view(&w, 400, &mut rng);
+    let ps: Vec<Particle> = (0..41)
+        .map(|i| {
+            let s = if i % 3 == 0 { 0.8 } else { 0.05 };
+            let mut g = || rng.sample::<f64, _>(StandardNormal) * s;
+            let t = truth.translation.vector + Vector3::new(g(), g(), 0.0);
+            Particle::new(level_camera(t, 0.4 + g()), 1.0)
+        })
+        .collect();
+    let model = |early_reject, order| {
+        SensorModel::new(
+            w.caster.clone(),
+            w.map.rows().into(),
+            w.map.grid().origin,
+            intrinsics(),
+            SensorParams {
+                early_reject,
+                ..Default::default()
+            },
+        )
+        .with_ray_order(order)
+    };
+    let e = EarlyReject {
+        every: 4,
+        ratio: 0.85,
+    };
+    for order in [RayOrder::ParticleMajor, RayOrder::PixelMajor] {
+        let full = model(None, order)
+            .likelihoods(&ps, &pixels, &table)
+            .to_vec();
+        // Ratio 0: nobody is stopped; the sums differ from one pass only
+        // in their order.
+        let all = EarlyReject { ratio: 0.0, ..e };
+        let two = model(Some(all), order)
+            .likelihoods(&ps, &pixels, &table)
+            .to_vec();
+        for (a, b) in full.iter().zip(&two) {
+            assert!((a - b).abs() < 1e-5, "{a} vs {b}");
+        }
+        // The first pass by hand: every 4th pixel.
+        let first: Vec<(u32, u32)> = pixels.iter().copied().step_by(4).collect();
+        let cols: Vec<usize> = (0..pixels.len()).step_by(4).collect();
+        let l = model(Some(e), order)
+            .likelihoods(&ps, &pixels, &table)
+            .to_vec();
+        let first_means: Vec<f32> = {
+            let sub = table.columns(&cols);
+            model(None, order).likelihoods(&ps, &first, &sub).to_vec()
+        };
+        let best = first_means.iter().copied().fold(f32::MIN, f32::max);
+        let (mut kept, mut stopped) = (0, 0);
+        for i in 0..ps.len() {
+            if first_means[i] >= 0.85 * best {
+                // Kept: its full likelihood.
+                assert!(
+                    (l[i] - full[i]).abs() < 1e-5,
+                    "{i}: {} vs {}",
+                    l[i],
+                    full[i]
+                );
+                kept += 1;
+            } else {
+                // Stopped: its first-pass mean, far below the best's.
+                assert!((l[i] - first_means[i]).abs() < 1e-5, "{i}");
+                assert!(full[i] < 0.95 * full.iter().copied().fold(f32::MIN, f32::max));
+                stopped += 1;
+            }
+        }
+        assert!(kept > 0 && stopped > 5, "kept {kept}, stopped {stopped}");
+    }
+}
+
+#[test]
 fn every_ray_order_gives_the_same_likelihoods_to_the_bit() {
     let w = world();
     let mut rng = ChaCha8Rng::seed_from_u64(4);
@@ -325,6 +401,28 @@ fn run(w: &World, config: FilterConfig, n: usize, seed: u64) -> (Vec<f64>, Vec<S
 
 fn rmse(e: &[f64]) -> f64 {
     (e.iter().map(|x| x * x).sum::<f64>() / e.len() as f64).sqrt()
+}
+
+#[test]
+fn early_rejection_tracks_as_well_as_the_full_filter() {
+    let w = world();
+    let config = |early_reject| FilterConfig {
+        sampling: SamplingParams {
+            rays: 256,
+            ..Default::default()
+        },
+        sensor: SensorParams {
+            early_reject,
+            ..Default::default()
+        },
+        seed: 3,
+        ..Default::default()
+    };
+    let (full, _) = run(&w, config(None), 256, 3);
+    let (two, _) = run(&w, config(Some(EarlyReject::default())), 256, 3);
+    let (full, two) = (rmse(&full[10..]), rmse(&two[10..]));
+    println!("APE RMSE after 10 frames: full {full:.3} m, two-pass {two:.3} m");
+    assert!(two < 0.15 && two < 1.25 * full + 0.01, "{two} vs {full}");
 }
 
 #[test]

@@ -145,6 +145,9 @@ impl Localization for Service {
         if r.recovery {
             filter.recovery = Some(crate::mcl::recovery::RecoveryParams::default());
         }
+        if r.early_reject {
+            filter.sensor.early_reject = Some(crate::mcl::EarlyReject::default());
+        }
         let config = SessionConfig {
             intrinsics,
             particles,

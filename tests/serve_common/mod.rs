@@ -175,6 +175,7 @@ impl Fixture {
             )),
             recovery: false,
             frame_id: String::new(),
+            early_reject: false,
         }
     }
 }
