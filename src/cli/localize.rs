@@ -259,6 +259,7 @@ fn odometry_source(a: &LocalizeArgs, d: &Path, is_kitti: bool) -> anyhow::Result
         sigma_t: a.odom_noise_m,
         sigma_r_deg: a.odom_noise_deg.unwrap_or(default_deg),
         drift_scale: 1.0,
+        all_axes: false,
     };
     ensure!(
         cfg.sigma_t >= 0.0 && cfg.sigma_r_deg >= 0.0,

@@ -17,8 +17,6 @@
 //! translation error, the completion rule the same.
 
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
-use rand::SeedableRng;
-use rand_distr::{Distribution, StandardNormal};
 
 use super::ExperimentError;
 use super::features::builtin_table;
@@ -81,32 +79,20 @@ pub fn sixdof_sequence(
             p.rotation * tilt,
         );
     }
-    seq.odometry = noisy_odometry(seq.poses(), motion, seed);
+    // Gaussian noise on all six degrees of freedom of every increment,
+    // accumulated (the first pose exact).
+    seq.odometry = crate::sim::paths::odometry(
+        seq.poses(),
+        &[],
+        &crate::sim::paths::OdometryConfig {
+            seed,
+            sigma_t: motion.sigma_translation,
+            sigma_r_deg: motion.sigma_rotation_deg,
+            drift_scale: 0.0,
+            all_axes: true,
+        },
+    );
     Ok(seq)
-}
-
-/// Ground truth with Gaussian noise on all six degrees of freedom of every
-/// increment, accumulated (the first pose exact).
-pub fn noisy_odometry(gt: &[Pose], motion: &SixDofMotion, seed: u64) -> Vec<Pose> {
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed ^ 0x6d0f_0d0e);
-    let mut g = || -> f64 { StandardNormal.sample(&mut rng) };
-    let mut out = Vec::with_capacity(gt.len());
-    for (i, p) in gt.iter().enumerate() {
-        if i == 0 {
-            out.push(*p);
-            continue;
-        }
-        let inc = gt[i - 1].inverse() * p;
-        let st = motion.sigma_translation;
-        let sr = motion.sigma_rotation_deg.to_radians();
-        let noise = Pose::from_parts(
-            Translation3::new(st * g(), st * g(), st * g()),
-            UnitQuaternion::from_scaled_axis(Vector3::new(sr * g(), sr * g(), sr * g())),
-        );
-        let prev: Pose = out[i - 1];
-        out.push(prev * inc * noise);
-    }
-    out
 }
 
 /// Tracks a 6-DoF sequence in `map` with the full motion model.

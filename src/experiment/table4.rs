@@ -116,6 +116,7 @@ impl StreetSequence {
                     sigma_t: *sigma_m,
                     sigma_r_deg: *sigma_deg,
                     drift_scale: 1.0,
+                    all_axes: false,
                 },
             ),
             StreetOdometry::Replay(camera0) => {
