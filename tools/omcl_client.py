@@ -108,15 +108,18 @@ class OmclClient:
         return self.stub.ListSessions(pb.ListSessionsRequest(), metadata=self.metadata).sessions
 
     def create_session(self, map_name, camera, initial_pose=None, prompt=None,
-                       particles=None, rays=None, seed=0, recovery=False):
+                       particles=None, rays=None, seed=0, recovery=False,
+                       early_reject=False):
         """camera: (fx, fy, cx, cy, width, height); initial_pose: (t, q);
-        prompt: words; neither: global localization."""
+        prompt: words; neither: global localization. early_reject: two-pass
+        likelihoods (omcl localize --early-reject)."""
         fx, fy, cx, cy, w, h = camera
         req = pb.CreateSessionRequest(
             map=map_name,
             camera=pb.CameraInfo(fx=fx, fy=fy, cx=cx, cy=cy, width=w, height=h),
             seed=seed,
             recovery=recovery,
+            early_reject=early_reject,
         )
         if particles is not None:
             req.particles = particles
@@ -210,6 +213,8 @@ def main():
     ap.add_argument("--particles", type=int)
     ap.add_argument("--rays", type=int)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--early-reject", action="store_true",
+                    help="two-pass likelihoods (omcl localize --early-reject)")
     ap.add_argument("--global", dest="global_", action="store_true",
                     help="start globally instead of at the first ground-truth pose")
     a = ap.parse_args()
@@ -233,7 +238,8 @@ def main():
     camera = read_camera(a.sequence)
     init = None if a.global_ else (gt[0][1], gt[0][2])
     sid = client.create_session(a.map, camera, initial_pose=init,
-                                particles=a.particles, rays=a.rays, seed=a.seed)
+                                particles=a.particles, rays=a.rays, seed=a.seed,
+                                early_reject=a.early_reject)
 
     # One frame at a time through the stream: the next frame is sent once
     # the previous one is answered, so none is dropped (a camera sending at
