@@ -294,14 +294,10 @@ fn localizes_the_synthetic_sequence_near_ground_truth() {
     }
 }
 
-#[test]
-fn recovery_tracks_like_the_plain_filter() {
-    let f = Fixture::new();
-    let out = f.dir.path().join("est.txt");
-    let frames = FRAMES.to_string();
-    let r = f.localize(&f.map, &f.seq, &out, &["--frames", &frames, "--recovery"]);
-    assert!(r.ok(), "{}", r.text());
-    let est = read_tum(&out);
+/// Each frame's position error of the estimate at `out` against the
+/// fixture's ground truth; one per frame of the run.
+fn errors_against_truth(f: &Fixture, out: &Path) -> Vec<f64> {
+    let est = read_tum(out);
     let gt = read_tum(&f.seq.join("poses.txt"));
     let errors: Vec<f64> = est
         .iter()
@@ -309,6 +305,17 @@ fn recovery_tracks_like_the_plain_filter() {
         .map(|((_, e), (_, g))| distance(e, g))
         .collect();
     assert_eq!(errors.len(), FRAMES);
+    errors
+}
+
+#[test]
+fn recovery_tracks_like_the_plain_filter() {
+    let f = Fixture::new();
+    let out = f.dir.path().join("est.txt");
+    let frames = FRAMES.to_string();
+    let r = f.localize(&f.map, &f.seq, &out, &["--frames", &frames, "--recovery"]);
+    assert!(r.ok(), "{}", r.text());
+    let errors = errors_against_truth(&f, &out);
     let mean = errors.iter().sum::<f64>() / errors.len() as f64;
     assert!(mean < 0.5, "mean error {mean:.3} m: {errors:.3?}");
 }
@@ -323,14 +330,7 @@ fn early_rejection_tracks_like_the_plain_filter() {
         args.extend_from_slice(flags);
         let r = f.localize(&f.map, &f.seq, &out, &args);
         assert!(r.ok(), "{}", r.text());
-        let est = read_tum(&out);
-        let gt = read_tum(&f.seq.join("poses.txt"));
-        let errors: Vec<f64> = est
-            .iter()
-            .zip(&gt)
-            .map(|((_, e), (_, g))| distance(e, g))
-            .collect();
-        assert_eq!(errors.len(), FRAMES);
+        let errors = errors_against_truth(&f, &out);
         errors.iter().sum::<f64>() / errors.len() as f64
     };
     let (full, two) = (mean_error(&[]), mean_error(&["--early-reject"]));

@@ -136,6 +136,9 @@ impl Filter {
         particles: Vec<Particle>,
     ) -> Result<Self, MclError> {
         config.motion.validate()?;
+        if let Some(e) = &config.sensor.early_reject {
+            e.validate()?;
+        }
         if !(config.sharpen.is_finite() && config.sharpen >= 0.0) {
             return Err(MclError::BadParam {
                 name: "sharpen",

@@ -175,6 +175,26 @@ pub struct EarlyReject {
     pub ratio: f32,
 }
 
+impl EarlyReject {
+    /// `every` at least 2 (1 would cast every pixel in the first pass) and
+    /// `ratio` in `[0, 1]`.
+    pub fn validate(&self) -> Result<(), MclError> {
+        if self.every < 2 {
+            return Err(MclError::BadParam {
+                name: "sensor.early_reject.every",
+                why: format!("must be at least 2, got {}", self.every),
+            });
+        }
+        if !(0.0..=1.0).contains(&self.ratio) {
+            return Err(MclError::BadParam {
+                name: "sensor.early_reject.ratio",
+                why: format!("must be in [0, 1], got {}", self.ratio),
+            });
+        }
+        Ok(())
+    }
+}
+
 impl Default for EarlyReject {
     fn default() -> Self {
         EarlyReject {
@@ -461,10 +481,10 @@ impl SensorModel {
             pixel_major,
         };
         let cast_particles = if pixel_major { &grouped[..] } else { particles };
-        let all: Vec<u32> = (0..nj as u32).collect();
         // Mean scores in cast order.
         let means: Vec<f32> = match self.params.early_reject {
             None => {
+                let all: Vec<u32> = (0..nj as u32).collect();
                 let sums = cast.sums(cast_particles, &dirs, &all);
                 sums.into_iter().map(|s| s / nj as f32).collect()
             }
@@ -534,7 +554,7 @@ impl GroupCast<'_> {
     /// first-pass sum reaches `ratio` times the best one. A particle
     /// stopped after the first pass keeps its first-pass mean.
     fn two_pass(&self, ps: &[Particle], dirs: &[Vector3<f32>], e: &EarlyReject) -> Vec<f32> {
-        let every = e.every.max(2);
+        let every = e.every.max(2); // validated by `Filter::new`; kept safe here
         let (mut first, mut rest) = ((vec![], vec![]), (vec![], vec![]));
         for (j, d) in dirs.iter().enumerate() {
             let pass = if j % every == 0 {

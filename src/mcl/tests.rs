@@ -146,19 +146,25 @@ fn the_true_pose_scores_highest() {
     }
 }
 
-#[test]
-fn early_rejection_stops_only_particles_far_below_the_best() {
-    let w = world();
-    let mut rng = ChaCha8Rng::seed_from_u64(5);
-    let (truth, pixels, table) = sampled_view(&w, 400, &mut rng);
-    let ps: Vec<Particle> = (0..41)
+/// `n` level particles around `truth`: every third far off (0.8 m and rad),
+/// the others gathered (0.05).
+fn near_and_far(truth: &Pose, n: usize, rng: &mut ChaCha8Rng) -> Vec<Particle> {
+    (0..n)
         .map(|i| {
             let s = if i % 3 == 0 { 0.8 } else { 0.05 };
             let mut g = || rng.sample::<f64, _>(StandardNormal) * s;
             let t = truth.translation.vector + Vector3::new(g(), g(), 0.0);
             Particle::new(level_camera(t, 0.4 + g()), 1.0)
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn early_rejection_stops_only_particles_far_below_the_best() {
+    let w = world();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let (truth, pixels, table) = sampled_view(&w, 400, &mut rng);
+    let ps = near_and_far(&truth, 41, &mut rng);
     let model = |early_reject, order| {
         SensorModel::new(
             w.caster.clone(),
@@ -229,14 +235,7 @@ fn every_ray_order_gives_the_same_likelihoods_to_the_bit() {
     let (truth, pixels, table) = sampled_view(&w, 300, &mut rng);
     // 37 particles: two full groups of RAY_GROUP and a short one, some
     // gathered near the truth and some far off.
-    let ps: Vec<Particle> = (0..37)
-        .map(|i| {
-            let s = if i % 3 == 0 { 0.8 } else { 0.05 };
-            let mut g = || rng.sample::<f64, _>(StandardNormal) * s;
-            let t = truth.translation.vector + Vector3::new(g(), g(), 0.0);
-            Particle::new(level_camera(t, 0.4 + g()), 1.0)
-        })
-        .collect();
+    let ps = near_and_far(&truth, 37, &mut rng);
     let model = |order| {
         SensorModel::new(
             w.caster.clone(),
@@ -734,6 +733,43 @@ fn bad_input_gives_clear_errors() {
             ..
         })
     ));
+    for (e, field) in [
+        (
+            EarlyReject {
+                every: 1,
+                ratio: 0.85,
+            },
+            "sensor.early_reject.every",
+        ),
+        (
+            EarlyReject {
+                every: 4,
+                ratio: f32::NAN,
+            },
+            "sensor.early_reject.ratio",
+        ),
+        (
+            EarlyReject {
+                every: 4,
+                ratio: 1.5,
+            },
+            "sensor.early_reject.ratio",
+        ),
+    ] {
+        let mut config = FilterConfig::default();
+        config.sensor.early_reject = Some(e);
+        let r = Filter::new(
+            &w.map,
+            w.caster.clone(),
+            intrinsics(),
+            config,
+            before.clone(),
+        );
+        assert!(
+            matches!(r, Err(MclError::BadParam { name, .. }) if name == field),
+            "{e:?}"
+        );
+    }
     let frame = render(&w, &truth, 0.5, &mut rng);
     let nan = Pose::from_parts(
         Translation3::new(0.0, f64::NAN, 0.0),
