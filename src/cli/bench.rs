@@ -170,6 +170,7 @@ fn street_table4(a: &BenchArgs, table: &ClassEmbeddings) -> anyhow::Result<Strin
             apply_overrides(f, &a.plan.set)?
         },
         preset: a.plan.preset.unwrap_or(Preset::Gt),
+        encoder_stride: a.street.encoder_stride,
         out: a.out.clone(),
     };
     let pb = super::progress::spinner("Table IV");

@@ -217,6 +217,13 @@ pub struct StreetArgs {
     /// paper's Stereo DSO).
     #[arg(long, default_value = "noise,orb")]
     pub odometry: String,
+    /// table4: output stride of the simulated camera encoder: every pixel
+    /// reads the feature of its stride x stride block's centre, as an
+    /// encoder with an output map at 1/stride resolution (and the feature
+    /// files `omcl sim outdoor --features` writes at stride 8) gives; 1: a
+    /// feature per pixel.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub encoder_stride: u32,
     /// table4: folder with KITTI_00_gt.txt and KITTI_00_ORB.txt (default:
     /// the shared data beside the source tree).
     #[arg(long)]

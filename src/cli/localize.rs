@@ -136,7 +136,9 @@ pub struct LocalizeArgs {
     /// where labels and encoder features are least reliable (0: every
     /// pixel, as the paper). Default: 0.75 % of the image width in cells
     /// (1 on 540-px images, where it helped on the synthetic benchmark;
-    /// 0 below about 270 px, where boundaries are what locates the camera).
+    /// 0 below about 270 px, where boundaries are what locates the camera);
+    /// 0 on KITTI sequences (measured on the street world: edges and thin
+    /// structures are what fixes a car at corners).
     #[arg(long, value_name = "CELLS")]
     pub boundary_margin: Option<u32>,
     /// Exponent on the likelihood (1 = the paper's eq. 2).
@@ -321,7 +323,14 @@ fn filter_config(a: &LocalizeArgs, is_kitti: bool) -> FilterConfig {
         ..FilterConfig::default()
     };
     config.sampling.rays = a.rays;
-    config.sampling.boundary_margin = a.boundary_margin;
+    config.sampling.boundary_margin = if is_kitti {
+        Some(
+            a.boundary_margin
+                .unwrap_or(mcl::sampling::STREET_BOUNDARY_MARGIN),
+        )
+    } else {
+        a.boundary_margin
+    };
     config.sampling.strategy = match a.sampling {
         SamplingArg::Stratified => SamplingStrategy::Stratified,
         SamplingArg::Uniform => SamplingStrategy::Uniform,

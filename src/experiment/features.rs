@@ -21,6 +21,13 @@ pub struct SimFrameFeatures<'a> {
     /// For the error-free preset: the map row of every class, so the
     /// sampler needs no dot products (as with label images).
     pub exact_rows: Option<&'a [u32]>,
+    /// Output stride of the simulated encoder: every pixel reads the
+    /// feature of the centre pixel of its `s x s` block (`(u / s) s + s / 2`,
+    /// clamped), as an encoder whose output map has `1 / s` of the image's
+    /// resolution, upsampled by nearest neighbour, and as the feature files
+    /// `omcl sim --features` writes at `--feature-stride s`. 1: every pixel
+    /// its own feature.
+    pub encoder_stride: u32,
 }
 
 impl<'a> SimFrameFeatures<'a> {
@@ -38,7 +45,25 @@ impl<'a> SimFrameFeatures<'a> {
             frame,
             index,
             exact_rows: (preset == Preset::Exact).then_some(class_rows),
+            encoder_stride: 1,
         }
+    }
+
+    /// The same features seen through an encoder of output stride `s`
+    /// (see [`SimFrameFeatures::encoder_stride`]; 0 counts as 1).
+    pub fn with_encoder_stride(mut self, s: u32) -> Self {
+        self.encoder_stride = s.max(1);
+        self
+    }
+
+    /// The pixel whose feature `(u, v)` reads.
+    fn source(&self, u: u32, v: u32) -> (u32, u32) {
+        let s = self.encoder_stride;
+        if s <= 1 {
+            return (u, v);
+        }
+        let block = |x: u32, n: u32| ((x / s) * s + s / 2).min(n.saturating_sub(1));
+        (block(u, self.frame.width), block(v, self.frame.height))
     }
 }
 
@@ -53,11 +78,13 @@ impl FrameFeatures for SimFrameFeatures<'_> {
         self.model.dim()
     }
     fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
+        let (u, v) = self.source(u, v);
         let ctx = self.model.context(self.frame, u, v);
         self.model.feature_at(self.index, u, v, &ctx, out);
     }
     fn nearest_row(&self, u: u32, v: u32) -> Option<u32> {
         let rows = self.exact_rows?;
+        let (u, v) = self.source(u, v);
         let l = self.frame.labels[self.frame.index(u, v)];
         (l != NO_LABEL)
             .then(|| rows.get(l as usize).copied())
@@ -195,5 +222,50 @@ mod tests {
         // 6 x 3 grid cells, each with one centre.
         assert_eq!(cached, 18);
         assert!(grid.cached(22, 9).is_some() && grid.cached(2, 2).is_some());
+    }
+
+    /// Through an encoder of stride 8, every pixel reads what the feature
+    /// files `omcl sim --features` writes at stride 8 give it when read back
+    /// (`FeatureMap`, the nearest cell): the in-memory runs and the file
+    /// runs see the same features.
+    #[test]
+    fn encoder_stride_equals_the_written_feature_files() {
+        let t = crate::sim::files::builtin_table().unwrap();
+        let model = FeatureModel::preset(t, Preset::LsegLike, 5);
+        let (w, h, s) = (24u32, 16u32, 8u32);
+        let labels: Vec<u16> = (0..w * h)
+            .map(|i| ((i % w) / 3 + i / w / 5) as u16 % 7)
+            .collect();
+        let n = labels.len();
+        let frame = Frame {
+            width: w,
+            height: h,
+            depth: vec![3.0; n],
+            labels,
+            leaves: vec![0; n],
+            incidence: vec![0.7; n],
+        };
+        let (file, fw, fh) = model.image_features(9, &frame, s);
+        let read = crate::mapping::FeatureMap::new(fh, fw, model.dim(), &file, w, h).unwrap();
+        let strided =
+            SimFrameFeatures::new(&model, Preset::LsegLike, &frame, 9, &[]).with_encoder_stride(s);
+        let plain = SimFrameFeatures::new(&model, Preset::LsegLike, &frame, 9, &[]);
+        let (mut a, mut b, mut c) = (
+            vec![0.0; model.dim()],
+            vec![0.0; model.dim()],
+            vec![0.0; model.dim()],
+        );
+        let mut differs = 0;
+        for v in 0..h {
+            for u in 0..w {
+                strided.feature(u, v, &mut a);
+                read.feature(u, v, &mut b);
+                assert_eq!(a, b, "pixel ({u}, {v})");
+                plain.feature(u, v, &mut c);
+                differs += usize::from(a != c);
+            }
+        }
+        // Only the block centres read their own feature.
+        assert_eq!(differs, (w * h - (w / s) * (h / s)) as usize);
     }
 }

@@ -52,6 +52,9 @@ pub struct RunSpec {
     pub frames: usize,
     /// Features the localizer sees.
     pub preset: Preset,
+    /// Output stride of the simulated encoder (1: a feature per pixel; see
+    /// [`SimFrameFeatures::encoder_stride`]).
+    pub encoder_stride: u32,
 }
 
 /// The outcome of a run.
@@ -170,7 +173,8 @@ pub fn run(
         let frame = seq.render(i);
         let t = Instant::now();
         let f = GridFeatures::new(
-            SimFrameFeatures::new(model, spec.preset, &frame, i as u64, &rows),
+            SimFrameFeatures::new(model, spec.preset, &frame, i as u64, &rows)
+                .with_encoder_stride(spec.encoder_stride),
             spec.filter.sampling.stride,
         );
         encoder_seconds.push(t.elapsed().as_secs_f64());

@@ -39,6 +39,7 @@ pub fn track(
         first: 0,
         frames: seq.len(),
         preset,
+        encoder_stride: 1,
     };
     run(seq, &map.map, map.caster.clone(), &model, &spec)
 }

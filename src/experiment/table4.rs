@@ -16,6 +16,7 @@ use super::run::{RunSpec, Start};
 use super::sequence::BenchSequence;
 use crate::geometry::{Intrinsics, Pose};
 use crate::map::{FeatureDb, GridSpec, Integrator, LanguageMap};
+use crate::mcl::sampling::STREET_BOUNDARY_MARGIN;
 use crate::mcl::{FilterConfig, MotionMode, SensorModel};
 use crate::plot::{self, FloorPlan, TrajectoryPanel};
 use crate::raycast::EmbreeCaster;
@@ -297,6 +298,9 @@ pub struct Table4Run {
     pub filter_steps_per_s: f64,
     pub map_voxels: usize,
     pub map_rows: usize,
+    /// Translation error of every frame, metres (where a track was lost,
+    /// and for how long).
+    pub translation_errors_m: Vec<f64>,
 }
 
 /// What Table IV runs: the street, the odometry variants, the seeds and the
@@ -318,6 +322,9 @@ pub struct Table4Params {
     pub particles: usize,
     pub filter: FilterConfig,
     pub preset: Preset,
+    /// Output stride of the simulated camera encoder (1: a feature per
+    /// pixel; 8: the resolution `omcl sim outdoor --features` writes).
+    pub encoder_stride: u32,
     /// Output folder: `table4.json`, `table4_<odometry>.png`.
     pub out: std::path::PathBuf,
 }
@@ -325,10 +332,12 @@ pub struct Table4Params {
 impl Table4Params {
     /// The paper's outdoor filter: 4096 rays, road motion (planar noise
     /// plus a little height, pitch and roll: the road climbs and pitches;
-    /// README, "Outdoor": planar, full and road measured).
+    /// README, "Outdoor": planar, full and road measured), and the
+    /// street's boundary margin ([`STREET_BOUNDARY_MARGIN`]: none).
     pub fn filter_default() -> FilterConfig {
         let mut config = FilterConfig::default();
         config.sampling.rays = 4096;
+        config.sampling.boundary_margin = Some(STREET_BOUNDARY_MARGIN);
         config.motion.mode = MotionMode::Road;
         config
     }
@@ -477,6 +486,7 @@ impl Street<'_> {
             first: 0,
             frames: usize::MAX,
             preset: p.preset,
+            encoder_stride: p.encoder_stride,
         };
         status(&format!("street {s}, odometry {name}"));
         let r = run_street(seq, map, self.caster.clone(), self.model, &spec)?;
@@ -522,8 +532,14 @@ impl Street<'_> {
             filter_steps_per_s: r.run.fps(),
             map_voxels: map.len(),
             map_rows: r.run.map_rows,
+            translation_errors_m: m.translation_m.iter().map(|e| round_mm(*e)).collect(),
         })
     }
+}
+
+/// `e` rounded to the millimetre (the per-frame errors in `table4.json`).
+fn round_mm(e: f64) -> f64 {
+    (e * 1000.0).round() / 1000.0
 }
 
 /// `table4.json`: the setting and every run.
@@ -543,6 +559,7 @@ fn write_table4_json(
         "particles": p.particles,
         "rays": config.sampling.rays,
         "features": preset.name(),
+        "encoder_stride": p.encoder_stride,
         "filter": config,
         "runs": runs,
     });
@@ -611,7 +628,8 @@ fn markdown(
     let mut s = format!(
         "## Table IV: camera 2 on a synthetic street along the real KITTI 00 path \
          (frames {}..{}, {length_m:.0} m; not KITTI's images)\n\n\
-         {particles} particles, {rays} rays, {} m voxels, `{}` camera features, seeds {}..{}; \
+         {particles} particles, {rays} rays, {} m voxels, `{}` camera features (encoder \
+         stride {}), seeds {}..{}; \
          mean over seeds of each run's mean and std over frames; completed: after frame 10 the \
          translation error never exceeds 1 m for more than 5 frames.\n\n\
          | method | translation mean (m) | translation std (m) | rotation mean (deg) | rotation std (deg) | completed | filter steps/s |\n\
@@ -620,6 +638,7 @@ fn markdown(
         p.street_start + frames,
         p.street_resolution,
         preset.name(),
+        p.encoder_stride,
         p.first_seed,
         p.first_seed + p.sequences - 1,
     );
@@ -719,5 +738,24 @@ mod tests {
         .unwrap();
         assert!((seq.increment(3).translation.vector.norm() - 0.8).abs() < 1e-9);
         assert!((seq.length_m() - 7.2).abs() < 1e-9);
+    }
+
+    /// The street filter samples boundaries: no margin on camera 2's 1241
+    /// px, where the indoor width rule would skip 2 cells (8 px) around
+    /// every boundary.
+    #[test]
+    fn the_street_filter_keeps_boundary_pixels() {
+        let street = Table4Params::filter_default();
+        assert_eq!(street.sampling.margin_cells(1241), 0);
+        assert_eq!(FilterConfig::default().sampling.margin_cells(1241), 2);
+        assert_eq!(street.sampling.rays, 4096);
+        assert_eq!(street.motion.mode, MotionMode::Road);
+    }
+
+    #[test]
+    fn per_frame_errors_are_kept_to_the_millimetre() {
+        assert_eq!(round_mm(1.23449), 1.234);
+        assert_eq!(round_mm(0.0005), 0.001);
+        assert!(round_mm(f64::NAN).is_nan());
     }
 }

@@ -61,6 +61,7 @@ pub fn global_runs(
             first,
             frames: max_steps,
             preset,
+            encoder_stride: 1,
         };
         let (steps, error) = match run(seq, &map.map, map.caster.clone(), &model, &spec) {
             Ok(r) => (steps_to_reach(&r.errors_m, &CONVERGENCE_THRESHOLDS), None),
