@@ -254,7 +254,7 @@ pub struct SevenScenesArgs {
     pub edge_radius: usize,
     /// sevenscenes: shift DX,DY (pixels) from a depth pixel to the colour
     /// pixel it takes its feature from while mapping.
-    #[arg(long, value_delimiter = ',', num_args = 2, default_values_t = [0, 0], allow_negative_numbers = true)]
+    #[arg(long, value_name = "DX,DY", value_delimiter = ',', default_values_t = [0, 0], allow_negative_numbers = true)]
     pub colour_shift: Vec<i32>,
     /// sevenscenes: seeds of the runs (odometry noise, start, filter).
     #[arg(long, default_value = "1,2,3")]

@@ -40,6 +40,11 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
         .collect::<Result<_, _>>()
         .with_context(|| format!("--scenes-seeds {:?}: expected numbers", s.scenes_seeds))?;
     anyhow::ensure!(!seeds.is_empty(), "--scenes-seeds is empty");
+    anyhow::ensure!(
+        s.colour_shift.len() == 2,
+        "--colour-shift takes DX,DY (two whole numbers of pixels), got {:?}",
+        s.colour_shift
+    );
     let mut spec = TrackSpec {
         frames: s.scenes_frames,
         localize_every: s.localize_every,
