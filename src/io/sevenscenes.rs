@@ -305,6 +305,31 @@ mod tests {
         assert!(parse_intrinsics("-5 0 320 0 585 240 0 0 1").is_err());
     }
 
+    proptest::proptest! {
+        #[test]
+        fn any_rigid_transform_round_trips(
+            angles in proptest::array::uniform3(-3.1f64..3.1),
+            t in proptest::array::uniform3(-10.0f64..10.0),
+        ) {
+            let r = Rotation3::from_euler_angles(angles[0], angles[1], angles[2]);
+            let m = r.matrix();
+            let text = (0..3)
+                .map(|i| format!("{:e} {:e} {:e} {:e}\n", m[(i, 0)], m[(i, 1)], m[(i, 2)], t[i]))
+                .collect::<String>()
+                + "0 0 0 1\n";
+            let p = parse_pose(&text).unwrap();
+            proptest::prop_assert!((p.translation.vector - Vector3::from(t)).norm() < 1e-12);
+            proptest::prop_assert!(p.rotation.to_rotation_matrix().matrix().relative_eq(m, 1e-12, 1e-12));
+        }
+
+        #[test]
+        fn arbitrary_text_is_an_error_or_a_value_never_a_panic(s in "[0-9eE+\\-. \n]{0,120}|.{0,60}") {
+            let _ = parse_pose(&s);
+            let _ = parse_intrinsics(&s);
+            let _ = parse_gravity(&s);
+        }
+    }
+
     #[test]
     fn gravity_is_unit_and_zero_is_refused() {
         let g = parse_gravity("0 3 4").unwrap();
