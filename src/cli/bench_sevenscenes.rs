@@ -55,7 +55,16 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
         ..TrackSpec::default()
     };
     let n = seq.len().min(spec.frames.unwrap_or(usize::MAX));
-    let (mapping, _) = sevenscenes::split(n, spec.localize_every);
+    let (mapping, localized) = sevenscenes::split(n, spec.localize_every);
+    // Checked before the model is written: a run that cannot localize
+    // leaves nothing behind.
+    anyhow::ensure!(
+        localized.len() >= 2,
+        "{}: {n} frames leave {} to localize with --localize-every {}; need 2 or more",
+        dir.display(),
+        localized.len(),
+        spec.localize_every
+    );
     let model = sevenscenes::default_model_path(&a.out);
     let classes = sevenscenes::fit_colour_model(&seq, &mapping, &spec, &model)?;
     eprintln!(
