@@ -214,3 +214,20 @@ fn truncated_and_wrong_sized_images_are_refused_naming_them() {
     let e = SevenScenes::open(dir.path()).unwrap_err().to_string();
     assert!(e.contains("camera-intrinsics.txt"), "{e}");
 }
+
+#[test]
+fn bench_refuses_too_few_frames_before_writing_the_model() {
+    let dir = small_copy(4);
+    let out = tempfile::tempdir().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(["bench", "sevenscenes", "--scenes"])
+        .arg(dir.path())
+        .arg("-o")
+        .arg(out.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("4 frames leave 1 to localize"), "{err}");
+    assert!(!out.path().join("colour_model.onnx").exists());
+}
