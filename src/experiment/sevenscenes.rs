@@ -111,7 +111,7 @@ impl Default for TrackSpec {
 /// What a track gives.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct TrackResult {
-    /// Frame numbers (`frame-NNNNNN`) that built the map.
+    /// How many frames built the map.
     pub map_frames: usize,
     pub voxels: usize,
     pub feature_rows: usize,
@@ -504,7 +504,7 @@ fn consistency(
     Ok(counts.metrics())
 }
 
-/// The folder a track's model is written to when none is given.
+/// The colour model's file in a bench's output folder.
 pub fn default_model_path(out_dir: &Path) -> PathBuf {
     out_dir.join("colour_model.onnx")
 }
