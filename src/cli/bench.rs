@@ -23,7 +23,8 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     }
     let table4 = a.plan.experiments.contains(&Experiment::Table4);
     let sweep_wanted = a.plan.experiments.iter().any(|e| e.to_library().is_some());
-    if super::bench_table1::run(&a)? && !sweep_wanted && !table4 {
+    let sevenscenes = super::bench_sevenscenes::run(&a)?;
+    if (super::bench_table1::run(&a)? || sevenscenes) && !sweep_wanted && !table4 {
         println!("wrote {}", a.out.display());
         return Ok(());
     }

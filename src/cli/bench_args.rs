@@ -20,10 +20,11 @@ pub enum Experiment {
     Table4,
     Table1Floorplan,
     Table1Sixdof,
+    SevenScenes,
 }
 
 /// The in-process experiments: value, name, help.
-const IN_PROCESS: [(Experiment, &str, &str); 3] = [
+const IN_PROCESS: [(Experiment, &str, &str); 4] = [
     (
         Experiment::Table4,
         "table4",
@@ -45,6 +46,14 @@ const IN_PROCESS: [(Experiment, &str, &str); 3] = [
          with height and pitch changes and odometry noise on all six degrees of freedom. Runs in \
          this process; not part of `all`",
     ),
+    (
+        Experiment::SevenScenes,
+        "sevenscenes",
+        "A real sensor track: 7-Scenes redkitchen (Kinect v1, --scenes), map from the even \
+         frames, every --localize-every-th odd frame localized in 6-DoF with the colour-class \
+         ONNX encoder (not open-vocabulary); APE, Table II's consistency, with and without the \
+         depth-edge filter. Runs in this process; not part of `all`",
+    ),
 ];
 
 impl ValueEnum for Experiment {
@@ -59,6 +68,7 @@ impl ValueEnum for Experiment {
             Experiment::Table4,
             Experiment::Table1Floorplan,
             Experiment::Table1Sixdof,
+            Experiment::SevenScenes,
             Experiment::Planned(S::All),
         ]
     }
@@ -230,12 +240,42 @@ pub struct StreetArgs {
     pub trajectories: Option<PathBuf>,
 }
 
+/// The real sensor track (`omcl bench sevenscenes`).
+#[derive(Debug, Args)]
+pub struct SevenScenesArgs {
+    /// sevenscenes: the 7-Scenes folder (default: the shared redkitchen
+    /// frames beside the source tree).
+    #[arg(long)]
+    pub scenes: Option<PathBuf>,
+    /// sevenscenes: use only the first N frames of the folder.
+    #[arg(long)]
+    pub scenes_frames: Option<usize>,
+    /// sevenscenes: localize every n-th odd frame (a step spans 2n frames).
+    #[arg(long, default_value_t = 4)]
+    pub localize_every: usize,
+    /// sevenscenes: colour classes of the encoder.
+    #[arg(long, default_value_t = 10)]
+    pub colour_classes: usize,
+    /// sevenscenes: radius (pixels) of the depth-edge filter's row.
+    #[arg(long, default_value_t = 4)]
+    pub edge_radius: usize,
+    /// sevenscenes: shift DX,DY (pixels) from a depth pixel to the colour
+    /// pixel it takes its feature from while mapping.
+    #[arg(long, value_name = "DX,DY", value_delimiter = ',', default_values_t = [0, 0], allow_negative_numbers = true)]
+    pub colour_shift: Vec<i32>,
+    /// sevenscenes: seeds of the runs (odometry noise, start, filter).
+    #[arg(long, default_value = "1,2,3")]
+    pub scenes_seeds: String,
+}
+
 #[derive(Debug, Args)]
 pub struct BenchArgs {
     #[command(flatten)]
     pub plan: PlanArgs,
     #[command(flatten)]
     pub street: StreetArgs,
+    #[command(flatten)]
+    pub scenes: SevenScenesArgs,
     /// Runs computed at once (each also uses every core for its rays; more
     /// than one makes the measured steps/s smaller).
     #[arg(long, default_value_t = 1)]

@@ -27,6 +27,37 @@ pub enum EncodeCommand {
     Tokens(TokensArgs),
     /// The ONNX Runtime library in use and a model's inputs and outputs.
     Info(InfoArgs),
+    /// Fit colour classes (CIE Lab k-means) on a 7-Scenes folder's mapping
+    /// (even) frames and write them as an ONNX image encoder with its card.
+    /// Not open-vocabulary: no words map to its features.
+    ColourModel(ColourModelArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct ColourModelArgs {
+    /// A 7-Scenes sequence folder (frame-NNNNNN.color.jpg, .depth.png,
+    /// .pose.txt, camera-intrinsics.txt).
+    #[arg(long)]
+    pub frames: PathBuf,
+    /// Number of colour classes.
+    #[arg(short, long, default_value_t = 10)]
+    pub k: usize,
+    /// Length of each class's embedding (seeded Gaussian draws, unit length).
+    #[arg(long, default_value_t = 32)]
+    pub dim: usize,
+    /// Seed of k-means and the embeddings.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// Fit on the first N frames only (their even ones).
+    #[arg(long)]
+    pub first: Option<usize>,
+    /// The model's input size WIDTHxHEIGHT (the card resizes to it with a
+    /// box filter).
+    #[arg(long, default_value = "320x240")]
+    pub size: String,
+    /// Output model (.onnx); the card is written beside it (.card.json).
+    #[arg(short, long)]
+    pub out: PathBuf,
 }
 
 /// Options every command that runs a model shares.
@@ -123,6 +154,7 @@ pub fn run(cmd: EncodeCommand) -> anyhow::Result<()> {
         EncodeCommand::Points(a) => points(&a),
         EncodeCommand::Tokens(a) => tokens(&a),
         EncodeCommand::Info(a) => info(&a),
+        EncodeCommand::ColourModel(a) => colour_model(&a),
     }
 }
 
@@ -305,6 +337,48 @@ fn info(a: &InfoArgs) -> anyhow::Result<()> {
             ),
             Err(e) => println!("card: {e}"),
         }
+    }
+    Ok(())
+}
+
+/// Parses `WIDTHxHEIGHT` (both positive).
+pub fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
+    let (w, h) = s
+        .split_once('x')
+        .with_context(|| format!("size {s:?}: expected WIDTHxHEIGHT, e.g. 320x240"))?;
+    let p = |v: &str| {
+        v.parse::<u32>()
+            .ok()
+            .filter(|n| *n > 0)
+            .with_context(|| format!("size {s:?}: {v:?} is not a positive number of pixels"))
+    };
+    Ok((p(w)?, p(h)?))
+}
+
+fn colour_model(a: &ColourModelArgs) -> anyhow::Result<()> {
+    use omcl::experiment::sevenscenes::{TrackSpec, fit_colour_model, split};
+    let size = parse_size(&a.size)?;
+    let seq = omcl::io::sevenscenes::SevenScenes::open(&a.frames)?;
+    let n = seq.len().min(a.first.unwrap_or(usize::MAX));
+    let (mapping, _) = split(n, 1);
+    let spec = TrackSpec {
+        classes: a.k,
+        dim: a.dim,
+        colour_seed: a.seed,
+        model_size: size,
+        ..TrackSpec::default()
+    };
+    let classes = fit_colour_model(&seq, &mapping, &spec, &a.out)?;
+    println!(
+        "wrote {} and {}: {} colour classes (CIE Lab k-means on {} mapping frames), {}-d embeddings",
+        a.out.display(),
+        omcl::encode::card::card_path_for(&a.out).display(),
+        classes.len(),
+        mapping.len(),
+        classes.dim
+    );
+    for (i, c) in classes.centroids.iter().enumerate() {
+        println!("class {i}: L {:.1} a {:.1} b {:.1}", c[0], c[1], c[2]);
     }
     Ok(())
 }

@@ -3,6 +3,7 @@
 
 pub mod bench;
 pub mod bench_args;
+pub mod bench_sevenscenes;
 pub mod bench_table1;
 pub mod demo;
 pub mod encode;

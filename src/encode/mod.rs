@@ -16,7 +16,10 @@
 
 pub mod cache;
 pub mod card;
+pub mod colour;
+pub mod colour_model;
 pub mod image;
+pub mod onnx_proto;
 pub mod point;
 pub mod preprocess;
 pub mod runtime;

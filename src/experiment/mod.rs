@@ -24,6 +24,7 @@ pub mod run;
 pub mod sampling;
 pub mod seeds;
 pub mod sequence;
+pub mod sevenscenes;
 pub mod slurm;
 pub mod sweep;
 pub mod table1;

@@ -15,3 +15,4 @@ pub mod las;
 pub mod ply;
 pub mod rgbd;
 pub mod scannet;
+pub mod sevenscenes;

@@ -73,6 +73,70 @@ pub fn integrate_frame(
     Ok(s)
 }
 
+/// Invalidates (sets to 0) every depth pixel within `radius` pixels
+/// (Chebyshev) of a depth edge: a pixel whose right or lower neighbour
+/// differs by more than `max_jump` times the nearer depth, or borders a
+/// pixel without depth. At such edges a depth sensor mixes foreground and
+/// background, and a colour camera beside it (7-Scenes' Kinect: not
+/// registered) sees the other side of the edge; dropping them keeps
+/// colours off the wrong surface. `depth` is row-major `width x height`,
+/// metres, 0 = none. Returns how many valid pixels were dropped.
+pub fn drop_depth_edges(
+    depth: &mut [f32],
+    width: usize,
+    height: usize,
+    max_jump: f32,
+    radius: usize,
+) -> usize {
+    if depth.len() != width * height || width == 0 {
+        return 0;
+    }
+    let valid = |z: f32| z > 0.0 && z.is_finite();
+    let mut edge = vec![false; depth.len()];
+    for v in 0..height {
+        for u in 0..width {
+            let i = v * width + u;
+            let z = depth[i];
+            for (ok, j) in [(u + 1 < width, i + 1), (v + 1 < height, i + width)] {
+                if !ok {
+                    continue;
+                }
+                let n = depth[j];
+                let cut = match (valid(z), valid(n)) {
+                    (true, true) => (z - n).abs() > max_jump * z.min(n),
+                    (false, false) => false,
+                    _ => true,
+                };
+                if cut {
+                    edge[i] = true;
+                    edge[j] = true;
+                }
+            }
+        }
+    }
+    // Dilate rows, then columns: a (2r+1)^2 square around each edge pixel.
+    let r = radius;
+    let mut rows = vec![false; edge.len()];
+    for v in 0..height {
+        let line = &edge[v * width..(v + 1) * width];
+        for u in 0..width {
+            let (a, b) = (u.saturating_sub(r), (u + r).min(width - 1));
+            rows[v * width + u] = line[a..=b].iter().any(|&e| e);
+        }
+    }
+    let mut dropped = 0;
+    for v in 0..height {
+        let (a, b) = (v.saturating_sub(r), (v + r).min(height - 1));
+        for u in 0..width {
+            if (a..=b).any(|w| rows[w * width + u]) && valid(depth[v * width + u]) {
+                depth[v * width + u] = 0.0;
+                dropped += 1;
+            }
+        }
+    }
+    dropped
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -81,6 +145,25 @@ mod tests {
     use crate::mapping::LabelImage;
     use crate::raycast::EmbreeCaster;
     use crate::scene::{RoomsConfig, rooms};
+
+    #[test]
+    fn depth_edges_are_dropped_with_their_neighbourhood() {
+        // A 12 x 4 image: 1 m on the left, 2 m from column 6 on.
+        let (w, h) = (12, 4);
+        let mut d: Vec<f32> = (0..w * h)
+            .map(|i| if i % w < 6 { 1.0 } else { 2.0 })
+            .collect();
+        let dropped = drop_depth_edges(&mut d, w, h, 0.05, 1);
+        // Columns 5 and 6 are the edge; radius 1 adds 4 and 7.
+        for (i, z) in d.iter().enumerate() {
+            let gone = (4..=7).contains(&(i % w));
+            assert_eq!(*z == 0.0, gone, "pixel {i}");
+        }
+        assert_eq!(dropped, 4 * h);
+        // A smooth ramp (1 % a pixel) loses nothing.
+        let mut ramp: Vec<f32> = (0..w * h).map(|i| 1.0 + 0.01 * (i % w) as f32).collect();
+        assert_eq!(drop_depth_edges(&mut ramp, w, h, 0.05, 2), 0);
+    }
 
     /// Renders depth and labels of `scene` with the ray caster, maps the
     /// frames back, and checks the voxels are where the surfaces are with
