@@ -87,6 +87,9 @@ struct Crossing {
     leaf: u32,
     t_in: f64,
     t_out: f64,
+    /// The column's vertical extent (grid-frame z).
+    bottom: f64,
+    top: f64,
 }
 
 impl PlanarCaster {
@@ -350,7 +353,20 @@ impl PlanarCaster {
         list.clear();
         let mut complete = false;
         self.walk(o, d0, (0.0, reach), |leaf, t_in, t_out| {
-            list.push(Crossing { leaf, t_in, t_out });
+            let [bottom, top] = match &self.extents {
+                Some(e) => e
+                    .get(leaf as usize)
+                    .copied()
+                    .unwrap_or([f32::NEG_INFINITY; 2]),
+                None => [f32::NEG_INFINITY, f32::INFINITY],
+            };
+            list.push(Crossing {
+                leaf,
+                t_in,
+                t_out,
+                bottom: bottom as f64,
+                top: top as f64,
+            });
             complete = self.full_height(leaf);
             complete || list.len() >= MAX_LISTED
         });
@@ -360,22 +376,43 @@ impl PlanarCaster {
                 *h = Hit::miss();
                 continue;
             };
-            *h = list
-                .iter()
-                .find_map(|c| {
-                    self.meets(r, c.leaf, c.t_in * k, c.t_out * k, a, b)
-                        .map(|t| Hit {
-                            leaf: c.leaf,
-                            t: t as f32,
-                        })
-                })
-                .unwrap_or_else(|| {
-                    if !complete && list.len() >= MAX_LISTED && b > last * k {
-                        self.cast_one(r)
-                    } else {
-                        Self::exit_hit(exit, b)
-                    }
+            // The first listed column the ray's heights meet, compared in
+            // z (a multiply-add a column; the division only for the hit).
+            let (oz, dz) = (r.origin[2] as f64, r.dir[2] as f64);
+            let mut found = None;
+            for c in list.iter() {
+                let lo = (c.t_in * k).max(a);
+                if lo > b {
+                    break;
+                }
+                let hi = (c.t_out * k).min(b);
+                if lo > hi {
+                    continue;
+                }
+                let (z0, z1) = (oz + dz * lo, oz + dz * hi);
+                if z0.max(z1) < c.bottom || z0.min(z1) > c.top {
+                    continue;
+                }
+                let t = if (c.bottom..=c.top).contains(&z0) {
+                    lo
+                } else if dz < 0.0 {
+                    (c.top - oz) / dz
+                } else {
+                    (c.bottom - oz) / dz
+                };
+                found = Some(Hit {
+                    leaf: c.leaf,
+                    t: t as f32,
                 });
+                break;
+            }
+            *h = found.unwrap_or_else(|| {
+                if !complete && list.len() >= MAX_LISTED && b > last * k {
+                    self.cast_one(r)
+                } else {
+                    Self::exit_hit(exit, b)
+                }
+            });
         }
     }
 }
