@@ -720,6 +720,61 @@ mod tests {
         assert!(!hits[8].is_hit());
     }
 
+    /// On a random plan with random column heights, a batch of runs of
+    /// rays sharing planar rays (pixels of image columns looking up and
+    /// down) gets exactly the hits each ray gets alone, exits included.
+    #[test]
+    fn batched_runs_with_heights_match_single_casts_on_a_random_plan() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let mut cells: Vec<Cell> = Vec::new();
+        let mut extents = Vec::new();
+        let inf = f32::INFINITY;
+        for _ in 0..300 {
+            let c = [rng.random_range(-40..40), rng.random_range(-30..30), 0];
+            if !cells.contains(&c) {
+                cells.push(c);
+                let b: f32 = rng.random_range(0.0..1.5);
+                let t: f32 = b + rng.random_range(0.05..1.5);
+                extents.push([
+                    if b < 0.3 { -inf } else { b },
+                    if t > 2.0 { inf } else { t },
+                ]);
+            }
+        }
+        let n = cells.len() as u32;
+        let c = PlanarCaster::new(0.1, &cells).with_heights(&extents, [0.1, 2.5], [n, n + 1]);
+        let mut hits_seen = [0usize; 3];
+        for _ in 0..200 {
+            let o = [
+                rng.random_range(-4.0f32..4.0),
+                rng.random_range(-3.0f32..3.0),
+                rng.random_range(0.5f32..2.0),
+            ];
+            let a: f32 = rng.random_range(0.0..std::f32::consts::TAU);
+            let rays: Vec<Ray> = (0..12)
+                .map(|k| {
+                    let s = 0.5 + 0.25 * k as f32;
+                    let dz = rng.random_range(-1.5f32..1.0);
+                    Ray::new(o, [s * a.cos(), s * a.sin(), s * dz])
+                })
+                .collect();
+            let mut hits = vec![Hit::miss(); rays.len()];
+            c.cast_serial(&rays, &mut hits);
+            for (r, h) in rays.iter().zip(&hits) {
+                let one = c.cast_one(r);
+                assert_eq!(h.leaf, one.leaf, "{r:?}");
+                assert!(!one.is_hit() || (h.t - one.t).abs() <= 1e-5 * one.t.max(1.0));
+                hits_seen[match h.leaf {
+                    l if l == n => 0,
+                    l if l == n + 1 => 1,
+                    _ => 2,
+                }] += 1;
+            }
+        }
+        // Floor, ceiling and columns all occur.
+        assert!(hits_seen.iter().all(|&k| k > 50), "{hits_seen:?}");
+    }
+
     #[test]
     fn clearance_is_the_chebyshev_distance() {
         // 5 x 3 grid, one occupied cell at (1, 1).
