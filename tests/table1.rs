@@ -31,7 +31,7 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
         &|_| {},
     )
     .unwrap();
-    let plan = PlanBench::from_bench(&map, &FloorPlanParams::default()).unwrap();
+    let plan = PlanBench::from_bench(&map, &FloorPlanParams::default(), &seq.table).unwrap();
     // The plan is a one-layer map of the 3-D map's columns.
     assert!(plan.map.cells().iter().all(|c| c[2] == 0));
     assert!(plan.plan.len() > 1000 && plan.plan.len() < map.map.len());

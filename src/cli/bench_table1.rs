@@ -35,7 +35,52 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     Ok(ran)
 }
 
+/// The block's own `--set` paths: `plan.band_min`, `plan.band_max` (the
+/// floor plan's height band, m) and `two_d.max_elevation_deg`,
+/// `two_d.silence_rho`, `two_d.heights` (OMCL's 2-D pixel selection and
+/// sensor); every other path goes to the filter.
+fn block_overrides(
+    sets: &[String],
+) -> anyhow::Result<(FloorPlanParams, table1_floorplan::TwoDParams, Vec<String>)> {
+    #[derive(serde::Serialize, serde::Deserialize)]
+    struct Block {
+        plan: FloorPlanParams,
+        two_d: table1_floorplan::TwoDParams,
+    }
+    let mut v = serde_json::to_value(Block {
+        plan: FloorPlanParams::default(),
+        two_d: Default::default(),
+    })?;
+    let mut rest = Vec::new();
+    for s in sets {
+        let Some((path, value)) = s.split_once('=') else {
+            rest.push(s.clone());
+            continue;
+        };
+        if !(path.starts_with("plan.") || path.starts_with("two_d.")) {
+            rest.push(s.clone());
+            continue;
+        }
+        let value: serde_json::Value = serde_json::from_str(value)
+            .with_context(|| format!("--set {s:?}: VALUE must be JSON"))?;
+        let mut slot = &mut v;
+        for key in path.split('.') {
+            slot = slot
+                .get_mut(key)
+                .with_context(|| format!("--set {s:?}: no parameter {path:?}"))?;
+        }
+        *slot = value;
+    }
+    let b: Block =
+        serde_json::from_value(v).context("--set: the block's parameters are invalid")?;
+    Ok((b.plan, b.two_d, rest))
+}
+
 fn block_spec(a: &BenchArgs) -> anyhow::Result<BlockSpec> {
+    let (plan, two_d, rest) = block_overrides(&a.plan.set)?;
+    let mut filter = omcl::mcl::FilterConfig::default();
+    filter.sampling.rays = a.plan.rays.unwrap_or(2048);
+    let filter = super::bench_args::apply_overrides(filter, &rest)?;
     Ok(BlockSpec {
         seeds: a.plan.first_seed..a.plan.first_seed + a.plan.sequences,
         frames: a.plan.frames,
@@ -43,10 +88,10 @@ fn block_spec(a: &BenchArgs) -> anyhow::Result<BlockSpec> {
             frames: a.plan.map_frames,
             ..Default::default()
         },
-        filter: a.plan.filter()?,
+        filter,
         particles: a.plan.particles.unwrap_or(1024),
-        plan: FloorPlanParams::default(),
-        two_d: Default::default(),
+        plan,
+        two_d,
         compare_3d: true,
     })
 }

@@ -2,15 +2,45 @@
 //! variant's Octree Language Map (features averaged along the vertical,
 //! [`crate::map::floorplan`]), with the pose reduced to x, y and yaw.
 //!
-//! The OMCL rows run the 3-D filter's own pieces on the plan: the plan is
-//! a one-layer language map ([`FloorPlan::to_language_map`]) cast by a
-//! [`PlanarCaster`] (each sampled pixel's ray projected to the horizontal
-//! plane, see [`crate::raycast::PlanarCaster`]); motion
+//! The OMCL rows run the 3-D filter's own pieces on the plan: motion
 //! ([`MotionMode::Planar`]: noise on x, y and yaw only, height, roll and
-//! pitch follow the odometry), pixel sampling, the eq. 2 sensor model,
-//! estimate, resampling and the paper's local start are those of the 3-D
-//! rows. The error is the horizontal (x, y) distance to the ground truth,
-//! the completion rule the 3-D rows' one.
+//! pitch follow the odometry), stratified pixel sampling, the eq. 2 sensor
+//! model (cosine, contrast, sharpening), estimate, resampling and the
+//! paper's local start are those of the 3-D rows. The error is the
+//! horizontal (x, y) distance to the ground truth, the completion rule the
+//! 3-D rows' one.
+//!
+//! # The 2-D sensor: what a pixel sees in plan view
+//!
+//! The map ([`PlanBench::sighted_map`]) is the plan's columns with their
+//! averaged rows, plus two rows a plan's free columns stand for: the text
+//! features of "floor" and "ceiling" ([`EXIT_WORDS`]; averaged along the
+//! vertical, a free column is floor below the band and ceiling above it).
+//! Each sampled pixel's ray is followed over the plan from the particle's
+//! pose ([`crate::raycast::PlanarCaster::with_heights`]): it hits the
+//! first column whose vertical extent (that of the leaves it averaged) it
+//! passes through, so it looks over a table at the wall behind or down onto
+//! the table top; if it reaches the band's bottom (0.10 m above the floor)
+//! or the ceiling first, it hits the floor or ceiling row. Its score is the
+//! eq. 2 cosine with the row it hits, as in 3-D. Floor and ceiling pixels
+//! are therefore scored (they say where the walls and furniture stand, as
+//! the floor does in 3-D), and the sampler draws them as their own strata.
+//! Only the pixel's direction and the camera's height are used, no depth.
+//!
+//! Chosen on the tuning seeds 0 and 1 (80 frames, 512 particles, OMCL_GT
+//! and OMCL_LSeg APE RMSE, m; `omcl bench table1-floorplan --first-seed 0
+//! --sequences 2 --frames 80 --particles 512 --variants OMCL_GT,OMCL_LSeg`,
+//! 2026-11-24):
+//!
+//! | sensor | GT seed 0 / 1 | LSeg seed 0 / 1 |
+//! |---|---|---|
+//! | tall columns, rays that hit none miss, floor/ceiling pixels silenced at cosine >= 0.9 (before) | 0.255 / 0.171 | 2.36 / 3.05 |
+//! | tall columns, silenced by nearest class (`two_d.heights=false`, `two_d.silence=true`) | 0.231 / 0.228 | 1.68 / 0.223 |
+//! | heights, floor and ceiling miss, silenced by nearest class (an intermediate build, not kept) | 0.260 / 1.654 | 1.97 / 0.604 |
+//! | heights, floor and ceiling rows (default) | 0.168 / 0.144 | 0.167 / 0.128 |
+//!
+//! The old models stay reachable through [`TwoDParams`] (`omcl bench
+//! --set two_d.heights=false --set two_d.silence=true ...`).
 
 use std::sync::Arc;
 
@@ -31,22 +61,95 @@ use crate::sim::embeddings::ClassEmbeddings;
 use crate::sim::features::Preset;
 use crate::sim::render::Frame;
 
-/// A variant's floor plan with its one-layer map and planar caster.
+/// A variant's floor plan with its one-layer map and planar casters.
 pub struct PlanBench {
     pub plan: FloorPlan,
+    /// The plan as a one-layer map (the baselines').
     pub map: LanguageMap,
+    /// Columns as infinitely tall prisms (the baselines' plan).
     pub caster: Arc<PlanarCaster>,
+    /// OMCL's 2-D map: the plan's columns and rows, plus the text features
+    /// of "floor" and "ceiling" as two more rows, each held by one leaf
+    /// off the plan's layer (the free columns' average along the vertical
+    /// is floor below and ceiling above). The same as `map` for a plan made
+    /// without its 3-D map.
+    pub sighted_map: LanguageMap,
+    /// Columns with their heights, rays ending on the floor and ceiling
+    /// leaves of `sighted_map` (OMCL's 2-D sensor: what a pixel sees in
+    /// plan view, see [`crate::raycast::PlanarCaster::with_heights`]). The
+    /// same as `caster` for a plan made without its 3-D map.
+    pub sighted: Arc<PlanarCaster>,
 }
 
+/// The words of the surfaces a floor plan leaves out below and above its
+/// band, whose rows OMCL's 2-D map adds (floor exit, ceiling exit).
+pub const EXIT_WORDS: [&str; 2] = ["floor", "ceiling"];
+
 impl PlanBench {
-    /// Projects a 3-D map to its floor plan.
-    pub fn from_map(map: &LanguageMap, params: &FloorPlanParams) -> Result<Self, ExperimentError> {
+    /// Projects a 3-D map to its floor plan; the sighted caster gets each
+    /// column's extent, the window from the plan's band bottom to the
+    /// map's ceiling, and the floor and ceiling rows `exit_rows` (unit
+    /// text features of [`EXIT_WORDS`]; without them rays leaving the
+    /// window miss).
+    pub fn from_map(
+        map: &LanguageMap,
+        params: &FloorPlanParams,
+        exit_rows: Option<[&[f32]; 2]>,
+    ) -> Result<Self, ExperimentError> {
         let cfg = |e: crate::map::floorplan::FloorPlanError| ExperimentError::Config(e.to_string());
         let plan = FloorPlan::from_map(map, params).map_err(cfg)?;
-        Self::from_plan(plan)
+        let extents = plan.column_extents(map);
+        let ceiling = plan.ceiling_height(map).unwrap_or(f64::INFINITY);
+        let mut b = Self::from_plan(plan)?;
+        let cfg = |e: crate::map::MapError| ExperimentError::Config(e.to_string());
+        // The sighted map: the plan's leaves on layer 0, the exit leaves on
+        // layers 1 and 2 of the first column (no columns for the caster).
+        let k = b.plan.db().len() as u32;
+        let mut leaves: Vec<(crate::map::Cell, u32)> = b
+            .map
+            .cells()
+            .into_iter()
+            .zip(b.map.rows().iter().copied())
+            .collect();
+        let mut db_rows = b.plan.db().rows().to_vec();
+        if let (Some(rows), Some(&[i, j])) = (exit_rows, b.plan.cells().first()) {
+            for (n, r) in rows.iter().enumerate() {
+                db_rows.extend_from_slice(r);
+                leaves.push(([i, j, 1 + n as i32], k + n as u32));
+            }
+        }
+        let db = crate::map::FeatureDb::from_rows(b.plan.db().dim(), b.plan.db().tau(), db_rows)?;
+        let sighted_map =
+            LanguageMap::from_cells(*b.map.grid(), db, b.map.encoder(), leaves).map_err(cfg)?;
+        // Each leaf's extent and the exits' leaf indices, in the sighted
+        // map's own leaf order.
+        let mut exits = [crate::raycast::Hit::MISS; 2];
+        let by_leaf: Vec<[f32; 2]> = sighted_map
+            .cells()
+            .iter()
+            .zip(sighted_map.rows())
+            .enumerate()
+            .map(|(leaf, (c, &row))| {
+                if row >= k {
+                    exits[(row - k) as usize] = leaf as u32;
+                }
+                b.plan
+                    .cells()
+                    .binary_search_by_key(&(c[1], c[0]), |p| (p[1], p[0]))
+                    .ok()
+                    .and_then(|n| extents.get(n).copied())
+                    .unwrap_or([f32::NEG_INFINITY, f32::INFINITY])
+            })
+            .collect();
+        let window = [params.band_min as f32, ceiling as f32];
+        let caster = PlanarCaster::new(sighted_map.grid().resolution as f32, &sighted_map.cells());
+        b.sighted = Arc::new(caster.with_heights(&by_leaf, window, exits));
+        b.sighted_map = sighted_map;
+        Ok(b)
     }
 
-    /// A plan with its one-layer map and caster.
+    /// A plan with its one-layer map and caster (columns infinitely tall:
+    /// the plan alone holds no heights).
     pub fn from_plan(plan: FloorPlan) -> Result<Self, ExperimentError> {
         let map = plan
             .to_language_map()
@@ -55,12 +158,27 @@ impl PlanBench {
             map.grid().resolution as f32,
             &map.cells(),
         ));
-        Ok(PlanBench { plan, map, caster })
+        Ok(PlanBench {
+            plan,
+            sighted_map: map.clone(),
+            map,
+            sighted: caster.clone(),
+            caster,
+        })
     }
 
-    /// Projects a benchmark map.
-    pub fn from_bench(map: &BenchMap, params: &FloorPlanParams) -> Result<Self, ExperimentError> {
-        Self::from_map(&map.map, params)
+    /// Projects a benchmark map, the exit rows from the sequence's class
+    /// table.
+    pub fn from_bench(
+        map: &BenchMap,
+        params: &FloorPlanParams,
+        table: &ClassEmbeddings,
+    ) -> Result<Self, ExperimentError> {
+        let rows = match EXIT_WORDS.map(|w| table.text_feature(w)) {
+            [Some(f), Some(c)] => Some([f, c]),
+            _ => None,
+        };
+        Self::from_map(&map.map, params, rows)
     }
 }
 
@@ -84,12 +202,18 @@ pub fn planar_errors(result: &mut RunResult, truth: &[crate::geometry::Pose], fi
 }
 
 /// A frame's features with the pixels a floor plan cannot explain
-/// silenced: a pixel whose feature has cosine `rho` or more with one of the
-/// `out_of_band` text features (by default "floor" and "ceiling", which
-/// the plan's height band leaves out) reads as zero, which the eq. 2
-/// sensor model scores 0 at every pose (no evidence), so it weighs no
-/// particle up or down. `rho` is the floor detection's threshold
-/// ([`crate::mcl::FloorParams`]).
+/// silenced: they read as zero, which the eq. 2 sensor model scores 0 at
+/// every pose (no evidence), so they weigh no particle up or down.
+///
+/// A pixel is silenced when its feature's nearest class text feature (the
+/// largest cosine over `classes`, every class of the sequence's table) is
+/// one of the `silenced` classes, by default "floor", "ceiling" and "rug"
+/// (the surfaces below and above the plan's height band, see
+/// [`OUT_OF_BAND_WORDS`]); with [`TwoDParams::silence_rho`] set, instead
+/// when its cosine with one of them reaches that threshold (the rule
+/// before 2026-11-24: noisy `lseg-like` floor pixels rarely reach 0.9 and
+/// were scored against walls). Pixels farther than `max_elevation` from
+/// the camera's horizontal plane are silenced too.
 pub struct InBandFeatures<'a> {
     pub inner: &'a dyn FrameFeatures,
     /// The camera, and the largest elevation (radians, either side of
@@ -97,9 +221,34 @@ pub struct InBandFeatures<'a> {
     /// beyond it read as zero too.
     pub intrinsics: crate::geometry::Intrinsics,
     pub max_elevation: f64,
-    /// Unit text features of the words the plan leaves out.
-    pub out_of_band: Vec<Vec<f32>>,
-    pub rho: f32,
+    /// Unit text features of every class.
+    pub classes: Vec<Vec<f32>>,
+    /// Whether a pixel whose nearest class is this one is silenced (one
+    /// entry a class of `classes`).
+    pub silenced: Vec<bool>,
+    /// Threshold rule instead of the nearest class (see above).
+    pub rho: Option<f32>,
+}
+
+impl InBandFeatures<'_> {
+    /// Whether the feature `f` (any norm) is one the plan cannot explain.
+    pub fn is_silenced(&self, f: &[f32]) -> bool {
+        let n = crate::map::features::dot(f, f).sqrt();
+        if n.is_nan() || n <= 0.0 {
+            return false;
+        }
+        let cos = self.classes.iter().map(|w| crate::map::features::dot(f, w));
+        match self.rho {
+            Some(rho) => cos.zip(&self.silenced).any(|(c, &s)| s && c >= rho * n),
+            None => {
+                cos.zip(&self.silenced)
+                    .fold((f32::NEG_INFINITY, false), |best, (c, &s)| {
+                        if c > best.0 { (c, s) } else { best }
+                    })
+                    .1
+            }
+        }
+    }
 }
 
 impl FrameFeatures for InBandFeatures<'_> {
@@ -116,40 +265,45 @@ impl FrameFeatures for InBandFeatures<'_> {
         self.inner.feature(u, v, out);
         let k = &self.intrinsics;
         let elevation = ((v as f64 + 0.5 - k.cy) / k.fy).atan().abs();
-        if elevation > self.max_elevation {
-            out.fill(0.0);
-            return;
-        }
-        let n = crate::map::features::dot(out, out).sqrt();
-        if n > 0.0
-            && self
-                .out_of_band
-                .iter()
-                .any(|w| crate::map::features::dot(out, w) >= self.rho * n)
-        {
+        if elevation > self.max_elevation || self.is_silenced(out) {
             out.fill(0.0);
         }
     }
 }
 
-/// Which pixels OMCL's 2-D mode casts.
+/// Which pixels OMCL's 2-D mode casts, and how.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
 pub struct TwoDParams {
     /// Largest elevation of a cast pixel's ray above or below the camera's
     /// horizontal plane, degrees (the camera is level in planar mode).
     pub max_elevation_deg: f64,
+    /// Cast against the columns' heights between floor and ceiling, rays
+    /// leaving through the floor or ceiling scored against those words
+    /// ([`PlanBench::sighted`]); `false`: infinitely tall columns, rays
+    /// that hit none miss (the block's model before 2026-11-24).
+    pub heights: bool,
+    /// Silence the pixels of [`OUT_OF_BAND_WORDS`] ([`InBandFeatures`]).
+    pub silence: bool,
+    /// With `silence`: `null` silences a pixel whose nearest class is out
+    /// of band; a number, one whose cosine with such a word reaches it.
+    pub silence_rho: Option<f32>,
 }
 
 impl Default for TwoDParams {
     fn default() -> Self {
         TwoDParams {
             max_elevation_deg: 90.0,
+            heights: true,
+            silence: false,
+            silence_rho: None,
         }
     }
 }
 
-/// Words whose pixels OMCL's 2-D mode does not cast (see [`InBandFeatures`]).
-pub const OUT_OF_BAND_WORDS: [&str; 2] = ["floor", "ceiling"];
+/// Words whose pixels OMCL's 2-D mode does not cast (see [`InBandFeatures`]):
+/// the surfaces below and above the plan's height band.
+pub const OUT_OF_BAND_WORDS: [&str; 3] = ["floor", "ceiling", "rug"];
 
 /// Tracks `seq` on the floor plan `plan` with OMCL (the paper's local
 /// start, planar motion forced), features of `preset`, the pixels
@@ -163,16 +317,12 @@ pub fn track_2d(
     particles: usize,
     two_d: &TwoDParams,
 ) -> Result<(RunResult, f64), ExperimentError> {
-    let caster: Arc<dyn RayCaster> = plan.caster.clone();
-    let (mut r, cast) = track_with(
-        seq,
-        &plan.map,
-        caster,
-        preset,
-        filter,
-        particles,
-        Some(two_d),
-    )?;
+    let (caster, map): (Arc<dyn RayCaster>, _) = if two_d.heights {
+        (plan.sighted.clone(), &plan.sighted_map)
+    } else {
+        (plan.caster.clone(), &plan.map)
+    };
+    let (mut r, cast) = track_with(seq, map, caster, preset, filter, particles, Some(two_d))?;
     planar_errors(&mut r, seq.poses(), 0);
     Ok((r, cast))
 }
@@ -211,15 +361,21 @@ pub fn track_with(
     let shared = Arc::new(SharedMap::from_parts("floor plan", map.clone(), caster));
     let mut f = Session::with_init_seed(shared, config, &start, filter.seed ^ 0x57a7)
         .map_err(super::run::session_error)?;
-    let out_of_band: Vec<Vec<f32>> = match two_d {
-        Some(_) => OUT_OF_BAND_WORDS
-            .iter()
-            .filter_map(|w| seq.table.text_feature(w).map(<[f32]>::to_vec))
+    let classes: Vec<Vec<f32>> = match two_d {
+        Some(t) if t.silence => (0..seq.table.len())
+            .map(|c| seq.table.row(c).to_vec())
             .collect(),
-        None => Vec::new(),
+        _ => Vec::new(),
     };
+    let silenced: Vec<bool> = (0..classes.len())
+        .map(|c| {
+            OUT_OF_BAND_WORDS
+                .iter()
+                .any(|w| seq.table.index_of(w) == Some(c))
+        })
+        .collect();
     let max_elevation = two_d.map_or(std::f64::consts::PI, |t| t.max_elevation_deg.to_radians());
-    let rho = crate::mcl::FloorParams::default().rho;
+    let rho = two_d.and_then(|t| t.silence_rho);
     let rows = super::run::class_rows(seq, map);
     let (mut estimates, mut step_seconds, mut encoder_seconds) = (vec![], vec![], vec![]);
     let (mut rays, mut cast) = (0usize, 0.0f64);
@@ -232,16 +388,22 @@ pub fn track_with(
             filter.sampling.stride,
         );
         encoder_seconds.push(t.elapsed().as_secs_f64());
+        let selecting = two_d.is_some_and(|t| t.silence || t.max_elevation_deg < 90.0);
         let inband = InBandFeatures {
             inner: &g,
             intrinsics: seq.intrinsics,
             max_elevation,
-            out_of_band: out_of_band.clone(),
+            classes: classes.clone(),
+            silenced: silenced.clone(),
             rho,
         };
         let t = Instant::now();
         let r = f
-            .step_by(&seq.increment(i), i as f64, &inband)
+            .step_by(
+                &seq.increment(i),
+                i as f64,
+                if selecting { &inband } else { &g },
+            )
             .map_err(super::run::session_error)?
             .step;
         step_seconds.push(t.elapsed().as_secs_f64());
@@ -308,7 +470,7 @@ pub fn omcl_rows(
                 &spec.map_params,
                 &|_| {},
             )?;
-            let plan = PlanBench::from_bench(&map, &spec.plan)?;
+            let plan = PlanBench::from_bench(&map, &spec.plan, &seq.table)?;
             for (k, &b) in baselines.iter().enumerate() {
                 let filter = FilterConfig {
                     seed,
@@ -334,7 +496,7 @@ pub fn omcl_rows(
         }
         for (k, v) in variants.iter().enumerate() {
             let map = BenchMap::build(&seq, v.map, &spec.map_params, &|_| {})?;
-            let plan = PlanBench::from_bench(&map, &spec.plan)?;
+            let plan = PlanBench::from_bench(&map, &spec.plan, &seq.table)?;
             let filter = FilterConfig {
                 seed,
                 ..spec.filter
@@ -360,9 +522,10 @@ pub fn omcl_rows(
                     None,
                 )?;
                 progress(&format!(
-                    "speed, seed {seed} {}, {} particles: 3-D {:.1} steps/s, cast {:.1} ms a step; 2-D {:.1} steps/s, cast {:.1} ms a step ({:.1}x faster step, {:.1}x faster cast)",
+                    "speed, seed {seed} {}, {} particles: 3-D (RMSE {:.3} m) {:.1} steps/s, cast {:.1} ms a step; 2-D {:.1} steps/s, cast {:.1} ms a step ({:.1}x faster step, {:.1}x faster cast)",
                     v.name,
                     spec.particles,
+                    r3.stats.rmse,
                     r3.fps(),
                     1e3 * cast3 / r3.step_seconds.len().max(1) as f64,
                     r.fps(),
@@ -578,4 +741,72 @@ pub fn block(
         &PAPER_2D,
     );
     Ok((rows, md))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frame::DenseFeatures;
+
+    /// Classes wall (x), floor (y) and ceiling (z) in 3-D; a 2 x 2 image
+    /// whose pixels are: (0, 0) 0.8 floor + 0.6 wall (cosine 0.8 with the
+    /// floor, nearest the floor); (1, 0) 0.6 floor + 0.8 wall (nearest the
+    /// wall); (0, 1) the ceiling, unnormalized (x 2); (1, 1) zero.
+    fn silencer(rho: Option<f32>, image: &DenseFeatures) -> InBandFeatures<'_> {
+        InBandFeatures {
+            inner: image,
+            intrinsics: crate::geometry::Intrinsics::from_hfov(2, 2, 90.0),
+            max_elevation: std::f64::consts::PI,
+            classes: vec![
+                vec![1.0, 0.0, 0.0],
+                vec![0.0, 1.0, 0.0],
+                vec![0.0, 0.0, 1.0],
+            ],
+            silenced: vec![false, true, true],
+            rho,
+        }
+    }
+
+    #[test]
+    fn out_of_band_pixels_are_silenced_by_their_nearest_class() {
+        let image = DenseFeatures {
+            width: 2,
+            height: 2,
+            dim: 3,
+            data: vec![
+                0.6, 0.8, 0.0, //
+                0.8, 0.6, 0.0, //
+                0.0, 0.0, 2.0, //
+                0.0, 0.0, 0.0,
+            ],
+        };
+        let read = |f: &InBandFeatures, u, v| {
+            let mut out = [9.0f32; 3];
+            f.feature(u, v, &mut out);
+            out
+        };
+        // Nearest class: the floor pixel and the ceiling pixel go silent,
+        // the wall-like one keeps its feature.
+        let f = silencer(None, &image);
+        assert_eq!(read(&f, 0, 0), [0.0; 3]);
+        assert_eq!(read(&f, 1, 0), [0.8, 0.6, 0.0]);
+        assert_eq!(read(&f, 0, 1), [0.0; 3]);
+        assert_eq!(read(&f, 1, 1), [0.0; 3]);
+        // The cosine threshold 0.9 keeps the floor pixel (cosine 0.8) and
+        // silences the ceiling (cosine 1); 0.75 silences the floor pixel.
+        let f = silencer(Some(0.9), &image);
+        assert_eq!(read(&f, 0, 0), [0.6, 0.8, 0.0]);
+        assert_eq!(read(&f, 0, 1), [0.0; 3]);
+        let f = silencer(Some(0.75), &image);
+        assert_eq!(read(&f, 0, 0), [0.0; 3]);
+        assert_eq!(read(&f, 1, 0), [0.8, 0.6, 0.0]);
+        // Pixel centres of a 2-px, 90-degree image are at 26.6 degrees
+        // either side: a 30-degree limit keeps them ...
+        let mut f = silencer(None, &image);
+        f.max_elevation = 30f64.to_radians();
+        assert_eq!(read(&f, 1, 0), [0.8, 0.6, 0.0]);
+        // ... and 20 degrees drops them.
+        f.max_elevation = 20f64.to_radians();
+        assert_eq!(read(&f, 1, 0), [0.0; 3]);
+    }
 }

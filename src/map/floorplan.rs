@@ -232,6 +232,55 @@ impl FloorPlan {
         )
     }
 
+    /// The vertical extent of every column's in-band leaves in `map` (the
+    /// map the plan was projected from), metres above `floor_z`, in the
+    /// order of [`FloorPlan::cells`]: `[bottom of the lowest leaf, top of
+    /// the highest]`. A column reaching within one cell of the band's
+    /// bottom gets `-inf` (it stands on the floor), one reaching within one
+    /// cell of the band's top `+inf` (walls and tall furniture go on above
+    /// the band, up to the ceiling). The plan file does not hold these;
+    /// they are for what a camera pixel sees in plan view
+    /// ([`crate::raycast::PlanarCaster::with_heights`]).
+    pub fn column_extents(&self, map: &LanguageMap) -> Vec<[f32; 2]> {
+        let g = map.grid();
+        let r = g.resolution;
+        let (lo, hi) = (self.params.band_min, self.params.band_max);
+        let mut ext = vec![[f64::INFINITY, f64::NEG_INFINITY]; self.cells.len()];
+        for c in map.cells() {
+            let centre = g.origin.z + (c[2] as f64 + 0.5) * r - self.floor_z;
+            if centre < lo || centre > hi {
+                continue;
+            }
+            let Ok(k) = self
+                .cells
+                .binary_search_by_key(&(c[1], c[0]), |p| (p[1], p[0]))
+            else {
+                continue;
+            };
+            ext[k][0] = ext[k][0].min(centre - r / 2.0);
+            ext[k][1] = ext[k][1].max(centre + r / 2.0);
+        }
+        ext.into_iter()
+            .map(|[b, t]| {
+                let b = if b <= lo + r {
+                    f32::NEG_INFINITY
+                } else {
+                    b as f32
+                };
+                let t = if t >= hi - r { f32::INFINITY } else { t as f32 };
+                [b, t]
+            })
+            .collect()
+    }
+
+    /// Height of `map`'s ceiling above `floor_z`, metres: the bottom of its
+    /// highest occupied layer (the map the plan was projected from).
+    pub fn ceiling_height(&self, map: &LanguageMap) -> Option<f64> {
+        let g = map.grid();
+        let (_, max) = map.cell_bounds()?;
+        Some(g.origin.z + max[2] as f64 * g.resolution - self.floor_z)
+    }
+
     /// Occupied columns `[i, j]`, sorted by `(j, i)`.
     pub fn cells(&self) -> &[[i32; 2]] {
         &self.cells
@@ -598,6 +647,32 @@ mod tests {
             ),
             Err(FloorPlanError::BadBand(..))
         ));
+    }
+
+    /// The hand-made map's columns plus a low one (a table top at z 1 of
+    /// (3, 2)) and a hanging one (a cabinet at z 3 of (1, 2)); band 0.6 to
+    /// 2.0 m at 0.5 m cells, so bottoms within 1.1 m stand on the floor and
+    /// tops from 1.5 m reach the ceiling.
+    #[test]
+    fn column_extents_and_ceiling_by_hand() {
+        let m = hand_map();
+        let mut leaves: Vec<_> = m
+            .cells()
+            .into_iter()
+            .zip(m.rows().iter().copied())
+            .collect();
+        leaves.push(([3, 2, 1], 2));
+        leaves.push(([1, 2, 3], 2));
+        let m = LanguageMap::from_cells(*m.grid(), m.db().clone(), "hand", leaves).unwrap();
+        let plan = FloorPlan::from_map(&m, &band()).unwrap();
+        assert_eq!(plan.cells(), &[[0, 0], [2, 1], [1, 2], [3, 2]]);
+        let inf = f32::INFINITY;
+        assert_eq!(
+            plan.column_extents(&m),
+            vec![[-inf, inf], [-inf, inf], [1.5, inf], [-inf, 1.0]]
+        );
+        // The highest layer, z 5, starts at 2.5 m.
+        assert_eq!(plan.ceiling_height(&m), Some(2.5));
     }
 
     #[test]

@@ -457,12 +457,27 @@ impl SensorModel {
             .map(|&(u, v)| self.intrinsics.pixel_dir(u, v).cast::<f32>())
             .collect();
         let t0 = std::time::Instant::now();
+        // A caster that shares work between the rays of one image column
+        // (the planar one) gets each particle's rays together, in column
+        // order; the table columns follow the pixels there.
+        let column_order = self.caster.wants_column_order();
+        let mut cols: Vec<u32> = (0..nj as u32).collect();
+        if column_order {
+            cols.sort_by_key(|&j| pixels[j as usize]);
+        }
+        let cast_dirs: Vec<Vector3<f32>> = cols.iter().map(|&j| dirs[j as usize]).collect();
         // Pixel-major packets take the particles in packet order (compact
         // runs of PACKET); the scores go back to the caller's order at the
         // end.
-        let order = packet_order(particles, PACKET);
-        let grouped: Vec<Particle> = order.iter().map(|&i| particles[i as usize]).collect();
+        let (order, grouped) = if column_order {
+            (Vec::new(), Vec::new())
+        } else {
+            let order = packet_order(particles, PACKET);
+            let grouped: Vec<Particle> = order.iter().map(|&i| particles[i as usize]).collect();
+            (order, grouped)
+        };
         let pixel_major = match self.ray_order {
+            _ if column_order => false,
             RayOrder::Auto => pixel_major_pays(&grouped, &dirs, PACKET),
             RayOrder::ParticleMajor => false,
             RayOrder::PixelMajor => true,
@@ -471,7 +486,7 @@ impl SensorModel {
         let cast = GroupCast {
             caster: &*self.caster,
             origin: self.origin,
-            dirs: &dirs,
+            dirs: &cast_dirs,
             cols: &[],
             rows: &self.leaf_rows,
             cos: &table.cos,
@@ -484,11 +499,10 @@ impl SensorModel {
         // Mean scores in cast order.
         let means: Vec<f32> = match self.params.early_reject {
             None => {
-                let all: Vec<u32> = (0..nj as u32).collect();
-                let sums = cast.sums(cast_particles, &dirs, &all);
+                let sums = cast.sums(cast_particles, &cast_dirs, &cols);
                 sums.into_iter().map(|s| s / nj as f32).collect()
             }
-            Some(e) => cast.two_pass(cast_particles, &dirs, &e),
+            Some(e) => cast.two_pass(cast_particles, &cast_dirs, &cols, &e),
         };
         if pixel_major {
             for (&i, &v) in order.iter().zip(&means) {
@@ -553,17 +567,23 @@ impl GroupCast<'_> {
     /// first for all particles; the rest only for the particles whose
     /// first-pass sum reaches `ratio` times the best one. A particle
     /// stopped after the first pass keeps its first-pass mean.
-    fn two_pass(&self, ps: &[Particle], dirs: &[Vector3<f32>], e: &EarlyReject) -> Vec<f32> {
+    fn two_pass(
+        &self,
+        ps: &[Particle],
+        dirs: &[Vector3<f32>],
+        cols: &[u32],
+        e: &EarlyReject,
+    ) -> Vec<f32> {
         let every = e.every.max(2); // validated by `Filter::new`; kept safe here
         let (mut first, mut rest) = ((vec![], vec![]), (vec![], vec![]));
-        for (j, d) in dirs.iter().enumerate() {
+        for (j, (d, &c)) in dirs.iter().zip(cols).enumerate() {
             let pass = if j % every == 0 {
                 &mut first
             } else {
                 &mut rest
             };
             pass.0.push(*d);
-            pass.1.push(j as u32);
+            pass.1.push(c);
         }
         let s1 = self.sums(ps, &first.0, &first.1);
         let best = s1.iter().copied().fold(f32::NEG_INFINITY, f32::max);

@@ -107,6 +107,15 @@ pub trait RayCaster: Send + Sync {
         None
     }
 
+    /// Whether the caster is fastest when each particle's rays come
+    /// together and in image-column order (pixels sorted by column, then
+    /// row): the planar caster walks each run of rays sharing a planar ray
+    /// once. The filter's sensor model then casts particle-major in that
+    /// order. Default: `false`.
+    fn wants_column_order(&self) -> bool {
+        false
+    }
+
     /// Casts `rays` (grid frame) and writes one hit per ray into `hits`,
     /// in parallel with rayon, [`CHUNK`] rays a task. Panics if the slices
     /// differ in length.

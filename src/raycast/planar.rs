@@ -6,14 +6,29 @@
 //!
 //! A ray of the 3-D filter (origin at the camera centre, direction through
 //! the pixel, both in the grid frame) becomes its vertical projection: the
-//! origin's and direction's x and y, the z components dropped. The ray
-//! parameter `t` keeps its meaning: the planar hit at `t` is the xy of the
-//! 3-D point `origin + t dir`, so `t` is still in units of the 3-D `|dir|`
-//! (and `t_max` still limits the 3-D length). A pixel looking straight up
-//! or down (horizontal part below 1e-6 of `|dir|`) misses. The z of
-//! `cells` is ignored: every column is an infinitely tall prism
-//! `[i r, (i+1) r] x [j r, (j+1) r]`, which is what the averaged floor plan
-//! ([`crate::map::floorplan`]) stands for.
+//! origin's and direction's x and y. The ray parameter `t` keeps its
+//! meaning: the planar hit at `t` is the xy of the 3-D point
+//! `origin + t dir`, so `t` is still in units of the 3-D `|dir|` (and
+//! `t_max` still limits the 3-D length). A pixel looking straight up or
+//! down (horizontal part below 1e-6 of `|dir|`) misses.
+//!
+//! Built with [`PlanarCaster::new`] alone, every column is an infinitely
+//! tall prism `[i r, (i+1) r] x [j r, (j+1) r]` and the z of rays and cells
+//! is ignored: a pixel's ray stops at the first occupied column in its
+//! direction, whatever its elevation (the SeDAR\* baseline's view).
+//!
+//! # What a pixel sees in plan view ([`PlanarCaster::with_heights`])
+//!
+//! A floor plan keeps, besides each column's averaged feature, the vertical
+//! extent of the leaves it averaged ([`crate::map::FloorPlan::column_extents`]);
+//! and the room has a floor and a ceiling the plan leaves out. With those,
+//! a pixel's ray is followed in 3-D over the plan: it ends where it leaves
+//! the vertical window `[z_lo, z_hi]` (below it, the pixel sees the floor;
+//! above it, the ceiling; either way no plan column: a miss), and it hits
+//! the first column whose extent it passes through inside that column's
+//! square (so it looks over a table at the wall behind, or down onto the
+//! table top). Nothing but the pixel's direction and the camera's height is
+//! used (no depth).
 //!
 //! # Speed
 //!
@@ -24,14 +39,22 @@
 //! near occupied cells it steps cell by cell. The result equals the plain
 //! DDA's (checked against [`super::ReferenceCaster`] in the tests).
 //!
-//! A batch ([`RayCaster::cast_serial`]) casts each distinct planar ray
-//! once: all pixels of one image column of a level camera project to the
-//! same planar ray, so a particle's ~1,800 sampled pixels are ~135 casts
-//! (stride-4 sampling on a 540-px image).
+//! A batch ([`RayCaster::cast_serial`]) walks each run of consecutive rays
+//! that share a planar ray (same origin, horizontal directions parallel to
+//! 1e-6: a level camera's pixels of one image column) once: the walk lists
+//! the occupied columns along the planar ray with the parameters at which
+//! it enters and leaves them, up to the first column no ray can pass (one
+//! that spans the whole window), and each ray of the run then checks its
+//! own heights against that short list. The filter hands the caster its
+//! rays in that order ([`RayCaster::wants_column_order`]); no hashing.
 
 use super::{Hit, RayCaster};
 use crate::geometry::Ray;
 use crate::map::Cell;
+
+/// Most columns a shared walk lists before the rays still unresolved are
+/// cast on their own.
+const MAX_LISTED: usize = 64;
 
 /// The planar (floor-plan) ray caster.
 #[derive(Debug, Clone)]
@@ -44,19 +67,44 @@ pub struct PlanarCaster {
     /// Chebyshev distance in cells to the nearest occupied cell (0 on an
     /// occupied cell), capped at 255.
     clearance: Vec<u8>,
+    /// Vertical extent `[bottom, top]` (grid-frame z, metres) of each leaf's
+    /// column; `None`: infinitely tall prisms.
+    extents: Option<Vec<[f32; 2]>>,
+    /// Grid-frame heights where a ray leaves the plan: below `window[0]`
+    /// (the floor) or above `window[1]` (the ceiling).
+    window: [f32; 2],
+    /// Leaves reported where a ray leaves the window through the floor and
+    /// through the ceiling (`Hit::MISS`: a miss).
+    exits: [u32; 2],
     n: usize,
 }
 
+/// One occupied column along a shared planar walk: its leaf and the
+/// parameters (in the walked ray's units) at which the ray enters and
+/// leaves its square.
+#[derive(Debug, Clone, Copy)]
+struct Crossing {
+    leaf: u32,
+    t_in: f64,
+    t_out: f64,
+    /// The column's vertical extent (grid-frame z).
+    bottom: f64,
+    top: f64,
+}
+
 impl PlanarCaster {
-    /// A caster over columns of edge `resolution` at `cells` (`[i, j, _]`,
-    /// the z index ignored); hit `leaf` values index `cells`. For a
-    /// repeated column the first index wins.
+    /// A caster over columns of edge `resolution` at the cells `[i, j, 0]`
+    /// of `cells` (cells of other layers are no columns: a one-layer map
+    /// keeps the leaves of [`PlanarCaster::with_heights`]' exits there);
+    /// hit `leaf` values index `cells`. For a repeated column the first
+    /// index wins. Columns are infinitely tall.
     pub fn new(resolution: f32, cells: &[Cell]) -> Self {
-        let (lo, hi) = column_bounds(cells);
+        let columns: Vec<Cell> = cells.iter().copied().filter(|c| c[2] == 0).collect();
+        let (lo, hi) = column_bounds(&columns);
         let size = [hi[0] - lo[0] + 1, hi[1] - lo[1] + 1];
         let total = (size[0].max(0) as usize) * (size[1].max(0) as usize);
         let mut leaf = vec![Hit::MISS; total];
-        for (k, c) in cells.iter().enumerate() {
+        for (k, c) in cells.iter().enumerate().filter(|(_, c)| c[2] == 0) {
             let idx = ((c[1] - lo[1]) * size[0] + (c[0] - lo[0])) as usize;
             if leaf[idx] == Hit::MISS {
                 leaf[idx] = k as u32;
@@ -69,30 +117,103 @@ impl PlanarCaster {
             size,
             leaf,
             clearance,
+            extents: None,
+            window: [f32::NEG_INFINITY, f32::INFINITY],
+            exits: [Hit::MISS; 2],
             n: cells.len(),
         }
     }
 
-    /// Casts one ray (see the module documentation).
-    pub fn cast_one(&self, ray: &Ray) -> Hit {
-        if self.n == 0 || !ray.is_valid() {
-            return Hit::miss();
+    /// The same caster with each leaf's column spanning `extents[leaf]`
+    /// (`[bottom, top]`, grid-frame z in metres; `-inf` / `inf` for a
+    /// column reaching the floor / ceiling) and rays ending where they
+    /// leave `window` (`[floor, ceiling]`, grid-frame z): there they hit
+    /// leaf `exits[0]` (the floor) or `exits[1]` (the ceiling), or miss
+    /// for `Hit::MISS`. A leaf without an extent (a short slice) spans the
+    /// whole window.
+    pub fn with_heights(mut self, extents: &[[f32; 2]], window: [f32; 2], exits: [u32; 2]) -> Self {
+        let mut e = vec![[f32::NEG_INFINITY, f32::INFINITY]; self.n];
+        for (a, b) in e.iter_mut().zip(extents) {
+            *a = *b;
         }
+        self.extents = Some(e);
+        self.window = window;
+        self.exits = exits;
+        self
+    }
+
+    /// The parameter interval of `ray` inside the vertical window, within
+    /// its own `[t_min, t_max]`, and the leaf it meets at the end of it
+    /// (the floor or ceiling exit, when the window ends it); `None` if
+    /// empty.
+    fn vertical_range(&self, ray: &Ray) -> Option<(f64, f64, u32)> {
+        let (oz, dz) = (ray.origin[2] as f64, ray.dir[2] as f64);
+        let (zl, zh) = (self.window[0] as f64, self.window[1] as f64);
+        let (mut a, mut b) = (ray.t_min as f64, ray.t_max as f64);
+        let mut exit = Hit::MISS;
+        if dz == 0.0 {
+            if oz < zl || oz > zh {
+                return None;
+            }
+        } else {
+            let (t1, t2) = ((zl - oz) / dz, (zh - oz) / dz);
+            a = a.max(t1.min(t2));
+            let end = t1.max(t2);
+            if end <= b {
+                b = end;
+                exit = self.exits[usize::from(dz > 0.0)];
+            }
+        }
+        (a <= b).then_some((a, b, exit))
+    }
+
+    /// Where `ray` (its own units, already limited to `[a, b]`) first meets
+    /// leaf `leaf`'s column inside the square it crosses over `[t_in,
+    /// t_out]`; `None` if it passes over or under.
+    fn meets(&self, ray: &Ray, leaf: u32, t_in: f64, t_out: f64, a: f64, b: f64) -> Option<f64> {
+        let (lo, hi) = (t_in.max(a), t_out.min(b));
+        if lo > hi {
+            return None;
+        }
+        let Some(ext) = &self.extents else {
+            return Some(lo);
+        };
+        let [bottom, top] = ext.get(leaf as usize).copied()?;
+        let (oz, dz) = (ray.origin[2] as f64, ray.dir[2] as f64);
+        let (bottom, top) = (bottom as f64, top as f64);
+        if dz == 0.0 {
+            return (bottom <= oz && oz <= top).then_some(lo);
+        }
+        let (t1, t2) = ((bottom - oz) / dz, (top - oz) / dz);
+        let (s, e) = (lo.max(t1.min(t2)), hi.min(t1.max(t2)));
+        (s <= e).then_some(s)
+    }
+
+    /// Whether no ray inside the window passes leaf `leaf`'s column.
+    fn full_height(&self, leaf: u32) -> bool {
+        match &self.extents {
+            None => true,
+            Some(e) => e
+                .get(leaf as usize)
+                .is_some_and(|&[b, t]| b <= self.window[0] && t >= self.window[1]),
+        }
+    }
+
+    /// Walks the planar ray `o + t d` over `[t0, t1]` and calls `visit`
+    /// with every occupied column it crosses (leaf, entry and exit
+    /// parameters) in order, until `visit` returns `true`.
+    fn walk(
+        &self,
+        o: [f64; 2],
+        d: [f64; 2],
+        t_range: (f64, f64),
+        mut visit: impl FnMut(u32, f64, f64) -> bool,
+    ) {
         let r = self.resolution;
-        let o = [ray.origin[0] as f64, ray.origin[1] as f64];
-        let d = [ray.dir[0] as f64, ray.dir[1] as f64];
-        let d3 = (ray.dir[0] as f64)
-            .hypot(ray.dir[1] as f64)
-            .hypot(ray.dir[2] as f64);
-        let dxy = d[0].hypot(d[1]);
-        if dxy <= 1e-6 * d3 {
-            return Hit::miss();
-        }
         let lo = [0, 1].map(|a| self.lo[a] as f64 * r);
         let hi = [0, 1].map(|a| (self.lo[a] + self.size[a]) as f64 * r);
-        let t = (ray.t_min as f64, ray.t_max as f64);
-        let Some((t0, t1)) = super::clip_to_box(&o, &d, &lo, &hi, t) else {
-            return Hit::miss();
+        let Some((t0, t1)) = super::clip_to_box(&o, &d, &lo, &hi, t_range) else {
+            return;
         };
         let step = [d[0].signum() as i32, d[1].signum() as i32];
         let delta = [r / d[0].abs(), r / d[1].abs()];
@@ -117,31 +238,181 @@ impl PlanarCaster {
             loop {
                 let idx = (cell[1] * self.size[0] + cell[0]) as usize;
                 let leaf = self.leaf[idx];
+                let a = if next[0] < next[1] { 0 } else { 1 };
                 if leaf != Hit::MISS {
-                    return Hit { leaf, t: t as f32 };
-                }
-                let clear = self.clearance[idx];
-                if clear >= 3 {
-                    // No occupied cell within clear - 1 cells; one cell of
-                    // margin for a position rounded into the next cell.
-                    t += (clear - 2) as f64 * jump_per_cell;
-                    if t > t1 {
-                        return Hit::miss();
+                    if visit(leaf, t, next[a].min(t1)) {
+                        return;
                     }
-                    continue 'outer;
+                } else {
+                    let clear = self.clearance[idx];
+                    if clear >= 3 {
+                        // No occupied cell within clear - 1 cells; one cell
+                        // of margin for a position rounded into the next.
+                        t += (clear - 2) as f64 * jump_per_cell;
+                        if t > t1 {
+                            return;
+                        }
+                        continue 'outer;
+                    }
                 }
                 // One DDA step.
-                let a = if next[0] < next[1] { 0 } else { 1 };
                 t = next[a];
                 if t > t1 {
-                    return Hit::miss();
+                    return;
                 }
                 cell[a] += step[a];
                 if cell[a] < 0 || cell[a] >= self.size[a] {
-                    return Hit::miss();
+                    return;
                 }
                 next[a] += delta[a];
             }
+        }
+    }
+
+    /// The ray's planar origin and direction, or `None` for an invalid or
+    /// vertical ray.
+    fn planar(ray: &Ray) -> Option<([f64; 2], [f64; 2])> {
+        if !ray.is_valid() {
+            return None;
+        }
+        let d = [ray.dir[0] as f64, ray.dir[1] as f64];
+        let dz = ray.dir[2] as f64;
+        let xy2 = d[0] * d[0] + d[1] * d[1];
+        // |d_xy| <= 1e-6 |d|, squared (hypot is slow, and this runs per ray).
+        if xy2 <= 1e-12 * (xy2 + dz * dz) {
+            return None;
+        }
+        Some(([ray.origin[0] as f64, ray.origin[1] as f64], d))
+    }
+
+    /// Casts one ray (see the module documentation).
+    pub fn cast_one(&self, ray: &Ray) -> Hit {
+        if self.n == 0 {
+            return Hit::miss();
+        }
+        let Some((o, d)) = Self::planar(ray) else {
+            return Hit::miss();
+        };
+        let Some((a, b, exit)) = self.vertical_range(ray) else {
+            return Hit::miss();
+        };
+        let mut hit = Self::exit_hit(exit, b);
+        self.walk(o, d, (a, b), |leaf, t_in, t_out| {
+            match self.meets(ray, leaf, t_in, t_out, a, b) {
+                Some(t) => {
+                    hit = Hit { leaf, t: t as f32 };
+                    true
+                }
+                None => false,
+            }
+        });
+        hit
+    }
+
+    /// The hit of a ray that meets no column before its window ends at `b`.
+    fn exit_hit(exit: u32, b: f64) -> Hit {
+        if exit == Hit::MISS {
+            Hit::miss()
+        } else {
+            Hit {
+                leaf: exit,
+                t: b as f32,
+            }
+        }
+    }
+
+    /// Casts a run of rays sharing one planar ray (`rays[0]`'s): one walk,
+    /// then each ray checks the listed columns against its own heights.
+    fn cast_run(
+        &self,
+        rays: &[Ray],
+        hits: &mut [Hit],
+        list: &mut Vec<Crossing>,
+        scratch: &mut Vec<Option<(f64, f64, f64, u32)>>,
+    ) {
+        let Some((o, d0)) = Self::planar(&rays[0]) else {
+            for (r, h) in rays.iter().zip(hits.iter_mut()) {
+                *h = self.cast_one(r);
+            }
+            return;
+        };
+        let n0 = (d0[0] * d0[0] + d0[1] * d0[1]).sqrt();
+        // Each ray's scale (its t per walked t) and window, in its units;
+        // `None` for a ray that cannot hit.
+        let mut reach = 0.0f64;
+        scratch.clear();
+        scratch.extend(rays.iter().map(|r| {
+            let (dx, dy) = (r.dir[0] as f64, r.dir[1] as f64);
+            let k = n0 / (dx * dx + dy * dy).sqrt();
+            let range = Self::planar(r).and(self.vertical_range(r));
+            if let Some((_, b, _)) = range {
+                reach = reach.max(b / k);
+            }
+            range.map(|(a, b, exit)| (k, a, b, exit))
+        }));
+        list.clear();
+        let mut complete = false;
+        self.walk(o, d0, (0.0, reach), |leaf, t_in, t_out| {
+            let [bottom, top] = match &self.extents {
+                Some(e) => e
+                    .get(leaf as usize)
+                    .copied()
+                    .unwrap_or([f32::NEG_INFINITY; 2]),
+                None => [f32::NEG_INFINITY, f32::INFINITY],
+            };
+            list.push(Crossing {
+                leaf,
+                t_in,
+                t_out,
+                bottom: bottom as f64,
+                top: top as f64,
+            });
+            complete = self.full_height(leaf);
+            complete || list.len() >= MAX_LISTED
+        });
+        let last = list.last().map_or(f64::INFINITY, |c| c.t_out);
+        for ((r, h), s) in rays.iter().zip(hits.iter_mut()).zip(scratch.iter()) {
+            let Some((k, a, b, exit)) = *s else {
+                *h = Hit::miss();
+                continue;
+            };
+            // The first listed column the ray's heights meet, compared in
+            // z (a multiply-add a column; the division only for the hit).
+            let (oz, dz) = (r.origin[2] as f64, r.dir[2] as f64);
+            let mut found = None;
+            for c in list.iter() {
+                let lo = (c.t_in * k).max(a);
+                if lo > b {
+                    break;
+                }
+                let hi = (c.t_out * k).min(b);
+                if lo > hi {
+                    continue;
+                }
+                let (z0, z1) = (oz + dz * lo, oz + dz * hi);
+                if z0.max(z1) < c.bottom || z0.min(z1) > c.top {
+                    continue;
+                }
+                let t = if (c.bottom..=c.top).contains(&z0) {
+                    lo
+                } else if dz < 0.0 {
+                    (c.top - oz) / dz
+                } else {
+                    (c.bottom - oz) / dz
+                };
+                found = Some(Hit {
+                    leaf: c.leaf,
+                    t: t as f32,
+                });
+                break;
+            }
+            *h = found.unwrap_or_else(|| {
+                if !complete && list.len() >= MAX_LISTED && b > last * k {
+                    self.cast_one(r)
+                } else {
+                    Self::exit_hit(exit, b)
+                }
+            });
         }
     }
 }
@@ -186,47 +457,50 @@ fn chebyshev_clearance(leaf: &[u32], w: usize, h: usize) -> Vec<u8> {
     dist.into_iter().map(|v| v.min(FAR) as u8).collect()
 }
 
-/// Key of a planar ray for [`RayCaster::cast_serial`]'s reuse: origin x,
-/// y bits and the direction's angle in the plane in micro-radians.
-fn planar_key(ray: &Ray) -> Option<(u32, u32, i64)> {
-    let (dx, dy) = (ray.dir[0] as f64, ray.dir[1] as f64);
-    let d3 = dx.hypot(dy).hypot(ray.dir[2] as f64);
-    if !(ray.t_min == 0.0 && ray.t_max == f32::INFINITY && dx.hypot(dy) > 1e-6 * d3) {
-        return None;
+/// Whether `b` shares `a`'s planar ray: the same origin (bit for bit) and
+/// horizontal directions parallel to 1e-6 (same sense).
+fn same_planar_ray(a: &Ray, b: &Ray) -> bool {
+    if a.origin != b.origin {
+        return false;
     }
-    let angle = (dy.atan2(dx) * 1e6).round() as i64;
-    Some((ray.origin[0].to_bits(), ray.origin[1].to_bits(), angle))
+    let (ax, ay, bx, by) = (
+        a.dir[0] as f64,
+        a.dir[1] as f64,
+        b.dir[0] as f64,
+        b.dir[1] as f64,
+    );
+    let cross = ax * by - ay * bx;
+    let dot = ax * bx + ay * by;
+    dot > 0.0 && cross * cross <= 1e-12 * (ax * ax + ay * ay) * (bx * bx + by * by)
 }
 
 impl RayCaster for PlanarCaster {
-    /// Casts each distinct planar ray of the batch once: rays from the same
-    /// origin whose horizontal directions agree to a micro-radian (a level
-    /// camera's pixels of one image column, which all project to the same
-    /// planar ray) share the cast, their `t` rescaled to their own
-    /// direction's horizontal length. Rays with a finite `t_max` or a
-    /// nonzero `t_min` are cast on their own.
+    /// Casts each run of consecutive rays that share a planar ray with one
+    /// walk (see the module documentation); every ray gets the hit it
+    /// would get alone.
     fn cast_serial(&self, rays: &[Ray], hits: &mut [Hit]) {
         assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
-        let mut seen: rustc_hash::FxHashMap<(u32, u32, i64), (Hit, f64)> =
-            rustc_hash::FxHashMap::default();
-        for (r, h) in rays.iter().zip(hits.iter_mut()) {
-            let Some(key) = planar_key(r) else {
-                *h = self.cast_one(r);
-                continue;
-            };
-            let n = (r.dir[0] as f64).hypot(r.dir[1] as f64);
-            *h = match seen.get(&key) {
-                Some(&(hit, n0)) => Hit {
-                    leaf: hit.leaf,
-                    t: (hit.t as f64 * n0 / n) as f32,
-                },
-                None => {
-                    let hit = self.cast_one(r);
-                    seen.insert(key, (hit, n));
-                    hit
-                }
-            };
+        let (mut list, mut scratch) = (Vec::new(), Vec::new());
+        let mut start = 0;
+        while start < rays.len() {
+            let mut end = start + 1;
+            while end < rays.len() && same_planar_ray(&rays[start], &rays[end]) {
+                end += 1;
+            }
+            self.cast_run(
+                &rays[start..end],
+                &mut hits[start..end],
+                &mut list,
+                &mut scratch,
+            );
+            start = end;
         }
+    }
+
+    /// Yes: rays of one particle through pixels of one image column in a
+    /// row share one walk.
+    fn wants_column_order(&self) -> bool {
+        true
     }
 
     fn len(&self) -> usize {
@@ -303,6 +577,76 @@ mod tests {
         assert_eq!(c.len(), 5);
     }
 
+    /// A room by hand at 0.5 m: a full-height wall at x index 4 (j 0..=3,
+    /// leaves 0..=3) and a table whose top is at 0.75 m in column (2, 1)
+    /// (leaf 4), floor window at 0.1 m, ceiling at 2.5 m. The camera is at
+    /// (0.25, 0.75, 1.5) looking along +x (row j 1): the table's square is
+    /// x in [1.0, 1.5] (t 0.75 to 1.25), the wall starts at x 2.0 (t 1.75).
+    #[test]
+    fn pixels_look_over_low_columns_and_stop_at_floor_and_ceiling() {
+        let mut cells = plan();
+        cells[4] = [2, 1, 0];
+        let inf = f32::INFINITY;
+        let extents = [[-inf, inf]; 4]
+            .into_iter()
+            .chain([[-inf, 0.75]])
+            .collect::<Vec<_>>();
+        let c = PlanarCaster::new(0.5, &cells).with_heights(&extents, [0.1, 2.5], [Hit::MISS; 2]);
+        let o = [0.25, 0.75, 1.5];
+        let cast = |dz: f32| c.cast_one(&Ray::new(o, [1.0, 0.0, dz]));
+        // Level: over the table (z 1.5 > 0.75), onto the wall at t 1.75.
+        assert_eq!((cast(0.0).leaf, cast(0.0).t), (1, 1.75));
+        // Down 0.5: z 1.125 .. 0.875 over the table's square, still above
+        // it; the wall at z 0.625.
+        assert_eq!((cast(-0.5).leaf, cast(-0.5).t), (1, 1.75));
+        // Down 0.8: z reaches 0.75 at t 0.9375, inside the table's square.
+        let h = cast(-0.8);
+        assert_eq!(h.leaf, 4);
+        assert!((h.t - 0.9375).abs() < 1e-6, "{h:?}");
+        // Down 2: at the floor window (z 0.1) by t 0.7, before the table:
+        // the pixel sees the floor, which the plan does not hold.
+        assert!(!cast(-2.0).is_hit());
+        // Up 0.5: z 2.375 at the wall, below the ceiling: the wall, which
+        // goes on above the band.
+        assert_eq!((cast(0.5).leaf, cast(0.5).t), (1, 1.75));
+        // Up 1: at the ceiling by t 1.0: a miss.
+        assert!(!cast(1.0).is_hit());
+        // With exits, the floor and ceiling pixels hit their leaves (here 7
+        // and 8) where they leave the window: z 0.1 at t 0.7, z 2.5 at t 1.
+        let sky = PlanarCaster::new(0.5, &cells).with_heights(&extents, [0.1, 2.5], [7, 8]);
+        let h = sky.cast_one(&Ray::new(o, [1.0, 0.0, -2.0]));
+        assert_eq!(h.leaf, 7);
+        assert!((h.t - 0.7).abs() < 1e-6, "{h:?}");
+        let h = sky.cast_one(&Ray::new(o, [1.0, 0.0, 1.0]));
+        assert_eq!((h.leaf, h.t), (8, 1.0));
+        assert_eq!(sky.cast_one(&Ray::new(o, [1.0, 0.0, 0.0])).leaf, 1);
+        // Without heights every column is a full prism: the table at 0.75.
+        let flat = PlanarCaster::new(0.5, &cells);
+        let h = flat.cast_one(&Ray::new(o, [1.0, 0.0, -2.0]));
+        assert_eq!((h.leaf, h.t), (4, 0.75));
+        // One run of these rays (the pixels of one image column) cast as a
+        // batch gets the same hits, and so does a run with its directions
+        // scaled (t in each ray's own units).
+        let dzs = [0.0, -0.5, -0.8, -2.0, 0.5, 1.0];
+        for scale in [1.0f32, 2.5] {
+            let rays: Vec<Ray> = dzs
+                .iter()
+                .map(|&dz| Ray::new(o, [scale, 0.0, scale * dz]))
+                .collect();
+            for caster in [&c, &sky] {
+                let mut hits = vec![Hit::miss(); rays.len()];
+                caster.cast_serial(&rays, &mut hits);
+                for (r, h) in rays.iter().zip(&hits) {
+                    let one = caster.cast_one(r);
+                    assert_eq!(h.leaf, one.leaf, "{r:?}");
+                    assert!(!one.is_hit() || (h.t - one.t).abs() < 1e-6, "{h:?} {one:?}");
+                }
+                assert_eq!(hits[2].leaf, 4);
+                assert!((hits[2].t - 0.9375 / scale).abs() < 1e-6);
+            }
+        }
+    }
+
     /// The jumps through free space change nothing: on a random sparse plan
     /// the planar caster agrees with the 3-D reference DDA cast in a
     /// one-layer map with horizontal rays.
@@ -374,6 +718,61 @@ mod tests {
         // starts left of every column and misses.
         assert!(hits[..8].iter().all(|h| h.leaf == 1));
         assert!(!hits[8].is_hit());
+    }
+
+    /// On a random plan with random column heights, a batch of runs of
+    /// rays sharing planar rays (pixels of image columns looking up and
+    /// down) gets exactly the hits each ray gets alone, exits included.
+    #[test]
+    fn batched_runs_with_heights_match_single_casts_on_a_random_plan() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let mut cells: Vec<Cell> = Vec::new();
+        let mut extents = Vec::new();
+        let inf = f32::INFINITY;
+        for _ in 0..300 {
+            let c = [rng.random_range(-40..40), rng.random_range(-30..30), 0];
+            if !cells.contains(&c) {
+                cells.push(c);
+                let b: f32 = rng.random_range(0.0..1.5);
+                let t: f32 = b + rng.random_range(0.05..1.5);
+                extents.push([
+                    if b < 0.3 { -inf } else { b },
+                    if t > 2.0 { inf } else { t },
+                ]);
+            }
+        }
+        let n = cells.len() as u32;
+        let c = PlanarCaster::new(0.1, &cells).with_heights(&extents, [0.1, 2.5], [n, n + 1]);
+        let mut hits_seen = [0usize; 3];
+        for _ in 0..200 {
+            let o = [
+                rng.random_range(-4.0f32..4.0),
+                rng.random_range(-3.0f32..3.0),
+                rng.random_range(0.5f32..2.0),
+            ];
+            let a: f32 = rng.random_range(0.0..std::f32::consts::TAU);
+            let rays: Vec<Ray> = (0..12)
+                .map(|k| {
+                    let s = 0.5 + 0.25 * k as f32;
+                    let dz = rng.random_range(-1.5f32..1.0);
+                    Ray::new(o, [s * a.cos(), s * a.sin(), s * dz])
+                })
+                .collect();
+            let mut hits = vec![Hit::miss(); rays.len()];
+            c.cast_serial(&rays, &mut hits);
+            for (r, h) in rays.iter().zip(&hits) {
+                let one = c.cast_one(r);
+                assert_eq!(h.leaf, one.leaf, "{r:?}");
+                assert!(!one.is_hit() || (h.t - one.t).abs() <= 1e-5 * one.t.max(1.0));
+                hits_seen[match h.leaf {
+                    l if l == n => 0,
+                    l if l == n + 1 => 1,
+                    _ => 2,
+                }] += 1;
+            }
+        }
+        // Floor, ceiling and columns all occur.
+        assert!(hits_seen.iter().all(|&k| k > 50), "{hits_seen:?}");
     }
 
     #[test]
