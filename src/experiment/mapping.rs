@@ -37,9 +37,15 @@ pub enum MapSource {
     /// that needs the whole feature stream in memory or a per-feature
     /// database search, so the experiment grounds first.)
     Features(Preset),
-    /// As [`MapSource::Features`], but the database is not grounded on the
-    /// class names: its rows are the admitted voxel means (the paper's
-    /// ungrounded OMCL^auto).
+    /// The paper's ungrounded OMCL^auto: each pixel's raw feature from the
+    /// preset's model (no class in between) goes into the map's
+    /// observation database with tau, as `omcl map` integrates an image
+    /// model's features ([`crate::map::Integrator::add_feature`], rows
+    /// capped at [`MapParams::max_rows`]), and the voxel means form the
+    /// database with tau (capped likewise), never grounded on the class
+    /// names. Noisy raw features rarely come within tau of each other, so
+    /// both databases reach their caps: the map's rows are a few thousand
+    /// observed features and their blends, not classes.
     Auto(Preset),
     /// A point cloud (the mapping frames' points fused in the world frame)
     /// whose points a 3-D encoder labels ([`crate::sim::features::OPENSCENE_LIKE`],
@@ -86,6 +92,16 @@ pub struct MapParams {
     /// every voxel takes its most similar class row, the database becomes
     /// the class table); `false` keeps the admitted voxel means ("auto").
     pub ground: bool,
+    /// Pixel stride of [`MapSource::Auto`]'s raw features: each one is a
+    /// nearest-row search over up to `max_rows` rows of 512 values, so
+    /// stride 8 (4,500 features a frame, a point every 3 cm at 2 m) keeps a
+    /// map to minutes on 2 cores; stride 4 took over 12 minutes.
+    pub raw_pixel_stride: u32,
+    /// Cap on the rows of [`MapSource::Auto`]'s observation database and
+    /// of its map's database (`omcl map --max-rows` defaults to 4096; the
+    /// filter compares every sampled pixel with every row, so the bench
+    /// keeps 1024).
+    pub max_rows: usize,
 }
 
 impl Default for MapParams {
@@ -98,6 +114,8 @@ impl Default for MapParams {
             max_height: 10.0,
             tau: 0.02,
             ground: true,
+            raw_pixel_stride: 8,
+            max_rows: 1024,
         }
     }
 }
@@ -127,30 +145,20 @@ pub fn build_map(
             "a feature map needs a feature model".into(),
         ));
     }
+    if let (MapSource::Auto(_), Some(m)) = (source, model) {
+        return build_raw_map(seq, source, params, m, progress);
+    }
     let table = &seq.table;
     let db = FeatureDb::from_rows(table.dim, params.tau, table.rows.clone())?;
-    // The map's grid is offset from the world's voxels by half a map voxel:
-    // a real map's grid does not line up with the walls, and surfaces on
-    // voxel faces would split their points between two voxels.
-    let grid = GridSpec {
-        resolution: params.resolution,
-        origin: seq.scene.world.voxels.origin - Vector3::repeat(0.5 * params.resolution),
-    };
-    let mut integ = Integrator::new(grid, db)?;
+    let mut integ = Integrator::new(map_grid(seq, params), db)?;
     let k = &seq.intrinsics;
     let s = params.pixel_stride.max(1);
-    let step = params.frame_step.max(1);
-    let poses: Vec<Pose> = mapping_poses(seq, params.frames)
-        .into_iter()
-        .step_by(step)
-        .chain(seq.poses().iter().copied().step_by(step))
-        .collect();
-    for (i, pose) in poses.iter().enumerate() {
+    for (i, pose) in mapping_frame_poses(seq, params).iter().enumerate() {
         let frame = render::render_frame(&seq.scene.caster, &seq.scene.world.voxels, k, pose);
         let (points, rows) = frame_points(&frame, k, pose, s, params.max_height, |u, v, p| {
             let l = frame.labels[frame.index(u, v)];
             match (source, model) {
-                (MapSource::Features(_) | MapSource::Auto(_), Some(m)) => {
+                (MapSource::Features(_), Some(m)) => {
                     let ctx = m.context(&frame, u, v);
                     m.predicted_class(0x9a9_0000 + i as u64, u, v, &ctx)
                         .map(|c| c as u32)
@@ -174,16 +182,100 @@ pub fn build_map(
     Ok(map)
 }
 
+/// The map's grid: offset from the world's voxels by half a map voxel (a
+/// real map's grid does not line up with the walls, and surfaces on voxel
+/// faces would split their points between two voxels).
+fn map_grid(seq: &SimSequence, params: &MapParams) -> GridSpec {
+    GridSpec {
+        resolution: params.resolution,
+        origin: seq.scene.world.voxels.origin - Vector3::repeat(0.5 * params.resolution),
+    }
+}
+
+/// The mapping frames' poses: every `frame_step`-th of the mapping path,
+/// then of the sequence's own path.
+fn mapping_frame_poses(seq: &SimSequence, params: &MapParams) -> Vec<Pose> {
+    let step = params.frame_step.max(1);
+    mapping_poses(seq, params.frames)
+        .into_iter()
+        .step_by(step)
+        .chain(seq.poses().iter().copied().step_by(step))
+        .collect()
+}
+
+/// [`MapSource::Auto`]: raw features through a capped observation database
+/// into voxels, voxel means into a capped database, no grounding. Each
+/// frame's features are computed where needed; while the observation
+/// database has room they are admitted one by one (the admission rule is
+/// sequential), once it is full each takes its nearest row, found for the
+/// frame's remaining features in parallel blocks ([`FeatureDb::map_dots`]),
+/// which is what [`FeatureDb::admit`] returns past the cap.
+fn build_raw_map(
+    seq: &SimSequence,
+    source: MapSource,
+    params: &MapParams,
+    model: &FeatureModel,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<LanguageMap, ExperimentError> {
+    let dim = model.dim();
+    let cap = params.max_rows.max(1);
+    let obs = FeatureDb::new(dim, params.tau)?.with_max_rows(cap);
+    let mut integ = Integrator::new(map_grid(seq, params), obs)?;
+    let k = &seq.intrinsics;
+    for (i, pose) in mapping_frame_poses(seq, params).iter().enumerate() {
+        let frame = render::render_frame(&seq.scene.caster, &seq.scene.world.voxels, k, pose);
+        let (points, pixels) = frame_points(
+            &frame,
+            k,
+            pose,
+            params.raw_pixel_stride.max(1),
+            params.max_height,
+            |u, v, _| Some((u, v)),
+        );
+        let frame_id = 0x9a9_0000 + i as u64;
+        let feature = |j: usize, out: &mut [f32]| {
+            let (u, v) = pixels[j].expect("every kept pixel has its coordinates");
+            let ctx = model.context(&frame, u, v);
+            model.feature_at(frame_id, u, v, &ctx, out);
+        };
+        let mut j = 0;
+        let mut buf = vec![0f32; dim];
+        while j < points.len() && integ.observation_db().len() < cap {
+            feature(j, &mut buf);
+            integ.add_feature(&Vector3::from(points[j]), &buf)?;
+            j += 1;
+        }
+        if j < points.len() {
+            // Features are unit vectors (`feature_at`), so the largest dot
+            // product is the nearest row.
+            let rows = integ.observation_db().map_dots(
+                points.len() - j,
+                |r, out| feature(j + r, out),
+                |_, dots| {
+                    dots.iter()
+                        .enumerate()
+                        .max_by(|a, b| a.1.total_cmp(b.1))
+                        .map(|(r, _)| r as u32)
+                },
+            );
+            integ.add_rows_batch(&points[j..], &rows);
+        }
+        progress(i + 1);
+    }
+    let db = FeatureDb::new(dim, params.tau)?.with_max_rows(cap);
+    Ok(integ.finish_into(source.name(), db)?)
+}
+
 /// World points and rows of the used pixels of one frame (rows computed in
 /// parallel by `row_of(u, v, point)`).
-fn frame_points(
+fn frame_points<T: Send>(
     frame: &Frame,
     k: &crate::geometry::Intrinsics,
     pose: &Pose,
     stride: u32,
     max_height: f64,
-    row_of: impl Fn(u32, u32, [f64; 3]) -> Option<u32> + Sync,
-) -> (Vec<[f64; 3]>, Vec<Option<u32>>) {
+    row_of: impl Fn(u32, u32, [f64; 3]) -> Option<T> + Sync,
+) -> (Vec<[f64; 3]>, Vec<Option<T>>) {
     let px: Vec<(u32, u32)> = (0..frame.height)
         .step_by(stride as usize)
         .flat_map(|v| {

@@ -185,8 +185,20 @@ impl Integrator {
     /// Builds the map: voxel means form the database with admission
     /// threshold `tau` (cosine distance).
     pub fn finish(self, encoder: impl Into<String>, tau: f32) -> Result<LanguageMap, MapError> {
+        let db = FeatureDb::new(self.obs.dim(), tau)?;
+        self.finish_into(encoder, db)
+    }
+
+    /// As [`Integrator::finish`], admitting the voxel means into `db` (an
+    /// empty database with the wanted tau and, for noisy raw features
+    /// whose means rarely come within tau of each other, a cap on its
+    /// rows: past the cap a mean takes its nearest row).
+    pub fn finish_into(
+        self,
+        encoder: impl Into<String>,
+        mut db: FeatureDb,
+    ) -> Result<LanguageMap, MapError> {
         let dim = self.obs.dim();
-        let mut db = FeatureDb::new(dim, tau)?;
         let mut leaves: Vec<(u64, Slots)> = self.voxels.into_iter().collect();
         leaves.sort_unstable_by_key(|&(c, _)| c);
         // Single-row voxels share their row's final index.
