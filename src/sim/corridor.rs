@@ -8,8 +8,8 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use super::building::*;
 use super::furniture::{door_leaf, furnish};
-use super::indoor::*;
 use super::world::Scene;
 
 /// The corridor apartment for `config`: its scene and layout.

@@ -7,7 +7,7 @@
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use super::indoor::*;
+use super::building::*;
 use super::world::{Aabb, Scene, Shape};
 
 /// A local frame on the floor: origin at the wall-side centre of an object,

@@ -10,6 +10,7 @@
 //! do. [`paths`] makes camera paths and odometry, [`render`] casts camera and
 //! LiDAR rays through the project's ray caster, and [`files`] writes the
 //! results in the real datasets' layouts.
+mod building;
 pub mod consistency;
 mod corridor;
 pub mod dataset;

@@ -12,11 +12,11 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::furniture::{self, door_leaf};
-use super::indoor::{
+use super::building::{
     CEILING, FLOOR, IndoorConfig, IndoorLayout, Opening, PICTURE, Room, RoomKind, WorldKind,
     wall_x, wall_y,
 };
+use super::furniture::{self, door_leaf};
 use super::world::{Aabb, Scene, Shape};
 
 /// The fewest rooms an office floor has.
@@ -104,7 +104,7 @@ pub(super) fn build(config: &IndoorConfig) -> (Scene, IndoorLayout) {
     twins.shuffle(&mut rng);
     let mut twins = twins.into_iter();
 
-    let mut scene = Scene::new(super::indoor::INDOOR_CLASSES);
+    let mut scene = Scene::new(super::building::INDOOR_CLASSES);
     let (x_lo, x_hi) = (-cw, len + cw);
     let (y_lo, y_hi) = (-d, 2.0 * cw + 3.0 * d);
     scene.add_box(FLOOR, [x_lo - t, y_lo - t, -r], [x_hi + t, y_hi + t, 0.0]);
@@ -289,7 +289,7 @@ fn office_template(w: f64, d: f64, snap: impl Fn(f64) -> f64, rng: &mut ChaCha8R
         hall_node: 0,
         twin: None,
     };
-    let mut scene = Scene::new(super::indoor::INDOOR_CLASSES);
+    let mut scene = Scene::new(super::building::INDOOR_CLASSES);
     door_leaf(&mut scene, &rm);
     furniture::furnish(&mut scene, &rm, (wx, ww, d), rng);
     Template {

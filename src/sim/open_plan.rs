@@ -13,11 +13,11 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::furniture::{self, Furnisher, Place, Rect, door_leaf};
-use super::indoor::{
+use super::building::{
     CABINET, CEILING, COUNTER, CURTAIN, FLOOR, IndoorConfig, IndoorLayout, LAMP, Opening, PICTURE,
     RUG, Room, RoomKind, SINK, TABLE, TV, WorldKind, wall_x, wall_y,
 };
+use super::furniture::{self, Furnisher, Place, Rect, door_leaf};
 use super::world::{Scene, Shape};
 
 /// Depth of the free aisle along the great room's south wall, metres.
@@ -40,7 +40,7 @@ pub(super) fn build(config: &IndoorConfig) -> (Scene, IndoorLayout) {
     let wr = rng.random_range(3.8..4.4);
     let xs = rng.random_range(0.0..width - wb - wr);
 
-    let mut scene = Scene::new(super::indoor::INDOOR_CLASSES);
+    let mut scene = Scene::new(super::building::INDOOR_CLASSES);
     let (y_lo, y_hi) = (-side_d, depth);
     scene.add_box(FLOOR, [-t, y_lo - t, -r], [width + t, y_hi + t, 0.0]);
     scene.add_box(CEILING, [-t, y_lo - t, h], [width + t, y_hi + t, h + r]);
