@@ -145,6 +145,13 @@ pub struct PlanArgs {
     /// Steps of each global-localization run.
     #[arg(long, default_value_t = 60)]
     pub max_steps: usize,
+    /// The kind of world of every sequence: corridor (the apartment of
+    /// every table so far), open-plan (one large living, dining and
+    /// kitchen space, two side rooms) or offices (24 rooms round two
+    /// corridors, most of them identical offices). Table I, II and V and
+    /// the ablations; table1-floorplan and table1-sixdof run on it too.
+    #[arg(long, default_value = "corridor")]
+    pub world: omcl::sim::indoor::WorldKind,
     /// Override any filter parameter: `--set sharpen=40 --set
     /// sensor.miss_score=0.2` (paths into the filter configuration's JSON,
     /// printed by `--show-config`; VALUE is JSON).
@@ -197,6 +204,7 @@ impl PlanArgs {
             starts: self.starts,
             max_steps: self.max_steps,
             filter: self.filter()?,
+            world: self.world,
         })
     }
 }

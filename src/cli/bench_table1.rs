@@ -83,6 +83,7 @@ fn block_spec(a: &BenchArgs) -> anyhow::Result<BlockSpec> {
     let filter = super::bench_args::apply_overrides(filter, &rest)?;
     Ok(BlockSpec {
         seeds: a.plan.first_seed..a.plan.first_seed + a.plan.sequences,
+        world: a.plan.world,
         frames: a.plan.frames,
         map_params: omcl::experiment::MapParams {
             frames: a.plan.map_frames,

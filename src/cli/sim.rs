@@ -12,7 +12,8 @@ use omcl::sim::files;
 /// Synthetic benchmark generation.
 #[derive(Debug, clap::Subcommand)]
 pub enum SimCommand {
-    /// An apartment and an RGB-D sequence through its rooms.
+    /// An indoor world (--world: corridor apartment, open-plan home or
+    /// office floor) and an RGB-D sequence through its rooms.
     Indoor(IndoorArgs),
 
     /// A street along a real driving path and a KITTI odometry sequence
@@ -32,9 +33,13 @@ pub struct IndoorArgs {
     pub out: PathBuf,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Number of rooms.
-    #[arg(long, default_value_t = 5)]
-    pub rooms: usize,
+    /// The kind of world: corridor, open-plan or offices.
+    #[arg(long, default_value = "corridor")]
+    pub world: omcl::sim::indoor::WorldKind,
+    /// Number of rooms (corridor: default 5; offices: at least 20, rounded
+    /// up to a multiple of 4, default 24; the open plan has its own).
+    #[arg(long)]
+    pub rooms: Option<usize>,
     /// Voxel edge, metres.
     #[arg(long, default_value_t = 0.05)]
     pub resolution: f64,
@@ -159,6 +164,7 @@ fn indoor(a: IndoorArgs) -> anyhow::Result<()> {
     let IndoorArgs {
         out,
         seed,
+        world,
         rooms,
         resolution,
         frames,
@@ -173,13 +179,15 @@ fn indoor(a: IndoorArgs) -> anyhow::Result<()> {
         trajectories,
         table,
     } = a;
-    anyhow::ensure!(rooms >= 1, "--rooms must be at least 1");
+    anyhow::ensure!(rooms != Some(0), "--rooms must be at least 1");
     anyhow::ensure!(
         resolution > 0.005 && resolution <= 0.5,
         "--resolution {resolution} m is outside (0.005, 0.5]"
     );
-    let mut cfg = IndoorDatasetConfig::new(seed);
-    cfg.world.rooms = rooms;
+    let mut cfg = IndoorDatasetConfig::of_kind(world, seed);
+    if let Some(n) = rooms {
+        cfg.world.rooms = n;
+    }
     cfg.world.resolution = resolution;
     cfg.path.frames = frames;
     cfg.width = width;

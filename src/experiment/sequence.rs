@@ -1,4 +1,4 @@
-//! A synthetic benchmark sequence generated in memory: an apartment, a
+//! A synthetic benchmark sequence generated in memory: an indoor world, a
 //! camera path through it, the paper's noisy odometry, and frames rendered
 //! on demand (a 540 x 540 frame is 2 MB; a sequence is not kept rendered).
 
@@ -6,7 +6,7 @@ use crate::geometry::{Intrinsics, Pose};
 use crate::map::LanguageMap;
 use crate::sim::dataset::{IndoorDatasetConfig, IndoorScene, SimError, indoor_scene};
 use crate::sim::embeddings::ClassEmbeddings;
-use crate::sim::indoor::INDOOR_CLASSES;
+use crate::sim::indoor::{INDOOR_CLASSES, WorldKind};
 use crate::sim::paths;
 use crate::sim::render::{self, Frame};
 
@@ -23,10 +23,21 @@ pub struct SimSequence {
 }
 
 impl SimSequence {
-    /// Generates sequence `seed` with `frames` frames from the built-in
-    /// class table (`table` must contain every indoor class).
+    /// Generates sequence `seed` with `frames` frames in the corridor
+    /// apartment from the built-in class table (`table` must contain every
+    /// indoor class).
     pub fn generate(seed: u64, frames: usize, table: &ClassEmbeddings) -> Result<Self, SimError> {
-        let mut config = IndoorDatasetConfig::new(seed);
+        Self::generate_in(WorldKind::Corridor, seed, frames, table)
+    }
+
+    /// Generates sequence `seed` with `frames` frames in a world of `kind`.
+    pub fn generate_in(
+        kind: WorldKind,
+        seed: u64,
+        frames: usize,
+        table: &ClassEmbeddings,
+    ) -> Result<Self, SimError> {
+        let mut config = IndoorDatasetConfig::of_kind(kind, seed);
         config.path.frames = frames;
         let table = table.subset(INDOOR_CLASSES)?;
         let scene = indoor_scene(&config)?;

@@ -38,6 +38,7 @@ pub use super::task::{
 };
 use super::{table1, table2, table5};
 use crate::sim::embeddings::ClassEmbeddings;
+use crate::sim::indoor::WorldKind;
 
 /// Expands a bench plan into its runs: Table I and II per variant and
 /// seed, Table V per prompt and seed, the ablations per cell and seed.
@@ -343,7 +344,7 @@ pub struct Cache {
     table: ClassEmbeddings,
     /// Build maps that are missing (else a missing map is an error).
     build: bool,
-    sequences: Mutex<HashMap<(u64, usize), Arc<SimSequence>>>,
+    sequences: Mutex<HashMap<(WorldKind, u64, usize), Arc<SimSequence>>>,
     maps: Mutex<HashMap<PathBuf, Arc<BenchMap>>>,
     built: std::sync::atomic::AtomicUsize,
 }
@@ -382,13 +383,18 @@ impl Cache {
         map_path(&self.dir, task)
     }
 
-    /// Sequence `seed` of `frames` frames.
-    pub fn sequence(&self, seed: u64, frames: usize) -> Result<Arc<SimSequence>, ExperimentError> {
-        if let Some(s) = lock(&self.sequences).get(&(seed, frames)) {
+    /// Sequence `seed` of `frames` frames in a world of `world`.
+    pub fn sequence(
+        &self,
+        world: WorldKind,
+        seed: u64,
+        frames: usize,
+    ) -> Result<Arc<SimSequence>, ExperimentError> {
+        if let Some(s) = lock(&self.sequences).get(&(world, seed, frames)) {
             return Ok(s.clone());
         }
-        let s = Arc::new(SimSequence::generate(seed, frames, &self.table)?);
-        lock(&self.sequences).insert((seed, frames), s.clone());
+        let s = Arc::new(SimSequence::generate_in(world, seed, frames, &self.table)?);
+        lock(&self.sequences).insert((world, seed, frames), s.clone());
         Ok(s)
     }
 
@@ -500,7 +506,7 @@ fn compute(entry: &RunEntry, cache: &Cache) -> Result<RunRecord, SweepError> {
     };
     let start = Instant::now();
     let cpu0 = process_cpu_seconds();
-    let seq = cache.sequence(t.seed, t.frames).map_err(run_err)?;
+    let seq = cache.sequence(t.world, t.seed, t.frames).map_err(run_err)?;
     let map = cache.map(id, t, &seq)?;
     let outcome = match &t.work {
         Work::Track { filter, particles } => {
@@ -682,6 +688,7 @@ mod tests {
             starts: 3,
             max_steps: 60,
             filter: FilterConfig::default(),
+            world: Default::default(),
         }
     }
 
@@ -705,7 +712,9 @@ mod tests {
                 .iter()
                 .map(|c| {
                     s.spawn(|| {
-                        let seq = c.sequence(e.task.seed, e.task.frames).unwrap();
+                        let seq = c
+                            .sequence(e.task.world, e.task.seed, e.task.frames)
+                            .unwrap();
                         c.map(&e.id, &e.task, &seq).unwrap()
                     })
                 })
@@ -716,7 +725,9 @@ mod tests {
         assert_eq!(maps[0].map.codes(), maps[1].map.codes());
         assert_eq!(maps[0].map.rows(), maps[1].map.rows());
         let third = Cache::new(dir.path(), false).unwrap();
-        let seq = third.sequence(e.task.seed, e.task.frames).unwrap();
+        let seq = third
+            .sequence(e.task.world, e.task.seed, e.task.frames)
+            .unwrap();
         third.map(&e.id, &e.task, &seq).unwrap();
         assert_eq!(third.maps_built(), 0);
 

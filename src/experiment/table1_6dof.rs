@@ -16,6 +16,7 @@
 //! the 3-D rows of the existing Table I; the error is the full 3-D
 //! translation error, the completion rule the same.
 
+use crate::sim::indoor::WorldKind;
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 
 use super::ExperimentError;
@@ -56,15 +57,26 @@ impl Default for SixDofMotion {
     }
 }
 
-/// Sequence `seed` with the 6-DoF motion added to its path and 6-DoF
-/// odometry noise.
+/// Sequence `seed` (corridor apartment) with the 6-DoF motion added to
+/// its path and 6-DoF odometry noise.
 pub fn sixdof_sequence(
     seed: u64,
     frames: usize,
     table: &crate::sim::embeddings::ClassEmbeddings,
     motion: &SixDofMotion,
 ) -> Result<SimSequence, ExperimentError> {
-    let mut seq = SimSequence::generate(seed, frames, table)?;
+    sixdof_sequence_in(WorldKind::Corridor, seed, frames, table, motion)
+}
+
+/// [`sixdof_sequence`] in a world of `kind`.
+pub fn sixdof_sequence_in(
+    kind: WorldKind,
+    seed: u64,
+    frames: usize,
+    table: &crate::sim::embeddings::ClassEmbeddings,
+    motion: &SixDofMotion,
+) -> Result<SimSequence, ExperimentError> {
+    let mut seq = SimSequence::generate_in(kind, seed, frames, table)?;
     let tau = std::f64::consts::TAU;
     for (i, p) in seq.scene.poses.iter_mut().enumerate() {
         let s = |k: usize| (tau * i as f64 / motion.periods[k]).sin();
@@ -119,7 +131,7 @@ pub fn rows_3d(
     let table = builtin_table()?;
     let mut runs: Vec<Vec<RunResult>> = vec![Vec::new(); variants.len()];
     for seed in spec.seeds.clone() {
-        let seq = sixdof_sequence(seed, spec.frames, &table, motion)?;
+        let seq = sixdof_sequence_in(spec.world, seed, spec.frames, &table, motion)?;
         for (k, v) in variants.iter().enumerate() {
             let map = BenchMap::build(&seq, v.map, &spec.map_params, &|_| {})?;
             let filter = FilterConfig {

@@ -434,6 +434,8 @@ pub fn track_with(
 #[derive(Debug, Clone)]
 pub struct BlockSpec {
     pub seeds: std::ops::Range<u64>,
+    /// The kind of world of every sequence.
+    pub world: crate::sim::indoor::WorldKind,
     pub frames: usize,
     pub map_params: super::mapping::MapParams,
     /// The filter (its seed is replaced by each sequence's seed, as the
@@ -460,7 +462,7 @@ pub fn omcl_rows(
     let mut runs: Vec<Vec<RunResult>> = vec![Vec::new(); variants.len()];
     let mut base_runs: Vec<Vec<RunResult>> = vec![Vec::new(); baselines.len()];
     for seed in spec.seeds.clone() {
-        let seq = SimSequence::generate(seed, spec.frames, &table)?;
+        let seq = SimSequence::generate_in(spec.world, seed, spec.frames, &table)?;
         if !baselines.is_empty() {
             // The baselines localize on the OMCL_GT map's plan with
             // ground-truth images (the paper's SeDAR*_GT and SIMP*_GT).

@@ -13,6 +13,7 @@ use super::variant::{TABLE1_VARIANTS, Variant};
 use crate::eval::ConsistencyMetrics;
 use crate::mcl::FilterConfig;
 use crate::sim::features::Preset;
+use crate::sim::indoor::WorldKind;
 
 /// The version of omcl every manifest line and result file carries.
 pub const OMCL_VERSION: &str = env!("CARGO_PKG_VERSION");
@@ -156,6 +157,10 @@ pub struct BenchPlan {
     /// The filter's configuration (overrides applied; the seed is set per
     /// sequence).
     pub filter: FilterConfig,
+    /// The kind of world every sequence is in (left out of the manifest
+    /// for the corridor apartment, as before there were kinds).
+    #[serde(default, skip_serializing_if = "WorldKind::is_corridor")]
+    pub world: WorldKind,
 }
 
 impl BenchPlan {
@@ -232,6 +237,10 @@ pub struct SweepHeader {
 pub struct Task {
     /// Sequence (world) seed.
     pub seed: u64,
+    /// The kind of world (left out of the JSON, and so of the run id, for
+    /// the corridor apartment: its runs keep the ids they had).
+    #[serde(default, skip_serializing_if = "WorldKind::is_corridor")]
+    pub world: WorldKind,
     /// Frames of the sequence.
     pub frames: usize,
     /// The map's source and mapping parameters.
@@ -323,6 +332,7 @@ impl Planner<'_> {
     pub(super) fn task(&self, seed: u64, v: &Variant, work: Work) -> Task {
         Task {
             seed,
+            world: self.bench.world,
             frames: self.bench.frames,
             map: v.map,
             map_params: self.map_params,
@@ -391,13 +401,15 @@ pub struct RunRecord {
     pub cost: Cost,
 }
 
-/// The map file of `task` in cache folder `dir`: named by seed, frames,
-/// source and a hash of the mapping parameters and the omcl version.
+/// The map file of `task` in cache folder `dir`: named by world (but the
+/// corridor apartment's), seed, frames, source and a hash of the mapping parameters and the omcl version.
 pub fn map_path(dir: &Path, task: &Task) -> PathBuf {
     #[derive(serde::Serialize)]
     struct Key<'a> {
         omcl: &'a str,
         seed: u64,
+        #[serde(skip_serializing_if = "WorldKind::is_corridor")]
+        world: WorldKind,
         frames: usize,
         map: MapSource,
         params: &'a MapParams,
@@ -405,13 +417,19 @@ pub fn map_path(dir: &Path, task: &Task) -> PathBuf {
     let key = serde_json::to_vec(&Key {
         omcl: OMCL_VERSION,
         seed: task.seed,
+        world: task.world,
         frames: task.frames,
         map: task.map,
         params: &task.map_params,
     })
     .unwrap_or_default();
+    let world = if task.world.is_corridor() {
+        String::new()
+    } else {
+        format!("{}-", task.world)
+    };
     dir.join(format!(
-        "map-{}-{}f-{}-{:08x}.omcl",
+        "map-{world}{}-{}f-{}-{:08x}.omcl",
         task.seed,
         task.frames,
         task.map.name(),
@@ -422,5 +440,52 @@ pub fn map_path(dir: &Path, task: &Task) -> PathBuf {
 impl From<TrackOutcome> for Outcome {
     fn from(t: TrackOutcome) -> Self {
         Outcome::Track(Box::new(t))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::experiment::mapping::MapSource;
+
+    fn task(world: WorldKind) -> Task {
+        Task {
+            seed: 1000,
+            world,
+            frames: 150,
+            map: MapSource::Labels,
+            map_params: MapParams::default(),
+            preset: Preset::Gt,
+            work: Work::Consistency { frame_step: 10 },
+        }
+    }
+
+    /// A corridor task serializes as it did before worlds had kinds (so its
+    /// run id and map file stay what they were); other kinds get their own
+    /// ids and map files, and a manifest line without a world reads back
+    /// as the corridor.
+    #[test]
+    fn the_world_kind_separates_runs_and_maps_but_leaves_corridor_ids_alone() {
+        let c = task(WorldKind::Corridor);
+        let json = serde_json::to_string(&c).unwrap();
+        assert!(!json.contains("world"), "{json}");
+        let back: Task = serde_json::from_str(&json).unwrap();
+        assert_eq!(back, c);
+        let dir = Path::new("cache");
+        let mut ids = vec![run_id("v", &c)];
+        let mut maps = vec![map_path(dir, &c)];
+        for k in [WorldKind::OpenPlan, WorldKind::Offices] {
+            let t = task(k);
+            let json = serde_json::to_string(&t).unwrap();
+            assert!(json.contains(k.name()), "{json}");
+            assert_eq!(serde_json::from_str::<Task>(&json).unwrap(), t);
+            ids.push(run_id("v", &t));
+            maps.push(map_path(dir, &t));
+        }
+        ids.dedup();
+        maps.dedup();
+        assert_eq!((ids.len(), maps.len()), (3, 3), "{maps:?}");
+        let name = maps[0].file_name().unwrap().to_string_lossy().into_owned();
+        assert!(name.starts_with("map-1000-150f-"), "{name}");
     }
 }

@@ -12,7 +12,7 @@ use rayon::prelude::*;
 use super::embeddings::ClassEmbeddings;
 use super::features::{FeatureModel, Preset};
 use super::files::{self, SimIoError};
-use super::indoor::{self, INDOOR_CLASSES, IndoorConfig, IndoorWorld};
+use super::indoor::{self, INDOOR_CLASSES, IndoorConfig, IndoorWorld, WorldKind};
 use super::lidar::{self, LidarConfig};
 use super::outdoor::{self, OUTDOOR_CLASSES, OutdoorConfig, SEMANTIC_KITTI_IDS};
 use super::paths::{self, IndoorPathConfig, OdometryConfig};
@@ -56,14 +56,17 @@ pub struct IndoorDatasetConfig {
 }
 
 impl IndoorDatasetConfig {
-    /// The defaults (paper's VLMaps camera: 540 x 540, 90 degrees) for `seed`.
+    /// The defaults (paper's VLMaps camera: 540 x 540, 90 degrees) for
+    /// `seed` in the corridor apartment.
     pub fn new(seed: u64) -> Self {
+        Self::of_kind(WorldKind::Corridor, seed)
+    }
+
+    /// The defaults for `seed` in a world of `kind`.
+    pub fn of_kind(kind: WorldKind, seed: u64) -> Self {
         IndoorDatasetConfig {
             seed,
-            world: IndoorConfig {
-                seed,
-                ..Default::default()
-            },
+            world: IndoorConfig::of_kind(kind, seed),
             path: IndoorPathConfig {
                 seed: seed.wrapping_add(1),
                 ..Default::default()

@@ -1,6 +1,6 @@
 //! Camera paths and odometry.
 //!
-//! Indoor paths walk from room to room through doors and the corridor,
+//! Indoor paths walk from room to room through doors and the hall,
 //! turn in place at each room's viewpoint and sway their heading while
 //! walking, at a fixed number of frames. Outdoor paths are a real driving
 //! path (KITTI 00) moved into the world frame. Odometry is the ground-truth
@@ -63,16 +63,15 @@ pub fn level_camera(position: Vector3<f64>, yaw: f64) -> Pose {
 }
 
 /// An indoor path through the rooms of `layout`: start at a room's
-/// viewpoint, look around, walk out through the door, along the corridor,
-/// into the next room, and so on until `config.frames` poses exist.
+/// viewpoint, look around, walk out through the door, along the hall (the
+/// corridor, the aisle) by the shortest way, into the next room of the
+/// layout's tour, and so on until `config.frames` poses exist.
 pub fn indoor_path(layout: &IndoorLayout, config: &IndoorPathConfig) -> Vec<Pose> {
     let mut rng = ChaCha8Rng::seed_from_u64(config.seed ^ 0xba7_0000_u64);
-    let mut order: Vec<usize> = (0..layout.rooms.len()).collect();
-    // Visit rooms in corridor order from a random start, wrapping around.
-    order.sort_by(|&a, &b| layout.rooms[a].door[0].total_cmp(&layout.rooms[b].door[0]));
+    // Visit rooms in the layout's tour order from a random start, wrapping around.
+    let mut order: Vec<usize> = layout.tour.clone();
     let start = rng.random_range(0..order.len().max(1));
     order.rotate_left(start);
-    let mid_y = 0.5 * layout.corridor_width;
     let mut poses = Vec::with_capacity(config.frames);
     let mut walker = Walker {
         pos: [0.0, 0.0],
@@ -94,25 +93,95 @@ pub fn indoor_path(layout: &IndoorLayout, config: &IndoorPathConfig) -> Vec<Pose
             * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
         walker.turn_by(look);
         let next = &layout.rooms[order[(i + 1) % order.len()]];
-        let out = [room.door[0], room.door[1] + room.inward[1] * 0.5];
-        let corridor_a = [room.door[0], mid_y];
-        let corridor_b = [next.door[0], mid_y];
-        let into = [next.door[0], next.door[1] + next.inward[1] * 0.5];
-        for target in [
-            out,
-            room.door,
-            corridor_a,
-            corridor_b,
+        let step_in = |rm: &super::indoor::Room| {
+            [
+                rm.door[0] + rm.inward[0] * 0.5,
+                rm.door[1] + rm.inward[1] * 0.5,
+            ]
+        };
+        let hall = hall_route(layout, room.hall_node, next.hall_node);
+        let targets = [step_in(room), room.door].into_iter().chain(hall).chain([
             next.door,
-            into,
+            step_in(next),
             next.viewpoint,
-        ] {
+        ]);
+        for target in targets {
             walker.walk_to(target);
         }
         i += 1;
     }
     poses.truncate(config.frames);
     poses
+}
+
+/// The hall waypoints from node `from` to node `to` of `layout`: the
+/// shortest way along hall edges, both ends included, with waypoints in
+/// the middle of a straight run dropped (a walk does not stop at them).
+fn hall_route(layout: &IndoorLayout, from: usize, to: usize) -> Vec<[f64; 2]> {
+    let n = layout.hall.len();
+    if from >= n || to >= n {
+        return Vec::new();
+    }
+    let len = |a: usize, b: usize| {
+        let (p, q) = (layout.hall[a], layout.hall[b]);
+        (p[0] - q[0]).hypot(p[1] - q[1])
+    };
+    // Dijkstra on a graph of a few dozen nodes: quadratic is plenty.
+    let mut dist = vec![f64::INFINITY; n];
+    let mut prev = vec![usize::MAX; n];
+    let mut done = vec![false; n];
+    dist[from] = 0.0;
+    while let Some(u) = (0..n)
+        .filter(|&i| !done[i] && dist[i].is_finite())
+        .min_by(|&a, &b| dist[a].total_cmp(&dist[b]))
+    {
+        done[u] = true;
+        if u == to {
+            break;
+        }
+        for e in &layout.hall_edges {
+            let v = if e[0] == u {
+                e[1]
+            } else if e[1] == u {
+                e[0]
+            } else {
+                continue;
+            };
+            let d = dist[u] + len(u, v);
+            if d < dist[v] {
+                dist[v] = d;
+                prev[v] = u;
+            }
+        }
+    }
+    let mut nodes = vec![to];
+    while let Some(&last) = nodes.last() {
+        if last == from {
+            break;
+        }
+        match prev.get(last) {
+            Some(&p) if p != usize::MAX => nodes.push(p),
+            // Not connected: go straight (the layouts connect every node).
+            _ => {
+                nodes.push(from);
+                break;
+            }
+        }
+    }
+    nodes.reverse();
+    let pts: Vec<[f64; 2]> = nodes.iter().map(|&i| layout.hall[i]).collect();
+    let mut out: Vec<[f64; 2]> = Vec::with_capacity(pts.len());
+    for (i, &p) in pts.iter().enumerate() {
+        let straight = i > 0 && i + 1 < pts.len() && {
+            let (a, c) = (pts[i - 1], pts[i + 1]);
+            let (u, v) = ([p[0] - a[0], p[1] - a[1]], [c[0] - p[0], c[1] - p[1]]);
+            (u[0] * v[1] - u[1] * v[0]).abs() < 1e-9 && u[0] * v[0] + u[1] * v[1] > 0.0
+        };
+        if !straight {
+            out.push(p);
+        }
+    }
+    out
 }
 
 struct Walker<'a> {
@@ -285,7 +354,7 @@ pub fn odometry(gt: &[Pose], drift: &[Pose], config: &OdometryConfig) -> Vec<Pos
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::indoor::{IndoorConfig, generate};
+    use crate::sim::indoor::{IndoorConfig, WorldKind, generate};
 
     #[test]
     fn all_axes_noise_moves_every_degree_of_freedom_planar_noise_only_three() {
@@ -361,6 +430,64 @@ mod tests {
             path.iter()
                 .all(|p| (p.translation.vector.z - 1.5).abs() < 1e-12)
         );
+    }
+
+    /// In every kind of world a long path stays clear of every surface
+    /// (nothing within 0.15 m horizontally from knee to head height),
+    /// turns at the viewpoint of most rooms, and moves as the paper's do.
+    #[test]
+    fn paths_in_every_kind_of_world_stay_free_and_reach_most_rooms() {
+        for kind in WorldKind::ALL {
+            for seed in [0, 1] {
+                let w = generate(&IndoorConfig::of_kind(kind, seed));
+                let rooms = &w.layout.rooms;
+                let path = indoor_path(
+                    &w.layout,
+                    &IndoorPathConfig {
+                        frames: 60 * rooms.len(),
+                        seed,
+                        ..Default::default()
+                    },
+                );
+                let v = &w.voxels;
+                let cells = (0.15 / v.resolution).round() as i32;
+                for (i, pose) in path.iter().enumerate() {
+                    let o = pose.translation.vector;
+                    for z in [0.5, 1.0, 1.5, 1.9] {
+                        let c = v.cell_of(&Vector3::new(o.x, o.y, z));
+                        for di in -cells..=cells {
+                            for dj in -cells..=cells {
+                                let hit = v.label_at([c[0] + di, c[1] + dj, c[2]]);
+                                assert!(
+                                    hit.is_none(),
+                                    "{kind} seed {seed} frame {i} at ({:.2}, {:.2}, {z}): {:?}",
+                                    o.x,
+                                    o.y,
+                                    hit.map(|l| &v.classes[l as usize])
+                                );
+                            }
+                        }
+                    }
+                }
+                let reached = rooms
+                    .iter()
+                    .filter(|rm| {
+                        path.iter().any(|p| {
+                            let q = p.translation.vector;
+                            (q.x - rm.viewpoint[0]).hypot(q.y - rm.viewpoint[1]) < 1e-6
+                        })
+                    })
+                    .count();
+                assert!(
+                    5 * reached >= 4 * rooms.len(),
+                    "{kind} seed {seed}: {reached} of {} viewpoints",
+                    rooms.len()
+                );
+                let (t, r) = mean_motion(&path[..150]);
+                assert!((0.10..0.17).contains(&t), "{kind} {seed}: {t} m a frame");
+                assert!((6.0..11.0).contains(&r), "{kind} {seed}: {r} deg a frame");
+            }
+        }
     }
 
     #[test]
