@@ -27,9 +27,7 @@ fn the_ungrounded_map_holds_raw_features_that_still_name_their_class() {
     // fills to its cap, far more rows than the 29 classes.
     assert_eq!(db.len(), params.max_rows, "rows {}", db.len());
     // No row is a class row (the grounded and snapped maps' rows are).
-    let near_class: Vec<f32> = (0..db.len())
-        .map(|r| table.nearest(db.row(r)).1)
-        .collect();
+    let near_class: Vec<f32> = (0..db.len()).map(|r| table.nearest(db.row(r)).1).collect();
     let exact = near_class.iter().filter(|&&s| s > 0.999).count();
     assert_eq!(exact, 0, "{exact} rows equal a class row");
     // Each voxel's feature names the class the world has there far more
