@@ -94,20 +94,21 @@ pub fn sixdof_sequence(
             p.rotation * tilt,
         );
     }
-    // Gaussian noise on all six degrees of freedom of every increment,
-    // accumulated (the first pose exact).
-    seq.odometry = crate::sim::paths::odometry(
-        seq.poses(),
-        &[],
-        &crate::sim::paths::OdometryConfig {
-            seed,
-            sigma_t: motion.sigma_translation,
-            sigma_r_deg: motion.sigma_rotation_deg,
-            drift_scale: 0.0,
-            all_axes: true,
-        },
-    );
+    seq.config.odometry = sixdof_odometry(seed, motion);
+    seq.odometry = crate::sim::paths::odometry(seq.poses(), &[], &seq.config.odometry);
     Ok(seq)
+}
+
+/// The block's odometry noise: Gaussian on all six degrees of freedom of
+/// every increment, accumulated (the first pose exact), no replayed drift.
+fn sixdof_odometry(seed: u64, motion: &SixDofMotion) -> crate::sim::paths::OdometryConfig {
+    crate::sim::paths::OdometryConfig {
+        seed,
+        sigma_t: motion.sigma_translation,
+        sigma_r_deg: motion.sigma_rotation_deg,
+        drift_scale: 0.0,
+        all_axes: true,
+    }
 }
 
 /// Tracks a 6-DoF sequence in `map` with the full motion model.
