@@ -73,6 +73,25 @@ fn ape_sim3_json_matches_evo_and_bad_pairs_fail() {
         assert!((a - b).abs() <= 1e-6 * b.abs().max(1.0), "{k}: {a} vs {b}");
     }
     assert_eq!(ours["errors"].as_array().unwrap().len(), 4541);
+    // The completion verdict is the repo's rule (after 10 poses, never
+    // above 1 m for more than 5 in a row) on the written errors.
+    let errors: Vec<f64> = ours["errors"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e.as_f64().unwrap())
+        .collect();
+    let longest = errors[10..]
+        .split(|e| *e <= 1.0)
+        .map(<[f64]>::len)
+        .max()
+        .unwrap_or(0);
+    assert_eq!(
+        ours["completed"],
+        longest <= 5,
+        "longest run above 1 m: {longest}"
+    );
+    assert!(stdout.contains("completed"), "{stdout}");
     // The saved aligned estimate, compared with no further alignment, gives
     // evo's Sim(3)-aligned rmse.
     let again = Command::new(env!("CARGO_BIN_EXE_omcl"))

@@ -21,6 +21,9 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&a.plan.filter()?)?);
         return Ok(());
     }
+    if let Some(dir) = &a.sixdof.export_frames {
+        return super::bench_table1::export(&a, dir);
+    }
     let table4 = a.plan.experiments.contains(&Experiment::Table4);
     let sweep_wanted = a.plan.experiments.iter().any(|e| e.to_library().is_some());
     let sevenscenes = super::bench_sevenscenes::run(&a)?;

@@ -276,6 +276,24 @@ pub struct SevenScenesArgs {
     pub scenes_seeds: String,
 }
 
+/// Table I's 3-D block and its geometric odometry row
+/// (`omcl bench table1-sixdof`).
+#[derive(Debug, Args)]
+pub struct SixDofArgs {
+    /// table1-sixdof: write the block's sequences (seeds, frames and 6-DoF
+    /// motion as the block runs them; frames rendered as the filter sees
+    /// them) to DIR/seq_<seed>/ in the RGB-D layout of `omcl sim indoor`,
+    /// and track nothing. Input of tools/rgbd_odometry.py.
+    #[arg(long, value_name = "DIR")]
+    pub export_frames: Option<PathBuf>,
+    /// table1-sixdof: add the geometric RGB-D odometry row (Open3D, frame
+    /// to frame, no map; the stand-in for the paper's RTAB-Map) from
+    /// tools/rgbd_odometry.py's results, DIR/seq_<seed>/estimate.txt, scored
+    /// as the filter's runs. With `--variants none` only that row is made.
+    #[arg(long, value_name = "DIR")]
+    pub rgbd_odometry: Option<PathBuf>,
+}
+
 #[derive(Debug, Args)]
 pub struct BenchArgs {
     #[command(flatten)]
@@ -284,6 +302,8 @@ pub struct BenchArgs {
     pub street: StreetArgs,
     #[command(flatten)]
     pub scenes: SevenScenesArgs,
+    #[command(flatten)]
+    pub sixdof: SixDofArgs,
     /// Runs computed at once (each also uses every core for its rays; more
     /// than one makes the measured steps/s smaller).
     #[arg(long, default_value_t = 1)]

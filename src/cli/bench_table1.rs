@@ -3,6 +3,8 @@
 //! its 3-D block (full 6-DoF pose), run in this process beside the
 //! paper's rows, written as Markdown and JSON into `<out>/`.
 
+use std::path::Path;
+
 use anyhow::Context;
 
 use omcl::experiment::run::TrackingRow;
@@ -12,9 +14,28 @@ use omcl::map::FloorPlanParams;
 
 use super::bench_args::{BenchArgs, Experiment};
 
+/// `--export-frames DIR`: writes the 3-D block's sequences to `DIR` and
+/// runs nothing.
+pub fn export(a: &BenchArgs, dir: &Path) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        a.plan.experiments == [Experiment::Table1Sixdof],
+        "--export-frames writes the sequences of table1-sixdof and runs nothing; name that \
+         experiment alone"
+    );
+    let progress = |m: &str| eprintln!("{m}");
+    let dirs =
+        table1_6dof::export_block(&block_spec(a)?, &SixDofMotion::default(), dir, &progress)?;
+    println!("wrote {} sequences to {}", dirs.len(), dir.display());
+    Ok(())
+}
+
 /// Runs the Table I blocks `a` asks for; returns whether any ran.
 pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     let e = &a.plan.experiments;
+    anyhow::ensure!(
+        a.sixdof.rgbd_odometry.is_none() || e.contains(&Experiment::Table1Sixdof),
+        "--rgbd-odometry adds a row to table1-sixdof, which is not asked for"
+    );
     let mut ran = false;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let names = a.plan.variants.as_deref();
@@ -27,7 +48,9 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     }
     if e.contains(&Experiment::Table1Sixdof) {
         let motion = SixDofMotion::default();
-        let (rows, md) = table1_6dof::block(&block_spec(a)?, &motion, names, &progress)?;
+        let spec = block_spec(a)?;
+        let odometry = a.sixdof.rgbd_odometry.as_deref();
+        let (rows, md) = table1_6dof::block(&spec, &motion, names, odometry, &progress)?;
         write(a, "table1_6dof", &md, &rows)?;
         println!("{md}");
         ran = true;

@@ -10,6 +10,7 @@ use omcl::eval::align::{Alignment, AlignmentResult, align_trajectory};
 use omcl::eval::ape::{PoseErrors, PoseRelation, ape};
 use omcl::eval::associate::{DEFAULT_MAX_DIFF, associate};
 use omcl::eval::kitti_metric::{KITTI_LENGTHS, KITTI_STEP, KittiMetric, kitti_metric_with};
+use omcl::eval::localization::CompletionRule;
 use omcl::eval::rpe::{Delta, RpeOptions, rpe};
 use omcl::io::poses::{PoseFile, PoseFormat, read_poses, read_times, write_poses};
 use omcl::trajectory::Trajectory;
@@ -174,13 +175,31 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
                 n_to_align,
             )?;
             let errors = ape(&paired.reference, &aligned, relation.into())?;
+            // The repo's completion rule (as `omcl localize` and the bench
+            // apply it) on translation errors in pose order.
+            let completed = (errors.relation == PoseRelation::Translation)
+                .then(|| CompletionRule::default().is_completed(&errors.errors));
             print_errors("APE", &pair, &paired, &alignment, &errors, None);
+            if let Some(c) = completed {
+                let r = CompletionRule::default();
+                emit(&format!(
+                    "  {:>8}  {:>14}  (after the first {} poses, never above {} m for more than {} in a row)\n",
+                    "completed",
+                    if c { "yes" } else { "no" },
+                    r.skip_frames,
+                    r.max_error_m,
+                    r.max_consecutive
+                ));
+            }
             if let Some(path) = save_aligned {
                 write_poses(&path, &aligned, paired.estimate_format)?;
                 emit(&format!("aligned estimate written to {}\n", path.display()));
             }
             write_json(out.json.as_deref(), || {
-                errors_json("ape", &pair, &paired, &alignment, &errors, None)
+                let mut v = errors_json("ape", &pair, &paired, &alignment, &errors, None);
+                v["completed"] = serde_json::json!(completed);
+                v["completion_rule"] = serde_json::json!(CompletionRule::default());
+                v
             })
         }
         EvalCommand::Rpe {

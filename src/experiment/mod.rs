@@ -55,6 +55,8 @@ pub enum ExperimentError {
     Filter(#[from] crate::mcl::MclError),
     #[error(transparent)]
     Caster(#[from] crate::raycast::EmbreeError),
+    #[error(transparent)]
+    Poses(#[from] crate::io::poses::PosesError),
     #[error("{0}")]
     Config(String),
 }

@@ -54,7 +54,7 @@ pub struct PaperRow {
 
 /// A tracking row's APE cells: RMSE, STD, Mean, Median, min and max RMSE,
 /// SSE and the completed sequences, `|`-separated.
-fn ape_cells(r: &TrackingRow) -> Option<String> {
+pub(super) fn ape_cells(r: &TrackingRow) -> Option<String> {
     let m = r.summary.as_ref()?;
     Some(format!(
         "{:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {}/{}",

@@ -15,6 +15,16 @@
 //! true pose). The map is built from the benchmark's mapping path as for
 //! the 3-D rows of the existing Table I; the error is the full 3-D
 //! translation error, the completion rule the same.
+//!
+//! The paper's reference row is RTAB-Map RGB-D SLAM, which cannot be
+//! installed here. In its place the block can show a geometry-only
+//! frame-to-frame RGB-D odometry (Open3D, run by `tools/rgbd_odometry.py`
+//! outside this crate; no map, no loop closure): [`export_block`] writes
+//! the block's sequences, frames rendered by the same
+//! [`SimSequence::render`] the filter is fed from, and [`odometry_row`]
+//! scores the script's estimates as the filter's are scored.
+
+use std::path::{Path, PathBuf};
 
 use crate::sim::indoor::WorldKind;
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
@@ -25,11 +35,16 @@ use super::mapping::BenchMap;
 use super::run::RunResult;
 use super::run::TrackingRow;
 use super::sequence::SimSequence;
-use super::table1::{PaperRow, block_markdown, track};
+use super::table1::{PaperRow, ape_cells, block_markdown, track};
 use super::table1_floorplan::BlockSpec;
 use super::variant::{TABLE1_VARIANTS, Variant, named_in};
+use crate::eval::ape::{PoseRelation, ape};
+use crate::eval::localization::CompletionRule;
 use crate::geometry::Pose;
+use crate::io::poses::{PoseFormat, read_poses_in};
 use crate::mcl::{FilterConfig, MotionMode};
+use crate::sim::dataset::{RgbdSequenceOut, write_rgbd_sequence};
+use crate::trajectory::Trajectory;
 
 /// The motion added to the benchmark path.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -91,20 +106,21 @@ pub fn sixdof_sequence_in(
             p.rotation * tilt,
         );
     }
-    // Gaussian noise on all six degrees of freedom of every increment,
-    // accumulated (the first pose exact).
-    seq.odometry = crate::sim::paths::odometry(
-        seq.poses(),
-        &[],
-        &crate::sim::paths::OdometryConfig {
-            seed,
-            sigma_t: motion.sigma_translation,
-            sigma_r_deg: motion.sigma_rotation_deg,
-            drift_scale: 0.0,
-            all_axes: true,
-        },
-    );
+    seq.config.odometry = sixdof_odometry(seed, motion);
+    seq.odometry = crate::sim::paths::odometry(seq.poses(), &[], &seq.config.odometry);
     Ok(seq)
+}
+
+/// The block's odometry noise: Gaussian on all six degrees of freedom of
+/// every increment, accumulated (the first pose exact), no replayed drift.
+fn sixdof_odometry(seed: u64, motion: &SixDofMotion) -> crate::sim::paths::OdometryConfig {
+    crate::sim::paths::OdometryConfig {
+        seed,
+        sigma_t: motion.sigma_translation,
+        sigma_r_deg: motion.sigma_rotation_deg,
+        drift_scale: 0.0,
+        all_axes: true,
+    }
 }
 
 /// Tracks a 6-DoF sequence in `map` with the full motion model.
@@ -155,6 +171,135 @@ pub fn rows_3d(
         .collect())
 }
 
+/// The folder of sequence `seed` under an export or results folder:
+/// `seq_<seed>`.
+pub fn sequence_dir(root: &Path, seed: u64) -> PathBuf {
+    root.join(format!("seq_{seed}"))
+}
+
+/// Writes sequence `seed` of the block into `dir` in the RGB-D layout of
+/// `omcl sim indoor` (`crate::sim::files`): `poses.txt` is the 6-DoF
+/// ground truth, `odometry.txt` the block's noisy odometry, the frames are
+/// [`SimSequence::render`]'s (the images the filter's features come
+/// from), with `sim.json` naming the seed, frames and motion. No `world/`
+/// and no feature files. `progress` is told the frames written so far.
+pub fn export_sequence(
+    seed: u64,
+    frames: usize,
+    motion: &SixDofMotion,
+    dir: &Path,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<(), ExperimentError> {
+    let table = builtin_table()?;
+    let seq = sixdof_sequence(seed, frames, &table, motion)?;
+    let out = RgbdSequenceOut {
+        intrinsics: seq.intrinsics,
+        poses: seq.poses(),
+        odometry: &seq.odometry,
+        table: &seq.table,
+        features: None,
+    };
+    write_rgbd_sequence(dir, &out, &|i| seq.render(i), progress)?;
+    let meta = serde_json::json!({
+        "generator": "omcl bench table1-sixdof --export-frames",
+        "version": env!("CARGO_PKG_VERSION"),
+        "seed": seed,
+        "frames": seq.len(),
+        "motion": motion,
+        "config": seq.config,
+        "intrinsics": seq.intrinsics,
+        "depth_scale": 5000.0,
+        "no_label": crate::sim::render::NO_LABEL,
+    });
+    crate::sim::files::write_json(&dir.join("sim.json"), &meta)
+        .map_err(crate::sim::dataset::SimError::from)?;
+    Ok(())
+}
+
+/// Writes every sequence of the block (`spec.seeds`, `spec.frames`) into
+/// [`sequence_dir`]`(root, seed)`; returns the folders. `progress` is told
+/// each finished sequence.
+pub fn export_block(
+    spec: &BlockSpec,
+    motion: &SixDofMotion,
+    root: &Path,
+    progress: &dyn Fn(&str),
+) -> Result<Vec<PathBuf>, ExperimentError> {
+    let mut dirs = Vec::new();
+    for seed in spec.seeds.clone() {
+        let dir = sequence_dir(root, seed);
+        export_sequence(seed, spec.frames, motion, &dir, &|_| {})?;
+        progress(&format!(
+            "seed {seed}: {} frames written to {}",
+            spec.frames,
+            dir.display()
+        ));
+        dirs.push(dir);
+    }
+    Ok(dirs)
+}
+
+/// The name of the geometric odometry row.
+pub const ODOMETRY_ROW: &str =
+    "geometric RGB-D odometry (Open3D, frame to frame, no map; stand-in for RTAB-Map)";
+
+/// Scores an odometry estimate of the block's sequence `seed` (`estimate`,
+/// TUM, one pose a frame in frame order) as the filter's runs are scored:
+/// per-frame translation error against the ground truth with no alignment
+/// (`omcl eval ape --align none`), its statistics and the completion rule.
+pub fn score_estimate(
+    seed: u64,
+    frames: usize,
+    motion: &SixDofMotion,
+    estimate: &Path,
+) -> Result<RunResult, ExperimentError> {
+    let table = builtin_table()?;
+    let seq = sixdof_sequence(seed, frames, &table, motion)?;
+    let est = read_poses_in(estimate, PoseFormat::Tum)?.trajectory;
+    if est.len() != seq.len() {
+        return Err(ExperimentError::Config(format!(
+            "{}: {} poses, but sequence {seed} of the block has {} frames (one pose a frame)",
+            estimate.display(),
+            est.len(),
+            seq.len()
+        )));
+    }
+    // Paired by index: pose i is frame i's.
+    let truth = Trajectory::from_poses(seq.poses().to_vec())
+        .map_err(|e| ExperimentError::Config(e.to_string()))?;
+    let errors = ape(&truth, &est, PoseRelation::Translation)
+        .map_err(|e| ExperimentError::Config(format!("{}: {e}", estimate.display())))?;
+    Ok(RunResult {
+        completed: CompletionRule::default().is_completed(&errors.errors),
+        estimates: est.poses().to_vec(),
+        errors_m: errors.errors,
+        stats: errors.stats,
+        step_seconds: Vec::new(),
+        encoder_seconds: Vec::new(),
+        mean_rays: 0.0,
+        map_rows: 0,
+    })
+}
+
+/// The geometric odometry row over the block's sequences, from
+/// `tools/rgbd_odometry.py`'s results folder: [`sequence_dir`]`(results,
+/// seed)/estimate.txt` for each seed, scored by [`score_estimate`].
+pub fn odometry_row(
+    spec: &BlockSpec,
+    motion: &SixDofMotion,
+    results: &Path,
+) -> Result<TrackingRow, ExperimentError> {
+    let runs = spec
+        .seeds
+        .clone()
+        .map(|seed| {
+            let est = sequence_dir(results, seed).join("estimate.txt");
+            score_estimate(seed, spec.frames, motion, &est)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(TrackingRow::new(ODOMETRY_ROW, runs))
+}
+
 /// The paper's 3-D rows of Table I.
 pub const PAPER_3D: [PaperRow; 4] = [
     PaperRow {
@@ -186,6 +331,7 @@ pub fn block(
     spec: &BlockSpec,
     motion: &SixDofMotion,
     names: Option<&str>,
+    odometry: Option<&Path>,
     progress: &dyn Fn(&str),
 ) -> Result<(Vec<TrackingRow>, String), ExperimentError> {
     let variants: Vec<_> = TABLE1_VARIANTS
@@ -194,13 +340,37 @@ pub fn block(
         .filter(|v| named_in(names, v.name))
         .copied()
         .collect();
-    let rows = rows_3d(spec, motion, &variants, progress)?;
-    let md = block_markdown(
+    let mut rows = rows_3d(spec, motion, &variants, progress)?;
+    let mut md = block_markdown(
         "Table I, 3-D block: APE (m) of the full 6-DoF pose",
         &rows,
         &PAPER_3D,
     );
+    if let Some(dir) = odometry {
+        let row = odometry_row(spec, motion, dir)?;
+        md.push_str(&odometry_markdown(&row));
+        rows.push(row);
+    }
     Ok((rows, md))
+}
+
+/// The odometry row's lines of the block: ours (no steps/s: the script
+/// reports its own time) and the paper's RTAB-Map row.
+fn odometry_markdown(row: &TrackingRow) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    if let Some(cells) = ape_cells(row) {
+        let _ = writeln!(s, "| {}, omcl | {cells} | |", row.variant);
+    }
+    for p in PAPER_3D.iter().filter(|p| p.variant == "RTAB-Map") {
+        let v = p.ape;
+        let _ = writeln!(
+            s,
+            "| RTAB-Map RGB-D SLAM, paper | {} | {} | {} | {} | {} | {} | {} | {} | |",
+            v[0], v[1], v[2], v[3], v[4], v[5], v[6], p.completed
+        );
+    }
+    s
 }
 
 #[cfg(test)]
@@ -236,5 +406,87 @@ mod tests {
             })
             .collect();
         assert!(dz.iter().all(|d| *d > 0.0));
+    }
+
+    #[test]
+    fn exported_frames_are_the_blocks_own() {
+        let dir = tempfile::tempdir().unwrap();
+        let m = SixDofMotion::default();
+        export_sequence(4, 3, &m, dir.path(), &|_| {}).unwrap();
+        let table = crate::experiment::features::builtin_table().unwrap();
+        let seq = sixdof_sequence(4, 3, &table, &m).unwrap();
+        let read = |name: &str| {
+            read_poses_in(&dir.path().join(name), PoseFormat::Tum)
+                .unwrap()
+                .trajectory
+        };
+        let (truth, odo) = (read("poses.txt"), read("odometry.txt"));
+        assert_eq!(truth.len(), 3);
+        for i in 0..3 {
+            let (a, b) = (truth.poses()[i], seq.poses()[i]);
+            assert!((a.translation.vector - b.translation.vector).norm() < 1e-8);
+            assert!(a.rotation.angle_to(&b.rotation) < 1e-8);
+            let (a, b) = (odo.poses()[i], seq.odometry[i]);
+            assert!((a.translation.vector - b.translation.vector).norm() < 1e-8);
+        }
+        // Frame 2's depth is the block's rendering, in TUM units.
+        let depth = crate::io::rgbd::read_depth_png(
+            &dir.path().join("depth/000002.png"),
+            crate::io::rgbd::TUM_DEPTH_UNITS_PER_METRE,
+        )
+        .unwrap();
+        let f = seq.render(2);
+        assert_eq!(depth.depth.len(), f.depth.len());
+        let mut hits = 0;
+        for (a, b) in depth.depth.iter().zip(&f.depth) {
+            assert!((a - b).abs() <= 0.5 / 5000.0 + 1e-6, "{a} against {b}");
+            hits += usize::from(*b > 0.0);
+        }
+        assert!(hits > depth.depth.len() / 2);
+        let k = crate::io::rgbd::read_intrinsics(&dir.path().join("intrinsics.txt")).unwrap();
+        assert_eq!(k, seq.intrinsics);
+        assert!(dir.path().join("rgb/000000.png").exists());
+    }
+
+    #[test]
+    fn an_estimate_is_scored_as_the_filter_is() {
+        let dir = tempfile::tempdir().unwrap();
+        let m = SixDofMotion::default();
+        let table = crate::experiment::features::builtin_table().unwrap();
+        let seq = sixdof_sequence(5, 30, &table, &m).unwrap();
+        let write = |poses: &[Pose]| {
+            let p = dir.path().join("estimate.txt");
+            std::fs::write(
+                &p,
+                crate::sim::files::pose_lines(poses, PoseFormat::Tum, 30.0),
+            )
+            .unwrap();
+            p
+        };
+        // The truth scores zero and completes.
+        let r = score_estimate(5, 30, &m, &write(seq.poses())).unwrap();
+        assert!(r.stats.rmse < 1e-8 && r.completed);
+        // 0.5 m off in x from frame 10 on: RMSE sqrt(20 / 30) 0.5 m; 2 m
+        // off from frame 20 on: more than 5 frames above 1 m, not completed.
+        let shifted = |from: usize, by: f64| -> Vec<Pose> {
+            seq.poses()
+                .iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    let dx = if i >= from { by } else { 0.0 };
+                    Translation3::new(dx, 0.0, 0.0) * p
+                })
+                .collect()
+        };
+        let r = score_estimate(5, 30, &m, &write(&shifted(10, 0.5))).unwrap();
+        assert!((r.stats.rmse - 0.5 * (20.0f64 / 30.0).sqrt()).abs() < 1e-6);
+        assert!(r.completed);
+        let r = score_estimate(5, 30, &m, &write(&shifted(20, 2.0))).unwrap();
+        assert!(!r.completed);
+        // One pose a frame, or the file is named.
+        let e = score_estimate(5, 30, &m, &write(&seq.poses()[..29]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("estimate.txt") && e.contains("29 poses"), "{e}");
     }
 }

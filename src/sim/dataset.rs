@@ -174,49 +174,20 @@ pub fn write_indoor(
     let scene = indoor_scene(cfg)?;
     let k = cfg.intrinsics();
     let odo = paths::odometry(&scene.poses, drift.0, &cfg.odometry);
-    for sub in ["rgb", "depth", "labels", "world"] {
-        files::create_dir(&dir.join(sub))?;
-    }
-    if cfg.features {
-        files::create_dir(&dir.join("features"))?;
-    }
-    files::write_atomic(
-        &dir.join("intrinsics.txt"),
-        files::intrinsics_line(&k).as_bytes(),
-    )?;
-    files::write_atomic(
-        &dir.join("poses.txt"),
-        files::pose_lines(&scene.poses, PoseFormat::Tum, 30.0).as_bytes(),
-    )?;
-    files::write_atomic(
-        &dir.join("odometry.txt"),
-        files::pose_lines(&odo, PoseFormat::Tum, 30.0).as_bytes(),
-    )?;
-    files::save_table(dir, &table)?;
     files::write_world(&dir.join("world"), &scene.world.voxels)?;
     let model = cfg
         .features
         .then(|| FeatureModel::preset(table.clone(), cfg.preset, cfg.seed.wrapping_add(3)));
-    // Render a batch (each frame's rays in parallel), then encode and write
-    // the batch's images in parallel.
-    let batch = 8;
-    let done = std::sync::atomic::AtomicUsize::new(0);
-    for chunk_start in (0..scene.poses.len()).step_by(batch) {
-        let end = (chunk_start + batch).min(scene.poses.len());
-        let frames: Vec<Frame> = (chunk_start..end)
-            .map(|i| render::render_frame(&scene.caster, &scene.world.voxels, &k, &scene.poses[i]))
-            .collect();
-        frames
-            .par_iter()
-            .enumerate()
-            .try_for_each(|(j, f)| -> Result<(), SimError> {
-                let i = chunk_start + j;
-                write_indoor_frame(dir, i, f, model.as_ref(), cfg.feature_stride)?;
-                let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                progress(n);
-                Ok(())
-            })?;
-    }
+    let out = RgbdSequenceOut {
+        intrinsics: k,
+        poses: &scene.poses,
+        odometry: &odo,
+        table: &table,
+        features: model.as_ref().map(|m| (m, cfg.feature_stride)),
+    };
+    let render =
+        |i: usize| render::render_frame(&scene.caster, &scene.world.voxels, &k, &scene.poses[i]);
+    write_rgbd_sequence(dir, &out, &render, progress)?;
     let (mean_step_m, mean_turn_deg) = paths::mean_motion(&scene.poses);
     let summary = Summary {
         dir: dir.to_path_buf(),
@@ -242,12 +213,85 @@ pub fn write_indoor(
     Ok(summary)
 }
 
+/// A rendered indoor sequence to write in the RGB-D layout of
+/// [`super::files`] (`omcl sim indoor`).
+pub struct RgbdSequenceOut<'a> {
+    pub intrinsics: Intrinsics,
+    /// Ground-truth `world_from_camera` of every frame (`poses.txt`).
+    pub poses: &'a [Pose],
+    /// Odometry poses, one a frame (`odometry.txt`).
+    pub odometry: &'a [Pose],
+    /// Class names and embeddings (`classes.txt`, `embeddings.npy`); the
+    /// label images hold row indices of this table.
+    pub table: &'a ClassEmbeddings,
+    /// Also write each frame's feature `.npy` from this model at this pixel
+    /// stride.
+    pub features: Option<(&'a FeatureModel, u32)>,
+}
+
+/// Writes `seq` into `dir` (created if missing): `intrinsics.txt`,
+/// `poses.txt`, `odometry.txt`, `classes.txt`, `embeddings.npy` and each
+/// frame's `rgb/`, `depth/` and `labels/` images (and `features/`), frame
+/// `i` being `render(i)`. Not `world/` nor `sim.json`, which say where the
+/// sequence came from. Frames are rendered a batch at a time (each frame's
+/// rays in parallel) and each batch is encoded and written in parallel;
+/// `progress` is called with the number of frames written so far.
+pub fn write_rgbd_sequence(
+    dir: &Path,
+    seq: &RgbdSequenceOut,
+    render: &dyn Fn(usize) -> Frame,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<(), SimError> {
+    if seq.odometry.len() != seq.poses.len() {
+        return Err(SimError::Config(format!(
+            "{} odometry poses for {} frames",
+            seq.odometry.len(),
+            seq.poses.len()
+        )));
+    }
+    for sub in ["rgb", "depth", "labels"] {
+        files::create_dir(&dir.join(sub))?;
+    }
+    if seq.features.is_some() {
+        files::create_dir(&dir.join("features"))?;
+    }
+    files::write_atomic(
+        &dir.join("intrinsics.txt"),
+        files::intrinsics_line(&seq.intrinsics).as_bytes(),
+    )?;
+    files::write_atomic(
+        &dir.join("poses.txt"),
+        files::pose_lines(seq.poses, PoseFormat::Tum, 30.0).as_bytes(),
+    )?;
+    files::write_atomic(
+        &dir.join("odometry.txt"),
+        files::pose_lines(seq.odometry, PoseFormat::Tum, 30.0).as_bytes(),
+    )?;
+    files::save_table(dir, seq.table)?;
+    let batch = 8;
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    for chunk_start in (0..seq.poses.len()).step_by(batch) {
+        let end = (chunk_start + batch).min(seq.poses.len());
+        let frames: Vec<Frame> = (chunk_start..end).map(render).collect();
+        frames
+            .par_iter()
+            .enumerate()
+            .try_for_each(|(j, f)| -> Result<(), SimError> {
+                let i = chunk_start + j;
+                write_indoor_frame(dir, i, f, seq.features)?;
+                let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                progress(n);
+                Ok(())
+            })?;
+    }
+    Ok(())
+}
+
 fn write_indoor_frame(
     dir: &Path,
     i: usize,
     f: &Frame,
-    model: Option<&FeatureModel>,
-    stride: u32,
+    features: Option<(&FeatureModel, u32)>,
 ) -> Result<(), SimError> {
     let name = format!("{i:06}");
     let rgb = render::rgb_image(f, &render::class_colour);
@@ -277,7 +321,7 @@ fn write_indoor_frame(
         f.height,
         &f.labels,
     )?;
-    if let Some(m) = model {
+    if let Some((m, stride)) = features {
         let (feat, w, h) = m.image_features(i as u64, f, stride);
         crate::io::npy::write_npy(
             &dir.join("features").join(format!("{name}.npy")),
