@@ -223,6 +223,39 @@ pub struct IndoorLayout {
     pub wall_height: f64,
 }
 
+impl IndoorLayout {
+    /// Rooms whose doors open onto one straight way at world y = `y`: a
+    /// hall node on it before every door, joined in the order of the doors'
+    /// x, and the tour walking it end to end (the corridor apartment and
+    /// the open-plan home's aisle).
+    pub(super) fn along_line(
+        kind: WorldKind,
+        mut rooms: Vec<Room>,
+        y: f64,
+        wall_height: f64,
+    ) -> Self {
+        let mut hall = Vec::with_capacity(rooms.len());
+        for rm in rooms.iter_mut() {
+            rm.hall_node = hall.len();
+            hall.push([rm.door[0], y]);
+        }
+        let mut tour: Vec<usize> = (0..rooms.len()).collect();
+        tour.sort_by(|&a, &b| rooms[a].door[0].total_cmp(&rooms[b].door[0]));
+        let hall_edges = tour
+            .windows(2)
+            .map(|e| [rooms[e[0]].hall_node, rooms[e[1]].hall_node])
+            .collect();
+        IndoorLayout {
+            kind,
+            rooms,
+            hall,
+            hall_edges,
+            tour,
+            wall_height,
+        }
+    }
+}
+
 /// A generated indoor world: primitives, layout and voxels.
 #[derive(Debug, Clone)]
 pub struct IndoorWorld {

@@ -59,26 +59,7 @@ pub(super) fn build(config: &IndoorConfig) -> (Scene, IndoorLayout) {
     corridor_pictures(&mut scene, &rooms, length, cw, t, &mut rng);
     // Hall: a node on the corridor's centre line before every door,
     // joined in order along the corridor; the tour walks it end to end.
-    let mut rooms = rooms;
-    let mut tour: Vec<usize> = (0..rooms.len()).collect();
-    tour.sort_by(|&a, &b| rooms[a].door[0].total_cmp(&rooms[b].door[0]));
-    let mut hall = Vec::with_capacity(rooms.len());
-    for rm in rooms.iter_mut() {
-        rm.hall_node = hall.len();
-        hall.push([rm.door[0], 0.5 * cw]);
-    }
-    let hall_edges = tour
-        .windows(2)
-        .map(|e| [rooms[e[0]].hall_node, rooms[e[1]].hall_node])
-        .collect();
-    let layout = IndoorLayout {
-        kind: WorldKind::Corridor,
-        rooms,
-        hall,
-        hall_edges,
-        tour,
-        wall_height: h,
-    };
+    let layout = IndoorLayout::along_line(WorldKind::Corridor, rooms, 0.5 * cw, h);
     (scene, layout)
 }
 

@@ -196,26 +196,8 @@ pub(super) fn build(config: &IndoorConfig) -> (Scene, IndoorLayout) {
 
     // Hall: one node on the aisle's centre line before each zone and each
     // side room, joined west to east; the tour follows them.
-    let mut rooms: Vec<Room> = zones.into_iter().chain(sides).collect();
-    let mut hall: Vec<[f64; 2]> = Vec::new();
-    for rm in rooms.iter_mut() {
-        rm.hall_node = hall.len();
-        hall.push([rm.door[0], 0.5 * AISLE]);
-    }
-    let mut tour: Vec<usize> = (0..rooms.len()).collect();
-    tour.sort_by(|&a, &b| rooms[a].door[0].total_cmp(&rooms[b].door[0]));
-    let hall_edges = tour
-        .windows(2)
-        .map(|e| [rooms[e[0]].hall_node, rooms[e[1]].hall_node])
-        .collect();
-    let layout = IndoorLayout {
-        kind: WorldKind::OpenPlan,
-        rooms,
-        hall,
-        hall_edges,
-        tour,
-        wall_height: h,
-    };
+    let rooms: Vec<Room> = zones.into_iter().chain(sides).collect();
+    let layout = IndoorLayout::along_line(WorldKind::OpenPlan, rooms, 0.5 * AISLE, h);
     (scene, layout)
 }
 
