@@ -243,3 +243,72 @@ fn table5_and_ablations_write_tables_and_figures() {
         assert_eq!(t["runs"].as_array().unwrap().len(), 1);
     }
 }
+
+/// Table I's 2-D and 6-DoF blocks in one call on a tiny benchmark: each
+/// writes its table as Markdown and JSON and Figure 4 per row, the 2-D
+/// block's baselines included; every row runs to the end of its sequence
+/// from the paper's local start and stays within a metre.
+#[test]
+fn table1_blocks_write_tables_and_figure4() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let (o, text) = bench(&[
+        "table1-floorplan",
+        "table1-sixdof",
+        "--variants",
+        "OMCL_GT,SeDAR*_GT",
+        "--sequences",
+        "1",
+        "--frames",
+        "6",
+        "--map-frames",
+        "20",
+        "--particles",
+        "64",
+        "--rays",
+        "128",
+        "-o",
+        out,
+    ]);
+    assert!(o.status.success(), "{text}");
+    for (name, rows) in [
+        ("table1_floorplan", vec!["OMCL_GT", "SeDAR*_GT"]),
+        ("table1_6dof", vec!["OMCL_GT"]),
+    ] {
+        let md = std::fs::read_to_string(dir.path().join(format!("{name}.md"))).unwrap();
+        let json: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join(format!("{name}.json"))).unwrap(),
+        )
+        .unwrap();
+        let got: Vec<&str> = json
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r["variant"].as_str().unwrap())
+            .collect();
+        assert_eq!(got, rows, "{name}");
+        for r in json.as_array().unwrap() {
+            let runs = r["per_sequence"].as_array().unwrap();
+            assert_eq!(runs[0]["errors_m"].as_array().unwrap().len(), 6, "{r}");
+            let rmse = r["summary"]["mean"]["rmse"].as_f64().unwrap();
+            assert!(rmse.is_finite() && rmse < 1.0, "{name}: {r}");
+            let v = r["variant"].as_str().unwrap();
+            assert!(md.contains(&format!("| {v}, omcl |")), "{md}");
+        }
+        let tag = if name == "table1_floorplan" {
+            "2d"
+        } else {
+            "6dof"
+        };
+        for v in rows {
+            for ext in ["png", "svg"] {
+                let v = v.replace('*', "");
+                let f = dir.path().join(format!("figure4_{tag}_{v}.{ext}"));
+                let len = std::fs::metadata(&f)
+                    .unwrap_or_else(|e| panic!("{}: {e}\n{text}", f.display()))
+                    .len();
+                assert!(len > 1000, "{}: {len} bytes", f.display());
+            }
+        }
+    }
+}

@@ -7,7 +7,7 @@ use std::path::Path;
 
 use anyhow::Context;
 
-use omcl::experiment::run::TrackingRow;
+use omcl::experiment::table1::{BlockResult, write_figure4};
 use omcl::experiment::table1_6dof::{self, SixDofMotion};
 use omcl::experiment::table1_floorplan::{self, BlockSpec};
 use omcl::map::FloorPlanParams;
@@ -41,18 +41,18 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     let names = a.plan.variants.as_deref();
     let progress = |m: &str| eprintln!("{m}");
     if e.contains(&Experiment::Table1Floorplan) {
-        let (rows, md) = table1_floorplan::block(&block_spec(a)?, names, &progress)?;
-        write(a, "table1_floorplan", &md, &rows)?;
-        println!("{md}");
+        let b = table1_floorplan::block(&block_spec(a)?, names, &progress)?;
+        write(a, "table1_floorplan", "2d", &b)?;
+        println!("{}", b.markdown);
         ran = true;
     }
     if e.contains(&Experiment::Table1Sixdof) {
         let motion = SixDofMotion::default();
         let spec = block_spec(a)?;
         let odometry = a.sixdof.rgbd_odometry.as_deref();
-        let (rows, md) = table1_6dof::block(&spec, &motion, names, odometry, &progress)?;
-        write(a, "table1_6dof", &md, &rows)?;
-        println!("{md}");
+        let b = table1_6dof::block(&spec, &motion, names, odometry, &progress)?;
+        write(a, "table1_6dof", "6dof", &b)?;
+        println!("{}", b.markdown);
         ran = true;
     }
     Ok(ran)
@@ -120,11 +120,20 @@ fn block_spec(a: &BenchArgs) -> anyhow::Result<BlockSpec> {
     })
 }
 
-fn write(a: &BenchArgs, name: &str, md: &str, rows: &[TrackingRow]) -> anyhow::Result<()> {
+/// Writes `<out>/<name>.md`, `<name>.json` and each row's Figure 4,
+/// `figure4_<tag>_<variant>.png` and `.svg` (the variant's name without
+/// `*`).
+fn write(a: &BenchArgs, name: &str, tag: &str, b: &BlockResult) -> anyhow::Result<()> {
     let p = a.out.join(format!("{name}.md"));
-    std::fs::write(&p, md).with_context(|| format!("writing {}", p.display()))?;
+    std::fs::write(&p, &b.markdown).with_context(|| format!("writing {}", p.display()))?;
     let p = a.out.join(format!("{name}.json"));
-    std::fs::write(&p, serde_json::to_string_pretty(rows)?)
+    std::fs::write(&p, serde_json::to_string_pretty(&b.rows)?)
         .with_context(|| format!("writing {}", p.display()))?;
+    for (row, panels) in b.rows.iter().zip(&b.figures) {
+        // SeDAR*_GT -> SeDAR_GT: no shell pattern in a file name.
+        let stem = format!("figure4_{tag}_{}", row.variant.replace('*', ""));
+        write_figure4(&a.out, &stem, panels)
+            .with_context(|| format!("drawing {}", a.out.join(stem).display()))?;
+    }
     Ok(())
 }

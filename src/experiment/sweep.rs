@@ -512,8 +512,8 @@ fn compute(entry: &RunEntry, cache: &Cache) -> Result<RunRecord, SweepError> {
         Work::Track { filter, particles } => {
             let r = table1::track(&seq, &map, t.preset, *filter, *particles).map_err(run_err)?;
             TrackOutcome {
-                truth_xy: xy(&seq.poses()[..r.estimates.len()]),
-                estimate_xy: xy(&r.estimates),
+                truth_xy: table1::xy(&seq.poses()[..r.estimates.len()]),
+                estimate_xy: table1::xy(&r.estimates),
                 result: r,
             }
             .into()
@@ -554,13 +554,6 @@ fn compute(entry: &RunEntry, cache: &Cache) -> Result<RunRecord, SweepError> {
             peak_rss_mb: peak_rss_mb(),
         },
     })
-}
-
-fn xy(poses: &[crate::geometry::Pose]) -> Vec<[f64; 2]> {
-    poses
-        .iter()
-        .map(|p| [p.translation.vector.x, p.translation.vector.y])
-        .collect()
 }
 
 /// CPU time (user + system) of this process, seconds (Linux

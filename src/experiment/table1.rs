@@ -22,6 +22,87 @@ use crate::sim::features::Preset;
 /// grid of a thousand panels is no figure).
 pub const FIGURE4_PANELS: usize = 12;
 
+/// One panel of Figure 4: a run's estimated path, coloured by its error,
+/// over its map's floor plan, with the ground truth.
+#[derive(Debug, Clone)]
+pub struct Figure4Panel {
+    pub title: String,
+    pub plan: Option<FloorPlan>,
+    pub truth_xy: Vec<[f64; 2]>,
+    pub estimate_xy: Vec<[f64; 2]>,
+    pub errors_m: Vec<f64>,
+}
+
+impl Figure4Panel {
+    /// The panel of run `r` (estimates from frame 0) of sequence `seq`
+    /// over the floor plan of `map` (none: the paths alone).
+    pub fn of_run(
+        title: String,
+        map: Option<&crate::map::LanguageMap>,
+        seq: &SimSequence,
+        r: &RunResult,
+    ) -> Self {
+        Figure4Panel {
+            title,
+            plan: map.and_then(backdrop),
+            truth_xy: xy(&seq.poses()[..r.estimates.len()]),
+            estimate_xy: xy(&r.estimates),
+            errors_m: r.errors_m.clone(),
+        }
+    }
+}
+
+/// A Table I block as it came out: its rows, them as Markdown beside the
+/// paper's, and each row's Figure 4 panels (in the rows' order).
+#[derive(Debug, Clone)]
+pub struct BlockResult {
+    pub rows: Vec<TrackingRow>,
+    pub markdown: String,
+    pub figures: Vec<Vec<Figure4Panel>>,
+}
+
+/// The (x, y) of each pose, world frame.
+pub(super) fn xy(poses: &[crate::geometry::Pose]) -> Vec<[f64; 2]> {
+    poses
+        .iter()
+        .map(|p| [p.translation.vector.x, p.translation.vector.y])
+        .collect()
+}
+
+/// The floor plan Figure 4 draws under a map's paths: its voxels, floor
+/// where they match the built-in "floor" text feature at 0.9.
+pub fn backdrop(map: &crate::map::LanguageMap) -> Option<FloorPlan> {
+    let table = super::features::builtin_table().ok()?;
+    FloorPlan::from_map(map, table.text_feature("floor"), 0.9)
+}
+
+/// Writes Figure 4 of one variant as `<dir>/<stem>.png` and `.svg`: its
+/// first [`FIGURE4_PANELS`] panels in a grid; nothing for no panel.
+pub fn write_figure4(
+    dir: &std::path::Path,
+    stem: &str,
+    panels: &[Figure4Panel],
+) -> Result<(), plot::PlotError> {
+    let drawn: Vec<TrajectoryPanel> = panels
+        .iter()
+        .take(FIGURE4_PANELS)
+        .map(|p| TrajectoryPanel {
+            title: &p.title,
+            plan: p.plan.as_ref(),
+            gt_xy: &p.truth_xy,
+            est_xy: &p.estimate_xy,
+            errors_m: &p.errors_m,
+        })
+        .collect();
+    if drawn.is_empty() {
+        return Ok(());
+    }
+    for ext in ["png", "svg"] {
+        plot::trajectory_grid(&dir.join(format!("{stem}.{ext}")), &drawn)?;
+    }
+    Ok(())
+}
+
 /// Tracks sequence `seq` in `map` from the paper's local start with
 /// `filter`, `particles` and the features of `preset`.
 pub fn track(
@@ -119,34 +200,21 @@ impl Ctx<'_> {
             let u = Use::Table1 {
                 variant: v.name.into(),
             };
-            let tracks = self.tracks(&u);
-            let plans: Vec<Option<FloorPlan>> = tracks
+            let panels: Vec<Figure4Panel> = self
+                .tracks(&u)
                 .iter()
                 .take(FIGURE4_PANELS)
-                .map(|(r, _)| self.floor_plan(r))
-                .collect();
-            let titles: Vec<String> = tracks
-                .iter()
-                .map(|(r, _)| format!("{} sequence {}", v.name, r.task.seed))
-                .collect();
-            let panels: Vec<TrajectoryPanel> = tracks
-                .iter()
-                .zip(&plans)
-                .zip(&titles)
-                .map(|(((_, t), plan), title)| TrajectoryPanel {
-                    title,
-                    plan: plan.as_ref(),
-                    gt_xy: &t.truth_xy,
-                    est_xy: &t.estimate_xy,
-                    errors_m: &t.result.errors_m,
+                .map(|(r, t)| Figure4Panel {
+                    title: format!("{} sequence {}", v.name, r.task.seed),
+                    plan: self.floor_plan(r),
+                    truth_xy: t.truth_xy.clone(),
+                    estimate_xy: t.estimate_xy.clone(),
+                    errors_m: t.result.errors_m.clone(),
                 })
                 .collect();
-            if !panels.is_empty() {
-                for ext in ["png", "svg"] {
-                    let path = self.out.join(format!("figure4_{}.{ext}", v.name));
-                    plot::trajectory_grid(&path, &panels).map_err(plot_err(path.clone()))?;
-                }
-            }
+            let stem = format!("figure4_{}", v.name);
+            write_figure4(self.out, &stem, &panels)
+                .map_err(plot_err(self.out.join(format!("{stem}.png"))))?;
             rows.push(self.tracking_row(v.name, &u));
         }
         write_json(&self.out.join("table1.json"), &rows)?;
@@ -156,9 +224,7 @@ impl Ctx<'_> {
     /// The floor plan of a run's map, if the map is in the cache.
     fn floor_plan(&self, r: &RunRecord) -> Option<FloorPlan> {
         let path = map_path(self.cache?, &r.task);
-        let map = crate::map::file::load(&path).ok()?;
-        let table = super::features::builtin_table().ok()?;
-        FloorPlan::from_map(&map, table.text_feature("floor"), 0.9)
+        backdrop(&crate::map::file::load(&path).ok()?)
     }
 }
 

@@ -35,7 +35,9 @@ use super::mapping::BenchMap;
 use super::run::RunResult;
 use super::run::TrackingRow;
 use super::sequence::SimSequence;
-use super::table1::{PaperRow, ape_cells, block_markdown, track};
+use super::table1::{
+    BlockResult, FIGURE4_PANELS, Figure4Panel, PaperRow, ape_cells, block_markdown, track,
+};
 use super::table1_floorplan::BlockSpec;
 use super::variant::{TABLE1_VARIANTS, Variant, named_in};
 use crate::eval::ape::{PoseRelation, ape};
@@ -143,10 +145,11 @@ pub fn rows_3d(
     motion: &SixDofMotion,
     variants: &[Variant],
     progress: &dyn Fn(&str),
-) -> Result<Vec<TrackingRow>, ExperimentError> {
+) -> Result<(Vec<TrackingRow>, Vec<Vec<Figure4Panel>>), ExperimentError> {
     let table = builtin_table()?;
     let mut runs: Vec<Vec<RunResult>> = vec![Vec::new(); variants.len()];
-    for seed in spec.seeds.clone() {
+    let mut panels: Vec<Vec<Figure4Panel>> = vec![Vec::new(); variants.len()];
+    for (n, seed) in spec.seeds.clone().enumerate() {
         let seq = sixdof_sequence_in(spec.world, seed, spec.frames, &table, motion)?;
         for (k, v) in variants.iter().enumerate() {
             let map = BenchMap::build(&seq, v.map, &spec.map_params, &|_| {})?;
@@ -161,14 +164,19 @@ pub fn rows_3d(
                 r.stats.rmse,
                 r.fps()
             ));
+            if n < FIGURE4_PANELS {
+                let title = format!("{} (6-DoF) sequence {seed}", v.name);
+                panels[k].push(Figure4Panel::of_run(title, Some(&map.map), &seq, &r));
+            }
             runs[k].push(r);
         }
     }
-    Ok(variants
+    let rows = variants
         .iter()
         .zip(runs)
         .map(|(v, r)| TrackingRow::new(v.name, r))
-        .collect())
+        .collect();
+    Ok((rows, panels))
 }
 
 /// The folder of sequence `seed` under an export or results folder:
@@ -333,25 +341,31 @@ pub fn block(
     names: Option<&str>,
     odometry: Option<&Path>,
     progress: &dyn Fn(&str),
-) -> Result<(Vec<TrackingRow>, String), ExperimentError> {
+) -> Result<BlockResult, ExperimentError> {
     let variants: Vec<_> = TABLE1_VARIANTS
         .iter()
         .filter(|v| ["OMCL_GT", "OMCL_LSeg", "OMCL_Open_LSeg"].contains(&v.name))
         .filter(|v| named_in(names, v.name))
         .copied()
         .collect();
-    let mut rows = rows_3d(spec, motion, &variants, progress)?;
-    let mut md = block_markdown(
+    let (mut rows, mut figures) = rows_3d(spec, motion, &variants, progress)?;
+    let mut markdown = block_markdown(
         "Table I, 3-D block: APE (m) of the full 6-DoF pose",
         &rows,
         &PAPER_3D,
     );
     if let Some(dir) = odometry {
         let row = odometry_row(spec, motion, dir)?;
-        md.push_str(&odometry_markdown(&row));
+        markdown.push_str(&odometry_markdown(&row));
         rows.push(row);
+        // The script's estimates stay in its files: no panels for it.
+        figures.push(Vec::new());
     }
-    Ok((rows, md))
+    Ok(BlockResult {
+        rows,
+        markdown,
+        figures,
+    })
 }
 
 /// The odometry row's lines of the block: ours (no steps/s: the script

@@ -49,7 +49,7 @@ use super::features::{builtin_table, feature_model};
 use super::mapping::BenchMap;
 use super::run::{RunResult, TrackingRow};
 use super::sequence::SimSequence;
-use super::table1::{PaperRow, block_markdown};
+use super::table1::{BlockResult, FIGURE4_PANELS, Figure4Panel, PaperRow, block_markdown};
 use super::variant::{TABLE1_VARIANTS, named_in};
 use crate::eval::ErrorStats;
 use crate::eval::localization::CompletionRule;
@@ -457,12 +457,18 @@ pub fn omcl_rows(
     variants: &[super::variant::Variant],
     baselines: &[crate::mcl::baselines::Baseline],
     progress: &dyn Fn(&str),
-) -> Result<Vec<super::run::TrackingRow>, ExperimentError> {
+) -> Result<(Vec<TrackingRow>, Vec<Vec<Figure4Panel>>), ExperimentError> {
     let table = builtin_table()?;
     let mut runs: Vec<Vec<RunResult>> = vec![Vec::new(); variants.len()];
     let mut base_runs: Vec<Vec<RunResult>> = vec![Vec::new(); baselines.len()];
-    for seed in spec.seeds.clone() {
+    let mut panels: Vec<Vec<Figure4Panel>> = vec![Vec::new(); variants.len() + baselines.len()];
+    for (n, seed) in spec.seeds.clone().enumerate() {
         let seq = SimSequence::generate_in(spec.world, seed, spec.frames, &table)?;
+        let drawn = n < FIGURE4_PANELS;
+        let panel = |name: &str, map: &LanguageMap, r: &RunResult| {
+            let title = format!("{name} (2-D) sequence {seed}");
+            Figure4Panel::of_run(title, Some(map), &seq, r)
+        };
         if !baselines.is_empty() {
             // The baselines localize on the OMCL_GT map's plan with
             // ground-truth images (the paper's SeDAR*_GT and SIMP*_GT).
@@ -493,6 +499,9 @@ pub fn omcl_rows(
                     r.stats.rmse,
                     r.fps()
                 ));
+                if drawn {
+                    panels[variants.len() + k].push(panel(b.name(), &map.map, &r));
+                }
                 base_runs[k].push(r);
             }
         }
@@ -536,16 +545,20 @@ pub fn omcl_rows(
                     cast3 / cast.max(1e-12)
                 ));
             }
+            if drawn {
+                panels[k].push(panel(v.name, &map.map, &r));
+            }
             runs[k].push(r);
         }
     }
-    Ok(variants
+    let rows = variants
         .iter()
         .map(|v| v.name)
         .zip(runs)
         .chain(baselines.iter().map(|b| b.name()).zip(base_runs))
-        .map(|(name, r)| super::run::TrackingRow::new(name, r))
-        .collect())
+        .map(|(name, r)| TrackingRow::new(name, r))
+        .collect();
+    Ok((rows, panels))
 }
 
 /// The class table as a feature database (a row a class): the baselines
@@ -726,7 +739,7 @@ pub fn block(
     spec: &BlockSpec,
     names: Option<&str>,
     progress: &dyn Fn(&str),
-) -> Result<(Vec<TrackingRow>, String), ExperimentError> {
+) -> Result<BlockResult, ExperimentError> {
     let variants: Vec<_> = TABLE1_VARIANTS
         .iter()
         .filter(|v| v.name != "OMCL_GT_exact" && named_in(names, v.name))
@@ -736,13 +749,17 @@ pub fn block(
         .into_iter()
         .filter(|b| named_in(names, b.name()))
         .collect();
-    let rows = omcl_rows(spec, &variants, &baselines, progress)?;
-    let md = block_markdown(
+    let (rows, figures) = omcl_rows(spec, &variants, &baselines, progress)?;
+    let markdown = block_markdown(
         "Table I, 2-D block: APE (m, horizontal) on floor plans",
         &rows,
         &PAPER_2D,
     );
-    Ok((rows, md))
+    Ok(BlockResult {
+        rows,
+        markdown,
+        figures,
+    })
 }
 
 #[cfg(test)]
