@@ -46,7 +46,8 @@ use crate::map::Cell;
 use crate::map::FeatureDb;
 use crate::map::features::dot;
 use crate::raycast::{
-    BrickEdge, BuildOptions, EmbreeCaster, EmbreeError, Geometry, Hit, Packet, RayCaster,
+    BrickEdge, BuildOptions, BuildQuality, EmbreeCaster, EmbreeError, Geometry, Hit, Packet,
+    RayCaster,
 };
 
 /// Cosines between a frame's sampled pixel features and the database rows.
@@ -367,21 +368,53 @@ pub fn pixel_major_pays(particles: &[Particle], dirs: &[Vector3<f32>], width: us
     matches!((particle, pixel), (Some(a), Some(b)) if a < b)
 }
 
+/// Horizontal extent (metres, along x or y) above which a map gets the
+/// outdoor scene of [`SensorModel::filter_build_options`]: apartments and
+/// office floors are tens of metres across, a street hundreds.
+pub const LARGE_MAP_M: f64 = 100.0;
+
 impl SensorModel {
     /// The Embree caster measured fastest for the filter's rays, over
-    /// voxels of edge `resolution` (metres) at `cells` (grid frame): bricks
-    /// of edge 4 in 8-wide packets. With pixel-major packets (the steady
-    /// state), one step on the 1 M-voxel rooms map (1024 particles x 2048
-    /// pixels, `cargo bench --bench mcl`, five interleaved runs each,
-    /// 2026-11-23) took 107 to 124 ms (median 113) with edge 4, 121 to
-    /// 151 ms (median 146) with edge 8 and 133 to 158 ms with edge 2.
-    /// Particle-major packets, wider, had preferred edge 8 by 3 to 20 %.
+    /// voxels of edge `resolution` (metres) at `cells` (grid frame), in
+    /// 8-wide packets, with the brick edge and build quality of
+    /// [`SensorModel::filter_build_options`].
     pub fn embree_caster(resolution: f32, cells: &[Cell]) -> Result<EmbreeCaster, EmbreeError> {
-        let options = BuildOptions {
-            geometry: Geometry::Bricks(BrickEdge::Four),
-            ..BuildOptions::default()
-        };
+        let options = Self::filter_build_options(resolution, cells);
         Ok(EmbreeCaster::with_options(resolution, cells, options)?.with_packet(Packet::Eight))
+    }
+
+    /// The scene the filter casts in: bricks of edge 4 (medium build
+    /// quality) for rooms, bricks of edge 8 with Embree's high build
+    /// quality for maps more than [`LARGE_MAP_M`] across (streets, LiDAR
+    /// surveys), whose rays run tens of metres over thin surfaces.
+    ///
+    /// Indoors, one step on the 1 M-voxel rooms map (1024 particles x 2048
+    /// pixels, pixel-major packets, `cargo bench --bench mcl`, five
+    /// interleaved runs each, Zen 3, 2026-11-23) took 107 to 124 ms
+    /// (median 113) with edge 4, 121 to 151 ms (median 146) with edge 8
+    /// and 133 to 158 ms with edge 2. On the street world (300 frames,
+    /// 1.07 M voxels at 0.1 m, 512 particles x 4096 pixels, `omcl
+    /// localize`, Zen 4, 2026-11-24, two interleaved runs each) edge 8
+    /// gave 10.0 and 9.7 filter steps/s against edge 4's 8.9 and 8.7, and
+    /// 10.3 and 10.2 with the high build quality (edge 4 with it: 8.8,
+    /// 8.6); see the README's "Outdoor speed".
+    pub fn filter_build_options(resolution: f32, cells: &[Cell]) -> BuildOptions {
+        let (lo, hi) = crate::raycast::column_bounds(cells);
+        let across = (0..2)
+            .map(|a| (hi[a] as f64 - lo[a] as f64 + 1.0) * resolution as f64)
+            .fold(0.0f64, f64::max);
+        if across > LARGE_MAP_M {
+            BuildOptions {
+                geometry: Geometry::Bricks(BrickEdge::Eight),
+                quality: BuildQuality::High,
+                ..BuildOptions::default()
+            }
+        } else {
+            BuildOptions {
+                geometry: Geometry::Bricks(BrickEdge::Four),
+                ..BuildOptions::default()
+            }
+        }
     }
 
     /// A model for the map whose leaves `caster` indexes, with `leaf_rows`
