@@ -272,8 +272,8 @@ pub struct SevenScenesArgs {
     #[arg(long, value_name = "DX,DY", value_delimiter = ',', default_values_t = [0, 0], allow_negative_numbers = true)]
     pub colour_shift: Vec<i32>,
     /// sevenscenes: seeds of the runs (odometry noise, start, filter). The
-    /// default is held out (seeds 1 to 3, in the tuning range, chose the
-    /// depth-edge filter and the colour lookup).
+    /// default is held out (seeds 1 to 3, in the tuning range, are where
+    /// the depth-edge filter and the colour-lookup shift were looked at).
     #[arg(long, default_value = "1000,1001,1002,1003,1004")]
     pub scenes_seeds: String,
 }
