@@ -214,6 +214,17 @@ ALWAYS_INLINE const CellRay *context_cell_ray(const struct RTCIntersectContext *
   return own;
 }
 
+/* For 8^3 bricks: whether the cells of the box [lo, hi] (local, inclusive,
+ * in bounds) are all empty. */
+ALWAYS_INLINE int brick_box_empty8(const uint64_t *rec, const int lo[3], const int hi[3]) {
+  uint64_t row = ((2ull << hi[0]) - 1) & ~((1ull << lo[0]) - 1);
+  uint64_t ys = ((2ull << (8 * hi[1])) - 1) & ~((1ull << (8 * lo[1])) - 1);
+  uint64_t mask = (row * 0x0101010101010101ull) & (ys & 0x0101010101010101ull) * 0xffull;
+  uint64_t any = 0;
+  for (int z = lo[2]; z <= hi[2]; ++z) any |= rec[3 + z];
+  return (any & mask) == 0;
+}
+
 /* From cell c (local, in bounds), entered at t, the DDA over the brick's
  * cells up to t1: returns the entry distance of the first occupied cell and
  * its leaf slot (index into the caller's leaves table), or INFINITY. */
@@ -221,6 +232,26 @@ ALWAYS_INLINE float brick_dda(unsigned E, const uint64_t *rec, const BrickHead *
                               const CellRay *r, float t, float t1,
                               int c[3], int ga, int gb, uint32_t *leaf) {
   int hit[3];
+  /* 8^3 bricks: when every cell of the box from the entry cell to the
+   * exit point's cell is empty, the ray misses the brick; most misses end
+   * here instead of stepping through the brick. The exit cell is taken
+   * 1/32 of a cell (plus a millionth of the coordinate, far above float
+   * rounding) either way, so rounding cannot shrink the box below the
+   * cells the DDA would visit. (Rays running inside a cell plane take the
+   * DDA: they also see the cells across it.) */
+  if (E == 8 && ga < 0) {
+    int blo[3], bhi[3];
+    for (int a = 0; a < 3; ++a) {
+      float end = t1 * r->d[a];
+      float q = r->o[a] + end - (float)h->base[a];
+      float eps = 0.03125f + 1e-6f * (fabsf(r->o[a]) + fabsf(end));
+      int e0 = (int)floorf(q - eps), e1 = (int)floorf(q + eps);
+      int l = c[a] < e0 ? c[a] : e0, u = c[a] > e1 ? c[a] : e1;
+      blo[a] = l < h->lo[a] ? h->lo[a] : l;
+      bhi[a] = u > h->hi[a] ? h->hi[a] : u;
+    }
+    if (brick_box_empty8(rec, blo, bhi)) return INFINITY;
+  }
   if (brick_probe(rec, E, c, ga, gb, hit)) goto found;
   int step[3];
   float tn[3];
