@@ -13,11 +13,14 @@ use omcl::io::kitti_camera::CameraInput;
 use omcl::io::labels::EmbeddingTable;
 use omcl::io::poses::{self, PoseFormat};
 use omcl::io::rgbd;
+use omcl::io::sevenscenes::FramePick;
 use omcl::map;
 use omcl::mcl::{
     self, EarlyReject, FilterConfig, FloorParams, MotionMode, PromptParams, SamplingStrategy,
 };
-use omcl::session::sequence::{self, CameraSequence, FrameSource, LocalizedFrame, Odometry};
+use omcl::session::sequence::{
+    self, CameraSequence, FrameSource, Layout, LocalizedFrame, Odometry,
+};
 use omcl::session::{LabelTable, Session, SessionConfig, SessionError, SharedMap, Start};
 use omcl::trajectory::Trajectory;
 
@@ -50,16 +53,28 @@ pub struct LocalizeArgs {
     /// The map (`.omcl`).
     #[arg(long)]
     pub map: PathBuf,
-    /// The sequence folder, in one of two layouts. RGB-D: intrinsics.txt,
+    /// The sequence folder, in one of three layouts. RGB-D: intrinsics.txt,
     /// labels/NNNNNN.png with classes.txt + embeddings.npy (ground-truth
     /// features) or features/NNNNNN.npy (`h x w x F`), poses.txt (ground
     /// truth, TUM; optional), odometry.txt (TUM; optional). KITTI odometry
     /// (a folder with calib.txt): camera 2 from calib.txt's P2, poses.txt
     /// (KITTI, camera 0) as ground truth, times.txt, and labels_2/NNNNNN.png
     /// with classes.txt + embeddings.npy, or features_2/NNNNNN.npy, or
-    /// image_2/NNNNNN.png with --image-model.
+    /// image_2/NNNNNN.png with --image-model. Microsoft 7-Scenes (a folder
+    /// with camera-intrinsics.txt): frame-NNNNNN.color.jpg through
+    /// --image-model, frame-NNNNNN.pose.txt as ground truth, turned z-up
+    /// with gravity-direction.txt as `omcl map rgbd` builds its map.
     #[arg(long)]
     pub sequence: PathBuf,
+    /// 7-Scenes folders: localize every n-th frame (a handheld camera moves
+    /// millimetres a frame; with a map from the even frames, `--frame-step
+    /// 8 --frame-offset 1` takes every 4th odd frame).
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub frame_step: usize,
+    /// 7-Scenes folders: the first frame localized (position among the
+    /// sorted frames).
+    #[arg(long, default_value_t = 0, value_name = "K")]
+    pub frame_offset: usize,
     /// Odometry pose file (TUM or KITTI; for a KITTI sequence, camera 0 in
     /// the frame of poses.txt, e.g. a visual odometry's estimate: its
     /// frame-to-frame motion is replayed from the start pose); default: the
@@ -75,23 +90,29 @@ pub struct LocalizeArgs {
     pub odom_from_gt: bool,
     /// Odometry noise per frame when made from ground truth: metres on
     /// camera x and z (the ground plane of a level camera; the authors'
-    /// form, as `omcl sim` writes odometry.txt).
-    #[arg(long, default_value_t = 0.10)]
-    pub odom_noise_m: f64,
+    /// form, as `omcl sim` writes odometry.txt). Default 0.10; on 7-Scenes
+    /// the paper's noise in proportion to the picked frames' motion (0.10 m
+    /// per 0.13 m), on all six axes.
+    #[arg(long)]
+    pub odom_noise_m: Option<f64>,
     /// Odometry noise per frame when made from ground truth: degrees about
-    /// camera y (default 6; KITTI 5.73, the authors' 0.1 rad).
+    /// camera y (default 6; KITTI 5.73, the authors' 0.1 rad; 7-Scenes 6
+    /// per 8 degrees of motion, on all three axes).
     #[arg(long)]
     pub odom_noise_deg: Option<f64>,
     /// Motion model of the particles: planar (x, y, yaw; height, roll and
     /// pitch follow the odometry), full (6-DoF noise in the camera frame)
     /// or road (planar plus a little height, pitch and roll noise). Default
-    /// planar; road for a KITTI sequence.
+    /// planar; road for a KITTI sequence; full for 7-Scenes (a handheld
+    /// camera).
     #[arg(long, value_enum)]
     pub motion: Option<MotionArg>,
-    /// Particle motion noise per step: metres (paper 0.10).
+    /// Particle motion noise per step: metres (paper 0.10; 7-Scenes: the
+    /// odometry noise).
     #[arg(long)]
     pub motion_sigma_m: Option<f64>,
-    /// Particle motion noise per step: degrees (paper 6).
+    /// Particle motion noise per step: degrees (paper 6; 7-Scenes: the
+    /// odometry noise).
     #[arg(long)]
     pub motion_sigma_deg: Option<f64>,
     /// How particles start.
@@ -166,8 +187,9 @@ pub struct LocalizeArgs {
     #[arg(long)]
     pub use_features: bool,
     /// Estimated trajectory, written atomically: TUM in the map frame for
-    /// an RGB-D sequence; for a KITTI sequence KITTI lines of camera 0 in
-    /// the frame of its poses.txt (what evo compares with poses.txt).
+    /// an RGB-D sequence (7-Scenes: the z-up map frame, stamped with the
+    /// frame numbers); for a KITTI sequence KITTI lines of camera 0 in the
+    /// frame of its poses.txt (what evo compares with poses.txt).
     #[arg(long, short)]
     pub out: PathBuf,
     /// Per-frame errors and their statistics (JSON; needs ground truth):
@@ -240,14 +262,34 @@ fn word_features(
         .collect()
 }
 
+/// The odometry noise made from ground truth: metres, degrees and whether
+/// on all six axes (the options, else the layout's default).
+fn odometry_noise(a: &LocalizeArgs, inputs: &CameraSequence) -> (f64, f64, bool) {
+    let (m, deg, all_axes) = match (inputs.layout(), &inputs.ground_truth) {
+        (Layout::SevenScenes, Some(g)) => {
+            let n = g.len().min(a.frames.unwrap_or(usize::MAX));
+            let (m, deg) = omcl::sim::paths::paper_noise_for(&g.poses()[..n]);
+            (m, deg, true)
+        }
+        (Layout::Kitti, _) => (0.10, 0.1f64.to_degrees(), false),
+        _ => (0.10, 6.0, false),
+    };
+    (
+        a.odom_noise_m.unwrap_or(m),
+        a.odom_noise_deg.unwrap_or(deg),
+        all_axes,
+    )
+}
+
 /// Where the odometry comes from: a pose file (`--odometry`, or
 /// odometry.txt beside an RGB-D sequence), or ground truth with the
 /// library's one definition of odometry noise (noise on camera x and z and
-/// on yaw about camera y, every frame, accumulated: the authors' form).
-fn odometry_source(a: &LocalizeArgs, d: &Path, is_kitti: bool) -> anyhow::Result<Odometry> {
+/// on yaw about camera y, every frame, accumulated: the authors' form; on
+/// 7-Scenes on all six axes).
+fn odometry_source(a: &LocalizeArgs, inputs: &CameraSequence) -> anyhow::Result<Odometry> {
     let odom_file = a.odometry.clone().or_else(|| {
-        let p = d.join("odometry.txt");
-        (!a.odom_from_gt && !is_kitti && p.exists()).then_some(p)
+        let p = inputs.dir.join("odometry.txt");
+        (!a.odom_from_gt && inputs.layout() == Layout::Rgbd && p.exists()).then_some(p)
     });
     if let Some(path) = odom_file {
         return Ok(Odometry::File {
@@ -255,13 +297,13 @@ fn odometry_source(a: &LocalizeArgs, d: &Path, is_kitti: bool) -> anyhow::Result
             first: a.odom_first,
         });
     }
-    let default_deg = if is_kitti { 0.1f64.to_degrees() } else { 6.0 };
+    let (sigma_t, sigma_r_deg, all_axes) = odometry_noise(a, inputs);
     let cfg = omcl::sim::paths::OdometryConfig {
         seed: a.seed ^ 0x0d0,
-        sigma_t: a.odom_noise_m,
-        sigma_r_deg: a.odom_noise_deg.unwrap_or(default_deg),
+        sigma_t,
+        sigma_r_deg,
         drift_scale: 1.0,
-        all_axes: false,
+        all_axes,
     };
     ensure!(
         cfg.sigma_t >= 0.0 && cfg.sigma_r_deg >= 0.0,
@@ -316,8 +358,10 @@ fn start(
 }
 
 /// The filter's configuration from the options (KITTI sequences default to
-/// road motion).
-fn filter_config(a: &LocalizeArgs, is_kitti: bool) -> FilterConfig {
+/// road motion; 7-Scenes to full 6-DoF motion with the odometry's noise).
+fn filter_config(a: &LocalizeArgs, inputs: &CameraSequence) -> FilterConfig {
+    let layout = inputs.layout();
+    let is_kitti = layout == Layout::Kitti;
     let mut config = FilterConfig {
         seed: a.seed,
         ..FilterConfig::default()
@@ -336,11 +380,16 @@ fn filter_config(a: &LocalizeArgs, is_kitti: bool) -> FilterConfig {
         SamplingArg::Uniform => SamplingStrategy::Uniform,
         SamplingArg::Equal => SamplingStrategy::EqualWithDuplicates,
     };
-    let motion = a.motion.unwrap_or(if is_kitti {
-        MotionArg::Road
-    } else {
-        MotionArg::Planar
+    let motion = a.motion.unwrap_or(match layout {
+        Layout::Kitti => MotionArg::Road,
+        Layout::SevenScenes => MotionArg::Full,
+        Layout::Rgbd => MotionArg::Planar,
     });
+    if layout == Layout::SevenScenes {
+        let (m, deg, _) = odometry_noise(a, inputs);
+        config.motion.sigma_translation = m;
+        config.motion.sigma_rotation = deg.to_radians();
+    }
     config.motion.mode = match motion {
         MotionArg::Planar => MotionMode::Planar,
         MotionArg::Full => MotionMode::Full,
@@ -486,12 +535,15 @@ fn class_table(
 fn open_session(
     a: &LocalizeArgs,
     shared: Arc<SharedMap>,
-    k: omcl::geometry::Intrinsics,
-    gt: Option<&Trajectory>,
+    inputs: &CameraSequence,
     table: Option<&LabelTable>,
-    classes: &Path,
 ) -> anyhow::Result<Session> {
-    let is_kitti = CameraSequence::is_kitti(&a.sequence);
+    let (k, gt, classes) = (
+        inputs.intrinsics,
+        inputs.ground_truth.as_ref(),
+        inputs.classes.as_path(),
+    );
+    let is_kitti = inputs.layout() == Layout::Kitti;
     let start = start(a, gt, table, classes, is_kitti)?;
     let floor_feature = match (a.init, a.recovery) {
         (InitArg::Local, false) => None,
@@ -504,7 +556,7 @@ fn open_session(
     let config = SessionConfig {
         intrinsics: k,
         particles: a.particles,
-        filter: filter_config(a, is_kitti),
+        filter: filter_config(a, inputs),
         floor: FloorParams::default(),
         floor_feature,
     };
@@ -557,9 +609,18 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     let m = shared.map();
     let d = &a.sequence;
     let mut image = super::encoders::open_image_source(&a.encoder)?;
-    let is_kitti = CameraSequence::is_kitti(d);
-    let inputs = CameraSequence::open(d, camera_input(&a, image.is_some()))?;
-    let k = inputs.intrinsics;
+    let pick = FramePick {
+        step: a.frame_step,
+        offset: a.frame_offset,
+        limit: None,
+    };
+    ensure!(
+        image.is_some() || Layout::of(d) != Layout::SevenScenes,
+        "{}: a 7-Scenes folder gives colour images only: pass --image-model (e.g. the \
+         colour classes of `omcl encode colour-model`)",
+        d.display()
+    );
+    let inputs = CameraSequence::open(d, camera_input(&a, image.is_some()), pick)?;
     let gt = inputs.ground_truth.clone();
     check_truth_given(&a, &inputs)?;
     let classes = &inputs.classes;
@@ -574,10 +635,10 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         );
     }
     let table = class_table(&a, &inputs, image.is_some(), m)?;
-    let odom = inputs.odometry(&odometry_source(&a, d, is_kitti)?)?;
+    let odom = inputs.odometry(&odometry_source(&a, &inputs)?)?;
     let n = inputs.frames(odom.len(), a.frames)?;
 
-    let mut session = open_session(&a, shared.clone(), k, gt.as_ref(), table.as_ref(), classes)?;
+    let mut session = open_session(&a, shared.clone(), &inputs, table.as_ref())?;
     let stamps = inputs.stamps(n);
     let mut source = match (image.as_mut(), table.as_ref()) {
         (Some(src), _) => FrameSource::Images(src),

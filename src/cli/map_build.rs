@@ -241,11 +241,16 @@ pub struct RgbdArgs {
     /// An RGB-D sequence folder: intrinsics.txt (`fx fy cx cy width
     /// height`), poses.txt (TUM, world_from_camera), depth/NNNNNN.png
     /// (16-bit), and labels/NNNNNN.png with classes.txt + embeddings.npy,
-    /// or features/NNNNNN.npy (`h x w x F`, any h x w).
+    /// or features/NNNNNN.npy (`h x w x F`, any h x w). Or a Microsoft
+    /// 7-Scenes folder (camera-intrinsics.txt, frame-NNNNNN.color.jpg,
+    /// .depth.png in mm, .pose.txt) with --image-model: the map is built in
+    /// the z-up world of its gravity-direction.txt, where `omcl localize`
+    /// reads its ground truth.
     pub dir: PathBuf,
     #[command(flatten)]
     pub build: BuildOptions,
-    /// Depth PNG units per metre (TUM: 5000; Replica: 6553.5).
+    /// Depth PNG units per metre (TUM: 5000; Replica: 6553.5; 7-Scenes
+    /// folders are read in millimetres whatever this says).
     #[arg(long, default_value_t = 5000.0)]
     pub depth_scale: f64,
     /// Ignore depths beyond this many metres.
@@ -260,16 +265,77 @@ pub struct RgbdArgs {
     /// Use per-frame feature files from features/ even if labels exist.
     #[arg(long)]
     pub use_features: bool,
-    /// Use at most this many frames.
+    /// Use at most this many frames (7-Scenes: picked frames).
     #[arg(long)]
     pub frames: Option<usize>,
+    /// 7-Scenes folders: map every n-th frame (2: the even frames, leaving
+    /// the odd ones to localize).
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub frame_step: usize,
+    /// 7-Scenes folders: the first frame mapped (position among the sorted
+    /// frames).
+    #[arg(long, default_value_t = 0, value_name = "K")]
+    pub frame_offset: usize,
+    /// 7-Scenes folders: drop depth within this many pixels of a depth edge
+    /// (a jump above 3 % of the depth, or a hole) before mapping, where the
+    /// unregistered colour camera sees the other side of the edge (4 in
+    /// the README's track; default: keep all depth).
+    #[arg(long, value_name = "PIXELS")]
+    pub drop_depth_edges: Option<usize>,
     #[command(flatten)]
     pub encoder: super::encoders::EncoderArgs,
+}
+
+/// `omcl map rgbd` on a 7-Scenes folder.
+fn sevenscenes(a: &RgbdArgs) -> anyhow::Result<()> {
+    let seq = omcl::io::sevenscenes::SevenScenes::open(&a.dir)?;
+    let Some(mut src) = super::encoders::open_image_source(&a.encoder)? else {
+        anyhow::bail!(
+            "{}: a 7-Scenes folder gives colour images only: pass --image-model (e.g. the \
+             colour classes of `omcl encode colour-model`)",
+            a.dir.display()
+        );
+    };
+    let input = pipeline::SevenScenesInput {
+        pick: omcl::io::sevenscenes::FramePick {
+            step: a.frame_step,
+            offset: a.frame_offset,
+            limit: a.frames,
+        },
+        max_depth: a.max_depth,
+        max_height: a.max_height,
+        stride: a.stride,
+        depth_edges: a.drop_depth_edges.map(|r| (r, 0.03)),
+    };
+    let n = input.pick.positions(seq.len()).len();
+    let pb = super::progress::bar(n as u64, "frames");
+    let (m, stats, dropped) =
+        pipeline::map_from_sevenscenes(&seq, &input, &a.build.params(None), &mut src, &mut |_| {
+            pb.inc(1)
+        })?;
+    pb.finish_and_clear();
+    if a.drop_depth_edges.is_some() {
+        println!("dropped {dropped} depth pixels at depth edges");
+    }
+    let mut b = a.build.clone();
+    b.encoder = m.encoder().to_string();
+    save(&m, &b, &stats)
 }
 
 pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
     a.build.check()?;
     let d = &a.dir;
+    let is_sevenscenes =
+        omcl::session::sequence::Layout::of(d) == omcl::session::sequence::Layout::SevenScenes;
+    if is_sevenscenes {
+        return sevenscenes(a);
+    }
+    anyhow::ensure!(
+        a.frame_step <= 1 && a.frame_offset == 0 && a.drop_depth_edges.is_none(),
+        "{}: --frame-step, --frame-offset and --drop-depth-edges apply to 7-Scenes folders \
+         (with camera-intrinsics.txt) only",
+        d.display()
+    );
     let mut image = super::encoders::open_image_source(&a.encoder)?;
     let use_labels = image.is_none() && !a.use_features && d.join("labels").is_dir();
     let (table, text_encoder) = if use_labels {

@@ -17,8 +17,6 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use nalgebra::{Translation3, UnitQuaternion, Vector3};
-
 use super::ExperimentError;
 use crate::encode::Encoder as _;
 use crate::encode::colour::{ColourClasses, srgb8_to_lab};
@@ -37,10 +35,6 @@ use crate::mapping::{FrameFeatures, IntegrationStats};
 use crate::mcl::{FilterConfig, MotionMode};
 use crate::session::{Session, SessionConfig, SharedMap, Start};
 use crate::trajectory::Trajectory;
-
-/// The paper's odometry noise per unit of motion: 0.10 m per 0.13 m and
-/// 6 degrees per 8 degrees.
-pub const PAPER_NOISE_PER_MOTION: (f64, f64) = (0.10 / 0.13, 6.0 / 8.0);
 
 /// Everything the track is run with.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -137,16 +131,6 @@ pub struct TrackResult {
     /// from their true poses (averaged over the frames).
     pub consistency: Option<ConsistencyMetrics>,
     pub filter_steps_per_s: f64,
-}
-
-/// The rotation taking the dataset's world to one whose z points up
-/// (against gravity), given gravity in the first camera's frame.
-pub fn z_up_from_world(world_from_first: &Pose, gravity_in_first: &Vector3<f64>) -> Pose {
-    let down = world_from_first.rotation * gravity_in_first;
-    let rot = UnitQuaternion::rotation_between(&(-down), &Vector3::z()).unwrap_or_else(|| {
-        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
-    });
-    Pose::from_parts(Translation3::identity(), rot)
 }
 
 /// Positions (in the sequence) of the mapping and the localized frames.
@@ -268,11 +252,7 @@ pub fn run_track(
             localized.len()
         )));
     }
-    let up = match &seq.gravity_in_first_camera {
-        Some(g) => z_up_from_world(&seq.poses[0], g),
-        None => Pose::identity(),
-    };
-    let poses: Vec<Pose> = seq.poses.iter().map(|p| up * p).collect();
+    let poses = seq.poses_z_up();
     let k = seq.intrinsics;
     let rt = Runtime::init(ort_lib).map_err(err)?;
     let mut encoder = ImageEncoder::load(rt, model, 0).map_err(err)?;
@@ -339,10 +319,7 @@ pub fn run_track(
     // Odometry in the paper's proportion to this path's motion.
     let gt: Vec<Pose> = localized.iter().map(|&i| poses[i]).collect();
     let (step_t, step_r) = crate::sim::paths::mean_motion(&gt);
-    let sigma = (
-        PAPER_NOISE_PER_MOTION.0 * step_t,
-        PAPER_NOISE_PER_MOTION.1 * step_r,
-    );
+    let sigma = crate::sim::paths::paper_noise_for(&gt);
     let odom = crate::sim::paths::odometry(
         &gt,
         &[],
@@ -518,18 +495,5 @@ mod tests {
         let (m, l) = split(20, 3);
         assert_eq!(m, vec![0, 2, 4, 6, 8, 10, 12, 14, 16, 18]);
         assert_eq!(l, vec![1, 7, 13, 19]);
-    }
-
-    #[test]
-    fn gravity_turns_into_minus_z() {
-        let first = Pose::from_parts(
-            Translation3::new(1.0, 2.0, 3.0),
-            UnitQuaternion::from_euler_angles(0.3, -0.2, 1.0),
-        );
-        let g = Vector3::new(0.1, 0.9, 0.4).normalize();
-        let up = z_up_from_world(&first, &g);
-        let down_world = first.rotation * g;
-        let d = up.rotation * down_world;
-        assert!((d - Vector3::new(0.0, 0.0, -1.0)).norm() < 1e-12);
     }
 }

@@ -153,11 +153,77 @@ impl SevenScenes {
         Ok(c)
     }
 
+    /// Checks the colour image of frame `i` without decoding it: a whole
+    /// JPEG of 640 x 480 pixels (for readers that decode it themselves,
+    /// such as an image encoder's).
+    pub fn check_color(&self, i: usize) -> Result<(), CloudError> {
+        let f = self.frame(i)?;
+        check_jpeg_ends(&f.color)?;
+        let size = image::image_dimensions(&f.color)
+            .map_err(|e| CloudError::format(&f.color, e.to_string()))?;
+        check_size(&f.color, "colour image", size)
+    }
+
+    /// The ground-truth poses turned into the z-up world omcl maps a
+    /// 7-Scenes folder in: one rotation of the whole dataset taking gravity
+    /// (`gravity-direction.txt`, in the first frame's camera) to -z, so
+    /// that floor, height and the paper's local start mean what they mean
+    /// indoors. Without the gravity file, the dataset's own world.
+    pub fn poses_z_up(&self) -> Vec<Pose> {
+        let up = match &self.gravity_in_first_camera {
+            Some(g) => z_up_from_world(&self.poses[0], g),
+            None => Pose::identity(),
+        };
+        self.poses.iter().map(|p| up * p).collect()
+    }
+
     fn frame(&self, i: usize) -> Result<&FrameFiles, CloudError> {
         self.frames.get(i).ok_or_else(|| CloudError::Invalid {
             source_name: self.dir.display().to_string(),
             reason: format!("frame {i} asked for, the sequence has {}", self.len()),
         })
+    }
+}
+
+/// The rotation taking the dataset's world to one whose z points up
+/// (against gravity), given gravity in the first camera's frame.
+pub fn z_up_from_world(world_from_first: &Pose, gravity_in_first: &Vector3<f64>) -> Pose {
+    let down = world_from_first.rotation * gravity_in_first;
+    let rot = UnitQuaternion::rotation_between(&(-down), &Vector3::z()).unwrap_or_else(|| {
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
+    });
+    Pose::from_parts(Translation3::identity(), rot)
+}
+
+/// Which frames of a 7-Scenes folder a run uses: positions `offset`,
+/// `offset + step`, ... of the sorted frames, at most `limit` of them
+/// (e.g. step 2 for a map from the even frames; step 8, offset 1 to
+/// localize every 4th odd frame, so a step moves several centimetres).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FramePick {
+    pub step: usize,
+    pub offset: usize,
+    pub limit: Option<usize>,
+}
+
+impl Default for FramePick {
+    /// Every frame.
+    fn default() -> Self {
+        FramePick {
+            step: 1,
+            offset: 0,
+            limit: None,
+        }
+    }
+}
+
+impl FramePick {
+    /// The picked positions among `n` frames (`step` 0 is taken as 1).
+    pub fn positions(&self, n: usize) -> Vec<usize> {
+        (self.offset..n)
+            .step_by(self.step.max(1))
+            .take(self.limit.unwrap_or(usize::MAX))
+            .collect()
     }
 }
 
@@ -328,6 +394,36 @@ mod tests {
             let _ = parse_intrinsics(&s);
             let _ = parse_gravity(&s);
         }
+    }
+
+    #[test]
+    fn gravity_turns_into_minus_z() {
+        let first = Pose::from_parts(
+            Translation3::new(1.0, 2.0, 3.0),
+            UnitQuaternion::from_euler_angles(0.3, -0.2, 1.0),
+        );
+        let g = Vector3::new(0.1, 0.9, 0.4).normalize();
+        let up = z_up_from_world(&first, &g);
+        let down_world = first.rotation * g;
+        let d = up.rotation * down_world;
+        assert!((d - Vector3::new(0.0, 0.0, -1.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn frame_pick_takes_every_step_from_the_offset_up_to_the_limit() {
+        let p = |step, offset, limit| {
+            FramePick {
+                step,
+                offset,
+                limit,
+            }
+            .positions(20)
+        };
+        assert_eq!(p(8, 1, None), vec![1, 9, 17]);
+        assert_eq!(p(2, 0, Some(3)), vec![0, 2, 4]);
+        assert_eq!(p(0, 18, None), vec![18, 19]);
+        assert!(p(1, 20, None).is_empty());
+        assert_eq!(FramePick::default().positions(3), vec![0, 1, 2]);
     }
 
     #[test]

@@ -456,6 +456,96 @@ pub fn map_from_rgbd(
     Ok((finish(integ, &name, params.tau, &stats)?, stats))
 }
 
+/// What of a 7-Scenes folder builds a map, and how.
+#[derive(Debug, Clone)]
+pub struct SevenScenesInput {
+    /// The frames mapped (e.g. every second: the even frames).
+    pub pick: crate::io::sevenscenes::FramePick,
+    pub max_depth: f32,
+    /// Points above this height of the z-up world are skipped.
+    pub max_height: Option<f64>,
+    /// Every `stride`-th pixel in each direction.
+    pub stride: u32,
+    /// Drop depth within `radius` pixels of a depth edge of relative jump
+    /// `jump` first ([`super::rgbd::drop_depth_edges`]): `(radius, jump)`.
+    pub depth_edges: Option<(usize, f32)>,
+}
+
+/// Builds the map of a 7-Scenes folder in its z-up world
+/// ([`crate::io::sevenscenes::SevenScenes::poses_z_up`], the frame
+/// `omcl localize` reads such a folder's ground truth in): the picked
+/// frames' depth, each used pixel taking the image encoder's feature of
+/// the colour image at the same pixel (colour and depth are not
+/// registered; this is the dataset's own nominal pairing). Returns the
+/// map, the integration counts and the depth pixels the edge filter
+/// dropped. `progress` hears each picked frame done (its position).
+pub fn map_from_sevenscenes(
+    seq: &crate::io::sevenscenes::SevenScenes,
+    input: &SevenScenesInput,
+    params: &BuildParams,
+    src: &mut crate::encode::cache::ImageSource,
+    progress: &mut dyn FnMut(usize),
+) -> Result<(LanguageMap, IntegrationStats, usize), PipelineError> {
+    let picked = input.pick.positions(seq.len());
+    let Some(&first) = picked.first() else {
+        return Err(PipelineError::Input(format!(
+            "{}: no frames picked (frame {} on, every {}-th) of its {}",
+            seq.dir.display(),
+            input.pick.offset,
+            input.pick.step.max(1),
+            seq.len()
+        )));
+    };
+    let poses = seq.poses_z_up();
+    let k = seq.intrinsics;
+    let grid = GridSpec {
+        resolution: params.resolution,
+        origin: poses[first]
+            .translation
+            .vector
+            .map(|v| (v / params.resolution).floor())
+            * params.resolution,
+    };
+    let db = FeatureDb::new(src.dim(), params.tau)?.with_max_rows(params.max_rows);
+    let mut integ = Integrator::new(grid, db)?;
+    let opt = super::rgbd::FrameOptions {
+        min_depth: 0.05,
+        max_depth: input.max_depth,
+        max_height: input.max_height,
+        stride: input.stride,
+    };
+    let mut stats = IntegrationStats::default();
+    let mut dropped = 0;
+    for &i in &picked {
+        let mut depth = seq.read_depth(i)?;
+        if let Some((radius, jump)) = input.depth_edges {
+            let (w, h) = (depth.width as usize, depth.height as usize);
+            dropped += super::rgbd::drop_depth_edges(&mut depth.depth, w, h, jump, radius);
+        }
+        seq.check_color(i)?;
+        let color = &seq.frames[i].color;
+        let number = seq.frames[i].number as usize;
+        let fm = src
+            .encode(color, number)
+            .map_err(|e| PipelineError::Encode {
+                source_name: format!("encoding {}", color.display()),
+                source: e,
+            })?;
+        let f = crate::encode::image::EncodedFrame {
+            map: &fm,
+            width: k.width,
+            height: k.height,
+        };
+        stats += super::rgbd::integrate_frame(&mut integ, &k, &depth.depth, &poses[i], &f, &opt)?;
+        progress(i);
+    }
+    Ok((
+        finish(integ, &src.name, params.tau, &stats)?,
+        stats,
+        dropped,
+    ))
+}
+
 /// The observation database of an RGB-D map: the class table's rows, or
 /// an empty database of the encoder's or the feature files' dimension.
 fn observation_db(

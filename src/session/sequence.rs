@@ -10,6 +10,10 @@
 //! KITTI folder  calib.txt (camera 2 from P2), poses.txt (camera 0),
 //!               times.txt, labels_2/ | features_2/ | image_2/
 //!               (see crate::io::kitti_camera)
+//! 7-Scenes      camera-intrinsics.txt, frame-NNNNNN.{color.jpg,
+//!               depth.png,pose.txt} (see crate::io::sevenscenes): the
+//!               colour images through an image encoder, the picked
+//!               frames only, ground truth turned z-up
 //! ```
 //!
 //! [`FrameSource`] says what each frame is read as (label images through a
@@ -32,6 +36,7 @@ use crate::io::kitti_camera::{CameraInput, KittiCameraSequence};
 use crate::io::npy::{NpyError, read_npy};
 use crate::io::poses::{self, PosesError};
 use crate::io::rgbd;
+use crate::io::sevenscenes::{FramePick, SevenScenes};
 use crate::sim::paths::OdometryConfig;
 use crate::trajectory::{Trajectory, TrajectoryError};
 
@@ -58,7 +63,39 @@ pub enum SequenceError {
     Input(String),
 }
 
-/// Where a sequence's files are, in either layout, and what it says.
+/// The layouts a sequence folder can be in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Layout {
+    /// `intrinsics.txt`, `poses.txt`, `labels/` | `features/` | `rgb/`.
+    Rgbd,
+    /// A KITTI odometry folder (it has `calib.txt`).
+    Kitti,
+    /// A Microsoft 7-Scenes folder (it has `camera-intrinsics.txt`).
+    SevenScenes,
+}
+
+impl Layout {
+    /// The layout `dir` is in.
+    pub fn of(dir: &Path) -> Layout {
+        if dir.join("calib.txt").exists() {
+            Layout::Kitti
+        } else if dir.join("camera-intrinsics.txt").exists() {
+            Layout::SevenScenes
+        } else {
+            Layout::Rgbd
+        }
+    }
+}
+
+/// The frames of a 7-Scenes folder a run uses.
+#[derive(Debug)]
+pub struct SevenScenesFrames {
+    pub seq: SevenScenes,
+    /// Positions in `seq.frames` of the run's frames, in order.
+    pub picked: Vec<usize>,
+}
+
+/// Where a sequence's files are, in any layout, and what it says.
 #[derive(Debug)]
 pub struct CameraSequence {
     /// The sequence folder.
@@ -78,6 +115,8 @@ pub struct CameraSequence {
     pub rgb_dir: PathBuf,
     /// The KITTI sequence, for a KITTI layout.
     pub kitti: Option<KittiCameraSequence>,
+    /// The 7-Scenes folder and its picked frames, for that layout.
+    pub sevenscenes: Option<SevenScenesFrames>,
 }
 
 impl CameraSequence {
@@ -87,12 +126,91 @@ impl CameraSequence {
     }
 
     /// The folder `dir` in the layout it is in; on KITTI, `input` picks
-    /// the camera-2 folder read.
-    pub fn open(dir: &Path, input: CameraInput) -> Result<Self, SequenceError> {
-        if Self::is_kitti(dir) {
-            Self::kitti(dir, input)
+    /// the camera-2 folder read; on 7-Scenes, `pick` the frames (the other
+    /// layouts use every frame: any other `pick` is an error).
+    pub fn open(dir: &Path, input: CameraInput, pick: FramePick) -> Result<Self, SequenceError> {
+        let layout = Layout::of(dir);
+        if layout != Layout::SevenScenes && (pick.step > 1 || pick.offset > 0) {
+            return Err(SequenceError::Input(format!(
+                "{}: picking every {}-th frame from frame {} applies to 7-Scenes folders \
+                 (with camera-intrinsics.txt) only",
+                dir.display(),
+                pick.step,
+                pick.offset
+            )));
+        }
+        match layout {
+            Layout::Kitti => Self::kitti(dir, input),
+            Layout::SevenScenes => Self::sevenscenes(dir, pick),
+            Layout::Rgbd => Self::rgbd(dir),
+        }
+    }
+
+    /// A 7-Scenes folder: the frames `pick` takes, ground truth in the
+    /// z-up world ([`SevenScenes::poses_z_up`], the frame `omcl map rgbd`
+    /// builds such a folder's map in), stamped with the frame numbers.
+    pub fn sevenscenes(d: &Path, pick: FramePick) -> Result<Self, SequenceError> {
+        let seq = SevenScenes::open(d)?;
+        let picked = pick.positions(seq.len());
+        if picked.is_empty() {
+            return Err(SequenceError::Input(format!(
+                "{}: no frames picked (frame {} on, every {}-th) of its {}",
+                d.display(),
+                pick.offset,
+                pick.step.max(1),
+                seq.len()
+            )));
+        }
+        let poses = seq.poses_z_up();
+        let gt = Trajectory::new(
+            picked
+                .iter()
+                .map(|&i| f64::from(seq.frames[i].number))
+                .collect(),
+            picked.iter().map(|&i| poses[i]).collect(),
+        )?;
+        Ok(CameraSequence {
+            dir: d.to_path_buf(),
+            intrinsics: seq.intrinsics,
+            ground_truth: Some(gt),
+            ground_truth_path: seq.frames[picked[0]].pose.clone(),
+            classes: d.join("classes.txt"),
+            embeddings: d.join("embeddings.npy"),
+            labels_dir: d.join("labels"),
+            features_dir: d.join("features"),
+            rgb_dir: d.to_path_buf(),
+            kitti: None,
+            sevenscenes: Some(SevenScenesFrames { seq, picked }),
+        })
+    }
+
+    /// The layout the sequence is in.
+    pub fn layout(&self) -> Layout {
+        if self.kitti.is_some() {
+            Layout::Kitti
+        } else if self.sevenscenes.is_some() {
+            Layout::SevenScenes
         } else {
-            Self::rgbd(dir)
+            Layout::Rgbd
+        }
+    }
+
+    /// The RGB image of frame `i` (7-Scenes: the picked frame's colour
+    /// JPEG, checked whole and of the dataset's size).
+    pub fn image_path(&self, i: usize) -> Result<PathBuf, SequenceError> {
+        match &self.sevenscenes {
+            Some(s) => {
+                let j = *s.picked.get(i).ok_or_else(|| {
+                    SequenceError::Input(format!(
+                        "{}: frame {i} asked for, {} picked",
+                        self.dir.display(),
+                        s.picked.len()
+                    ))
+                })?;
+                s.seq.check_color(j)?;
+                Ok(s.seq.frames[j].color.clone())
+            }
+            None => Ok(self.rgb_dir.join(format!("{i:06}.png"))),
         }
     }
 
@@ -116,6 +234,7 @@ impl CameraSequence {
             features_dir: d.join("features"),
             rgb_dir: d.join("rgb"),
             kitti: None,
+            sevenscenes: None,
         })
     }
 
@@ -134,6 +253,7 @@ impl CameraSequence {
             features_dir: d.join(CameraInput::Features.folder()),
             rgb_dir: d.join(CameraInput::Images.folder()),
             kitti: Some(seq),
+            sevenscenes: None,
         })
     }
 
@@ -176,6 +296,9 @@ impl CameraSequence {
         let mut n = odometry.min(limit.unwrap_or(usize::MAX));
         if let Some(seq) = &self.kitti {
             n = n.min(seq.len());
+        }
+        if let Some(s) = &self.sevenscenes {
+            n = n.min(s.picked.len());
         }
         if n == 0 {
             return Err(SequenceError::Input(format!(
@@ -252,7 +375,7 @@ pub fn step_frame(
     };
     let (report, input_seconds) = match source {
         FrameSource::Images(src) => {
-            let p = seq.rgb_dir.join(format!("{i:06}.png"));
+            let p = seq.image_path(i)?;
             let fm = src.encode(&p, i).map_err(|source| SequenceError::Encode {
                 path: p.display().to_string(),
                 source,

@@ -237,6 +237,17 @@ impl Walker<'_> {
     }
 }
 
+/// The paper's odometry noise per unit of motion: 0.10 m per 0.13 m and
+/// 6 degrees per 8 degrees.
+pub const PAPER_NOISE_PER_MOTION: (f64, f64) = (0.10 / 0.13, 6.0 / 8.0);
+
+/// Odometry noise per step (metres, degrees) in the paper's proportion to
+/// the mean motion of `poses` (for paths whose steps are not the paper's).
+pub fn paper_noise_for(poses: &[Pose]) -> (f64, f64) {
+    let (t, r) = mean_motion(poses);
+    (PAPER_NOISE_PER_MOTION.0 * t, PAPER_NOISE_PER_MOTION.1 * r)
+}
+
 /// Mean translation (metres) and rotation (degrees) per frame of a path.
 pub fn mean_motion(poses: &[Pose]) -> (f64, f64) {
     if poses.len() < 2 {
