@@ -403,17 +403,16 @@ impl SensorModel {
         let across = (0..2)
             .map(|a| (hi[a] as f64 - lo[a] as f64 + 1.0) * resolution as f64)
             .fold(0.0f64, f64::max);
-        if across > LARGE_MAP_M {
-            BuildOptions {
-                geometry: Geometry::Bricks(BrickEdge::Eight),
-                quality: BuildQuality::High,
-                ..BuildOptions::default()
-            }
+        let default = BuildOptions::default();
+        let (edge, quality) = if across > LARGE_MAP_M {
+            (BrickEdge::Eight, BuildQuality::High)
         } else {
-            BuildOptions {
-                geometry: Geometry::Bricks(BrickEdge::Four),
-                ..BuildOptions::default()
-            }
+            (BrickEdge::Four, default.quality)
+        };
+        BuildOptions {
+            geometry: Geometry::Bricks(edge),
+            quality,
+            ..default
         }
     }
 
