@@ -409,24 +409,12 @@ pub fn map_from_rgbd(
     let k = rgbd_io::read_intrinsics(&d.join("intrinsics.txt"))?;
     let traj = poses::read_poses(&d.join("poses.txt"))?.trajectory;
     let n = traj.poses().len().min(input.frames.unwrap_or(usize::MAX));
-    let grid = GridSpec {
-        resolution: params.resolution,
-        // Any origin works; the first camera, snapped, keeps coordinates small.
-        origin: traj.poses()[0]
-            .translation
-            .vector
-            .map(|v| (v / params.resolution).floor())
-            * params.resolution,
-    };
+    // Any origin works; the first camera, snapped, keeps coordinates small.
+    let grid = grid_at(traj.poses()[0].translation.vector.into(), params.resolution);
     let db = observation_db(&features, d, params)?;
     let mut name = params.encoder.clone();
     let mut integ = Integrator::new(grid, db)?;
-    let opt = super::rgbd::FrameOptions {
-        min_depth: 0.05,
-        max_depth: input.max_depth,
-        max_height: input.max_height,
-        stride: input.stride,
-    };
+    let opt = frame_options(input.max_depth, input.max_height, input.stride);
     let mut stats = IntegrationStats::default();
     for (i, pose) in traj.poses().iter().take(n).enumerate() {
         let depth_path = d.join("depth").join(format!("{i:06}.png"));
@@ -454,6 +442,21 @@ pub fn map_from_rgbd(
     }
     // The map lives in the encoder's feature space: it records its name.
     Ok((finish(integ, &name, params.tau, &stats)?, stats))
+}
+
+/// The depth pixels an RGB-D map uses: 5 cm to `max_depth`, below
+/// `max_height`, every `stride`-th in each direction.
+fn frame_options(
+    max_depth: f32,
+    max_height: Option<f64>,
+    stride: u32,
+) -> super::rgbd::FrameOptions {
+    super::rgbd::FrameOptions {
+        min_depth: 0.05,
+        max_depth,
+        max_height,
+        stride,
+    }
 }
 
 /// What of a 7-Scenes folder builds a map, and how.
@@ -498,22 +501,10 @@ pub fn map_from_sevenscenes(
     };
     let poses = seq.poses_z_up();
     let k = seq.intrinsics;
-    let grid = GridSpec {
-        resolution: params.resolution,
-        origin: poses[first]
-            .translation
-            .vector
-            .map(|v| (v / params.resolution).floor())
-            * params.resolution,
-    };
+    let grid = grid_at(poses[first].translation.vector.into(), params.resolution);
     let db = FeatureDb::new(src.dim(), params.tau)?.with_max_rows(params.max_rows);
     let mut integ = Integrator::new(grid, db)?;
-    let opt = super::rgbd::FrameOptions {
-        min_depth: 0.05,
-        max_depth: input.max_depth,
-        max_height: input.max_height,
-        stride: input.stride,
-    };
+    let opt = frame_options(input.max_depth, input.max_height, input.stride);
     let mut stats = IntegrationStats::default();
     let mut dropped = 0;
     for &i in &picked {
