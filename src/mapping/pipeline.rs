@@ -492,7 +492,7 @@ pub fn map_from_sevenscenes(
     let picked = input.pick.positions(seq.len());
     let Some(&first) = picked.first() else {
         return Err(PipelineError::Input(format!(
-            "{}: no frames picked (frame {} on, every {}-th) of its {}",
+            "{}: no frames picked (offset {}, step {}) of its {} frames",
             seq.dir.display(),
             input.pick.offset,
             input.pick.step.max(1),

@@ -132,7 +132,7 @@ impl CameraSequence {
         let layout = Layout::of(dir);
         if layout != Layout::SevenScenes && (pick.step > 1 || pick.offset > 0) {
             return Err(SequenceError::Input(format!(
-                "{}: picking every {}-th frame from frame {} applies to 7-Scenes folders \
+                "{}: picking frames (step {}, offset {}) applies to 7-Scenes folders \
                  (with camera-intrinsics.txt) only",
                 dir.display(),
                 pick.step,
@@ -154,7 +154,7 @@ impl CameraSequence {
         let picked = pick.positions(seq.len());
         if picked.is_empty() {
             return Err(SequenceError::Input(format!(
-                "{}: no frames picked (frame {} on, every {}-th) of its {}",
+                "{}: no frames picked (offset {}, step {}) of its {} frames",
                 d.display(),
                 pick.offset,
                 pick.step.max(1),
