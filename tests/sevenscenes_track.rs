@@ -143,6 +143,26 @@ fn the_command_line_maps_and_localizes_a_7scenes_folder() {
         "{err}"
     );
     assert!(!p("refused.txt").exists());
+    // An offset past the last frame picks nothing: refused the same way.
+    let (code, _, err) = run(vec![
+        s("localize"),
+        s("--map"),
+        p("kitchen.omcl").into(),
+        s("--sequence"),
+        scenes.clone().into(),
+        s("--image-model"),
+        p("colour.onnx").into(),
+        s("--frame-offset"),
+        s("400"),
+        s("-o"),
+        p("refused.txt").into(),
+    ]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("no frames picked (offset 400, step 1) of its 300 frames"),
+        "{err}"
+    );
+    assert!(!p("refused.txt").exists());
     let (code, out, _) = run(vec![
         s("localize"),
         s("--map"),
