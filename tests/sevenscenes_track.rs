@@ -69,11 +69,18 @@ fn a_real_stretch_is_tracked_within_ten_centimetres() {
     assert!(c.accuracy > 0.2, "accuracy {:.3}", c.accuracy);
 }
 
-fn omcl(args: &[&std::ffi::OsStr]) -> std::process::Output {
-    std::process::Command::new(env!("CARGO_BIN_EXE_omcl"))
+/// Runs the binary; prints and returns its exit code, stdout and stderr.
+fn omcl(args: &[&str]) -> (Option<i32>, String, String) {
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_omcl"))
         .args(args)
         .output()
-        .unwrap()
+        .unwrap();
+    let (out, err) = (
+        String::from_utf8_lossy(&o.stdout).to_string(),
+        String::from_utf8_lossy(&o.stderr).to_string(),
+    );
+    eprintln!("{out}{err}");
+    (o.status.code(), out, err)
 }
 
 /// The same stretch as a user runs it, through the command line: `omcl
@@ -83,108 +90,104 @@ fn omcl(args: &[&std::ffi::OsStr]) -> std::process::Output {
 #[test]
 fn the_command_line_maps_and_localizes_a_7scenes_folder() {
     let scenes = scenes();
+    let scenes = scenes.to_str().unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let p = |name: &str| dir.path().join(name);
-    let s = |v: &str| std::ffi::OsString::from(v);
-    let run = |args: Vec<std::ffi::OsString>| {
-        let refs: Vec<&std::ffi::OsStr> = args.iter().map(|a| a.as_os_str()).collect();
-        let o = omcl(&refs);
-        let (out, err) = (
-            String::from_utf8_lossy(&o.stdout).to_string(),
-            String::from_utf8_lossy(&o.stderr).to_string(),
-        );
-        eprintln!("{out}{err}");
-        (o.status.code(), out, err)
-    };
-    let (code, _, _) = run(vec![
-        s("encode"),
-        s("colour-model"),
-        s("--frames"),
-        scenes.clone().into(),
-        s("--first"),
-        s("120"),
-        s("-o"),
-        p("colour.onnx").into(),
+    let p = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let (colour, kitchen, refused, estimate) = (
+        p("colour.onnx"),
+        p("kitchen.omcl"),
+        p("refused.txt"),
+        p("estimate.txt"),
+    );
+    let (code, _, _) = omcl(&[
+        "encode",
+        "colour-model",
+        "--frames",
+        scenes,
+        "--first",
+        "120",
+        "-o",
+        &colour,
     ]);
     assert_eq!(code, Some(0));
-    let (code, out, _) = run(vec![
-        s("map"),
-        s("rgbd"),
-        scenes.clone().into(),
-        s("--image-model"),
-        p("colour.onnx").into(),
-        s("--frame-step"),
-        s("2"),
-        s("--frames"),
-        s("60"),
-        s("--resolution"),
-        s("0.02"),
-        s("--max-depth"),
-        s("4"),
-        s("-o"),
-        p("kitchen.omcl").into(),
+    let (code, out, _) = omcl(&[
+        "map",
+        "rgbd",
+        scenes,
+        "--image-model",
+        &colour,
+        "--frame-step",
+        "2",
+        "--frames",
+        "60",
+        "--resolution",
+        "0.02",
+        "--max-depth",
+        "4",
+        "-o",
+        &kitchen,
     ]);
     assert_eq!(code, Some(0));
     assert!(out.contains("wrote"), "{out}");
     // Without an image encoder the folder is refused, naming it, and
     // nothing is written.
-    let (code, _, err) = run(vec![
-        s("localize"),
-        s("--map"),
-        p("kitchen.omcl").into(),
-        s("--sequence"),
-        scenes.clone().into(),
-        s("-o"),
-        p("refused.txt").into(),
+    let (code, _, err) = omcl(&[
+        "localize",
+        "--map",
+        &kitchen,
+        "--sequence",
+        scenes,
+        "-o",
+        &refused,
     ]);
     assert_eq!(code, Some(1), "{err}");
     assert!(
         err.contains("rgbd_7scenes") && err.contains("--image-model"),
         "{err}"
     );
-    assert!(!p("refused.txt").exists());
+    assert!(!std::path::Path::new(&refused).exists());
     // An offset past the last frame picks nothing: refused the same way.
-    let (code, _, err) = run(vec![
-        s("localize"),
-        s("--map"),
-        p("kitchen.omcl").into(),
-        s("--sequence"),
-        scenes.clone().into(),
-        s("--image-model"),
-        p("colour.onnx").into(),
-        s("--frame-offset"),
-        s("400"),
-        s("-o"),
-        p("refused.txt").into(),
+    let (code, _, err) = omcl(&[
+        "localize",
+        "--map",
+        &kitchen,
+        "--sequence",
+        scenes,
+        "--image-model",
+        &colour,
+        "--frame-offset",
+        "400",
+        "-o",
+        &refused,
     ]);
     assert_eq!(code, Some(1), "{err}");
     assert!(
         err.contains("no frames picked (offset 400, step 1) of its 300 frames"),
         "{err}"
     );
-    assert!(!p("refused.txt").exists());
-    let (code, out, _) = run(vec![
-        s("localize"),
-        s("--map"),
-        p("kitchen.omcl").into(),
-        s("--sequence"),
-        scenes.clone().into(),
-        s("--image-model"),
-        p("colour.onnx").into(),
-        s("--frame-step"),
-        s("8"),
-        s("--frame-offset"),
-        s("1"),
-        s("--frames"),
-        s("15"),
-        s("--seed"),
-        s("1"),
-        s("-o"),
-        p("estimate.txt").into(),
+    assert!(!std::path::Path::new(&refused).exists());
+    let (code, out, _) = omcl(&[
+        "localize",
+        "--map",
+        &kitchen,
+        "--sequence",
+        scenes,
+        "--image-model",
+        &colour,
+        "--frame-step",
+        "8",
+        "--frame-offset",
+        "1",
+        "--frames",
+        "15",
+        "--seed",
+        "1",
+        "-o",
+        &estimate,
     ]);
     assert_eq!(code, Some(0));
     // TUM lines stamped with the frame numbers 1, 9, ..., 113.
-    let est = std::fs::read_to_string(p("estimate.txt")).unwrap();
+    let est = std::fs::read_to_string(&estimate).unwrap();
     let stamps: Vec<f64> = est
         .lines()
         .filter(|l| !l.starts_with('#'))

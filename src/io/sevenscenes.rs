@@ -153,6 +153,24 @@ impl SevenScenes {
         Ok(c)
     }
 
+    /// The positions `pick` takes among the frames; picking none is an
+    /// error naming the folder.
+    pub fn pick(&self, pick: &FramePick) -> Result<Vec<usize>, CloudError> {
+        let picked = pick.positions(self.len());
+        if picked.is_empty() {
+            return Err(CloudError::Invalid {
+                source_name: self.dir.display().to_string(),
+                reason: format!(
+                    "no frames picked (offset {}, step {}) of its {} frames",
+                    pick.offset,
+                    pick.step.max(1),
+                    self.len()
+                ),
+            });
+        }
+        Ok(picked)
+    }
+
     /// Checks the colour image of frame `i` without decoding it: a whole
     /// JPEG of 640 x 480 pixels (for readers that decode it themselves,
     /// such as an image encoder's).

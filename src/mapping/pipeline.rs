@@ -459,6 +459,19 @@ fn frame_options(
     }
 }
 
+/// The image encoder's features of the RGB image `path` (frame `frame`
+/// of its cache).
+fn encode_image(
+    src: &mut crate::encode::cache::ImageSource,
+    path: &std::path::Path,
+    frame: usize,
+) -> Result<crate::encode::FeatureMap, PipelineError> {
+    src.encode(path, frame).map_err(|e| PipelineError::Encode {
+        source_name: format!("encoding {}", path.display()),
+        source: e,
+    })
+}
+
 /// What of a 7-Scenes folder builds a map, and how.
 #[derive(Debug, Clone)]
 pub struct SevenScenesInput {
@@ -489,16 +502,8 @@ pub fn map_from_sevenscenes(
     src: &mut crate::encode::cache::ImageSource,
     progress: &mut dyn FnMut(usize),
 ) -> Result<(LanguageMap, IntegrationStats, usize), PipelineError> {
-    let picked = input.pick.positions(seq.len());
-    let Some(&first) = picked.first() else {
-        return Err(PipelineError::Input(format!(
-            "{}: no frames picked (offset {}, step {}) of its {} frames",
-            seq.dir.display(),
-            input.pick.offset,
-            input.pick.step.max(1),
-            seq.len()
-        )));
-    };
+    let picked = seq.pick(&input.pick)?;
+    let first = picked[0];
     let poses = seq.poses_z_up();
     let k = seq.intrinsics;
     let grid = grid_at(poses[first].translation.vector.into(), params.resolution);
@@ -516,12 +521,7 @@ pub fn map_from_sevenscenes(
         seq.check_color(i)?;
         let color = &seq.frames[i].color;
         let number = seq.frames[i].number as usize;
-        let fm = src
-            .encode(color, number)
-            .map_err(|e| PipelineError::Encode {
-                source_name: format!("encoding {}", color.display()),
-                source: e,
-            })?;
+        let fm = encode_image(src, color, number)?;
         let f = crate::encode::image::EncodedFrame {
             map: &fm,
             width: k.width,
@@ -607,10 +607,7 @@ impl RgbdFrame<'_> {
             }
             RgbdFeatures::Encoder(src) => {
                 let rgb = d.join("rgb").join(format!("{i:06}.png"));
-                let fm = src.encode(&rgb, i).map_err(|e| PipelineError::Encode {
-                    source_name: format!("encoding {}", rgb.display()),
-                    source: e,
-                })?;
+                let fm = encode_image(src, &rgb, i)?;
                 *name = src.name.clone();
                 let f = crate::encode::image::EncodedFrame {
                     map: &fm,

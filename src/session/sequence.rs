@@ -120,11 +120,6 @@ pub struct CameraSequence {
 }
 
 impl CameraSequence {
-    /// Whether `dir` is in KITTI layout (it has `calib.txt`).
-    pub fn is_kitti(dir: &Path) -> bool {
-        dir.join("calib.txt").exists()
-    }
-
     /// The folder `dir` in the layout it is in; on KITTI, `input` picks
     /// the camera-2 folder read; on 7-Scenes, `pick` the frames (the other
     /// layouts use every frame: any other `pick` is an error).
@@ -151,16 +146,7 @@ impl CameraSequence {
     /// builds such a folder's map in), stamped with the frame numbers.
     pub fn sevenscenes(d: &Path, pick: FramePick) -> Result<Self, SequenceError> {
         let seq = SevenScenes::open(d)?;
-        let picked = pick.positions(seq.len());
-        if picked.is_empty() {
-            return Err(SequenceError::Input(format!(
-                "{}: no frames picked (offset {}, step {}) of its {} frames",
-                d.display(),
-                pick.offset,
-                pick.step.max(1),
-                seq.len()
-            )));
-        }
+        let picked = seq.pick(&pick)?;
         let poses = seq.poses_z_up();
         let gt = Trajectory::new(
             picked
