@@ -285,3 +285,44 @@ fn bad_kitti_input_is_named_and_leaves_no_output() {
         &["embeddings.npy", "dimension 512", "other.omcl", "has 4"],
     );
 }
+
+/// A KITTI sequence localizes with two-pass likelihoods by default (half
+/// the pixels first), as accurately as with every pixel cast for every
+/// particle (`--every-ray`); the two switches exclude each other.
+#[test]
+fn streets_default_to_two_pass_likelihoods_and_every_ray_turns_them_off() {
+    let f = Street::new(80);
+    let run = |name: &str, extra: &[&str]| {
+        let out = f.dir.path().join(format!("{name}.txt"));
+        let metrics = f.dir.path().join(format!("{name}.json"));
+        let r = f.localize(
+            &f.map,
+            &f.seq,
+            &out,
+            &[&["--metrics", s(&metrics)][..], extra].concat(),
+        );
+        assert!(r.ok(), "{}", r.text());
+        let m: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&metrics).unwrap()).unwrap();
+        (r, m["translation_m"]["mean"].as_f64().unwrap())
+    };
+    let (two, two_mean) = run("two_pass", &[]);
+    assert!(
+        two.stdout
+            .contains("two-pass likelihoods: one pixel in 2 first"),
+        "{}",
+        two.text()
+    );
+    let (every, every_mean) = run("every", &["--every-ray"]);
+    assert!(!every.stdout.contains("two-pass"), "{}", every.text());
+    eprintln!("translation mean: two-pass {two_mean} m, every ray {every_mean} m");
+    assert!(
+        two_mean < 0.6 && two_mean < 1.25 * every_mean + 0.02,
+        "two-pass {two_mean:.3} m, every ray {every_mean:.3} m"
+    );
+    let out = f.existing_out("both.txt");
+    let r = f.localize(&f.map, &f.seq, &out, &["--every-ray", "--early-reject"]);
+    assert!(!r.ok());
+    assert!(r.stderr.contains("--every-ray"), "{}", r.text());
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), OLD_OUT);
+}

@@ -17,7 +17,7 @@ use super::sequence::BenchSequence;
 use crate::geometry::{Intrinsics, Pose};
 use crate::map::{FeatureDb, GridSpec, Integrator, LanguageMap};
 use crate::mcl::sampling::STREET_BOUNDARY_MARGIN;
-use crate::mcl::{FilterConfig, MotionMode, SensorModel};
+use crate::mcl::{EarlyReject, FilterConfig, MotionMode, SensorModel};
 use crate::plot::{self, FloorPlan, TrajectoryPanel};
 use crate::raycast::EmbreeCaster;
 use crate::sim::dataset::{kitti00_camera_from_velodyne, kitti00_camera2};
@@ -332,13 +332,16 @@ pub struct Table4Params {
 impl Table4Params {
     /// The paper's outdoor filter: 4096 rays, road motion (planar noise
     /// plus a little height, pitch and roll: the road climbs and pitches;
-    /// README, "Outdoor": planar, full and road measured), and the
-    /// street's boundary margin ([`STREET_BOUNDARY_MARGIN`]: none).
+    /// README, "Outdoor": planar, full and road measured), the street's
+    /// boundary margin ([`STREET_BOUNDARY_MARGIN`]: none) and two-pass
+    /// likelihoods with the street split ([`EarlyReject::STREET`]; `--set
+    /// sensor.early_reject=null` casts every pixel for every particle).
     pub fn filter_default() -> FilterConfig {
         let mut config = FilterConfig::default();
         config.sampling.rays = 4096;
         config.sampling.boundary_margin = Some(STREET_BOUNDARY_MARGIN);
         config.motion.mode = MotionMode::Road;
+        config.sensor.early_reject = Some(EarlyReject::STREET);
         config
     }
 }
