@@ -129,17 +129,19 @@ fn the_command_line_maps_and_localizes_a_7scenes_folder() {
     ]);
     assert_eq!(code, Some(0));
     assert!(out.contains("wrote"), "{out}");
+    // `omcl localize` of the kitchen map on the folder, with `rest`.
+    let localize = |rest: &[&str]| {
+        omcl(
+            &[
+                &["localize", "--map", &kitchen, "--sequence", scenes][..],
+                rest,
+            ]
+            .concat(),
+        )
+    };
     // Without an image encoder the folder is refused, naming it, and
     // nothing is written.
-    let (code, _, err) = omcl(&[
-        "localize",
-        "--map",
-        &kitchen,
-        "--sequence",
-        scenes,
-        "-o",
-        &refused,
-    ]);
+    let (code, _, err) = localize(&["-o", &refused]);
     assert_eq!(code, Some(1), "{err}");
     assert!(
         err.contains("rgbd_7scenes") && err.contains("--image-model"),
@@ -147,12 +149,7 @@ fn the_command_line_maps_and_localizes_a_7scenes_folder() {
     );
     assert!(!std::path::Path::new(&refused).exists());
     // An offset past the last frame picks nothing: refused the same way.
-    let (code, _, err) = omcl(&[
-        "localize",
-        "--map",
-        &kitchen,
-        "--sequence",
-        scenes,
+    let (code, _, err) = localize(&[
         "--image-model",
         &colour,
         "--frame-offset",
@@ -166,12 +163,7 @@ fn the_command_line_maps_and_localizes_a_7scenes_folder() {
         "{err}"
     );
     assert!(!std::path::Path::new(&refused).exists());
-    let (code, out, _) = omcl(&[
-        "localize",
-        "--map",
-        &kitchen,
-        "--sequence",
-        scenes,
+    let (code, out, _) = localize(&[
         "--image-model",
         &colour,
         "--frame-step",
