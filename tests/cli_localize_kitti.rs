@@ -288,7 +288,8 @@ fn bad_kitti_input_is_named_and_leaves_no_output() {
 
 /// A KITTI sequence localizes with two-pass likelihoods by default (half
 /// the pixels first), as accurately as with every pixel cast for every
-/// particle (`--every-ray`); the two switches exclude each other.
+/// particle (`--every-ray`); the two switches exclude each other. Misses
+/// score 0.5 there, and a miss score that is not a number is refused.
 #[test]
 fn streets_default_to_two_pass_likelihoods_and_every_ray_turns_them_off() {
     let f = Street::new(80);
@@ -313,6 +314,13 @@ fn streets_default_to_two_pass_likelihoods_and_every_ray_turns_them_off() {
         "{}",
         two.text()
     );
+    // Misses score halfway on streets (README, "Misses on streets").
+    assert!(
+        two.stdout
+            .contains("rays that hit nothing score 0.5 (the street default"),
+        "{}",
+        two.text()
+    );
     let (every, every_mean) = run("every", &["--every-ray"]);
     assert!(!every.stdout.contains("two-pass"), "{}", every.text());
     eprintln!("translation mean: two-pass {two_mean} m, every ray {every_mean} m");
@@ -324,5 +332,9 @@ fn streets_default_to_two_pass_likelihoods_and_every_ray_turns_them_off() {
     let r = f.localize(&f.map, &f.seq, &out, &["--every-ray", "--early-reject"]);
     assert!(!r.ok());
     assert!(r.stderr.contains("--every-ray"), "{}", r.text());
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), OLD_OUT);
+    let r = f.localize(&f.map, &f.seq, &out, &["--miss-score", "NaN"]);
+    assert!(!r.ok());
+    assert!(r.stderr.contains("sensor.miss_score"), "{}", r.text());
     assert_eq!(std::fs::read_to_string(&out).unwrap(), OLD_OUT);
 }

@@ -182,6 +182,14 @@ pub struct LocalizeArgs {
     /// the tuning streets, see README "Outdoor speed")
     #[arg(long)]
     pub every_ray: bool,
+    /// Score of a sampled pixel's ray that hits nothing in the map, on the
+    /// contrast scale where a hit scores 0 (the pixel's least similar
+    /// class) to 1 (its most similar). Default: 0.5 on a KITTI sequence,
+    /// where a third of the image is sky and misses at 0 pull the filter
+    /// towards poses that turn the sky onto facades (README, "Misses on
+    /// streets"); 0 elsewhere
+    #[arg(long, value_name = "SCORE")]
+    pub miss_score: Option<f32>,
     /// Seed of every random draw.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -369,19 +377,19 @@ fn start(
 fn filter_config(a: &LocalizeArgs, inputs: &CameraSequence) -> FilterConfig {
     let layout = inputs.layout();
     let is_kitti = layout == Layout::Kitti;
+    let base = if is_kitti {
+        FilterConfig::street()
+    } else {
+        FilterConfig::default()
+    };
     let mut config = FilterConfig {
         seed: a.seed,
-        ..FilterConfig::default()
+        ..base
     };
     config.sampling.rays = a.rays;
-    config.sampling.boundary_margin = if is_kitti {
-        Some(
-            a.boundary_margin
-                .unwrap_or(mcl::sampling::STREET_BOUNDARY_MARGIN),
-        )
-    } else {
-        a.boundary_margin
-    };
+    if a.boundary_margin.is_some() {
+        config.sampling.boundary_margin = a.boundary_margin;
+    }
     config.sampling.strategy = match a.sampling {
         SamplingArg::Stratified => SamplingStrategy::Stratified,
         SamplingArg::Uniform => SamplingStrategy::Uniform,
@@ -412,11 +420,14 @@ fn filter_config(a: &LocalizeArgs, inputs: &CameraSequence) -> FilterConfig {
         config.sharpen = s;
     }
     config.sensor.contrast = !a.no_contrast;
-    config.sensor.early_reject = match (is_kitti, a.early_reject, a.every_ray) {
-        (_, _, true) => None,
-        (true, _, _) => Some(EarlyReject::STREET),
-        (false, on, _) => on.then(EarlyReject::default),
+    config.sensor.early_reject = match (a.early_reject, a.every_ray) {
+        (_, true) => None,
+        (true, _) => base.sensor.early_reject.or(Some(EarlyReject::default())),
+        (false, false) => base.sensor.early_reject,
     };
+    if let Some(m) = a.miss_score {
+        config.sensor.miss_score = m;
+    }
     if a.recovery {
         config.recovery = Some(mcl::recovery::RecoveryParams::default());
     }
@@ -700,6 +711,12 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             } else {
                 ""
             }
+        );
+    }
+    if inputs.layout() == Layout::Kitti {
+        println!(
+            "rays that hit nothing score {} (the street default; --miss-score sets it)",
+            filter_config(&a, &inputs).sensor.miss_score
         );
     }
     println!(

@@ -16,8 +16,7 @@ use super::run::{RunSpec, Start};
 use super::sequence::BenchSequence;
 use crate::geometry::{Intrinsics, Pose};
 use crate::map::{FeatureDb, GridSpec, Integrator, LanguageMap};
-use crate::mcl::sampling::STREET_BOUNDARY_MARGIN;
-use crate::mcl::{EarlyReject, FilterConfig, MotionMode, SensorModel};
+use crate::mcl::{FilterConfig, SensorModel};
 use crate::plot::{self, FloorPlan, TrajectoryPanel};
 use crate::raycast::EmbreeCaster;
 use crate::sim::dataset::{kitti00_camera_from_velodyne, kitti00_camera2};
@@ -330,19 +329,11 @@ pub struct Table4Params {
 }
 
 impl Table4Params {
-    /// The paper's outdoor filter: 4096 rays, road motion (planar noise
-    /// plus a little height, pitch and roll: the road climbs and pitches;
-    /// README, "Outdoor": planar, full and road measured), the street's
-    /// boundary margin ([`STREET_BOUNDARY_MARGIN`]: none) and two-pass
-    /// likelihoods with the street split ([`EarlyReject::STREET`]; `--set
-    /// sensor.early_reject=null` casts every pixel for every particle).
+    /// The paper's outdoor filter: [`FilterConfig::street`] (`--set
+    /// sensor.early_reject=null` casts every pixel for every particle,
+    /// `--set sensor.miss_score=0` scores misses as indoors).
     pub fn filter_default() -> FilterConfig {
-        let mut config = FilterConfig::default();
-        config.sampling.rays = 4096;
-        config.sampling.boundary_margin = Some(STREET_BOUNDARY_MARGIN);
-        config.motion.mode = MotionMode::Road;
-        config.sensor.early_reject = Some(EarlyReject::STREET);
-        config
+        FilterConfig::street()
     }
 }
 
@@ -752,7 +743,9 @@ mod tests {
         assert_eq!(street.sampling.margin_cells(1241), 0);
         assert_eq!(FilterConfig::default().sampling.margin_cells(1241), 2);
         assert_eq!(street.sampling.rays, 4096);
-        assert_eq!(street.motion.mode, MotionMode::Road);
+        assert_eq!(street.motion.mode, crate::mcl::MotionMode::Road);
+        assert_eq!(street.sensor.miss_score, 0.5);
+        assert_eq!(FilterConfig::default().sensor.miss_score, 0.0);
     }
 
     #[test]

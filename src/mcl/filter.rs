@@ -63,6 +63,26 @@ impl Default for FilterConfig {
     }
 }
 
+impl FilterConfig {
+    /// The filter for a car's camera on streets (KITTI camera 2, the
+    /// paper's outdoor setting): 4096 rays, road motion (planar noise plus
+    /// a little height, pitch and roll: the road climbs and pitches),
+    /// no boundary margin ([`super::sampling::STREET_BOUNDARY_MARGIN`]),
+    /// two-pass likelihoods with the street split
+    /// ([`super::sensor::EarlyReject::STREET`]) and misses scored
+    /// [`super::sensor::STREET_MISS_SCORE`]. `omcl localize` on a KITTI
+    /// folder and `omcl bench table4` start from it.
+    pub fn street() -> Self {
+        let mut config = FilterConfig::default();
+        config.sampling.rays = 4096;
+        config.sampling.boundary_margin = Some(super::sampling::STREET_BOUNDARY_MARGIN);
+        config.motion.mode = super::motion::MotionMode::Road;
+        config.sensor.early_reject = Some(super::sensor::EarlyReject::STREET);
+        config.sensor.miss_score = super::sensor::STREET_MISS_SCORE;
+        config
+    }
+}
+
 /// Wall-clock time of each stage of a step.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct StepTimings {
@@ -143,6 +163,12 @@ impl Filter {
             return Err(MclError::BadParam {
                 name: "sharpen",
                 why: format!("must be finite and >= 0, got {}", config.sharpen),
+            });
+        }
+        if !config.sensor.miss_score.is_finite() {
+            return Err(MclError::BadParam {
+                name: "sensor.miss_score",
+                why: format!("must be finite, got {}", config.sensor.miss_score),
             });
         }
         let width = config.sampling.boundary_margin_width;
