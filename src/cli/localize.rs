@@ -715,8 +715,13 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     }
     if inputs.layout() == Layout::Kitti {
         println!(
-            "rays that hit nothing score {} (the street default; --miss-score sets it)",
-            filter_config(&a, &inputs).sensor.miss_score
+            "rays that hit nothing score {}{}",
+            filter_config(&a, &inputs).sensor.miss_score,
+            if a.miss_score.is_some() {
+                " (--miss-score)"
+            } else {
+                " (the street default; --miss-score sets it)"
+            }
         );
     }
     println!(

@@ -22,7 +22,7 @@
 //!
 //! | parameter | default | what it does |
 //! |---|---|---|
-//! | `SensorParams::miss_score` | 0 | score of a ray that hits nothing (a ray out of a window or beyond `max_range`); 0 = no evidence, negative penalizes poses looking out of the map |
+//! | `SensorParams::miss_score` | 0 (streets 0.5) | score of a ray that hits nothing (a ray out of a window, into the sky or beyond `max_range`); with contrast scoring a hit scores 0 to 1, so 0 ranks a miss with the worst hit and negative penalizes poses looking out of the map; streets ([`FilterConfig::street`]) score misses 0.5, see [`sensor::STREET_MISS_SCORE`] |
 //! | `SensorParams::max_range` | inf | rays longer than this (m) count as misses |
 //! | `FilterConfig::sharpen` | 80 | exponent on `max(L, 0)`; 1 is the paper's eq. 2. RMSE 0.25 m at 1, 0.15 at 10, 0.10 at 40, 0.087 at 80, 0.10 at 160 |
 //! | `ResamplePolicy::ess_fraction` | 0.5 | resample when ESS < fraction x n (>= 1: every step, as the authors); with sharpening 40+ it made no difference, without sharpening every step was better (0.18 vs 0.25 m) |
