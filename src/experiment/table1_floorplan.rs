@@ -55,7 +55,7 @@ use crate::eval::ErrorStats;
 use crate::eval::localization::CompletionRule;
 use crate::map::{FloorPlan, FloorPlanParams, LanguageMap};
 use crate::mcl::baselines::Baseline;
-use crate::mcl::{FilterConfig, FrameFeatures, MotionMode};
+use crate::mcl::{FilterConfig, FrameFeatures, MotionMode, StepTimings};
 use crate::raycast::{PlanarCaster, RayCaster};
 use crate::sim::embeddings::ClassEmbeddings;
 use crate::sim::features::Preset;
@@ -308,7 +308,8 @@ pub const OUT_OF_BAND_WORDS: [&str; 3] = ["floor", "ceiling", "rug"];
 /// Tracks `seq` on the floor plan `plan` with OMCL (the paper's local
 /// start, planar motion forced), features of `preset`, the pixels
 /// [`TwoDParams`] and [`OUT_OF_BAND_WORDS`] exclude silenced
-/// ([`InBandFeatures`]). Returns the run and its total cast time, seconds.
+/// ([`InBandFeatures`]). Returns the run and its steps' summed stage
+/// times.
 pub fn track_2d(
     seq: &SimSequence,
     plan: &PlanBench,
@@ -316,7 +317,7 @@ pub fn track_2d(
     filter: FilterConfig,
     particles: usize,
     two_d: &TwoDParams,
-) -> Result<(RunResult, f64), ExperimentError> {
+) -> Result<(RunResult, StepTimings), ExperimentError> {
     let (caster, map): (Arc<dyn RayCaster>, _) = if two_d.heights {
         (plan.sighted.clone(), &plan.sighted_map)
     } else {
@@ -329,8 +330,8 @@ pub fn track_2d(
 
 /// The session loop of [`super::run::run`] from the paper's local start with
 /// planar motion, on any map and caster, optionally with the 2-D mode's
-/// pixel selection; returns the run and its total cast time, seconds (for
-/// comparing 2-D and 3-D casting on the same sequence).
+/// pixel selection; returns the run and its steps' summed stage times (for
+/// comparing 2-D and 3-D steps on the same sequence).
 pub fn track_with(
     seq: &SimSequence,
     map: &LanguageMap,
@@ -339,7 +340,7 @@ pub fn track_with(
     filter: FilterConfig,
     particles: usize,
     two_d: Option<&TwoDParams>,
-) -> Result<(RunResult, f64), ExperimentError> {
+) -> Result<(RunResult, StepTimings), ExperimentError> {
     use crate::session::{self, Session, SessionConfig, SharedMap};
     use std::time::Instant;
     let model = feature_model(seq, preset, 0x10c);
@@ -378,7 +379,7 @@ pub fn track_with(
     let rho = two_d.and_then(|t| t.silence_rho);
     let rows = super::run::class_rows(seq, map);
     let (mut estimates, mut step_seconds, mut encoder_seconds) = (vec![], vec![], vec![]);
-    let (mut rays, mut cast) = (0usize, 0.0f64);
+    let (mut rays, mut timings) = (0usize, StepTimings::default());
     let mut errors = Vec::new();
     for i in 0..seq.len() {
         let frame = seq.render(i);
@@ -407,7 +408,7 @@ pub fn track_with(
             .map_err(super::run::session_error)?
             .step;
         step_seconds.push(t.elapsed().as_secs_f64());
-        cast += r.timings.cast.as_secs_f64();
+        timings += r.timings;
         rays += r.n_rays;
         errors.push((r.estimate.translation.vector - seq.poses()[i].translation.vector).norm());
         estimates.push(r.estimate);
@@ -426,7 +427,7 @@ pub fn track_with(
             map_rows: map.db().len(),
             estimates,
         },
-        cast,
+        timings,
     ))
 }
 
@@ -512,7 +513,9 @@ pub fn omcl_rows(
                 seed,
                 ..spec.filter
             };
-            let (r, cast) = track_2d(&seq, &plan, v.localize, filter, spec.particles, &spec.two_d)?;
+            let (r, t2) = track_2d(&seq, &plan, v.localize, filter, spec.particles, &spec.two_d)?;
+            let steps = r.step_seconds.len();
+            let cast_ms = |t: &StepTimings| 1e3 * t.cast.as_secs_f64() / steps.max(1) as f64;
             progress(&format!(
                 "seed {seed} {}: 2-D RMSE {:.3} m, {} columns, K {}, {:.1} steps/s, cast {:.1} ms a step",
                 v.name,
@@ -520,10 +523,10 @@ pub fn omcl_rows(
                 plan.plan.len(),
                 plan.plan.db().len(),
                 r.fps(),
-                1e3 * cast / r.step_seconds.len().max(1) as f64
+                cast_ms(&t2)
             ));
             if spec.compare_3d && k == 0 && seed == spec.seeds.start {
-                let (r3, cast3) = track_with(
+                let (r3, t3) = track_with(
                     &seq,
                     &map.map,
                     map.caster.clone(),
@@ -533,16 +536,18 @@ pub fn omcl_rows(
                     None,
                 )?;
                 progress(&format!(
-                    "speed, seed {seed} {}, {} particles: 3-D (RMSE {:.3} m) {:.1} steps/s, cast {:.1} ms a step; 2-D {:.1} steps/s, cast {:.1} ms a step ({:.1}x faster step, {:.1}x faster cast)",
+                    "speed, seed {seed} {}, {} particles: 3-D (RMSE {:.3} m) {:.1} steps/s, cast {:.1} ms a step; 2-D {:.1} steps/s, cast {:.1} ms a step ({:.1}x faster step, {:.1}x faster cast)\n  3-D step: {}\n  2-D step: {}",
                     v.name,
                     spec.particles,
                     r3.stats.rmse,
                     r3.fps(),
-                    1e3 * cast3 / r3.step_seconds.len().max(1) as f64,
+                    cast_ms(&t3),
                     r.fps(),
-                    1e3 * cast / r.step_seconds.len().max(1) as f64,
+                    cast_ms(&t2),
                     r.fps() / r3.fps(),
-                    cast3 / cast.max(1e-12)
+                    cast_ms(&t3) / cast_ms(&t2).max(1e-9),
+                    t3.per_step_ms(r3.step_seconds.len()),
+                    t2.per_step_ms(steps),
                 ));
             }
             if drawn {

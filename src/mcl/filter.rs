@@ -97,6 +97,32 @@ pub struct StepTimings {
     pub update: Duration,
 }
 
+impl std::ops::AddAssign for StepTimings {
+    fn add_assign(&mut self, o: Self) {
+        self.predict += o.predict;
+        self.features += o.features;
+        self.weigh += o.weigh;
+        self.cast += o.cast;
+        self.update += o.update;
+    }
+}
+
+impl StepTimings {
+    /// `features / predict / weigh (cast) / update` in milliseconds, each
+    /// divided by `steps` (the mean step of a sum of `steps` steps).
+    pub fn per_step_ms(&self, steps: usize) -> String {
+        let ms = |d: Duration| 1e3 * d.as_secs_f64() / steps.max(1) as f64;
+        format!(
+            "features {:.1} / predict {:.1} / weigh {:.1} (cast {:.1}) / update {:.1} ms",
+            ms(self.features),
+            ms(self.predict),
+            ms(self.weigh),
+            ms(self.cast),
+            ms(self.update)
+        )
+    }
+}
+
 /// The outcome of one step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepReport {

@@ -276,6 +276,148 @@ fn every_ray_order_gives_the_same_likelihoods_to_the_bit() {
     }
 }
 
+/// The planar caster, with or without its fan path, counting the batches
+/// cast each way.
+struct Counted {
+    inner: crate::raycast::PlanarCaster,
+    fans: bool,
+    calls: [std::sync::atomic::AtomicUsize; 2],
+}
+
+impl Counted {
+    fn new(inner: crate::raycast::PlanarCaster, fans: bool) -> Arc<Self> {
+        Arc::new(Counted {
+            inner,
+            fans,
+            calls: Default::default(),
+        })
+    }
+    /// Batches cast as fans and as rays.
+    fn calls(&self) -> [usize; 2] {
+        self.calls
+            .each_ref()
+            .map(|c| c.load(std::sync::atomic::Ordering::Relaxed))
+    }
+}
+
+impl RayCaster for Counted {
+    fn cast_serial(&self, rays: &[crate::geometry::Ray], hits: &mut [crate::raycast::Hit]) {
+        self.calls[1].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.inner.cast_serial(rays, hits)
+    }
+    fn cast_fans(
+        &self,
+        origin: [f32; 3],
+        fans: &[crate::raycast::Fan],
+        slopes: &[f32],
+        t_max: &[f32],
+        hits: &mut [crate::raycast::Hit],
+    ) -> bool {
+        self.calls[0].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.fans && self.inner.cast_fans(origin, fans, slopes, t_max, hits)
+    }
+    fn wants_column_order(&self) -> bool {
+        true
+    }
+    fn len(&self) -> usize {
+        self.inner.len()
+    }
+}
+
+/// The rooms as a floor plan: one column per occupied (i, j) with the
+/// vertical extent of its voxels, the leaf of its lowest voxel above the
+/// floor layer; floor at the layer above the lowest, ceiling at the top.
+fn rooms_plan(w: &World) -> (crate::raycast::PlanarCaster, Vec<u32>) {
+    let r = w.map.grid().resolution as f32;
+    let cells = w.map.cells();
+    let z_lo = cells.iter().map(|c| c[2]).min().unwrap();
+    let mut columns: std::collections::BTreeMap<(i32, i32), (usize, i32, i32)> = Default::default();
+    for (k, c) in cells.iter().enumerate().filter(|(_, c)| c[2] > z_lo) {
+        let e = columns.entry((c[0], c[1])).or_insert((k, c[2], c[2]));
+        e.1 = e.1.min(c[2]);
+        e.2 = e.2.max(c[2]);
+    }
+    let plan: Vec<_> = columns.keys().map(|&(i, j)| [i, j, 0]).collect();
+    let extents: Vec<[f32; 2]> = columns
+        .values()
+        .map(|&(_, b, t)| [b as f32 * r, (t + 1) as f32 * r])
+        .collect();
+    let rows: Vec<u32> = columns.values().map(|&(k, _, _)| w.map.rows()[k]).collect();
+    let top = cells.iter().map(|c| c[2]).max().unwrap() as f32 * r;
+    let caster = crate::raycast::PlanarCaster::new(r, &plan).with_heights(
+        &extents,
+        [(z_lo + 1) as f32 * r, top],
+        [crate::raycast::Hit::MISS; 2],
+    );
+    (caster, rows)
+}
+
+/// On a floor plan the sensor hands a level camera's rays to the planar
+/// caster as fans (one walk an image column, no `Ray` made); the
+/// likelihoods equal those of the same caster fed `Ray`s. Tilted cameras
+/// take the ray path.
+#[test]
+fn fans_score_as_rays_do_on_a_floor_plan() {
+    let w = world();
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let (truth, pixels, table) = sampled_view(&w, 300, &mut rng);
+    let (plan, rows) = rooms_plan(&w);
+    let model = |caster: Arc<dyn RayCaster>, max_range: f32| {
+        SensorModel::new(
+            caster,
+            rows.clone().into(),
+            w.map.grid().origin,
+            intrinsics(),
+            SensorParams {
+                max_range,
+                ..Default::default()
+            },
+        )
+    };
+    let level = near_and_far(&truth, 37, &mut rng);
+    let tilt = UnitQuaternion::from_euler_angles(0.0, 0.0, 0.2);
+    let tilted: Vec<Particle> = level
+        .iter()
+        .map(|p| {
+            let pose = Pose::from_parts(p.pose.translation, p.pose.rotation * tilt);
+            Particle::new(pose, 1.0)
+        })
+        .collect();
+    for max_range in [f32::INFINITY, 2.0] {
+        for (ps, is_level) in [(&level, true), (&tilted, false)] {
+            let (with, without) = (
+                Counted::new(plan.clone(), true),
+                Counted::new(plan.clone(), false),
+            );
+            let fans = model(with.clone(), max_range)
+                .likelihoods(ps, &pixels, &table)
+                .to_vec();
+            let rays = model(without.clone(), max_range)
+                .likelihoods(ps, &pixels, &table)
+                .to_vec();
+            // Level: every particle cast as fans (37 particles, 3 groups
+            // of RAY_GROUP), no ray made; tilted: no fan offered.
+            if is_level {
+                assert_eq!(with.calls(), [37, 0]);
+                assert_eq!(without.calls(), [3, 3]);
+            } else {
+                assert_eq!(with.calls(), [0, 3]);
+            }
+            // (A ray through a column's corner may pick either column.)
+            for (a, b) in fans.iter().zip(&rays) {
+                assert!((a - b).abs() < 0.004, "{max_range}: {fans:?} vs {rays:?}");
+            }
+            // Not all alike: the particles see different columns.
+            let (lo, hi) = fans
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &x| {
+                    (a.min(x), b.max(x))
+                });
+            assert!(hi > lo + 0.05, "{fans:?}");
+        }
+    }
+}
+
 #[test]
 fn pixel_major_is_chosen_for_gathered_particles_only() {
     let k = intrinsics();

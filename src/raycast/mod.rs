@@ -57,6 +57,15 @@ impl Hit {
     }
 }
 
+/// Rays from one origin whose directions share the horizontal part `dir`
+/// (see [`RayCaster::cast_fans`]): the rays `start..end` of a batch.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fan {
+    pub dir: [f32; 2],
+    pub start: u32,
+    pub end: u32,
+}
+
 /// Slab test: the part of the ray parameter interval `t` inside the box
 /// `[lo, hi]` on the axes `lo` has (origin `o`, direction `d`), or `None`
 /// when the ray misses it. On an axis the ray runs parallel to, it misses
@@ -113,6 +122,25 @@ pub trait RayCaster: Send + Sync {
     /// once. The filter's sensor model then casts particle-major in that
     /// order. Default: `false`.
     fn wants_column_order(&self) -> bool {
+        false
+    }
+
+    /// Casts fans of rays from `origin` (grid frame): ray `j` of fan `f`
+    /// (`f.start <= j < f.end`) is `origin + t (f.dir[0], f.dir[1],
+    /// slopes[j])` for `t` in `[0, t_max[j]]`, and its hit goes to
+    /// `hits[j]` (`t` in those units). A level camera's pixels of one image
+    /// column are one fan: their directions share the horizontal part. The
+    /// default has no fan path: it returns `false` and writes nothing (the
+    /// caller then casts [`Ray`]s); the planar caster walks each fan once.
+    /// Panics if `slopes`, `t_max` and `hits` differ in length.
+    fn cast_fans(
+        &self,
+        _origin: [f32; 3],
+        _fans: &[Fan],
+        _slopes: &[f32],
+        _t_max: &[f32],
+        _hits: &mut [Hit],
+    ) -> bool {
         false
     }
 
