@@ -321,6 +321,30 @@ fn streets_default_to_two_pass_likelihoods_and_every_ray_turns_them_off() {
         "{}",
         two.text()
     );
+    assert!(
+        two.stdout.contains("256 particles x 1024 rays a frame\n"),
+        "{}",
+        two.text()
+    );
+    // Without --particles and --rays: the paper's street setting.
+    let out = f.dir.path().join("defaults.txt");
+    let args = [
+        "localize",
+        "--map",
+        s(&f.map),
+        "--sequence",
+        s(&f.seq),
+        "-o",
+        s(&out),
+    ];
+    let r = omcl(&[&args[..], &["--frames", "3", "--seed", "5"]].concat());
+    assert!(r.ok(), "{}", r.text());
+    assert!(
+        r.stdout
+            .contains("512 particles x 4096 rays a frame (the paper's street setting"),
+        "{}",
+        r.text()
+    );
     let (every, every_mean) = run("every", &["--every-ray"]);
     assert!(!every.stdout.contains("two-pass"), "{}", every.text());
     eprintln!("translation mean: two-pass {two_mean} m, every ray {every_mean} m");

@@ -165,7 +165,7 @@ fn street_table4(a: &BenchArgs, table: &ClassEmbeddings) -> anyhow::Result<Strin
         odometry: a.street.odometry.split(',').map(str::to_string).collect(),
         first_seed: a.plan.first_seed,
         sequences: a.plan.sequences,
-        particles: a.plan.particles.unwrap_or(512),
+        particles: a.plan.particles.unwrap_or(omcl::mcl::STREET_PARTICLES),
         filter: {
             let mut f = Table4Params::filter_default();
             if let Some(r) = a.plan.rays {

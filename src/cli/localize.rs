@@ -143,12 +143,15 @@ pub struct LocalizeArgs {
     /// 5 cm).
     #[arg(long, default_value_t = PromptParams::default().k)]
     pub prompt_k: f64,
-    /// Number of particles (paper: 1024).
-    #[arg(long, default_value_t = 1024)]
-    pub particles: usize,
-    /// Sampled pixels per frame before duplicates are dropped (paper: 2048).
-    #[arg(long, default_value_t = 2048)]
-    pub rays: usize,
+    /// Number of particles [default: 1024, the paper's indoor setting; 512
+    /// on a KITTI sequence, its street setting].
+    #[arg(long)]
+    pub particles: Option<usize>,
+    /// Sampled pixels per frame before duplicates are dropped [default:
+    /// 2048, the paper's indoor setting; 4096 on a KITTI sequence, its
+    /// street setting].
+    #[arg(long)]
+    pub rays: Option<usize>,
     /// Ray sampling strategy.
     #[arg(long, value_enum, default_value = "stratified")]
     pub sampling: SamplingArg,
@@ -372,6 +375,16 @@ fn start(
     })
 }
 
+/// `--particles`, or the default: the paper's street setting on KITTI
+/// sequences, its indoor one elsewhere.
+fn particle_count(a: &LocalizeArgs, is_kitti: bool) -> usize {
+    a.particles.unwrap_or(if is_kitti {
+        omcl::mcl::STREET_PARTICLES
+    } else {
+        1024
+    })
+}
+
 /// The filter's configuration from the options (KITTI sequences default to
 /// road motion; 7-Scenes to full 6-DoF motion with the odometry's noise).
 fn filter_config(a: &LocalizeArgs, inputs: &CameraSequence) -> FilterConfig {
@@ -386,7 +399,9 @@ fn filter_config(a: &LocalizeArgs, inputs: &CameraSequence) -> FilterConfig {
         seed: a.seed,
         ..base
     };
-    config.sampling.rays = a.rays;
+    if let Some(r) = a.rays {
+        config.sampling.rays = r;
+    }
     if a.boundary_margin.is_some() {
         config.sampling.boundary_margin = a.boundary_margin;
     }
@@ -577,7 +592,7 @@ fn open_session(
     };
     let config = SessionConfig {
         intrinsics: k,
-        particles: a.particles,
+        particles: particle_count(a, is_kitti),
         filter: filter_config(a, inputs),
         floor: FloorParams::default(),
         floor_feature,
@@ -700,20 +715,31 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     if let (Some(p), Some(mt)) = (&a.metrics, &metric) {
         write_metrics(p, d, n, mt, n as f64 / filter_s.max(1e-12))?;
     }
+    let is_kitti = inputs.layout() == Layout::Kitti;
+    println!(
+        "{} particles x {} rays a frame{}",
+        particle_count(&a, is_kitti),
+        filter_config(&a, &inputs).sampling.rays,
+        match (is_kitti, a.particles.is_none() && a.rays.is_none()) {
+            (true, true) => " (the paper's street setting; --particles, --rays)",
+            (false, true) => " (the paper's indoor setting; --particles, --rays)",
+            _ => "",
+        }
+    );
     if let Some(e) = filter_config(&a, &inputs).sensor.early_reject {
         println!(
             "two-pass likelihoods: one pixel in {} first, the rest for particles within {:.0} % \
              of the best{}",
             e.every,
             100.0 * (1.0 - e.ratio),
-            if inputs.layout() == Layout::Kitti {
+            if is_kitti {
                 " (the street default; --every-ray casts every pixel)"
             } else {
                 ""
             }
         );
     }
-    if inputs.layout() == Layout::Kitti {
+    if is_kitti {
         println!(
             "rays that hit nothing score {}{}",
             filter_config(&a, &inputs).sensor.miss_score,

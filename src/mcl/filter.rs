@@ -63,9 +63,14 @@ impl Default for FilterConfig {
     }
 }
 
+/// Particles of the filter on streets (the paper's outdoor setting, with
+/// [`FilterConfig::street`]'s 4096 rays): `omcl localize` on a KITTI
+/// folder and `omcl bench table4` default to it.
+pub const STREET_PARTICLES: usize = 512;
+
 impl FilterConfig {
     /// The filter for a car's camera on streets (KITTI camera 2, the
-    /// paper's outdoor setting): 4096 rays, road motion (planar noise plus
+    /// paper's outdoor setting, with [`STREET_PARTICLES`]): 4096 rays, road motion (planar noise plus
     /// a little height, pitch and roll: the road climbs and pitches),
     /// no boundary margin ([`super::sampling::STREET_BOUNDARY_MARGIN`]),
     /// two-pass likelihoods with the street split
