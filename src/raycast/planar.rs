@@ -545,8 +545,8 @@ impl RayCaster for PlanarCaster {
     }
 
     /// One walk a fan, then each ray checks the listed columns against
-    /// its own heights; no [`Ray`] is made unless a walk lists
-    /// [`MAX_LISTED`] columns without ending.
+    /// its own heights; no [`Ray`] is made unless a walk lists 64 columns
+    /// without ending.
     fn cast_fans(
         &self,
         origin: [f32; 3],
