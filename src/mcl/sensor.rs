@@ -634,27 +634,33 @@ struct FanLayout {
     fans: Vec<(f32, u32, u32)>,
     /// Each pixel's `y`.
     y: Vec<f32>,
-    /// Each pixel's `1 / |(x, y, 1)|` (metres a fan unit of `t`).
-    inv_norm: Vec<f32>,
+    /// Each pixel's largest `t` in fan units (`(x, y, 1)` directions): the
+    /// ray length limit over `|(x, y, 1)|`.
+    t_max: Vec<f32>,
 }
 
 impl FanLayout {
-    fn of(dirs: &[Vector3<f32>]) -> Self {
+    /// The layout of `dirs`, rays limited to `t_max` metres.
+    fn of(dirs: &[Vector3<f32>], t_max: f32) -> Self {
         let mut fans: Vec<(f32, u32, u32)> = Vec::new();
-        let (mut y, mut inv_norm) = (
+        let (mut y, mut t_lim) = (
             Vec::with_capacity(dirs.len()),
             Vec::with_capacity(dirs.len()),
         );
         for (j, d) in dirs.iter().enumerate() {
             let x = d.x / d.z;
             y.push(d.y / d.z);
-            inv_norm.push(d.z);
+            t_lim.push(t_max * d.z);
             match fans.last_mut() {
                 Some(f) if (f.0 - x).abs() <= 1e-6 * (1.0 + x.abs()) => f.2 = j as u32 + 1,
                 _ => fans.push((x, j as u32, j as u32 + 1)),
             }
         }
-        FanLayout { fans, y, inv_norm }
+        FanLayout {
+            fans,
+            y,
+            t_max: t_lim,
+        }
     }
 }
 
@@ -665,7 +671,7 @@ impl GroupCast<'_> {
     /// cache, instead of an np x nj ray array (58 MB at 1024 x 1800)
     /// written, cast and read back.
     fn sums(&self, ps: &[Particle], dirs: &[Vector3<f32>], cols: &[u32]) -> Vec<f32> {
-        let layout = self.try_fans.then(|| FanLayout::of(dirs));
+        let layout = self.try_fans.then(|| FanLayout::of(dirs, self.t_max));
         let pass = GroupCast {
             dirs,
             cols,
@@ -749,16 +755,12 @@ impl GroupCast<'_> {
         let Some(layout) = self.fans else {
             return false;
         };
-        if self.pixel_major {
-            return false;
-        }
         let frames = self.frames(group);
         let level = |r: &Matrix3<f32>| r[(0, 1)].powi(2) + r[(1, 1)].powi(2) <= 1e-12;
         if !frames.iter().all(|(r, _)| level(r)) {
             return false;
         }
         let nj = self.dirs.len();
-        let t_max: Vec<f32> = layout.inv_norm.iter().map(|&n| self.t_max * n).collect();
         let (mut fans, mut slopes) = (Vec::with_capacity(layout.fans.len()), vec![0.0f32; nj]);
         for ((r, o), hits) in frames.iter().zip(hits.chunks_exact_mut(nj)) {
             let (c0, c2, gz) = (r.column(0), r.column(2), r[(2, 1)]);
@@ -777,7 +779,10 @@ impl GroupCast<'_> {
                     *m = h.z + y * gz;
                 }
             }
-            if !self.caster.cast_fans(*o, &fans, &slopes, &t_max, hits) {
+            if !self
+                .caster
+                .cast_fans(*o, &fans, &slopes, &layout.t_max, hits)
+            {
                 return false;
             }
         }

@@ -159,9 +159,15 @@ impl PlanarCaster {
     /// (the floor or ceiling exit, when the window ends it); `None` if
     /// empty.
     fn vertical_range(&self, ray: &Ray) -> Option<(f64, f64, u32)> {
-        let (oz, dz) = (ray.origin[2] as f64, ray.dir[2] as f64);
+        self.window_range(ray.origin[2], ray.dir[2], ray.t_min, ray.t_max)
+    }
+
+    /// [`PlanarCaster::vertical_range`] of a ray from height `oz` with
+    /// vertical direction `dz` over `[t_min, t_max]`.
+    fn window_range(&self, oz: f32, dz: f32, t_min: f32, t_max: f32) -> Option<(f64, f64, u32)> {
+        let (oz, dz) = (oz as f64, dz as f64);
         let (zl, zh) = (self.window[0] as f64, self.window[1] as f64);
-        let (mut a, mut b) = (ray.t_min as f64, ray.t_max as f64);
+        let (mut a, mut b) = (t_min as f64, t_max as f64);
         let mut exit = Hit::MISS;
         if dz == 0.0 {
             if oz < zl || oz > zh {
@@ -572,13 +578,7 @@ impl RayCaster for PlanarCaster {
             let mut reach = 0.0f64;
             window.clear();
             window.extend(slopes[s..e].iter().zip(&t_max[s..e]).map(|(&m, &tm)| {
-                let ray = Ray {
-                    origin,
-                    dir: [fan.dir[0], fan.dir[1], m],
-                    t_min: 0.0,
-                    t_max: tm,
-                };
-                let range = self.vertical_range(&ray);
+                let range = self.window_range(origin[2], m, 0.0, tm);
                 if let Some((_, b, _)) = range {
                     reach = reach.max(b);
                 }
