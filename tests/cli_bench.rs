@@ -164,6 +164,34 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
     let (o, text) = bench(&["table1", "--show-config", "--set", "sharpen=\"x\""]);
     assert!(!o.status.success());
     assert!(text.contains("invalid"), "{text}");
+    // Each experiment shows the filter it starts from: the 6-DoF block's
+    // has full motion noise and two layers, which `--set` can turn off;
+    // table4's is the street filter; the indoor tables have one layer.
+    let config = |args: &[&str]| -> serde_json::Value {
+        let (o, text) = bench(args);
+        assert!(o.status.success(), "{text}");
+        serde_json::from_str(&String::from_utf8_lossy(&o.stdout)).unwrap()
+    };
+    let v = config(&["table1-sixdof", "--show-config"]);
+    assert_eq!(v["motion"]["mode"], "Full", "{v}");
+    assert_eq!(v["anneal"]["layers"], 2, "{v}");
+    let v = config(&[
+        "table1-sixdof",
+        "--show-config",
+        "--set",
+        "anneal=null",
+        "--set",
+        "sixdof.height_m=0.3",
+    ]);
+    assert!(v["anneal"].is_null(), "{v}");
+    let v = config(&["table4", "--show-config"]);
+    assert_eq!(v["motion"]["mode"], "Road", "{v}");
+    assert_eq!(v["sampling"]["rays"], 4096, "{v}");
+    let v = config(&["table1", "--show-config"]);
+    assert!(
+        v["anneal"].is_null() && v["motion"]["mode"] == "Planar",
+        "{v}"
+    );
 }
 
 /// Table V and both ablations in one call (maps shared), on a tiny

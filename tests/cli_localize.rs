@@ -340,6 +340,36 @@ fn early_rejection_tracks_like_the_plain_filter() {
     );
 }
 
+/// `--layers 2` (progressive correction) runs the same sequence as
+/// closely as the plain filter, says so, and a count of 0 is refused
+/// before anything is written.
+#[test]
+fn layers_track_like_the_plain_filter_and_zero_is_refused() {
+    let f = Fixture::new();
+    let frames = FRAMES.to_string();
+    let out = f.dir.path().join("layers.txt");
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &out,
+        &["--frames", &frames, "--layers", "2"],
+    );
+    assert!(r.ok(), "{}", r.text());
+    assert!(
+        r.text().contains("2 layers of progressive correction"),
+        "{}",
+        r.text()
+    );
+    let errors = errors_against_truth(&f, &out);
+    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+    assert!(mean < 0.5, "mean error {mean:.3} m: {errors:.3?}");
+    let out = f.dir.path().join("zero.txt");
+    let r = f.localize(&f.map, &f.seq, &out, &["--layers", "0"]);
+    assert!(!r.ok());
+    assert!(r.text().contains("--layers"), "{}", r.text());
+    assert!(!out.exists());
+}
+
 #[test]
 fn a_missing_frame_is_an_error_naming_the_file() {
     let f = Fixture::new();

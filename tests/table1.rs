@@ -13,7 +13,7 @@ use omcl::mcl::FilterConfig;
 use omcl::mcl::baselines::Baseline;
 
 const BOUND_2D: f64 = 0.5;
-const BOUND_6DOF: f64 = 0.5;
+const BOUND_6DOF: f64 = 0.35;
 const BOUND_HEIGHT: f64 = 0.2;
 use omcl::sim::features::Preset;
 
@@ -79,9 +79,13 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
     }
 }
 
-/// OMCL_GT with the full 6-DoF motion model on sequence 1 with height,
-/// pitch and roll changes and 6-DoF odometry noise: the 3-D APE stays
-/// bounded and the estimated height follows the true one.
+/// OMCL_GT with the 6-DoF filter ([`FilterConfig::six_dof`]: full motion
+/// noise, two layers of progressive correction) on sequence 1 with
+/// height, pitch and roll changes and 6-DoF odometry noise: the 3-D APE
+/// stays bounded, the estimated height follows the true one, and the same
+/// run without the second layer (the plain filter, each frame weighed
+/// once) is farther off: the six-dimensional cloud is too sparse for the
+/// sharpened likelihood without it.
 #[test]
 fn six_dof_omcl_tracks_height_and_pitch_changes() {
     let table = builtin_table().unwrap();
@@ -95,14 +99,28 @@ fn six_dof_omcl_tracks_height_and_pitch_changes() {
     .unwrap();
     let filter = FilterConfig {
         seed: 1,
-        ..FilterConfig::default()
+        ..FilterConfig::six_dof()
     };
     let r = track_6dof(&seq, &map, &TABLE1_VARIANTS[0], filter, 512).unwrap();
-    eprintln!("6-DoF OMCL_GT RMSE {:.3} m", r.stats.rmse);
+    let plain = FilterConfig {
+        anneal: None,
+        ..filter
+    };
+    let p = track_6dof(&seq, &map, &TABLE1_VARIANTS[0], plain, 512).unwrap();
+    eprintln!(
+        "6-DoF OMCL_GT RMSE {:.3} m with two layers, {:.3} m with one",
+        r.stats.rmse, p.stats.rmse
+    );
     assert!(
         r.stats.rmse < BOUND_6DOF,
         "6-DoF RMSE {:.3} m",
         r.stats.rmse
+    );
+    assert!(
+        r.stats.rmse < p.stats.rmse,
+        "two layers {:.3} m, one {:.3} m",
+        r.stats.rmse,
+        p.stats.rmse
     );
     let dz: f64 = r
         .estimates

@@ -154,7 +154,10 @@ pub struct PlanArgs {
     pub world: omcl::sim::indoor::WorldKind,
     /// Override any filter parameter: `--set sharpen=40 --set
     /// sensor.miss_score=0.2` (paths into the filter configuration's JSON,
-    /// printed by `--show-config`; VALUE is JSON).
+    /// printed by `--show-config`; VALUE is JSON). table1-floorplan and
+    /// table1-sixdof also take `plan.*` and `two_d.*` (the floor plan and
+    /// 2-D sensor) and `sixdof.*` (the 3-D block's sequences: `height_m`,
+    /// `pitch_deg`, `roll_deg`, `sigma_translation`, `sigma_rotation_deg`).
     #[arg(long = "set", value_name = "PATH=VALUE")]
     pub set: Vec<String>,
 }

@@ -13,6 +13,7 @@ use omcl::experiment::table1_floorplan::{self, BlockSpec};
 use omcl::map::FloorPlanParams;
 
 use super::bench_args::{BenchArgs, Experiment};
+use omcl::mcl::FilterConfig;
 
 /// `--export-frames DIR`: writes the 3-D block's sequences to `DIR` and
 /// runs nothing.
@@ -23,8 +24,13 @@ pub fn export(a: &BenchArgs, dir: &Path) -> anyhow::Result<()> {
          experiment alone"
     );
     let progress = |m: &str| eprintln!("{m}");
-    let dirs =
-        table1_6dof::export_block(&block_spec(a)?, &SixDofMotion::default(), dir, &progress)?;
+    let motion = block_overrides(&a.plan.set)?.sixdof;
+    let dirs = table1_6dof::export_block(
+        &block_spec(a, FilterConfig::six_dof())?,
+        &motion,
+        dir,
+        &progress,
+    )?;
     println!("wrote {} sequences to {}", dirs.len(), dir.display());
     Ok(())
 }
@@ -41,14 +47,15 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     let names = a.plan.variants.as_deref();
     let progress = |m: &str| eprintln!("{m}");
     if e.contains(&Experiment::Table1Floorplan) {
-        let b = table1_floorplan::block(&block_spec(a)?, names, &progress)?;
+        let b =
+            table1_floorplan::block(&block_spec(a, FilterConfig::default())?, names, &progress)?;
         write(a, "table1_floorplan", "2d", &b)?;
         println!("{}", b.markdown);
         ran = true;
     }
     if e.contains(&Experiment::Table1Sixdof) {
-        let motion = SixDofMotion::default();
-        let spec = block_spec(a)?;
+        let motion = block_overrides(&a.plan.set)?.sixdof;
+        let spec = block_spec(a, FilterConfig::six_dof())?;
         let odometry = a.sixdof.rgbd_odometry.as_deref();
         let b = table1_6dof::block(&spec, &motion, names, odometry, &progress)?;
         write(a, "table1_6dof", "6dof", &b)?;
@@ -58,21 +65,28 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     Ok(ran)
 }
 
-/// The block's own `--set` paths: `plan.band_min`, `plan.band_max` (the
-/// floor plan's height band, m) and `two_d.max_elevation_deg`,
+/// The blocks' own `--set` paths: `plan.band_min`, `plan.band_max` (the
+/// floor plan's height band, m), `two_d.max_elevation_deg`,
 /// `two_d.silence_rho`, `two_d.heights` (OMCL's 2-D pixel selection and
-/// sensor); every other path goes to the filter.
-fn block_overrides(
-    sets: &[String],
-) -> anyhow::Result<(FloorPlanParams, table1_floorplan::TwoDParams, Vec<String>)> {
-    #[derive(serde::Serialize, serde::Deserialize)]
-    struct Block {
-        plan: FloorPlanParams,
-        two_d: table1_floorplan::TwoDParams,
-    }
-    let mut v = serde_json::to_value(Block {
+/// sensor) and `sixdof.*` (the 3-D block's sequences: `height_m`,
+/// `pitch_deg`, `roll_deg`, `periods`, `sigma_translation`,
+/// `sigma_rotation_deg`; [`SixDofMotion`]); every other path goes to the
+/// filter.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct BlockOverrides {
+    plan: FloorPlanParams,
+    two_d: table1_floorplan::TwoDParams,
+    sixdof: SixDofMotion,
+    #[serde(skip)]
+    rest: Vec<String>,
+}
+
+fn block_overrides(sets: &[String]) -> anyhow::Result<BlockOverrides> {
+    let mut v = serde_json::to_value(BlockOverrides {
         plan: FloorPlanParams::default(),
         two_d: Default::default(),
+        sixdof: SixDofMotion::default(),
+        rest: Vec::new(),
     })?;
     let mut rest = Vec::new();
     for s in sets {
@@ -80,7 +94,8 @@ fn block_overrides(
             rest.push(s.clone());
             continue;
         };
-        if !(path.starts_with("plan.") || path.starts_with("two_d.")) {
+        let ours = ["plan.", "two_d.", "sixdof."];
+        if !ours.iter().any(|p| path.starts_with(p)) {
             rest.push(s.clone());
             continue;
         }
@@ -94,14 +109,20 @@ fn block_overrides(
         }
         *slot = value;
     }
-    let b: Block =
+    let mut b: BlockOverrides =
         serde_json::from_value(v).context("--set: the block's parameters are invalid")?;
-    Ok((b.plan, b.two_d, rest))
+    b.rest = rest;
+    Ok(b)
 }
 
-fn block_spec(a: &BenchArgs) -> anyhow::Result<BlockSpec> {
-    let (plan, two_d, rest) = block_overrides(&a.plan.set)?;
-    let mut filter = omcl::mcl::FilterConfig::default();
+/// The block's sequences and filter: `base` (the 2-D block's plain
+/// filter, the 3-D block's [`FilterConfig::six_dof`]) with `--rays` and
+/// `--set` applied.
+fn block_spec(a: &BenchArgs, base: FilterConfig) -> anyhow::Result<BlockSpec> {
+    let BlockOverrides {
+        plan, two_d, rest, ..
+    } = block_overrides(&a.plan.set)?;
+    let mut filter = base;
     filter.sampling.rays = a.plan.rays.unwrap_or(2048);
     let filter = super::bench_args::apply_overrides(filter, &rest)?;
     Ok(BlockSpec {

@@ -168,6 +168,14 @@ pub struct LocalizeArgs {
     /// Exponent on the likelihood (1 = the paper's eq. 2).
     #[arg(long)]
     pub sharpen: Option<f64>,
+    /// Layers of progressive correction a frame (1: the paper's filter).
+    /// With 2 or more, each frame is weighed with part of the exponent,
+    /// resampled, jittered (a third of the motion noise, shrinking each
+    /// layer) and weighed with the rest: it helps the full 6-DoF motion
+    /// model (Table I's 6-DoF block: 0.246 -> 0.197 m on tuning
+    /// sequences with 2), at the cost of casting every ray once a layer.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub layers: u32,
     /// Score rays with the plain cosine of eq. 2 instead of the per-pixel
     /// contrast-rescaled cosine (see `SensorParams::contrast`).
     #[arg(long)]
@@ -433,6 +441,12 @@ fn filter_config(a: &LocalizeArgs, inputs: &CameraSequence) -> FilterConfig {
     }
     if let Some(s) = a.sharpen {
         config.sharpen = s;
+    }
+    if a.layers > 1 {
+        config.anneal = Some(mcl::Anneal {
+            layers: a.layers,
+            ..Default::default()
+        });
     }
     config.sensor.contrast = !a.no_contrast;
     config.sensor.early_reject = match (a.early_reject, a.every_ray) {
@@ -737,6 +751,12 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             } else {
                 ""
             }
+        );
+    }
+    if a.layers > 1 {
+        println!(
+            "{} layers of progressive correction a frame (--layers)",
+            a.layers
         );
     }
     if is_kitti {

@@ -9,6 +9,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::MclError;
+use super::anneal::Anneal;
 use super::estimate::{EstimateParams, estimate};
 use super::init::FloorSampler;
 use super::kld::{KldParams, particle_count};
@@ -43,6 +44,11 @@ pub struct FilterConfig {
     pub kld: Option<KldParams>,
     /// Augmented-MCL injection (needs [`Filter::with_injection`]).
     pub recovery: Option<RecoveryParams>,
+    /// Progressive correction: the frame's likelihood over several layers
+    /// with resampling and jitter between them (`None`: one layer, the
+    /// paper's filter). The 6-DoF block uses [`Anneal::default`].
+    #[serde(default)]
+    pub anneal: Option<Anneal>,
     /// Seed of every random draw of the filter.
     pub seed: u64,
 }
@@ -58,6 +64,7 @@ impl Default for FilterConfig {
             estimate: EstimateParams::default(),
             kld: None,
             recovery: None,
+            anneal: None,
             seed: 0,
         }
     }
@@ -69,6 +76,18 @@ impl Default for FilterConfig {
 pub const STREET_PARTICLES: usize = 512;
 
 impl FilterConfig {
+    /// The filter for the full camera pose (Table I's 3-D block): noise on
+    /// all six degrees of freedom ([`super::MotionMode::Full`]) and two layers of
+    /// progressive correction ([`Anneal::default`]), which the
+    /// six-dimensional particle cloud needs to put particles where the
+    /// likelihood is high (README, "6-DoF").
+    pub fn six_dof() -> Self {
+        let mut config = FilterConfig::default();
+        config.motion.mode = super::motion::MotionMode::Full;
+        config.anneal = Some(Anneal::default());
+        config
+    }
+
     /// The filter for a car's camera on streets (KITTI camera 2, the
     /// paper's outdoor setting, with [`STREET_PARTICLES`]): 4096 rays, road motion (planar noise plus
     /// a little height, pitch and roll: the road climbs and pitches),
@@ -196,6 +215,12 @@ impl Filter {
                 why: format!("must be finite and >= 0, got {}", config.sharpen),
             });
         }
+        if let Some(a) = &config.anneal {
+            a.validate().map_err(|why| MclError::BadParam {
+                name: "anneal",
+                why,
+            })?;
+        }
         if !config.sensor.miss_score.is_finite() {
             return Err(MclError::BadParam {
                 name: "sensor.miss_score",
@@ -305,10 +330,14 @@ impl Filter {
     /// likelihood raised to the sharpening exponent. Returns the mean
     /// likelihood; on a casting error the particles are put back as they
     /// were before the step.
-    fn weigh(&mut self, pixels: &[(u32, u32)], table: &SimilarityTable) -> Result<f64, MclError> {
+    fn weigh(
+        &mut self,
+        pixels: &[(u32, u32)],
+        table: &SimilarityTable,
+        sharpen: f64,
+    ) -> Result<f64, MclError> {
         let l = self.sensor.likelihoods(&self.particles, pixels, table);
         let mean_l = l.iter().map(|&x| x as f64).sum::<f64>() / l.len().max(1) as f64;
-        let sharpen = self.config.sharpen;
         for (p, &li) in self.particles.iter_mut().zip(l) {
             p.weight *= (li.max(0.0) as f64).powf(sharpen);
         }
@@ -387,13 +416,36 @@ impl Filter {
             .predict(&mut self.particles, increment, &mut self.rng)?;
         sort_spatially(&mut self.particles, self.sort_cell);
         let t2 = Instant::now();
-        let mean_l = self.weigh(&pixels, &table)?;
+        let layers = match &self.config.anneal {
+            Some(a) => a.fractions(),
+            None => vec![1.0],
+        };
+        let sharpen = self.config.sharpen;
+        // The first layer's mean likelihood drives recovery: it is that of
+        // the predicted set, as without layers.
+        let mean_l = self.weigh(&pixels, &table, sharpen * layers[0])?;
         // Read now: scoring injection candidates below casts again.
-        let cast = self.sensor.last_cast();
-        self.pixel_major = self.sensor.last_pixel_major();
+        let mut cast = self.sensor.last_cast();
         // All-zero weights (every particle disagrees with the frame): keep
         // no information from this frame; `normalize` makes them uniform.
         normalize(&mut self.particles);
+        if let Some(a) = self.config.anneal {
+            for (layer, &fraction) in (1..).zip(&layers[1..]) {
+                let n = self.particles.len();
+                resample(&mut self.particles, n, true, &mut self.rng);
+                a.jitter(
+                    layer,
+                    &self.config.motion,
+                    &mut self.particles,
+                    &mut self.rng,
+                );
+                sort_spatially(&mut self.particles, self.sort_cell);
+                self.weigh(&pixels, &table, sharpen * fraction)?;
+                cast += self.sensor.last_cast();
+                normalize(&mut self.particles);
+            }
+        }
+        self.pixel_major = self.sensor.last_pixel_major();
         let t3 = Instant::now();
         let est = estimate(&self.particles, &self.config.estimate).ok_or(MclError::NoParticles)?;
         let ess_now = ess(&self.particles);
