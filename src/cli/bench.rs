@@ -20,24 +20,17 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     if a.show_config {
         // The filter the experiment starts from: the street's for table4,
         // the 6-DoF one for table1-sixdof, else the indoor default.
-        let base = match a.plan.experiments.as_slice() {
+        let mut base = match a.plan.experiments.as_slice() {
             [Experiment::Table4] => Table4Params::filter_default(),
             [Experiment::Table1Sixdof] => omcl::mcl::FilterConfig::six_dof(),
             _ => omcl::mcl::FilterConfig::default(),
         };
-        let mut base = base;
         if let Some(r) = a.plan.rays {
             base.sampling.rays = r;
         }
-        // The Table I blocks' own paths are not the filter's.
-        let sets: Vec<String> = (a.plan.set.iter())
-            .filter(|s| {
-                !["plan.", "two_d.", "sixdof."]
-                    .iter()
-                    .any(|p| s.starts_with(p))
-            })
-            .cloned()
-            .collect();
+        // The Table I blocks' own paths (plan.*, two_d.*, sixdof.*) are not
+        // the filter's.
+        let sets = super::bench_table1::block_overrides(&a.plan.set)?.rest;
         let config = apply_overrides(base, &sets)?;
         println!("{}", serde_json::to_string_pretty(&config)?);
         return Ok(());

@@ -73,15 +73,16 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
 /// `sigma_rotation_deg`; [`SixDofMotion`]); every other path goes to the
 /// filter.
 #[derive(serde::Serialize, serde::Deserialize)]
-struct BlockOverrides {
+pub(super) struct BlockOverrides {
     plan: FloorPlanParams,
     two_d: table1_floorplan::TwoDParams,
     sixdof: SixDofMotion,
+    /// The `--set` paths that are the filter's.
     #[serde(skip)]
-    rest: Vec<String>,
+    pub(super) rest: Vec<String>,
 }
 
-fn block_overrides(sets: &[String]) -> anyhow::Result<BlockOverrides> {
+pub(super) fn block_overrides(sets: &[String]) -> anyhow::Result<BlockOverrides> {
     let mut v = serde_json::to_value(BlockOverrides {
         plan: FloorPlanParams::default(),
         two_d: Default::default(),
