@@ -35,6 +35,14 @@ pub trait FrameFeatures: Sync {
     fn known(&self, _u: u32, _v: u32) -> bool {
         true
     }
+    /// The features of every centre of the sampling grid of stride
+    /// `stride` ([`grid_centre`], row-major over the grid, F each), when
+    /// the source holds them contiguously already: the sampler then
+    /// multiplies them where they lie instead of copying each out through
+    /// [`FrameFeatures::feature`]. `None` (the default): it copies.
+    fn grid_features(&self, _stride: u32) -> Option<&[f32]> {
+        None
+    }
 }
 
 /// How a label image's class ids become features: the row a label names
@@ -194,6 +202,11 @@ impl FrameFeatures for DenseFeatures {
             Some(f) => out.copy_from_slice(f),
             None => out.fill(0.0),
         }
+    }
+    /// Stride 1's grid is the image itself.
+    fn grid_features(&self, stride: u32) -> Option<&[f32]> {
+        let n = self.width as usize * self.height as usize * self.dim;
+        (stride == 1 && self.data.len() == n).then_some(&self.data[..])
     }
 }
 

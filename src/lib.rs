@@ -1,4 +1,5 @@
 //! omcl: Open-vocabulary Monte Carlo Localization.
+pub mod chebyshev;
 pub mod encode;
 pub mod eval;
 pub mod experiment;

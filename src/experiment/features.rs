@@ -9,7 +9,7 @@ use super::ExperimentError;
 use super::sequence::SimSequence;
 use crate::frame::{FrameFeatures, grid_centre};
 use crate::sim::embeddings::ClassEmbeddings;
-use crate::sim::features::{FeatureModel, Preset};
+use crate::sim::features::{FeatureModel, LabelEdges, Preset};
 use crate::sim::render::{Frame, NO_LABEL};
 
 /// One rendered frame's features from a [`FeatureModel`].
@@ -28,6 +28,8 @@ pub struct SimFrameFeatures<'a> {
     /// `omcl sim --features` writes at `--feature-stride s`. 1: every pixel
     /// its own feature.
     pub encoder_stride: u32,
+    /// The frame's label edges (the pixel contexts' shortcut).
+    edges: LabelEdges,
 }
 
 impl<'a> SimFrameFeatures<'a> {
@@ -46,6 +48,7 @@ impl<'a> SimFrameFeatures<'a> {
             index,
             exact_rows: (preset == Preset::Exact).then_some(class_rows),
             encoder_stride: 1,
+            edges: LabelEdges::new(frame),
         }
     }
 
@@ -79,7 +82,7 @@ impl FrameFeatures for SimFrameFeatures<'_> {
     }
     fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
         let (u, v) = self.source(u, v);
-        let ctx = self.model.context(self.frame, u, v);
+        let ctx = self.model.context_near(self.frame, &self.edges, u, v);
         self.model.feature_at(self.index, u, v, &ctx, out);
     }
     fn nearest_row(&self, u: u32, v: u32) -> Option<u32> {
@@ -161,6 +164,9 @@ impl FrameFeatures for GridFeatures<'_> {
     }
     fn nearest_row(&self, u: u32, v: u32) -> Option<u32> {
         self.inner.nearest_row(u, v)
+    }
+    fn grid_features(&self, stride: u32) -> Option<&[f32]> {
+        (stride.max(1) == self.stride).then_some(&self.features[..])
     }
 }
 

@@ -18,7 +18,7 @@ use super::ExperimentError;
 use super::sequence::SimSequence;
 use crate::geometry::Pose;
 use crate::map::{FeatureDb, GridSpec, Integrator, LanguageMap};
-use crate::sim::features::{FeatureModel, Preset};
+use crate::sim::features::{FeatureModel, LabelEdges, Preset};
 use crate::sim::paths::{self, IndoorPathConfig};
 use crate::sim::render::{self, Frame, NO_LABEL};
 
@@ -155,15 +155,16 @@ pub fn build_map(
     let s = params.pixel_stride.max(1);
     for (i, pose) in mapping_frame_poses(seq, params).iter().enumerate() {
         let frame = render::render_frame(&seq.scene.caster, &seq.scene.world.voxels, k, pose);
+        let edges = matches!(source, MapSource::Features(_)).then(|| LabelEdges::new(&frame));
         let (points, rows) = frame_points(&frame, k, pose, s, params.max_height, |u, v, p| {
             let l = frame.labels[frame.index(u, v)];
-            match (source, model) {
-                (MapSource::Features(_), Some(m)) => {
-                    let ctx = m.context(&frame, u, v);
+            match (source, model, &edges) {
+                (MapSource::Features(_), Some(m), Some(e)) => {
+                    let ctx = m.context_near(&frame, e, u, v);
                     m.predicted_class(0x9a9_0000 + i as u64, u, v, &ctx)
                         .map(|c| c as u32)
                 }
-                (MapSource::PointCloud, Some(m)) => m.point_class(p, l).map(|c| c as u32),
+                (MapSource::PointCloud, Some(m), _) => m.point_class(p, l).map(|c| c as u32),
                 _ => (l != NO_LABEL).then_some(l as u32),
             }
         });
@@ -233,9 +234,10 @@ fn build_raw_map(
             |u, v, _| Some((u, v)),
         );
         let frame_id = 0x9a9_0000 + i as u64;
+        let edges = LabelEdges::new(&frame);
         let feature = |j: usize, out: &mut [f32]| {
             let (u, v) = pixels[j].expect("every kept pixel has its coordinates");
-            let ctx = model.context(&frame, u, v);
+            let ctx = model.context_near(&frame, &edges, u, v);
             model.feature_at(frame_id, u, v, &ctx, out);
         };
         let mut j = 0;

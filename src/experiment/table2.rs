@@ -18,7 +18,7 @@ use super::task::{Outcome, Planner, SweepError, Task, Use, Work};
 use super::variant::Variant;
 use crate::eval::consistency::{ConsistencyMetrics, NO_HIT, count_frame};
 use crate::geometry::camera_ray;
-use crate::sim::features::{FeatureModel, Preset};
+use crate::sim::features::{FeatureModel, LabelEdges, Preset};
 use crate::sim::render::NO_LABEL;
 
 /// Table II scores every `CONSISTENCY_FRAME_STEP`-th frame.
@@ -75,6 +75,7 @@ pub fn per_pose(
     let mut out = Vec::new();
     for i in (0..seq.len()).step_by(frame_step.max(1)) {
         let frame = seq.render(i);
+        let edges = LabelEdges::new(&frame);
         let pose = seq.poses()[i];
         let px: Vec<(u32, u32)> = (0..frame.height)
             .step_by(stride.max(1) as usize)
@@ -105,7 +106,7 @@ pub fn per_pose(
             .map_init(
                 || vec![0.0f32; model.dim()],
                 |buf, &(u, v)| {
-                    let ctx = model.context(&frame, u, v);
+                    let ctx = model.context_near(&frame, &edges, u, v);
                     model.feature_at(i as u64, u, v, &ctx, buf);
                     db.nearest(buf)
                         .ok()

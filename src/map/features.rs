@@ -20,6 +20,16 @@ pub enum FeatureDbError {
     BadTau(f32),
 }
 
+/// Where [`FeatureDb::dots_and_norms`] reads `n` features of the
+/// database's dimension F.
+#[derive(Clone, Copy)]
+pub enum Features<'a> {
+    /// All of them, row-major `n x F`.
+    Slice(&'a [f32]),
+    /// `fill(j, buf)` writes feature `j` into a zeroed buffer of length F.
+    Fill(&'a (dyn Fn(usize, &mut [f32]) + Sync)),
+}
+
 /// Normalizes `v` in place; `false` when it has no direction (zero or not
 /// finite), in which case `v` is left unchanged.
 pub fn normalize(v: &mut [f32]) -> bool {
@@ -218,6 +228,58 @@ impl FeatureDb {
         blocks.into_iter().flatten().collect()
     }
 
+    /// Dot products of `n` features with every row and the features'
+    /// norms, for callers that keep all of them (the sampler's clustering
+    /// grid, whose products the similarity table reuses): `dots[j * K +
+    /// k]` is feature `j` against row `k`, `norms[j]` its length. The
+    /// features are read from `source`: a contiguous `n x F` slice is
+    /// multiplied where it lies (no copy); otherwise they are written by a
+    /// fill function into per-thread blocks, as [`FeatureDb::map_dots`]
+    /// does.
+    pub fn dots_and_norms(&self, n: usize, source: Features<'_>) -> (Vec<f32>, Vec<f32>) {
+        use nalgebra::{DMatrixView, DMatrixViewMut};
+        use rayon::prelude::*;
+        let (dim, k) = (self.dim, self.len());
+        // Larger blocks than `map_dots`'s: the products are kept, and a
+        // block of 128 features is 256 KiB of 512-d features (L2-sized).
+        const BLOCK: usize = 128;
+        let mut dots = vec![0f32; n * k];
+        let mut norms = vec![0f32; n];
+        if let Features::Slice(s) = source {
+            assert_eq!(s.len(), n * dim, "feature slice of the wrong length");
+        }
+        let rows_t = DMatrixView::from_slice(&self.rows, dim, k).transpose();
+        dots.par_chunks_mut((BLOCK * k).max(1))
+            .zip(norms.par_chunks_mut(BLOCK))
+            .enumerate()
+            .for_each_init(
+                || vec![0f32; BLOCK * dim],
+                |buf, (b, (out, norms))| {
+                    let (j0, m) = (b * BLOCK, norms.len());
+                    let feats: &[f32] = match source {
+                        Features::Slice(s) => &s[j0 * dim..(j0 + m) * dim],
+                        Features::Fill(fill) => {
+                            let buf = &mut buf[..m * dim];
+                            buf.fill(0.0);
+                            for (j, f) in (j0..j0 + m).zip(buf.chunks_exact_mut(dim)) {
+                                fill(j, f);
+                            }
+                            buf
+                        }
+                    };
+                    for (nj, f) in norms.iter_mut().zip(feats.chunks_exact(dim)) {
+                        *nj = dot(f, f).sqrt();
+                    }
+                    if k > 0 {
+                        let fm = DMatrixView::from_slice(feats, dim, m);
+                        let mut om = DMatrixViewMut::from_slice(out, k, m);
+                        om.gemm(1.0, &rows_t, &fm, 0.0);
+                    }
+                },
+            );
+        (dots, norms)
+    }
+
     /// Cosine similarity of `f` to every row.
     pub fn similarities(&self, f: &[f32]) -> Result<Vec<f32>, FeatureDbError> {
         self.check(f)?;
@@ -258,6 +320,34 @@ impl FeatureDb {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `dots_and_norms` gives every feature's products with the rows and
+    /// its norm, the same from a slice as from a fill function, for counts
+    /// that do and do not fill a block of 128.
+    #[test]
+    fn dots_and_norms_equal_single_dots() {
+        let dim = 37;
+        let val = |i: usize| ((i * 7919 % 1000) as f32 / 500.0) - 1.0;
+        let rows: Vec<f32> = (0..23 * dim).map(|i| val(i + 5)).collect();
+        let db = FeatureDb::from_rows(dim, 0.0, rows).unwrap();
+        for n in [0, 1, 127, 128, 300] {
+            let all: Vec<f32> = (0..n * dim).map(|i| val(3 * i + 1)).collect();
+            let fill =
+                |j: usize, buf: &mut [f32]| buf.copy_from_slice(&all[j * dim..(j + 1) * dim]);
+            let (d1, n1) = db.dots_and_norms(n, Features::Slice(&all));
+            let (d2, n2) = db.dots_and_norms(n, Features::Fill(&fill));
+            assert_eq!((d1.len(), n1.len()), (n * db.len(), n));
+            assert_eq!((&d1, &n1), (&d2, &n2));
+            for j in 0..n {
+                let f = &all[j * dim..(j + 1) * dim];
+                assert!((n1[j] - dot(f, f).sqrt()).abs() <= 1e-5 * (1.0 + n1[j]));
+                for k in 0..db.len() {
+                    let (got, want) = (d1[j * db.len() + k], dot(f, db.row(k)));
+                    assert!((got - want).abs() <= 1e-4 * (1.0 + want.abs()), "{j} {k}");
+                }
+            }
+        }
+    }
 
     /// The blocked products equal one dot product at a time (to
     /// rounding), for counts that do and do not fill a block, and each

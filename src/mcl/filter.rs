@@ -17,7 +17,7 @@ use super::motion::{MotionModel, check_pose};
 use super::particles::{Particle, ess, normalize, sort_spatially};
 use super::recovery::{Recovery, RecoveryParams};
 use super::resample::{ResamplePolicy, resample};
-use super::sampling::{SamplingParams, sample_pixels};
+use super::sampling::{SamplingParams, sample};
 use super::sensor::{RayOrder, SensorModel, SensorParams, SimilarityTable};
 use crate::frame::FrameFeatures;
 use crate::geometry::{Intrinsics, Pose};
@@ -406,8 +406,10 @@ impl Filter {
         check_pose(increment)?;
         self.check_frame_size(frame)?;
         let t0 = Instant::now();
-        let pixels = sample_pixels(frame, &self.db, &self.config.sampling, &mut self.rng)?;
-        let table = SimilarityTable::new(frame, &pixels, &self.db, self.config.sensor.contrast)?;
+        let sampled = sample(frame, &self.db, &self.config.sampling, &mut self.rng)?;
+        let table =
+            SimilarityTable::of_sample(frame, &sampled, &self.db, self.config.sensor.contrast)?;
+        let pixels = sampled.pixels;
         let t1 = Instant::now();
         // Kept so that a casting error leaves the particles as they were.
         self.undo.clone_from(&self.particles);

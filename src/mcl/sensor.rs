@@ -3,8 +3,9 @@
 //! features hit by the particle's rays through those pixels.
 //!
 //! Per frame, the cosines of the N sampled pixel features against the K
-//! database rows are computed once ([`SimilarityTable`], N x K); per ray the
-//! work is a cast and a table look-up.
+//! database rows are computed once ([`SimilarityTable`], N x K; from the
+//! sampler's clustering products when it kept them); per ray the work is a
+//! cast and a table look-up.
 //!
 //! Rays are cast in groups of [`RAY_GROUP`] particles, each group one
 //! parallel task that makes its rays, casts them on its thread and scores
@@ -48,6 +49,7 @@ use rayon::prelude::*;
 
 use super::MclError;
 use super::particles::Particle;
+use super::sampling::Sample;
 use crate::frame::FrameFeatures;
 use crate::geometry::{Intrinsics, Ray};
 use crate::map::Cell;
@@ -57,6 +59,24 @@ use crate::raycast::{
     BrickEdge, BuildOptions, BuildQuality, EmbreeCaster, EmbreeError, Fan, Geometry, Hit, Packet,
     RayCaster,
 };
+
+/// A pixel's dot products with the rows (`out`) made its cosines, given its
+/// feature's norm `n`: zeros for a feature without direction; with
+/// `contrast`, rescaled over the rows to `[0, 1]`.
+fn cosines(out: &mut [f32], n: f32, contrast: bool) {
+    if !(n.is_finite() && n > 0.0) {
+        out.fill(0.0);
+        return;
+    }
+    out.iter_mut().for_each(|o| *o /= n);
+    if contrast {
+        let lo = out.iter().copied().fold(f32::INFINITY, f32::min);
+        let hi = out.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        if hi > lo {
+            out.iter_mut().for_each(|o| *o = (*o - lo) / (hi - lo));
+        }
+    }
+}
 
 /// Cosines between a frame's sampled pixel features and the database rows.
 #[derive(Debug, Clone, PartialEq)]
@@ -91,24 +111,36 @@ impl SimilarityTable {
                 pixels.len(),
                 |j, buf| frame.feature(pixels[j].0, pixels[j].1, buf),
                 |f, out| {
-                    let n = dot(f, f).sqrt();
-                    if !(n.is_finite() && n > 0.0) {
-                        out.fill(0.0);
-                        return out.to_vec();
-                    }
-                    out.iter_mut().for_each(|o| *o /= n);
-                    if contrast {
-                        let lo = out.iter().copied().fold(f32::INFINITY, f32::min);
-                        let hi = out.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-                        if hi > lo {
-                            out.iter_mut().for_each(|o| *o = (*o - lo) / (hi - lo));
-                        }
-                    }
+                    cosines(out, dot(f, f).sqrt(), contrast);
                     out.to_vec()
                 },
             )
             .concat();
         Ok(SimilarityTable { rows: k, cos })
+    }
+
+    /// The table of a [`Sample`]'s pixels: from the products its clustering
+    /// computed when it kept them (the same cosines, no second product),
+    /// otherwise as [`SimilarityTable::new`].
+    pub fn of_sample(
+        frame: &dyn FrameFeatures,
+        sample: &Sample,
+        db: &FeatureDb,
+        contrast: bool,
+    ) -> Result<Self, MclError> {
+        let k = db.len();
+        match &sample.scores {
+            Some((dots, norms)) if frame.dim() == db.dim() && dots.len() == norms.len() * k => {
+                let mut cos = dots.clone();
+                if k > 0 {
+                    for (c, &n) in cos.chunks_exact_mut(k).zip(norms) {
+                        cosines(c, n, contrast);
+                    }
+                }
+                Ok(SimilarityTable { rows: k, cos })
+            }
+            _ => Self::new(frame, &sample.pixels, db, contrast),
+        }
     }
 
     /// Number of pixels.

@@ -1393,3 +1393,79 @@ fn large_maps_get_the_outdoor_scene_and_cast_the_same() {
     // About 37 % hit (the rest leave the 3 m road sideways or look up).
     assert!(hits > 600, "{hits}");
 }
+
+/// A frame that hands its features over one by one only (no
+/// [`crate::frame::FrameFeatures::grid_features`]).
+struct OneByOne<'a>(&'a crate::frame::DenseFeatures);
+
+impl crate::frame::FrameFeatures for OneByOne<'_> {
+    fn width(&self) -> u32 {
+        self.0.width
+    }
+    fn height(&self) -> u32 {
+        self.0.height
+    }
+    fn dim(&self) -> usize {
+        self.0.dim
+    }
+    fn feature(&self, u: u32, v: u32, out: &mut [f32]) {
+        self.0.feature(u, v, out)
+    }
+}
+
+/// The products the sampler keeps from its clustering give the table the
+/// direct computation gives (with and without contrast), and the same
+/// pixels, whether the frame's grid features are multiplied in place
+/// (stride 1 of a dense image) or copied out one by one (stride 1 and 4).
+#[test]
+fn tables_from_the_samplers_products_equal_direct_tables() {
+    let w = world();
+    let db = w.map.db();
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let frame = render(&w, &start_pose(&w), 0.5, &mut rng);
+    assert!(frame.grid_features(1).is_some() && frame.grid_features(4).is_none());
+    for stride in [1, 4] {
+        let params = SamplingParams {
+            rays: 256,
+            stride,
+            ..Default::default()
+        };
+        let draw = |f: &dyn FrameFeatures| {
+            sampling::sample(f, db, &params, &mut ChaCha8Rng::seed_from_u64(5)).unwrap()
+        };
+        let (a, b) = (draw(&frame), draw(&OneByOne(&frame)));
+        assert_eq!(a.pixels, b.pixels, "stride {stride}");
+        assert!(a.pixels.len() > 100, "{}", a.pixels.len());
+        assert!(a.scores.is_some() && b.scores.is_some());
+        for contrast in [false, true] {
+            let direct = SimilarityTable::new(&frame, &a.pixels, db, contrast).unwrap();
+            for (s, f) in [(&a, &frame as &dyn FrameFeatures), (&b, &OneByOne(&frame))] {
+                let t = SimilarityTable::of_sample(f, s, db, contrast).unwrap();
+                assert_eq!(t.pixels(), direct.pixels());
+                for j in 0..t.pixels() {
+                    for k in 0..db.len() {
+                        let (x, y) = (t.get(j, k), direct.get(j, k));
+                        assert!(
+                            (x - y).abs() <= 1e-5,
+                            "{stride} {contrast} {j} {k}: {x} {y}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+    // Uniform sampling clusters nothing and keeps no products; its table
+    // is computed directly.
+    let params = SamplingParams {
+        strategy: SamplingStrategy::Uniform,
+        rays: 64,
+        ..Default::default()
+    };
+    let s = sampling::sample(&frame, db, &params, &mut rng).unwrap();
+    assert!(s.scores.is_none());
+    let t = SimilarityTable::of_sample(&frame, &s, db, false).unwrap();
+    assert_eq!(
+        t,
+        SimilarityTable::new(&frame, &s.pixels, db, false).unwrap()
+    );
+}

@@ -122,7 +122,9 @@ impl PlanarCaster {
                 leaf[idx] = k as u32;
             }
         }
-        let clearance = chebyshev_clearance(&leaf, size[0] as usize, size[1] as usize);
+        let clearance = crate::chebyshev::distance(size[0] as usize, size[1] as usize, |i| {
+            leaf[i] != Hit::MISS
+        });
         PlanarCaster {
             resolution: resolution as f64,
             lo,
@@ -462,46 +464,6 @@ impl PlanarCaster {
 fn floor_i64(x: f64) -> i64 {
     let c = x as i64;
     c - i64::from((c as f64) > x)
-}
-
-/// Chebyshev distance (cells) of every cell to the nearest occupied one,
-/// by a two-pass chamfer transform with unit 8-neighbour weights (exact
-/// for the Chebyshev metric), capped at 255; cells outside count as free.
-fn chebyshev_clearance(leaf: &[u32], w: usize, h: usize) -> Vec<u8> {
-    const FAR: u32 = 255;
-    let mut dist: Vec<u32> = leaf
-        .iter()
-        .map(|&l| if l == Hit::MISS { FAR } else { 0 })
-        .collect();
-    for y in 0..h {
-        for x in 0..w {
-            let mut v = dist[y * w + x];
-            if x > 0 {
-                v = v.min(dist[y * w + x - 1] + 1);
-            }
-            if y > 0 {
-                for xx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
-                    v = v.min(dist[(y - 1) * w + xx] + 1);
-                }
-            }
-            dist[y * w + x] = v;
-        }
-    }
-    for y in (0..h).rev() {
-        for x in (0..w).rev() {
-            let mut v = dist[y * w + x];
-            if x + 1 < w {
-                v = v.min(dist[y * w + x + 1] + 1);
-            }
-            if y + 1 < h {
-                for xx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
-                    v = v.min(dist[(y + 1) * w + xx] + 1);
-                }
-            }
-            dist[y * w + x] = v;
-        }
-    }
-    dist.into_iter().map(|v| v.min(FAR) as u8).collect()
 }
 
 /// Whether `b` shares `a`'s planar ray: the same origin (bit for bit) and
@@ -959,14 +921,5 @@ mod tests {
         assert!(hits.iter().all(|h| !h.is_hit()));
         let reference = ReferenceCaster::new(0.1, &cells);
         assert!(!reference.cast_fans([0.0; 3], &fan, &[0.0, 0.5], &[inf; 2], &mut hits));
-    }
-
-    #[test]
-    fn clearance_is_the_chebyshev_distance() {
-        // 5 x 3 grid, one occupied cell at (1, 1).
-        let mut leaf = vec![Hit::MISS; 15];
-        leaf[5 + 1] = 0;
-        let d = chebyshev_clearance(&leaf, 5, 3);
-        assert_eq!(d, vec![1, 1, 1, 2, 3, 1, 0, 1, 2, 3, 1, 1, 1, 2, 3]);
     }
 }
