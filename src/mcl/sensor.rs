@@ -54,7 +54,7 @@ use crate::frame::FrameFeatures;
 use crate::geometry::{Intrinsics, Ray};
 use crate::map::Cell;
 use crate::map::FeatureDb;
-use crate::map::features::dot;
+use crate::map::features::Features;
 use crate::raycast::{
     BrickEdge, BuildOptions, BuildQuality, EmbreeCaster, EmbreeError, Fan, Geometry, Hit, Packet,
     RayCaster,
@@ -105,18 +105,9 @@ impl SimilarityTable {
                 got: frame.dim(),
             });
         }
-        let k = db.len();
-        let cos: Vec<f32> = db
-            .map_dots(
-                pixels.len(),
-                |j, buf| frame.feature(pixels[j].0, pixels[j].1, buf),
-                |f, out| {
-                    cosines(out, dot(f, f).sqrt(), contrast);
-                    out.to_vec()
-                },
-            )
-            .concat();
-        Ok(SimilarityTable { rows: k, cos })
+        let fill = |j: usize, buf: &mut [f32]| frame.feature(pixels[j].0, pixels[j].1, buf);
+        let (dots, norms) = db.dots_and_norms(pixels.len(), Features::Fill(&fill));
+        Ok(Self::from_products(db.len(), dots, &norms, contrast))
     }
 
     /// The table of a [`Sample`]'s pixels: from the products its clustering
@@ -131,16 +122,21 @@ impl SimilarityTable {
         let k = db.len();
         match &sample.scores {
             Some((dots, norms)) if frame.dim() == db.dim() && dots.len() == norms.len() * k => {
-                let mut cos = dots.clone();
-                if k > 0 {
-                    for (c, &n) in cos.chunks_exact_mut(k).zip(norms) {
-                        cosines(c, n, contrast);
-                    }
-                }
-                Ok(SimilarityTable { rows: k, cos })
+                Ok(Self::from_products(k, dots.clone(), norms, contrast))
             }
             _ => Self::new(frame, &sample.pixels, db, contrast),
         }
+    }
+
+    /// The table of pixels whose products with the `k` rows are `dots`
+    /// (pixel-major) and whose features' norms are `norms`.
+    fn from_products(k: usize, mut cos: Vec<f32>, norms: &[f32], contrast: bool) -> Self {
+        if k > 0 {
+            for (c, &n) in cos.chunks_exact_mut(k).zip(norms) {
+                cosines(c, n, contrast);
+            }
+        }
+        SimilarityTable { rows: k, cos }
     }
 
     /// Number of pixels.
