@@ -175,6 +175,9 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
     let v = config(&["table1-sixdof", "--show-config"]);
     assert_eq!(v["motion"]["mode"], "Full", "{v}");
     assert_eq!(v["anneal"]["layers"], 2, "{v}");
+    assert_eq!(v["sampling"]["rays"], 512, "{v}");
+    let v = config(&["table1-sixdof", "--show-config", "--rays", "2048"]);
+    assert_eq!(v["sampling"]["rays"], 2048, "{v}");
     let v = config(&[
         "table1-sixdof",
         "--show-config",
@@ -315,6 +318,14 @@ fn table1_blocks_write_tables_and_figure4() {
             .map(|r| r["variant"].as_str().unwrap())
             .collect();
         assert_eq!(got, rows, "{name}");
+        if name == "table1_6dof" {
+            // The block states the filter it ran: --particles and --rays
+            // over its own defaults, and its two layers.
+            assert!(
+                md.contains("Filter: 64 particles x 128 rays, 2 layer(s)"),
+                "{md}"
+            );
+        }
         for r in json.as_array().unwrap() {
             let runs = r["per_sequence"].as_array().unwrap();
             assert_eq!(runs[0]["errors_m"].as_array().unwrap().len(), 6, "{r}");

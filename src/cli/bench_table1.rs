@@ -13,7 +13,7 @@ use omcl::experiment::table1_floorplan::{self, BlockSpec};
 use omcl::map::FloorPlanParams;
 
 use super::bench_args::{BenchArgs, Experiment};
-use omcl::mcl::FilterConfig;
+use omcl::mcl::{FilterConfig, SIX_DOF_PARTICLES};
 
 /// `--export-frames DIR`: writes the 3-D block's sequences to `DIR` and
 /// runs nothing.
@@ -26,7 +26,7 @@ pub fn export(a: &BenchArgs, dir: &Path) -> anyhow::Result<()> {
     let progress = |m: &str| eprintln!("{m}");
     let motion = block_overrides(&a.plan.set)?.sixdof;
     let dirs = table1_6dof::export_block(
-        &block_spec(a, FilterConfig::six_dof())?,
+        &block_spec(a, FilterConfig::six_dof(), SIX_DOF_PARTICLES)?,
         &motion,
         dir,
         &progress,
@@ -47,15 +47,18 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     let names = a.plan.variants.as_deref();
     let progress = |m: &str| eprintln!("{m}");
     if e.contains(&Experiment::Table1Floorplan) {
-        let b =
-            table1_floorplan::block(&block_spec(a, FilterConfig::default())?, names, &progress)?;
+        let b = table1_floorplan::block(
+            &block_spec(a, FilterConfig::default(), 1024)?,
+            names,
+            &progress,
+        )?;
         write(a, "table1_floorplan", "2d", &b)?;
         println!("{}", b.markdown);
         ran = true;
     }
     if e.contains(&Experiment::Table1Sixdof) {
         let motion = block_overrides(&a.plan.set)?.sixdof;
-        let spec = block_spec(a, FilterConfig::six_dof())?;
+        let spec = block_spec(a, FilterConfig::six_dof(), SIX_DOF_PARTICLES)?;
         let odometry = a.sixdof.rgbd_odometry.as_deref();
         let b = table1_6dof::block(&spec, &motion, names, odometry, &progress)?;
         write(a, "table1_6dof", "6dof", &b)?;
@@ -117,14 +120,17 @@ pub(super) fn block_overrides(sets: &[String]) -> anyhow::Result<BlockOverrides>
 }
 
 /// The block's sequences and filter: `base` (the 2-D block's plain
-/// filter, the 3-D block's [`FilterConfig::six_dof`]) with `--rays` and
-/// `--set` applied.
-fn block_spec(a: &BenchArgs, base: FilterConfig) -> anyhow::Result<BlockSpec> {
+/// filter with 2048 rays, the 3-D block's [`FilterConfig::six_dof`] with
+/// 512) with `--rays` and `--set` applied, and `--particles` or the
+/// block's `particles` (1024, [`SIX_DOF_PARTICLES`]).
+fn block_spec(a: &BenchArgs, base: FilterConfig, particles: usize) -> anyhow::Result<BlockSpec> {
     let BlockOverrides {
         plan, two_d, rest, ..
     } = block_overrides(&a.plan.set)?;
     let mut filter = base;
-    filter.sampling.rays = a.plan.rays.unwrap_or(2048);
+    if let Some(r) = a.plan.rays {
+        filter.sampling.rays = r;
+    }
     let filter = super::bench_args::apply_overrides(filter, &rest)?;
     Ok(BlockSpec {
         seeds: a.plan.first_seed..a.plan.first_seed + a.plan.sequences,
@@ -135,7 +141,7 @@ fn block_spec(a: &BenchArgs, base: FilterConfig) -> anyhow::Result<BlockSpec> {
             ..Default::default()
         },
         filter,
-        particles: a.plan.particles.unwrap_or(1024),
+        particles: a.plan.particles.unwrap_or(particles),
         plan,
         two_d,
         compare_3d: true,

@@ -414,13 +414,17 @@ pub fn block(
     );
     markdown.push_str(&format!(
         "\nSequences: the benchmark path with height +-{} m, pitch +-{} deg and roll +-{} deg \
-         (periods {:?} frames); odometry noise {} m and {} deg per axis a step.\n",
+         (periods {:?} frames); odometry noise {} m and {} deg per axis a step. \
+         Filter: {} particles x {} rays, {} layer(s) of progressive correction a frame.\n",
         motion.height_m,
         motion.pitch_deg,
         motion.roll_deg,
         motion.periods,
         motion.sigma_translation,
-        motion.sigma_rotation_deg
+        motion.sigma_rotation_deg,
+        spec.particles,
+        spec.filter.sampling.rays,
+        spec.filter.anneal.map_or(1, |a| a.layers)
     ));
     if let Some(dir) = odometry {
         let row = odometry_row(spec, motion, dir)?;

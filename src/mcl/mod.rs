@@ -59,7 +59,9 @@ pub mod sensor;
 pub use crate::frame::{DenseFeatures, FrameFeatures};
 pub use anneal::Anneal;
 pub use estimate::{Estimate, EstimateParams, average_rotations, estimate};
-pub use filter::{Filter, FilterConfig, STREET_PARTICLES, StepReport, StepTimings};
+pub use filter::{
+    Filter, FilterConfig, SIX_DOF_PARTICLES, STREET_PARTICLES, StepReport, StepTimings,
+};
 pub use init::{FloorParams, FloorSampler, PromptParams, global_init, local_init, prompt_init};
 pub use motion::{MotionMode, MotionModel};
 pub use particles::Particle;
