@@ -351,3 +351,86 @@ fn table1_blocks_write_tables_and_figure4() {
         }
     }
 }
+
+/// `--variants` that names no row of a Table I block, or no row at all, is
+/// refused before anything runs, naming the block's rows; `--preset`
+/// reaches the blocks' OMCL rows (it was silently ignored there before)
+/// and the block says so.
+#[test]
+fn table1_blocks_check_variants_and_take_the_preset() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    for (args, want) in [
+        (
+            vec!["table1-floorplan", "--variants", "OMCL_GT_exact"],
+            "names no row of table1-floorplan; its rows are OMCL_GT, OMCL_LSeg",
+        ),
+        (
+            vec!["table1-sixdof", "--variants", "none"],
+            "or `none` with --rgbd-odometry",
+        ),
+        (
+            vec!["table1-sixdof", "--variants", "SeDAR*_GT"],
+            "names no row of table1-sixdof",
+        ),
+        (
+            vec!["table1-floorplan", "--variants", "OMCL_GT,OMCL_GTX"],
+            "no row \"OMCL_GTX\"",
+        ),
+    ] {
+        let mut args = args;
+        args.extend(["-o", out]);
+        let (o, text) = bench(&args);
+        assert!(!o.status.success(), "{args:?}: {text}");
+        assert!(text.contains(want), "{args:?}: {text}");
+    }
+    // Nothing was written by the refused runs.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    let run = |preset: Option<&str>| -> (String, Vec<f64>) {
+        let sub = dir.path().join(preset.unwrap_or("own"));
+        let mut args = vec![
+            "table1-floorplan",
+            "--variants",
+            "OMCL_GT",
+            "--sequences",
+            "1",
+            "--frames",
+            "8",
+            "--map-frames",
+            "20",
+            "--particles",
+            "64",
+            "--rays",
+            "128",
+            "-o",
+            sub.to_str().unwrap(),
+        ];
+        if let Some(p) = preset {
+            args.extend(["--preset", p]);
+        }
+        let (o, text) = bench(&args);
+        assert!(o.status.success(), "{text}");
+        let md = std::fs::read_to_string(sub.join("table1_floorplan.md")).unwrap();
+        let json: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(sub.join("table1_floorplan.json")).unwrap(),
+        )
+        .unwrap();
+        let errors = json[0]["per_sequence"][0]["errors_m"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| e.as_f64().unwrap())
+            .collect();
+        (md, errors)
+    };
+    let (md_own, own) = run(None);
+    let (md_exact, exact) = run(Some("exact"));
+    assert!(!md_own.contains("--preset"), "{md_own}");
+    assert!(
+        md_exact.contains("localized with `exact` features instead of each variant's own"),
+        "{md_exact}"
+    );
+    // Other features, another path: the preset was used.
+    assert_eq!(own.len(), 8);
+    assert_ne!(own, exact);
+}

@@ -42,6 +42,7 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
         a.sixdof.rgbd_odometry.is_none() || e.contains(&Experiment::Table1Sixdof),
         "--rgbd-odometry adds a row to table1-sixdof, which is not asked for"
     );
+    check_variants(a)?;
     let mut ran = false;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let names = a.plan.variants.as_deref();
@@ -66,6 +67,68 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
         ran = true;
     }
     Ok(ran)
+}
+
+/// `--variants` against the Table I blocks asked for: each block must get
+/// at least one row (the 3-D block none with `--variants none` and
+/// `--rgbd-odometry`, whose row it then is alone), and each name must be a
+/// row of some experiment asked for. A name no block has would otherwise
+/// leave a block empty or a typo unnoticed.
+fn check_variants(a: &BenchArgs) -> anyhow::Result<()> {
+    let Some(list) = a.plan.variants.as_deref() else {
+        return Ok(());
+    };
+    let e = &a.plan.experiments;
+    let mut blocks: Vec<(&str, Vec<&str>)> = Vec::new();
+    if e.contains(&Experiment::Table1Floorplan) {
+        blocks.push(("table1-floorplan", table1_floorplan::row_names()));
+    }
+    if e.contains(&Experiment::Table1Sixdof) {
+        blocks.push(("table1-sixdof", table1_6dof::ROWS.to_vec()));
+    }
+    if blocks.is_empty() {
+        return Ok(());
+    }
+    let named: Vec<&str> = list.split(',').map(str::trim).collect();
+    let odometry_alone = named == ["none"] && a.sixdof.rgbd_odometry.is_some();
+    for (name, rows) in &blocks {
+        let alone = *name == "table1-sixdof" && odometry_alone;
+        anyhow::ensure!(
+            alone || rows.iter().any(|r| named.contains(r)),
+            "--variants {list:?} names no row of {name}; its rows are {}{}",
+            rows.join(", "),
+            if *name == "table1-sixdof" {
+                " (or `none` with --rgbd-odometry for that row alone)"
+            } else {
+                ""
+            }
+        );
+    }
+    // Other experiments asked for take the variants of the sweep's tables.
+    let others = e
+        .iter()
+        .any(|x| !matches!(x, Experiment::Table1Floorplan | Experiment::Table1Sixdof));
+    let mut known: Vec<&str> = blocks.iter().flat_map(|(_, r)| r.iter().copied()).collect();
+    if others {
+        known.extend(omcl::experiment::variant::TABLE1_VARIANTS.map(|v| v.name));
+    }
+    if odometry_alone {
+        known.push("none");
+    }
+    let mut seen = Vec::new();
+    known.retain(|n| {
+        let first = !seen.contains(n);
+        seen.push(n);
+        first
+    });
+    for n in &named {
+        anyhow::ensure!(
+            known.contains(n),
+            "--variants: no row {n:?} in the experiments asked for; their rows are {}",
+            known.join(", ")
+        );
+    }
+    Ok(())
 }
 
 /// The blocks' own `--set` paths: `plan.band_min`, `plan.band_max` (the
@@ -145,6 +208,7 @@ fn block_spec(a: &BenchArgs, base: FilterConfig, particles: usize) -> anyhow::Re
         plan,
         two_d,
         compare_3d: true,
+        preset: a.plan.preset,
     })
 }
 

@@ -39,7 +39,7 @@ use super::table1::{
     BlockResult, FIGURE4_PANELS, Figure4Panel, PaperRow, ape_cells, block_markdown, track,
 };
 use super::table1_floorplan::BlockSpec;
-use super::variant::{TABLE1_VARIANTS, Variant, named_in};
+use super::variant::Variant;
 use crate::eval::ape::{PoseRelation, ape};
 use crate::eval::localization::CompletionRule;
 use crate::geometry::Pose;
@@ -390,6 +390,9 @@ pub const PAPER_3D: [PaperRow; 4] = [
     },
 ];
 
+/// The variants of the 3-D block (the paper's 3-D rows but RTAB-Map's).
+pub const ROWS: [&str; 3] = ["OMCL_GT", "OMCL_LSeg", "OMCL_Open_LSeg"];
+
 /// Table I's 3-D block: OMCL_GT, OMCL_LSeg and OMCL_Open_LSeg, those of
 /// them in `names` (comma-separated; `None`: all), and the block as
 /// Markdown beside the paper's rows.
@@ -400,12 +403,7 @@ pub fn block(
     odometry: Option<&Path>,
     progress: &dyn Fn(&str),
 ) -> Result<BlockResult, ExperimentError> {
-    let variants: Vec<_> = TABLE1_VARIANTS
-        .iter()
-        .filter(|v| ["OMCL_GT", "OMCL_LSeg", "OMCL_Open_LSeg"].contains(&v.name))
-        .filter(|v| named_in(names, v.name))
-        .copied()
-        .collect();
+    let variants = spec.variants(&ROWS, names);
     let (mut rows, mut figures) = rows_3d(spec, motion, &variants, progress)?;
     let mut markdown = block_markdown(
         "Table I, 3-D block: APE (m) of the full 6-DoF pose",
@@ -426,6 +424,7 @@ pub fn block(
         spec.filter.sampling.rays,
         spec.filter.anneal.map_or(1, |a| a.layers)
     ));
+    markdown.push_str(&spec.preset_note());
     if let Some(dir) = odometry {
         let row = odometry_row(spec, motion, dir)?;
         markdown.push_str(&odometry_markdown(&row));

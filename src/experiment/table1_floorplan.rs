@@ -448,6 +448,49 @@ pub struct BlockSpec {
     /// Also track the first sequence's first variant in 3-D to compare
     /// step and cast times.
     pub compare_3d: bool,
+    /// Localize the OMCL rows with these features instead of each
+    /// variant's own (`omcl bench --preset`; the maps stay the
+    /// variant's). The baselines keep their ground-truth images.
+    pub preset: Option<Preset>,
+}
+
+impl BlockSpec {
+    /// The variants named in `names` (comma-separated; `None`: all) among
+    /// `rows`, localizing with [`BlockSpec::preset`] when it is set.
+    pub fn variants(&self, rows: &[&str], names: Option<&str>) -> Vec<super::variant::Variant> {
+        TABLE1_VARIANTS
+            .iter()
+            .filter(|v| rows.contains(&v.name) && named_in(names, v.name))
+            .map(|v| super::variant::Variant {
+                localize: self.preset.unwrap_or(v.localize),
+                ..*v
+            })
+            .collect()
+    }
+
+    /// The Markdown line that says the OMCL rows were localized with
+    /// [`BlockSpec::preset`] (empty without one).
+    pub fn preset_note(&self) -> String {
+        self.preset.map_or_else(String::new, |p| {
+            format!(
+                "\nThe OMCL rows were localized with `{}` features instead of each variant's \
+                 own (--preset); their maps are the variant's.\n",
+                p.name()
+            )
+        })
+    }
+}
+
+/// The OMCL variants of the 2-D block (OMCL_GT_exact aside).
+pub const OMCL_ROWS: [&str; 4] = ["OMCL_GT", "OMCL_LSeg", "OMCL_auto_LSeg", "OMCL_Open_LSeg"];
+
+/// Every row of the 2-D block by name: [`OMCL_ROWS`] and the baselines.
+pub fn row_names() -> Vec<&'static str> {
+    OMCL_ROWS
+        .iter()
+        .copied()
+        .chain([Baseline::Sedar, Baseline::Simp].map(|b| b.name()))
+        .collect()
 }
 
 /// Runs the OMCL rows of the 2-D block: per sequence, each variant's 3-D
@@ -745,21 +788,18 @@ pub fn block(
     names: Option<&str>,
     progress: &dyn Fn(&str),
 ) -> Result<BlockResult, ExperimentError> {
-    let variants: Vec<_> = TABLE1_VARIANTS
-        .iter()
-        .filter(|v| v.name != "OMCL_GT_exact" && named_in(names, v.name))
-        .copied()
-        .collect();
+    let variants = spec.variants(&OMCL_ROWS, names);
     let baselines: Vec<Baseline> = [Baseline::Sedar, Baseline::Simp]
         .into_iter()
         .filter(|b| named_in(names, b.name()))
         .collect();
     let (rows, figures) = omcl_rows(spec, &variants, &baselines, progress)?;
-    let markdown = block_markdown(
+    let mut markdown = block_markdown(
         "Table I, 2-D block: APE (m, horizontal) on floor plans",
         &rows,
         &PAPER_2D,
     );
+    markdown.push_str(&spec.preset_note());
     Ok(BlockResult {
         rows,
         markdown,
