@@ -167,7 +167,9 @@ impl PlanArgs {
     /// The filter configuration: defaults, `--rays`, then `--set`.
     pub fn filter(&self) -> anyhow::Result<FilterConfig> {
         let mut config = FilterConfig::default();
-        config.sampling.rays = self.rays.unwrap_or(2048);
+        if let Some(r) = self.rays {
+            config.sampling.rays = r;
+        }
         apply_overrides(config, &self.set)
     }
 
@@ -199,8 +201,8 @@ impl PlanArgs {
             first_seed: self.first_seed,
             frames: self.frames,
             map_frames: self.map_frames,
-            particles: self.particles.unwrap_or(1024),
-            rays: self.rays.unwrap_or(2048),
+            particles: self.particles.unwrap_or(omcl::mcl::INDOOR_PARTICLES),
+            rays: self.rays.unwrap_or(FilterConfig::default().sampling.rays),
             variants,
             preset: self.preset,
             ablation_variant: self.ablation_variant.clone(),

@@ -50,8 +50,11 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
         localize_every: s.localize_every,
         classes: s.colour_classes,
         colour_shift: (s.colour_shift[0], s.colour_shift[1]),
-        particles: a.plan.particles.unwrap_or(1024),
-        rays: a.plan.rays.unwrap_or(2048),
+        particles: a.plan.particles.unwrap_or(omcl::mcl::INDOOR_PARTICLES),
+        rays: a
+            .plan
+            .rays
+            .unwrap_or(omcl::mcl::FilterConfig::default().sampling.rays),
         ..TrackSpec::default()
     };
     let n = seq.len().min(spec.frames.unwrap_or(usize::MAX));

@@ -13,7 +13,7 @@ use omcl::experiment::table1_floorplan::{self, BlockSpec};
 use omcl::map::FloorPlanParams;
 
 use super::bench_args::{BenchArgs, Experiment};
-use omcl::mcl::{FilterConfig, SIX_DOF_PARTICLES};
+use omcl::mcl::{FilterConfig, INDOOR_PARTICLES, SIX_DOF_PARTICLES};
 
 /// `--export-frames DIR`: writes the 3-D block's sequences to `DIR` and
 /// runs nothing.
@@ -49,7 +49,7 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     let progress = |m: &str| eprintln!("{m}");
     if e.contains(&Experiment::Table1Floorplan) {
         let b = table1_floorplan::block(
-            &block_spec(a, FilterConfig::default(), 1024)?,
+            &block_spec(a, FilterConfig::default(), INDOOR_PARTICLES)?,
             names,
             &progress,
         )?;
@@ -185,7 +185,7 @@ pub(super) fn block_overrides(sets: &[String]) -> anyhow::Result<BlockOverrides>
 /// The block's sequences and filter: `base` (the 2-D block's plain
 /// filter with 2048 rays, the 3-D block's [`FilterConfig::six_dof`] with
 /// 512) with `--rays` and `--set` applied, and `--particles` or the
-/// block's `particles` (1024, [`SIX_DOF_PARTICLES`]).
+/// block's `particles` ([`INDOOR_PARTICLES`], [`SIX_DOF_PARTICLES`]).
 fn block_spec(a: &BenchArgs, base: FilterConfig, particles: usize) -> anyhow::Result<BlockSpec> {
     let BlockOverrides {
         plan, two_d, rest, ..

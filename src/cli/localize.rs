@@ -389,7 +389,7 @@ fn particle_count(a: &LocalizeArgs, is_kitti: bool) -> usize {
     a.particles.unwrap_or(if is_kitti {
         omcl::mcl::STREET_PARTICLES
     } else {
-        1024
+        omcl::mcl::INDOOR_PARTICLES
     })
 }
 

@@ -70,6 +70,11 @@ impl Default for FilterConfig {
     }
 }
 
+/// Particles of the indoor filter (the paper's setting, with
+/// [`FilterConfig::default`]'s 2048 rays): `omcl localize`, `omcl serve`'s
+/// sessions and the indoor benchmarks default to it.
+pub const INDOOR_PARTICLES: usize = 1024;
+
 /// Particles of the filter on streets (the paper's outdoor setting, with
 /// [`FilterConfig::street`]'s 4096 rays): `omcl localize` on a KITTI
 /// folder and `omcl bench table4` default to it.

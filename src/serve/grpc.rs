@@ -115,13 +115,17 @@ impl Localization for Service {
         let r = req.into_inner();
         let map = self.state.map(&r.map)?.clone();
         let intrinsics = camera(r.camera.as_ref())?;
-        let particles = r.particles.unwrap_or(1024) as usize;
+        let particles = r
+            .particles
+            .map_or(crate::mcl::INDOOR_PARTICLES, |p| p as usize);
         if !(1..=1_000_000).contains(&particles) {
             return Err(Status::invalid_argument(format!(
                 "particles: {particles}, expected 1..=1000000"
             )));
         }
-        let rays = r.rays.unwrap_or(2048) as usize;
+        let rays = r
+            .rays
+            .map_or(crate::mcl::SamplingParams::default().rays, |r| r as usize);
         if !(1..=1_000_000).contains(&rays) {
             return Err(Status::invalid_argument(format!(
                 "rays: {rays}, expected 1..=1000000"
