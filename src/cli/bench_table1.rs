@@ -108,19 +108,18 @@ fn check_variants(a: &BenchArgs) -> anyhow::Result<()> {
     let others = e
         .iter()
         .any(|x| !matches!(x, Experiment::Table1Floorplan | Experiment::Table1Sixdof));
-    let mut known: Vec<&str> = blocks.iter().flat_map(|(_, r)| r.iter().copied()).collect();
-    if others {
-        known.extend(omcl::experiment::variant::TABLE1_VARIANTS.map(|v| v.name));
+    let sweep = omcl::experiment::variant::TABLE1_VARIANTS.map(|v| v.name);
+    let mut known: Vec<&str> = Vec::new();
+    for n in blocks
+        .iter()
+        .flat_map(|(_, r)| r.iter().copied())
+        .chain(sweep.into_iter().filter(|_| others))
+        .chain(odometry_alone.then_some("none"))
+    {
+        if !known.contains(&n) {
+            known.push(n);
+        }
     }
-    if odometry_alone {
-        known.push("none");
-    }
-    let mut seen = Vec::new();
-    known.retain(|n| {
-        let first = !seen.contains(n);
-        seen.push(n);
-        first
-    });
     for n in &named {
         anyhow::ensure!(
             known.contains(n),

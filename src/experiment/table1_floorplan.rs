@@ -484,12 +484,15 @@ impl BlockSpec {
 /// The OMCL variants of the 2-D block (OMCL_GT_exact aside).
 pub const OMCL_ROWS: [&str; 4] = ["OMCL_GT", "OMCL_LSeg", "OMCL_auto_LSeg", "OMCL_Open_LSeg"];
 
-/// Every row of the 2-D block by name: [`OMCL_ROWS`] and the baselines.
+/// The baselines of the 2-D block.
+pub const BASELINES: [Baseline; 2] = [Baseline::Sedar, Baseline::Simp];
+
+/// Every row of the 2-D block by name: [`OMCL_ROWS`] and [`BASELINES`].
 pub fn row_names() -> Vec<&'static str> {
     OMCL_ROWS
         .iter()
         .copied()
-        .chain([Baseline::Sedar, Baseline::Simp].map(|b| b.name()))
+        .chain(BASELINES.map(|b| b.name()))
         .collect()
 }
 
@@ -789,7 +792,7 @@ pub fn block(
     progress: &dyn Fn(&str),
 ) -> Result<BlockResult, ExperimentError> {
     let variants = spec.variants(&OMCL_ROWS, names);
-    let baselines: Vec<Baseline> = [Baseline::Sedar, Baseline::Simp]
+    let baselines: Vec<Baseline> = BASELINES
         .into_iter()
         .filter(|b| named_in(names, b.name()))
         .collect();

@@ -321,15 +321,25 @@ impl FeatureDb {
 mod tests {
     use super::*;
 
+    const DIM: usize = 37;
+
+    /// Deterministic values in [-1, 1) for the products' tests.
+    fn val(i: usize) -> f32 {
+        ((i * 7919 % 1000) as f32 / 500.0) - 1.0
+    }
+
+    /// 23 rows of [`DIM`] values, not unit.
+    fn test_db() -> FeatureDb {
+        let rows: Vec<f32> = (0..23 * DIM).map(|i| val(i + 5)).collect();
+        FeatureDb::from_rows(DIM, 0.0, rows).unwrap()
+    }
+
     /// `dots_and_norms` gives every feature's products with the rows and
     /// its norm, the same from a slice as from a fill function, for counts
     /// that do and do not fill a block of 128.
     #[test]
     fn dots_and_norms_equal_single_dots() {
-        let dim = 37;
-        let val = |i: usize| ((i * 7919 % 1000) as f32 / 500.0) - 1.0;
-        let rows: Vec<f32> = (0..23 * dim).map(|i| val(i + 5)).collect();
-        let db = FeatureDb::from_rows(dim, 0.0, rows).unwrap();
+        let (dim, db) = (DIM, test_db());
         for n in [0, 1, 127, 128, 300] {
             let all: Vec<f32> = (0..n * dim).map(|i| val(3 * i + 1)).collect();
             let fill =
@@ -354,10 +364,7 @@ mod tests {
     /// output sees its own feature.
     #[test]
     fn map_dots_equals_single_dots() {
-        let dim = 37;
-        let val = |i: usize| ((i * 7919 % 1000) as f32 / 500.0) - 1.0;
-        let rows: Vec<f32> = (0..23 * dim).map(|i| val(i + 5)).collect();
-        let db = FeatureDb::from_rows(dim, 0.0, rows).unwrap();
+        let (dim, db) = (DIM, test_db());
         for n in [0, 1, 7, 64, 300] {
             let feat = |j: usize, buf: &mut [f32]| {
                 for (i, x) in buf.iter_mut().enumerate() {
