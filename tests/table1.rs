@@ -31,10 +31,26 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
         &|_| {},
     )
     .unwrap();
-    let plan = PlanBench::from_bench(&map, &FloorPlanParams::default(), &seq.table).unwrap();
+    let plan =
+        PlanBench::from_bench(&map, &FloorPlanParams::default(), &seq.table, Some(0.5)).unwrap();
     // The plan is a one-layer map of the 3-D map's columns.
     assert!(plan.map.cells().iter().all(|c| c[2] == 0));
     assert!(plan.plan.len() > 1000 && plan.plan.len() < map.map.len());
+    // OMCL's 2-D map adds each column's own floor (layer 1) and ceiling
+    // (layer 2) under and over the plan, free columns included.
+    let own = |z| {
+        plan.sighted_map
+            .cells()
+            .iter()
+            .filter(|c| c[2] == z)
+            .count()
+    };
+    assert!(
+        own(1) > plan.plan.len() && own(2) > 1000,
+        "{} {}",
+        own(1),
+        own(2)
+    );
     let filter = FilterConfig {
         seed: 1,
         ..FilterConfig::default()

@@ -273,6 +273,43 @@ impl FloorPlan {
             .collect()
     }
 
+    /// The floor and the ceiling the band leaves out, per column of `map`
+    /// (the map the plan was projected from): for every `[i, j]` with
+    /// leaves below the band (the floor) or in the map's highest occupied
+    /// layer (the ceiling), the sum of those leaves' rows, sorted by
+    /// `(j, i)`. Free columns of the plan have them too. Like
+    /// [`FloorPlan::column_extents`], not in the plan file; for what a
+    /// camera pixel looking down or up sees in plan view.
+    pub fn surface_features(&self, map: &LanguageMap) -> [Vec<([i32; 2], Vec<f32>)>; 2] {
+        let g = map.grid();
+        let r = g.resolution;
+        let top = map.cell_bounds().map_or(i32::MAX, |(_, max)| max[2]);
+        let dim = map.db().dim();
+        let mut sums: [HashMap<(i32, i32), Vec<f32>>; 2] = [HashMap::new(), HashMap::new()];
+        for (c, &row) in map.cells().iter().zip(map.rows()) {
+            let centre = g.origin.z + (c[2] as f64 + 0.5) * r - self.floor_z;
+            let side = if centre < self.params.band_min {
+                0
+            } else if c[2] == top && centre > self.params.band_max {
+                1
+            } else {
+                continue;
+            };
+            let s = sums[side]
+                .entry((c[1], c[0]))
+                .or_insert_with(|| vec![0.0; dim]);
+            for (a, b) in s.iter_mut().zip(map.db().row(row as usize)) {
+                *a += b;
+            }
+        }
+        sums.map(|m| {
+            let mut v: Vec<([i32; 2], Vec<f32>)> =
+                m.into_iter().map(|((j, i), f)| ([i, j], f)).collect();
+            v.sort_unstable_by_key(|(c, _)| (c[1], c[0]));
+            v
+        })
+    }
+
     /// Height of `map`'s ceiling above `floor_z`, metres: the bottom of its
     /// highest occupied layer (the map the plan was projected from).
     pub fn ceiling_height(&self, map: &LanguageMap) -> Option<f64> {
@@ -673,6 +710,51 @@ mod tests {
         );
         // The highest layer, z 5, starts at 2.5 m.
         assert_eq!(plan.ceiling_height(&m), Some(2.5));
+    }
+
+    /// The hand-made map's floor and ceiling per column: every one of the
+    /// 12 floor cells (z 0, centre 0.25 m, below the 0.6 m band) holds the
+    /// floor row once; the ceiling (row 3 at z 5, the top layer) is over
+    /// (0, 0) only. A leaf in the top layer but inside the band is no
+    /// ceiling, and a second floor leaf in a column adds to its sum.
+    #[test]
+    fn floor_and_ceiling_per_column_by_hand() {
+        let m = hand_map();
+        let plan = FloorPlan::from_map(&m, &band()).unwrap();
+        let [floor, ceiling] = plan.surface_features(&m);
+        assert_eq!(floor.len(), 12);
+        assert_eq!(floor[0].0, [0, 0]);
+        assert_eq!(floor[11].0, [3, 2]);
+        assert!(
+            floor
+                .windows(2)
+                .all(|w| (w[0].0[1], w[0].0[0]) < (w[1].0[1], w[1].0[0]))
+        );
+        assert!(floor.iter().all(|(_, f)| f == &[1.0, 0.0, 0.0]));
+        assert_eq!(ceiling, vec![([0, 0], vec![0.6, 0.0, 0.8])]);
+        // A map whose top layer is in the band has no ceiling; a second
+        // leaf below the band (a rug, row 2 at z 0 would clash, so the
+        // band starts higher) adds to the column's floor.
+        let mut leaves: Vec<_> = m
+            .cells()
+            .into_iter()
+            .zip(m.rows().iter().copied())
+            .filter(|(c, _)| c[2] < 5)
+            .collect();
+        leaves.push(([1, 1, 1], 2));
+        let m = LanguageMap::from_cells(*m.grid(), m.db().clone(), "hand", leaves).unwrap();
+        let high = FloorPlanParams {
+            band_min: 1.0,
+            band_max: 2.0,
+        };
+        let plan = FloorPlan::from_map(&m, &high).unwrap();
+        let [floor, ceiling] = plan.surface_features(&m);
+        assert!(ceiling.is_empty());
+        let rug = floor.iter().find(|(c, _)| *c == [1, 1]).unwrap();
+        assert_eq!(rug.1, vec![1.0, 0.0, 1.0]);
+        // (0, 0)'s wall leaf at z 1 (centre 0.75 m) is below this band too.
+        let wall = floor.iter().find(|(c, _)| *c == [0, 0]).unwrap();
+        assert_eq!(wall.1, vec![1.0, 1.0, 0.0]);
     }
 
     #[test]

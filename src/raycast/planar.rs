@@ -64,6 +64,10 @@ use super::{Fan, Hit, RayCaster};
 use crate::geometry::Ray;
 use crate::map::Cell;
 
+/// [`PlanarCaster::vertical_range`]'s surface for a ray the window does not
+/// end (it ends at its own `t_max`): no floor or ceiling hit.
+const NO_EXIT: usize = usize::MAX;
+
 /// Most columns a shared walk lists before the rays still unresolved are
 /// cast on their own.
 const MAX_LISTED: usize = 64;
@@ -88,6 +92,9 @@ pub struct PlanarCaster {
     /// Leaves reported where a ray leaves the window through the floor and
     /// through the ceiling (`Hit::MISS`: a miss).
     exits: [u32; 2],
+    /// Per grid cell (as `leaf`), the floor's and the ceiling's own leaf
+    /// there, or `Hit::MISS` for `exits`' ([`PlanarCaster::with_surfaces`]).
+    surfaces: Option<Vec<[u32; 2]>>,
     n: usize,
 }
 
@@ -134,6 +141,7 @@ impl PlanarCaster {
             extents: None,
             window: [f32::NEG_INFINITY, f32::INFINITY],
             exits: [Hit::MISS; 2],
+            surfaces: None,
             n: cells.len(),
         }
     }
@@ -156,21 +164,40 @@ impl PlanarCaster {
         self
     }
 
+    /// The same caster with a floor and a ceiling of their own per column:
+    /// a ray leaving the window through the floor (ceiling) at a point
+    /// over cell `[i, j]` hits `floor` (`ceiling`) leaf of that cell, and
+    /// `exits`' one where the cell has none or lies outside the columns'
+    /// bounding box. Each entry is a cell and its leaf.
+    pub fn with_surfaces(mut self, floor: &[([i32; 2], u32)], ceiling: &[([i32; 2], u32)]) -> Self {
+        let mut s = vec![[Hit::MISS; 2]; self.leaf.len()];
+        for (side, list) in [floor, ceiling].into_iter().enumerate() {
+            for &(c, leaf) in list {
+                let (i, j) = (c[0] - self.lo[0], c[1] - self.lo[1]);
+                if (0..self.size[0]).contains(&i) && (0..self.size[1]).contains(&j) {
+                    s[(j * self.size[0] + i) as usize][side] = leaf;
+                }
+            }
+        }
+        self.surfaces = Some(s);
+        self
+    }
+
     /// The parameter interval of `ray` inside the vertical window, within
-    /// its own `[t_min, t_max]`, and the leaf it meets at the end of it
-    /// (the floor or ceiling exit, when the window ends it); `None` if
-    /// empty.
-    fn vertical_range(&self, ray: &Ray) -> Option<(f64, f64, u32)> {
+    /// its own `[t_min, t_max]`, and the surface it meets at the end of it
+    /// (0 the floor, 1 the ceiling, [`NO_EXIT`] when the window does not
+    /// end it); `None` if empty.
+    fn vertical_range(&self, ray: &Ray) -> Option<(f64, f64, usize)> {
         self.window_range(ray.origin[2], ray.dir[2], ray.t_min, ray.t_max)
     }
 
     /// [`PlanarCaster::vertical_range`] of a ray from height `oz` with
     /// vertical direction `dz` over `[t_min, t_max]`.
-    fn window_range(&self, oz: f32, dz: f32, t_min: f32, t_max: f32) -> Option<(f64, f64, u32)> {
+    fn window_range(&self, oz: f32, dz: f32, t_min: f32, t_max: f32) -> Option<(f64, f64, usize)> {
         let (oz, dz) = (oz as f64, dz as f64);
         let (zl, zh) = (self.window[0] as f64, self.window[1] as f64);
         let (mut a, mut b) = (t_min as f64, t_max as f64);
-        let mut exit = Hit::MISS;
+        let mut exit = NO_EXIT;
         if dz == 0.0 {
             if oz < zl || oz > zh {
                 return None;
@@ -181,7 +208,7 @@ impl PlanarCaster {
             let end = t1.max(t2);
             if end <= b {
                 b = end;
-                exit = self.exits[usize::from(dz > 0.0)];
+                exit = usize::from(dz > 0.0);
             }
         }
         (a <= b).then_some((a, b, exit))
@@ -321,7 +348,7 @@ impl PlanarCaster {
         let Some((a, b, exit)) = self.vertical_range(ray) else {
             return Hit::miss();
         };
-        let mut hit = Self::exit_hit(exit, b);
+        let mut hit = self.exit_hit(exit, o, d, b);
         self.walk(o, d, (a, b), |leaf, t_in, t_out| {
             match self.meets(ray, leaf, t_in, t_out, a, b) {
                 Some(t) => {
@@ -334,15 +361,30 @@ impl PlanarCaster {
         hit
     }
 
-    /// The hit of a ray that meets no column before its window ends at `b`.
-    fn exit_hit(exit: u32, b: f64) -> Hit {
-        if exit == Hit::MISS {
+    /// The hit of a ray `o + t d` (planar part) that meets no column
+    /// before its window ends at `b` through `side` (see
+    /// [`PlanarCaster::vertical_range`]): the floor's or ceiling's leaf
+    /// over the cell it leaves through, else the plan-wide exit.
+    fn exit_hit(&self, side: usize, o: [f64; 2], d: [f64; 2], b: f64) -> Hit {
+        if side == NO_EXIT {
+            return Hit::miss();
+        }
+        let mut leaf = self.exits[side];
+        if let Some(s) = &self.surfaces {
+            let inv_r = 1.0 / self.resolution;
+            let i = floor_i64((o[0] + b * d[0]) * inv_r) - self.lo[0] as i64;
+            let j = floor_i64((o[1] + b * d[1]) * inv_r) - self.lo[1] as i64;
+            if (0..self.size[0] as i64).contains(&i) && (0..self.size[1] as i64).contains(&j) {
+                let own = s[(j * self.size[0] as i64 + i) as usize][side];
+                if own != Hit::MISS {
+                    leaf = own;
+                }
+            }
+        }
+        if leaf == Hit::MISS {
             Hit::miss()
         } else {
-            Hit {
-                leaf: exit,
-                t: b as f32,
-            }
+            Hit { leaf, t: b as f32 }
         }
     }
 
@@ -416,7 +458,7 @@ impl PlanarCaster {
         rays: &[Ray],
         hits: &mut [Hit],
         list: &mut Vec<Crossing>,
-        scratch: &mut Vec<Option<(f64, f64, f64, u32)>>,
+        scratch: &mut Vec<Option<(f64, f64, f64, usize)>>,
     ) {
         let Some((o, d0)) = Self::planar(&rays[0]) else {
             for (r, h) in rays.iter().zip(hits.iter_mut()) {
@@ -453,7 +495,10 @@ impl PlanarCaster {
                     t: (t * k) as f32,
                 },
                 None if !complete && list.len() >= MAX_LISTED && b > last * k => self.cast_one(r),
-                None => Self::exit_hit(exit, b),
+                None => {
+                    let dr = [r.dir[0] as f64, r.dir[1] as f64];
+                    self.exit_hit(exit, o, dr, b)
+                }
             };
         }
     }
@@ -563,7 +608,7 @@ impl RayCaster for PlanarCaster {
                             t_max: t_max[j],
                         })
                     }
-                    None => Self::exit_hit(exit, b),
+                    None => self.exit_hit(exit, o, d, b),
                 };
             }
         }
@@ -642,6 +687,59 @@ mod tests {
         let h = c.cast_one(&Ray::new([2.2, 0.2, 0.0], [-1.0, 0.3, 0.0]));
         assert_eq!((h.leaf, h.t), (0, 0.0));
         assert_eq!(c.len(), 5);
+    }
+
+    /// The hand-made room below with a floor and a ceiling of their own
+    /// over column (3, 0) (leaves 9 and 10): from (1.25, 0.25, 1.5) along
+    /// +x, down 2 leaves the window (z 0.1) at t 0.7, x 1.95, over (3, 0):
+    /// its floor; up 2 reaches the ceiling (z 2.5) at t 0.5, x 1.75, over
+    /// (3, 0): its ceiling. Along -x the floor is reached at x 0.55, over
+    /// (1, 0), outside the columns' box: the plan-wide floor (7). Batches
+    /// and fans agree.
+    #[test]
+    fn rays_leaving_the_window_hit_the_floor_and_ceiling_of_their_cell() {
+        let mut cells = plan();
+        cells[4] = [2, 1, 0];
+        let inf = f32::INFINITY;
+        let mut extents = vec![[-inf, inf]; 4];
+        extents.push([-inf, 0.75]);
+        let c = PlanarCaster::new(0.5, &cells)
+            .with_heights(&extents, [0.1, 2.5], [7, 8])
+            .with_surfaces(&[([3, 0], 9), ([9, 9], 11)], &[([3, 0], 10)]);
+        let o = [1.25, 0.25, 1.5];
+        let rays = [
+            Ray::new(o, [1.0, 0.0, -2.0]),
+            Ray::new(o, [1.0, 0.0, 2.0]),
+            Ray::new(o, [-1.0, 0.0, -2.0]),
+            Ray::new(o, [-1.0, 0.0, 2.0]),
+        ];
+        let want = [(9, 0.7), (10, 0.5), (7, 0.7), (8, 0.5)];
+        for (r, (leaf, t)) in rays.iter().zip(want) {
+            let h = c.cast_one(r);
+            assert_eq!(h.leaf, leaf, "{r:?}");
+            assert!((h.t - t).abs() < 1e-6, "{h:?}");
+        }
+        // Level along +x: the wall (column (4, 0), leaf 0) at x 2, t 0.75.
+        assert_eq!(c.cast_one(&Ray::new(o, [1.0, 0.0, 0.0])).leaf, 0);
+        let mut hits = vec![Hit::miss(); 2];
+        c.cast_serial(&rays[..2], &mut hits);
+        assert_eq!([hits[0].leaf, hits[1].leaf], [9, 10]);
+        let fans = [
+            Fan {
+                dir: [1.0, 0.0],
+                start: 0,
+                end: 2,
+            },
+            Fan {
+                dir: [-1.0, 0.0],
+                start: 2,
+                end: 4,
+            },
+        ];
+        let mut hits = vec![Hit::miss(); 4];
+        assert!(c.cast_fans(o, &fans, &[-2.0, 2.0, -2.0, 2.0], &[inf; 4], &mut hits));
+        let leaves: Vec<u32> = hits.iter().map(|h| h.leaf).collect();
+        assert_eq!(leaves, [9, 10, 7, 8]);
     }
 
     /// A room by hand at 0.5 m: a full-height wall at x index 4 (j 0..=3,
@@ -808,8 +906,33 @@ mod tests {
             }
         }
         let n = cells.len() as u32;
-        let c = PlanarCaster::new(0.1, &cells).with_heights(&extents, [0.1, 2.5], [n, n + 1]);
+        // Own floor (leaf n + 2) and ceiling (n + 3) over a third of the
+        // cells each; the plan-wide exits (n, n + 1) elsewhere.
+        let mut own: [Vec<([i32; 2], u32)>; 2] = [Vec::new(), Vec::new()];
+        for i in -40..40 {
+            for j in -30..30 {
+                match rng.random_range(0..3) {
+                    0 => own[0].push(([i, j], n + 2)),
+                    1 => own[1].push(([i, j], n + 3)),
+                    _ => {}
+                }
+            }
+        }
+        let c = PlanarCaster::new(0.1, &cells)
+            .with_heights(&extents, [0.1, 2.5], [n, n + 1])
+            .with_surfaces(&own[0], &own[1]);
         (c, cells, n)
+    }
+
+    /// Which of the random room's kinds of hit `leaf` is: 0 the floor
+    /// (plan-wide or own), 1 the ceiling, 2 a column, 3 a miss.
+    fn kind(leaf: u32, n: u32) -> usize {
+        match leaf {
+            l if l == n || l == n + 2 => 0,
+            l if l == n + 1 || l == n + 3 => 1,
+            Hit::MISS => 3,
+            _ => 2,
+        }
     }
 
     /// On a random plan with random column heights, a batch of runs of
@@ -819,7 +942,8 @@ mod tests {
     fn batched_runs_with_heights_match_single_casts_on_a_random_plan() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
         let (c, _, n) = random_room(&mut rng);
-        let mut hits_seen = [0usize; 3];
+        let mut hits_seen = [0usize; 4];
+        let mut own = 0;
         for _ in 0..200 {
             let o = [
                 rng.random_range(-4.0f32..4.0),
@@ -840,15 +964,15 @@ mod tests {
                 let one = c.cast_one(r);
                 assert_eq!(h.leaf, one.leaf, "{r:?}");
                 assert!(!one.is_hit() || (h.t - one.t).abs() <= 1e-5 * one.t.max(1.0));
-                hits_seen[match h.leaf {
-                    l if l == n => 0,
-                    l if l == n + 1 => 1,
-                    _ => 2,
-                }] += 1;
+                hits_seen[kind(h.leaf, n)] += 1;
+                own += usize::from(h.leaf >= n + 2 && h.is_hit());
             }
         }
-        // Floor, ceiling and columns all occur.
-        assert!(hits_seen.iter().all(|&k| k > 50), "{hits_seen:?}");
+        // Floor, ceiling (plan-wide and own) and columns all occur.
+        assert!(
+            hits_seen[..3].iter().all(|&k| k > 50) && own > 50,
+            "{hits_seen:?} {own}"
+        );
     }
 
     /// Fans (rays from one origin sharing the horizontal part of their
@@ -860,7 +984,7 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(13);
         let (c, cells, n) = random_room(&mut rng);
         let inf = f32::INFINITY;
-        let (mut seen, mut misses) = ([0usize; 3], 0);
+        let mut seen = [0usize; 4];
         for _ in 0..100 {
             let o = [
                 rng.random_range(-4.0f32..4.0),
@@ -895,19 +1019,14 @@ mod tests {
                     let (h, one) = (hits[j], c.cast_one(&ray));
                     assert_eq!(h.leaf, one.leaf, "{ray:?}");
                     assert!(!one.is_hit() || (h.t - one.t).abs() <= 1e-5 * one.t.max(1.0));
-                    match h.leaf {
-                        l if l == n => seen[0] += 1,
-                        l if l == n + 1 => seen[1] += 1,
-                        Hit::MISS => misses += 1,
-                        _ => seen[2] += 1,
-                    }
+                    seen[kind(h.leaf, n)] += 1;
                 }
             }
         }
         // Floor, ceiling and columns all occur, and short ranges miss.
         assert!(
-            seen.iter().all(|&k| k > 50) && misses > 10,
-            "{seen:?} {misses}"
+            seen[..3].iter().all(|&k| k > 50) && seen[3] > 10,
+            "{seen:?}"
         );
         // No columns: every ray misses, and other casters have no fans.
         let empty = PlanarCaster::new(0.1, &[]);
