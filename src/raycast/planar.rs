@@ -30,6 +30,11 @@
 //! table top). Nothing but the pixel's direction and the camera's height is
 //! used (no depth).
 //!
+//! Where the ray leaves the window, [`PlanarCaster::with_surfaces`] gives
+//! it the floor or ceiling of the cell it is over at that point, if that
+//! cell has one of its own (a floor plan's free columns keep the 3-D
+//! map's floor under them), else the plan-wide exit.
+//!
 //! # Speed
 //!
 //! The occupied columns are a dense grid over their bounding box (a leaf
