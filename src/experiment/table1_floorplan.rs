@@ -25,8 +25,7 @@
 //! the table top; if it reaches the band's bottom (0.10 m above the floor)
 //! or the ceiling first, it hits the floor or ceiling of the column it
 //! leaves the window over ([`crate::raycast::PlanarCaster::with_surfaces`]).
-//! Its score is the
-//! eq. 2 cosine with the row it hits, as in 3-D. Floor and ceiling pixels
+//! Its score is the eq. 2 cosine with the row it hits, as in 3-D. Floor and ceiling pixels
 //! are therefore scored (they say where the walls and furniture stand, as
 //! the floor does in 3-D), and the sampler draws them as their own strata.
 //! Only the pixel's direction and the camera's height are used, no depth.
@@ -122,7 +121,8 @@ impl PlanBench {
     /// column's extent, the window from the plan's band bottom to the
     /// map's ceiling, and the floor and ceiling rows `exit_rows` (unit
     /// text features of [`EXIT_WORDS`]; without them rays leaving the
-    /// window miss).
+    /// window miss) and, with `surfaces` (the words' weight,
+    /// [`TwoDParams::surfaces`]), each column's own floor and ceiling.
     pub fn from_map(
         map: &LanguageMap,
         params: &FloorPlanParams,
