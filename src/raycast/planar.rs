@@ -353,17 +353,18 @@ impl PlanarCaster {
         let Some((a, b, exit)) = self.vertical_range(ray) else {
             return Hit::miss();
         };
-        let mut hit = self.exit_hit(exit, o, d, b);
+        let mut hit = None;
         self.walk(o, d, (a, b), |leaf, t_in, t_out| {
             match self.meets(ray, leaf, t_in, t_out, a, b) {
                 Some(t) => {
-                    hit = Hit { leaf, t: t as f32 };
+                    hit = Some(Hit { leaf, t: t as f32 });
                     true
                 }
                 None => false,
             }
         });
-        hit
+        // The floor or ceiling only for a ray no column stopped.
+        hit.unwrap_or_else(|| self.exit_hit(exit, o, d, b))
     }
 
     /// The hit of a ray `o + t d` (planar part) that meets no column
