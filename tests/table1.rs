@@ -51,6 +51,13 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
         own(1),
         own(2)
     );
+    // A negative or non-finite weight of the words is refused by name.
+    for w in [-1.0, f32::INFINITY] {
+        let e = PlanBench::from_bench(&map, &FloorPlanParams::default(), &seq.table, Some(w))
+            .err()
+            .expect("refused");
+        assert!(e.to_string().contains("two_d.surfaces"), "{e}");
+    }
     let filter = FilterConfig {
         seed: 1,
         ..FilterConfig::default()

@@ -129,6 +129,11 @@ impl PlanBench {
         exit_rows: Option<[&[f32]; 2]>,
         surfaces: Option<f32>,
     ) -> Result<Self, ExperimentError> {
+        if let Some(w) = surfaces.filter(|w| !(w.is_finite() && *w >= 0.0)) {
+            return Err(ExperimentError::Config(format!(
+                "two_d.surfaces: the words' weight must be a finite number >= 0 (or null), got {w}"
+            )));
+        }
         let cfg = |e: crate::map::floorplan::FloorPlanError| ExperimentError::Config(e.to_string());
         let plan = FloorPlan::from_map(map, params).map_err(cfg)?;
         let extents = plan.column_extents(map);
