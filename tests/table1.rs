@@ -31,8 +31,9 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
         &|_| {},
     )
     .unwrap();
+    let two_d = TwoDParams::default();
     let plan =
-        PlanBench::from_bench(&map, &FloorPlanParams::default(), &seq.table, Some(0.5)).unwrap();
+        PlanBench::from_bench(&map, &FloorPlanParams::default(), &seq.table, &two_d).unwrap();
     // The plan is a one-layer map of the 3-D map's columns.
     assert!(plan.map.cells().iter().all(|c| c[2] == 0));
     assert!(plan.plan.len() > 1000 && plan.plan.len() < map.map.len());
@@ -51,12 +52,38 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
         own(1),
         own(2)
     );
-    // A negative or non-finite weight of the words is refused by name.
-    for w in [-1.0, f32::INFINITY] {
-        let e = PlanBench::from_bench(&map, &FloorPlanParams::default(), &seq.table, Some(w))
+    // And each occupied column's own base (layer 5) and top (layer 6):
+    // the walls have both, free columns neither.
+    assert!(
+        own(5) > plan.plan.len() / 4 && own(6) > plan.plan.len() / 4,
+        "{} {} of {}",
+        own(5),
+        own(6),
+        plan.plan.len()
+    );
+    assert!(own(5) <= plan.plan.len() && own(6) <= plan.plan.len());
+    // A negative or non-finite weight of the words, or height of the
+    // bases and tops, is refused by name.
+    for (w, h) in [
+        (-1.0, 0.1),
+        (f32::INFINITY, 0.1),
+        (0.5, 0.0),
+        (0.5, f32::NAN),
+    ] {
+        let bad = TwoDParams {
+            surfaces: Some(w),
+            skirt: Some(h),
+            ..two_d
+        };
+        let e = PlanBench::from_bench(&map, &FloorPlanParams::default(), &seq.table, &bad)
             .err()
             .expect("refused");
-        assert!(e.to_string().contains("two_d.surfaces"), "{e}");
+        let name = if w == 0.5 {
+            "two_d.skirt"
+        } else {
+            "two_d.surfaces"
+        };
+        assert!(e.to_string().contains(name), "{e}");
     }
     let filter = FilterConfig {
         seed: 1,

@@ -310,6 +310,41 @@ impl FloorPlan {
         })
     }
 
+    /// Per occupied column of the plan, the sum of the rows of `map`'s
+    /// leaves (the map the plan was projected from) whose centres lie in
+    /// `[lo, hi)` metres above `floor_z`, leaving out the map's highest
+    /// occupied layer (the ceiling); sorted by `(j, i)`. For a column's own
+    /// base and top ([`crate::raycast::PlanarCaster::with_skirts`]); not in
+    /// the plan file.
+    pub fn slab_features(&self, map: &LanguageMap, lo: f64, hi: f64) -> Vec<([i32; 2], Vec<f32>)> {
+        let g = map.grid();
+        let r = g.resolution;
+        let top = map.cell_bounds().map_or(i32::MAX, |(_, max)| max[2]);
+        let dim = map.db().dim();
+        let mut sums: HashMap<(i32, i32), Vec<f32>> = HashMap::new();
+        for (c, &row) in map.cells().iter().zip(map.rows()) {
+            let centre = g.origin.z + (c[2] as f64 + 0.5) * r - self.floor_z;
+            if c[2] == top || !(lo..hi).contains(&centre) {
+                continue;
+            }
+            if self
+                .cells
+                .binary_search_by_key(&(c[1], c[0]), |p| (p[1], p[0]))
+                .is_err()
+            {
+                continue;
+            }
+            let s = sums.entry((c[1], c[0])).or_insert_with(|| vec![0.0; dim]);
+            for (a, b) in s.iter_mut().zip(map.db().row(row as usize)) {
+                *a += b;
+            }
+        }
+        let mut v: Vec<([i32; 2], Vec<f32>)> =
+            sums.into_iter().map(|((j, i), f)| ([i, j], f)).collect();
+        v.sort_unstable_by_key(|(c, _)| (c[1], c[0]));
+        v
+    }
+
     /// Height of `map`'s ceiling above `floor_z`, metres: the bottom of its
     /// highest occupied layer (the map the plan was projected from).
     pub fn ceiling_height(&self, map: &LanguageMap) -> Option<f64> {
@@ -755,6 +790,34 @@ mod tests {
         // (0, 0)'s wall leaf at z 1 (centre 0.75 m) is below this band too.
         let wall = floor.iter().find(|(c, _)| *c == [0, 0]).unwrap();
         assert_eq!(wall.1, vec![1.0, 1.0, 0.0]);
+    }
+
+    /// The hand-made map's slabs per occupied column: [0.6, 1.0) m holds
+    /// the leaves at z 1 (centre 0.75): the wall row in both columns;
+    /// [1.5, 3.0) the leaves at z 3 (centre 1.75), the wall's and the
+    /// shelf's, but not the ceiling at z 5 (the top layer); [0, 1.5) sums
+    /// z 0 to 2 of the occupied columns only (the floor under the 10 free
+    /// ones is left out).
+    #[test]
+    fn slabs_per_occupied_column_by_hand() {
+        let m = hand_map();
+        let plan = FloorPlan::from_map(&m, &band()).unwrap();
+        let base = plan.slab_features(&m, 0.6, 1.0);
+        assert_eq!(
+            base,
+            vec![([0, 0], vec![0.0, 1.0, 0.0]), ([2, 1], vec![0.0, 1.0, 0.0])]
+        );
+        let top = plan.slab_features(&m, 1.5, 3.0);
+        assert_eq!(
+            top,
+            vec![([0, 0], vec![0.0, 1.0, 0.0]), ([2, 1], vec![0.0, 0.0, 1.0])]
+        );
+        let low = plan.slab_features(&m, 0.0, 1.5);
+        assert_eq!(
+            low,
+            vec![([0, 0], vec![1.0, 2.0, 0.0]), ([2, 1], vec![1.0, 1.0, 1.0])]
+        );
+        assert!(plan.slab_features(&m, 2.0, 2.5).is_empty());
     }
 
     #[test]

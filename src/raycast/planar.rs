@@ -35,6 +35,11 @@
 //! cell has one of its own (a floor plan's free columns keep the 3-D
 //! map's floor under them), else the plan-wide exit.
 //!
+//! [`PlanarCaster::with_skirts`] gives a column its own base and top: a
+//! pixel hitting it low (high) reports the base (top) leaf of its cell
+//! instead of the column's own, so a wall can carry, near the floor and
+//! the ceiling, what its 3-D voxels there carry.
+//!
 //! # Speed
 //!
 //! The occupied columns are a dense grid over their bounding box (a leaf
@@ -100,6 +105,12 @@ pub struct PlanarCaster {
     /// Per grid cell (as `leaf`), the floor's and the ceiling's own leaf
     /// there, or `Hit::MISS` for `exits`' ([`PlanarCaster::with_surfaces`]).
     surfaces: Option<Vec<[u32; 2]>>,
+    /// Per grid cell (as `leaf`), the column's own base and top leaf, or
+    /// `Hit::MISS` for the column's own ([`PlanarCaster::with_skirts`]).
+    skirts: Option<Vec<[u32; 2]>>,
+    /// A column hit below `skirt_z[0]` reports its base leaf, one hit at or
+    /// above `skirt_z[1]` its top leaf (grid-frame z).
+    skirt_z: [f64; 2],
     n: usize,
 }
 
@@ -114,6 +125,8 @@ struct Crossing {
     /// The column's vertical extent (grid-frame z).
     bottom: f64,
     top: f64,
+    /// The column's base and top leaves (`Hit::MISS`: none of its own).
+    skirt: [u32; 2],
 }
 
 impl PlanarCaster {
@@ -147,6 +160,8 @@ impl PlanarCaster {
             window: [f32::NEG_INFINITY, f32::INFINITY],
             exits: [Hit::MISS; 2],
             surfaces: None,
+            skirts: None,
+            skirt_z: [f64::NEG_INFINITY, f64::INFINITY],
             n: cells.len(),
         }
     }
@@ -186,6 +201,49 @@ impl PlanarCaster {
         }
         self.surfaces = Some(s);
         self
+    }
+
+    /// The same caster with each column's own base and top: a column hit
+    /// below `heights[0]` (grid-frame z) reports the `base` leaf of its
+    /// cell, one hit at or above `heights[1]` its `top` leaf, if the cell
+    /// has one; elsewhere, and where it has none, the column's own leaf.
+    /// Each entry is a cell and its leaf.
+    pub fn with_skirts(
+        mut self,
+        base: &[([i32; 2], u32)],
+        top: &[([i32; 2], u32)],
+        heights: [f32; 2],
+    ) -> Self {
+        let mut s = vec![[Hit::MISS; 2]; self.leaf.len()];
+        for (side, list) in [base, top].into_iter().enumerate() {
+            for &(c, leaf) in list {
+                let (i, j) = (c[0] - self.lo[0], c[1] - self.lo[1]);
+                if (0..self.size[0]).contains(&i) && (0..self.size[1]).contains(&j) {
+                    s[(j * self.size[0] + i) as usize][side] = leaf;
+                }
+            }
+        }
+        self.skirts = Some(s);
+        self.skirt_z = heights.map(f64::from);
+        self
+    }
+
+    /// The base and top leaves of grid cell `idx` (`Hit::MISS` for none).
+    fn skirt(&self, idx: usize) -> [u32; 2] {
+        self.skirts.as_ref().map_or([Hit::MISS; 2], |s| s[idx])
+    }
+
+    /// The leaf a column of leaf `leaf` with skirt leaves `skirt` reports
+    /// for a hit at height `z`.
+    fn zone_leaf(&self, leaf: u32, skirt: [u32; 2], z: f64) -> u32 {
+        let own = if z < self.skirt_z[0] {
+            skirt[0]
+        } else if z >= self.skirt_z[1] {
+            skirt[1]
+        } else {
+            Hit::MISS
+        };
+        if own == Hit::MISS { leaf } else { own }
     }
 
     /// The parameter interval of `ray` inside the vertical window, within
@@ -252,14 +310,14 @@ impl PlanarCaster {
     }
 
     /// Walks the planar ray `o + t d` over `[t0, t1]` and calls `visit`
-    /// with every occupied column it crosses (leaf, entry and exit
-    /// parameters) in order, until `visit` returns `true`.
+    /// with every occupied column it crosses (grid cell index, leaf, entry
+    /// and exit parameters) in order, until `visit` returns `true`.
     fn walk(
         &self,
         o: [f64; 2],
         d: [f64; 2],
         t_range: (f64, f64),
-        mut visit: impl FnMut(u32, f64, f64) -> bool,
+        mut visit: impl FnMut(usize, u32, f64, f64) -> bool,
     ) {
         let r = self.resolution;
         let lo = [0, 1].map(|a| self.lo[a] as f64 * r);
@@ -297,7 +355,7 @@ impl PlanarCaster {
                 let leaf = self.leaf[idx];
                 let a = if next[0] < next[1] { 0 } else { 1 };
                 if leaf != Hit::MISS {
-                    if visit(leaf, t, next[a].min(t1)) {
+                    if visit(idx, leaf, t, next[a].min(t1)) {
                         return;
                     }
                 } else {
@@ -354,9 +412,11 @@ impl PlanarCaster {
             return Hit::miss();
         };
         let mut hit = None;
-        self.walk(o, d, (a, b), |leaf, t_in, t_out| {
+        self.walk(o, d, (a, b), |idx, leaf, t_in, t_out| {
             match self.meets(ray, leaf, t_in, t_out, a, b) {
                 Some(t) => {
+                    let z = ray.origin[2] as f64 + ray.dir[2] as f64 * t;
+                    let leaf = self.zone_leaf(leaf, self.skirt(idx), z);
                     hit = Some(Hit { leaf, t: t as f32 });
                     true
                 }
@@ -407,7 +467,7 @@ impl PlanarCaster {
     ) -> bool {
         list.clear();
         let mut complete = false;
-        self.walk(o, d, (0.0, reach), |leaf, t_in, t_out| {
+        self.walk(o, d, (0.0, reach), |idx, leaf, t_in, t_out| {
             let [bottom, top] = match &self.extents {
                 Some(e) => e
                     .get(leaf as usize)
@@ -421,6 +481,7 @@ impl PlanarCaster {
                 t_out,
                 bottom: bottom as f64,
                 top: top as f64,
+                skirt: self.skirt(idx),
             });
             complete = self.full_height(leaf);
             complete || list.len() >= MAX_LISTED
@@ -431,7 +492,7 @@ impl PlanarCaster {
     /// The first listed column met by a ray of height `oz + m t` over
     /// `t` in `[a, b]` (the walk's units): its leaf and `t`. Compared in z,
     /// a multiply-add a column; the division only for the hit.
-    fn first_met(list: &[Crossing], oz: f64, m: f64, a: f64, b: f64) -> Option<(u32, f64)> {
+    fn first_met(&self, list: &[Crossing], oz: f64, m: f64, a: f64, b: f64) -> Option<(u32, f64)> {
         for c in list {
             let lo = c.t_in.max(a);
             if lo > b {
@@ -452,7 +513,7 @@ impl PlanarCaster {
             } else {
                 (c.bottom - oz) / m
             };
-            return Some((c.leaf, t));
+            return Some((self.zone_leaf(c.leaf, c.skirt, oz + m * t), t));
         }
         None
     }
@@ -495,7 +556,7 @@ impl PlanarCaster {
             };
             // In the walk's units: t / k, heights oz + (dz k) t.
             let (oz, m) = (r.origin[2] as f64, r.dir[2] as f64 * k);
-            *h = match Self::first_met(list, oz, m, a / k, b / k) {
+            *h = match self.first_met(list, oz, m, a / k, b / k) {
                 Some((leaf, t)) => Hit {
                     leaf,
                     t: (t * k) as f32,
@@ -604,7 +665,7 @@ impl RayCaster for PlanarCaster {
                     hits[j] = Hit::miss();
                     continue;
                 };
-                hits[j] = match Self::first_met(&list, oz, slopes[j] as f64, a, b) {
+                hits[j] = match self.first_met(&list, oz, slopes[j] as f64, a, b) {
                     Some((leaf, t)) => Hit { leaf, t: t as f32 },
                     None if !complete && list.len() >= MAX_LISTED && b > last => {
                         self.cast_one(&Ray {
@@ -746,6 +807,63 @@ mod tests {
         assert!(c.cast_fans(o, &fans, &[-2.0, 2.0, -2.0, 2.0], &[inf; 4], &mut hits));
         let leaves: Vec<u32> = hits.iter().map(|h| h.leaf).collect();
         assert_eq!(leaves, [9, 10, 7, 8]);
+    }
+
+    /// The hand-made room's wall column (4, 0) (leaf 0) with a base of its
+    /// own (leaf 20, hit below 0.4 m) and a top (leaf 21, hit from 2.2 m),
+    /// and the table (2, 1) (leaf 4, top at 0.75 m) with a top of its own
+    /// that no hit reaches (its top is below 2.2 m). From (0.25, 0.25, 1.5)
+    /// along +x the wall is at x 2, t 1.75: level, z 1.5, the wall's own
+    /// leaf; down 0.7, z 0.275, its base; up 0.5, z 2.375, its top; down
+    /// 0.4 along row j 1, z 0.8 .. 0.6 over the table's square (x 1 to
+    /// 1.5), so it meets the table top at z 0.75 (t 0.875, inside the
+    /// 0.4 m .. 2.2 m middle): the table's own leaf. Column (4, 2) has none
+    /// and reports its own leaf (2) at every height. Batches and fans
+    /// agree.
+    #[test]
+    fn columns_report_their_own_base_and_top_by_the_height_hit() {
+        let mut cells = plan();
+        cells[4] = [2, 1, 0];
+        let inf = f32::INFINITY;
+        let mut extents = vec![[-inf, inf]; 4];
+        extents.push([-inf, 0.75]);
+        let c = PlanarCaster::new(0.5, &cells)
+            .with_heights(&extents, [0.1, 2.5], [7, 8])
+            .with_skirts(&[([4, 0], 20)], &[([4, 0], 21), ([2, 1], 22)], [0.4, 2.2]);
+        let o = [0.25, 0.25, 1.5];
+        let rays = [
+            Ray::new(o, [1.0, 0.0, 0.0]),
+            Ray::new(o, [1.0, 0.0, -0.7]),
+            Ray::new(o, [1.0, 0.0, 0.5]),
+        ];
+        for (r, leaf) in rays.iter().zip([0, 20, 21]) {
+            let h = c.cast_one(r);
+            assert_eq!(h.leaf, leaf, "{r:?}");
+            assert!((h.t - 1.75).abs() < 1e-6, "{h:?}");
+        }
+        let o1 = [0.25, 0.75, 1.5];
+        let h = c.cast_one(&Ray::new(o1, [1.0, 0.0, -0.8]));
+        assert_eq!(h.leaf, 4);
+        assert!((h.t - 0.9375).abs() < 1e-6, "{h:?}");
+        for dz in [-0.7, 0.0, 0.5] {
+            assert_eq!(
+                c.cast_one(&Ray::new([0.25, 1.25, 1.5], [1.0, 0.0, dz]))
+                    .leaf,
+                2
+            );
+        }
+        let leaves = |hits: &[Hit]| hits.iter().map(|h| h.leaf).collect::<Vec<_>>();
+        let mut hits = vec![Hit::miss(); 3];
+        c.cast_serial(&rays, &mut hits);
+        assert_eq!(leaves(&hits), [0, 20, 21]);
+        let fans = [Fan {
+            dir: [1.0, 0.0],
+            start: 0,
+            end: 3,
+        }];
+        let mut hits = vec![Hit::miss(); 3];
+        assert!(c.cast_fans(o, &fans, &[0.0, -0.7, 0.5], &[inf; 3], &mut hits));
+        assert_eq!(leaves(&hits), [0, 20, 21]);
     }
 
     /// A room by hand at 0.5 m: a full-height wall at x index 4 (j 0..=3,
@@ -924,18 +1042,31 @@ mod tests {
                 }
             }
         }
+        // Own base (leaf n + 4, below 0.4 m) and top (n + 5, from 2.2 m)
+        // of a third of the columns each.
+        let mut skirts: [Vec<([i32; 2], u32)>; 2] = [Vec::new(), Vec::new()];
+        for c in &cells {
+            match rng.random_range(0..3) {
+                0 => skirts[0].push(([c[0], c[1]], n + 4)),
+                1 => skirts[1].push(([c[0], c[1]], n + 5)),
+                _ => {}
+            }
+        }
         let c = PlanarCaster::new(0.1, &cells)
             .with_heights(&extents, [0.1, 2.5], [n, n + 1])
-            .with_surfaces(&own[0], &own[1]);
+            .with_surfaces(&own[0], &own[1])
+            .with_skirts(&skirts[0], &skirts[1], [0.4, 2.2]);
         (c, cells, n)
     }
 
     /// Which of the random room's kinds of hit `leaf` is: 0 the floor
-    /// (plan-wide or own), 1 the ceiling, 2 a column, 3 a miss.
+    /// (plan-wide or own), 1 the ceiling, 2 a column (its own leaf, base or
+    /// top), 3 a miss, 4 a column's base or top.
     fn kind(leaf: u32, n: u32) -> usize {
         match leaf {
             l if l == n || l == n + 2 => 0,
             l if l == n + 1 || l == n + 3 => 1,
+            l if l == n + 4 || l == n + 5 => 4,
             Hit::MISS => 3,
             _ => 2,
         }
@@ -948,7 +1079,7 @@ mod tests {
     fn batched_runs_with_heights_match_single_casts_on_a_random_plan() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
         let (c, _, n) = random_room(&mut rng);
-        let mut hits_seen = [0usize; 4];
+        let mut hits_seen = [0usize; 5];
         let mut own = 0;
         for _ in 0..200 {
             let o = [
@@ -971,12 +1102,13 @@ mod tests {
                 assert_eq!(h.leaf, one.leaf, "{r:?}");
                 assert!(!one.is_hit() || (h.t - one.t).abs() <= 1e-5 * one.t.max(1.0));
                 hits_seen[kind(h.leaf, n)] += 1;
-                own += usize::from(h.leaf >= n + 2 && h.is_hit());
+                own += usize::from((n + 2..n + 4).contains(&h.leaf));
             }
         }
-        // Floor, ceiling (plan-wide and own) and columns all occur.
+        // Floor, ceiling (plan-wide and own), columns and their bases and
+        // tops all occur.
         assert!(
-            hits_seen[..3].iter().all(|&k| k > 50) && own > 50,
+            hits_seen[..3].iter().all(|&k| k > 50) && own > 50 && hits_seen[4] > 10,
             "{hits_seen:?} {own}"
         );
     }
@@ -990,7 +1122,7 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(13);
         let (c, cells, n) = random_room(&mut rng);
         let inf = f32::INFINITY;
-        let mut seen = [0usize; 4];
+        let mut seen = [0usize; 5];
         for _ in 0..100 {
             let o = [
                 rng.random_range(-4.0f32..4.0),
@@ -1029,9 +1161,10 @@ mod tests {
                 }
             }
         }
-        // Floor, ceiling and columns all occur, and short ranges miss.
+        // Floor, ceiling, columns and their bases and tops all occur, and
+        // short ranges miss.
         assert!(
-            seen[..3].iter().all(|&k| k > 50) && seen[3] > 10,
+            seen[..3].iter().all(|&k| k > 50) && seen[3] > 10 && seen[4] > 10,
             "{seen:?}"
         );
         // No columns: every ray misses, and other casters have no fans.
