@@ -91,14 +91,18 @@ impl FilterConfig {
     /// The filter for the full camera pose (Table I's 3-D block, with
     /// [`SIX_DOF_PARTICLES`]): noise on all six degrees of freedom
     /// ([`super::MotionMode::Full`]), two layers of progressive correction
-    /// ([`Anneal::default`]) and 512 rays. The six-dimensional particle
-    /// cloud is what limits the estimate, not the rays: the layers and
-    /// many particles with fewer rays each put particles where the
-    /// likelihood is high (README, "6-DoF").
+    /// ([`Anneal::default`]), the first on four copies of each particle
+    /// and every fourth pixel ([`Anneal::expand`]), and 512 rays. The
+    /// six-dimensional particle cloud is what limits the estimate, not the
+    /// rays: the layers, the copies and many particles with fewer rays
+    /// each put particles where the likelihood is high (README, "6-DoF").
     pub fn six_dof() -> Self {
         let mut config = FilterConfig::default();
         config.motion.mode = super::motion::MotionMode::Full;
-        config.anneal = Some(Anneal::default());
+        config.anneal = Some(Anneal {
+            expand: 4,
+            ..Anneal::default()
+        });
         config.sampling.rays = 512;
         config
     }
@@ -428,6 +432,17 @@ impl Filter {
         let t1 = Instant::now();
         // Kept so that a casting error leaves the particles as they were.
         self.undo.clone_from(&self.particles);
+        let n = self.particles.len();
+        let expand = self.config.anneal.map_or(1, |a| a.expand.max(1)) as usize;
+        if expand > 1 {
+            // Copies of each particle, each to get its own motion noise.
+            let w = 1.0 / expand as f64;
+            self.particles = self
+                .undo
+                .iter()
+                .flat_map(|p| std::iter::repeat_n(Particle::new(p.pose, p.weight * w), expand))
+                .collect();
+        }
         self.config
             .motion
             .predict(&mut self.particles, increment, &mut self.rng)?;
@@ -440,7 +455,12 @@ impl Filter {
         let sharpen = self.config.sharpen;
         // The first layer's mean likelihood drives recovery: it is that of
         // the predicted set, as without layers.
-        let mean_l = self.weigh(&pixels, &table, sharpen * layers[0])?;
+        let mean_l = if expand > 1 {
+            let first: Vec<(u32, u32)> = pixels.iter().step_by(expand).copied().collect();
+            self.weigh(&first, &table.every(expand), sharpen * layers[0])?
+        } else {
+            self.weigh(&pixels, &table, sharpen * layers[0])?
+        };
         // Read now: scoring injection candidates below casts again.
         let mut cast = self.sensor.last_cast();
         // All-zero weights (every particle disagrees with the frame): keep
@@ -448,7 +468,7 @@ impl Filter {
         normalize(&mut self.particles);
         if let Some(a) = self.config.anneal {
             for (layer, &fraction) in (1..).zip(&layers[1..]) {
-                let n = self.particles.len();
+                // Back to the filter's count after an expanded first layer.
                 resample(&mut self.particles, n, true, &mut self.rng);
                 a.jitter(
                     layer,

@@ -128,6 +128,23 @@ impl SimilarityTable {
         }
     }
 
+    /// The table of every `step`-th pixel of this one (pixels `0, step,
+    /// 2 step, ...`), for those pixels in that order.
+    pub fn every(&self, step: usize) -> Self {
+        let (k, step) = (self.rows, step.max(1));
+        let cos = if k == 0 {
+            Vec::new()
+        } else {
+            self.cos
+                .chunks_exact(k)
+                .step_by(step)
+                .flatten()
+                .copied()
+                .collect()
+        };
+        SimilarityTable { rows: k, cos }
+    }
+
     /// The table of pixels whose products with the `k` rows are `dots`
     /// (pixel-major) and whose features' norms are `norms`.
     fn from_products(k: usize, mut cos: Vec<f32>, norms: &[f32], contrast: bool) -> Self {

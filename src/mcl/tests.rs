@@ -591,6 +591,74 @@ fn converges_from_a_local_initialization() {
     assert_eq!(errs, again);
 }
 
+/// An expanded first layer (four copies of each particle, each with its
+/// own motion noise, weighed on every fourth pixel) tracks as the plain
+/// filter does and hands the next step the filter's own count.
+#[test]
+fn an_expanded_first_layer_tracks_and_keeps_the_count() {
+    let w = world();
+    let config = |expand| FilterConfig {
+        sampling: SamplingParams {
+            rays: 256,
+            ..Default::default()
+        },
+        anneal: Some(Anneal {
+            expand,
+            ..Default::default()
+        }),
+        seed: 3,
+        ..Default::default()
+    };
+    let (plain, _) = run(&w, config(1), 256, 3);
+    let (errs, reports) = run(&w, config(4), 256, 3);
+    let (plain, tail) = (rmse(&plain[10..]), rmse(&errs[10..]));
+    println!("APE RMSE after 10 frames: two layers {plain:.3} m, expanded x4 {tail:.3} m");
+    assert!(
+        tail < 0.15 && tail < 1.25 * plain + 0.01,
+        "{tail} vs {plain}"
+    );
+    assert!(reports.iter().all(|r| r.n_particles == 256));
+    // One layer has nothing to expand into: refused by name.
+    let one = Anneal {
+        layers: 1,
+        expand: 4,
+        ..Default::default()
+    };
+    assert!(one.validate().unwrap_err().contains("anneal.expand"));
+    for expand in [0, super::anneal::MAX_EXPAND + 1, u32::MAX] {
+        let bad = Anneal {
+            expand,
+            ..Default::default()
+        };
+        assert!(bad.validate().unwrap_err().contains("anneal.expand"));
+    }
+}
+
+/// Every k-th pixel's table is those pixels' own table.
+#[test]
+fn every_kth_pixels_table_is_their_own() {
+    let w = world();
+    let mut rng = ChaCha8Rng::seed_from_u64(14);
+    let frame = render(&w, &start_pose(&w), 0.3, &mut rng);
+    let pixels: Vec<(u32, u32)> = (0..7).map(|i| (10 + 11 * i, 5 + 9 * i)).collect();
+    let k = w.map.db().len();
+    for contrast in [false, true] {
+        let all = SimilarityTable::new(&frame, &pixels, w.map.db(), contrast).unwrap();
+        for step in [1, 3] {
+            let some: Vec<(u32, u32)> = pixels.iter().step_by(step).copied().collect();
+            let direct = SimilarityTable::new(&frame, &some, w.map.db(), contrast).unwrap();
+            let every = all.every(step);
+            assert_eq!(every.pixels(), some.len());
+            for j in 0..some.len() {
+                for r in 0..k {
+                    let (a, b) = (every.get(j, r), direct.get(j, r));
+                    assert!((a - b).abs() < 1e-6, "{step} {j} {r}: {a} {b}");
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn kld_shrinks_the_set_once_converged_and_recovery_injects_when_lost() {
     let w = world();
