@@ -342,7 +342,8 @@ fn early_rejection_tracks_like_the_plain_filter() {
 
 /// `--layers 2` (progressive correction) runs the same sequence as
 /// closely as the plain filter, says so, and a count of 0 is refused
-/// before anything is written.
+/// before anything is written; so does `--expand 4` on top, which needs
+/// the layers.
 #[test]
 fn layers_track_like_the_plain_filter_and_zero_is_refused() {
     let f = Fixture::new();
@@ -368,6 +369,32 @@ fn layers_track_like_the_plain_filter_and_zero_is_refused() {
     assert!(!r.ok());
     assert!(r.text().contains("--layers"), "{}", r.text());
     assert!(!out.exists());
+    // The first layer on copies of each particle (Table I's 6-DoF
+    // filter's): tracks too and says so; without a second layer, or past
+    // the cap, refused before anything is written.
+    let out = f.dir.path().join("expand.txt");
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &out,
+        &["--frames", &frames, "--layers", "2", "--expand", "4"],
+    );
+    assert!(r.ok(), "{}", r.text());
+    assert!(
+        r.text().contains("4 copies of each particle"),
+        "{}",
+        r.text()
+    );
+    let errors = errors_against_truth(&f, &out);
+    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+    assert!(mean < 0.5, "mean error {mean:.3} m: {errors:.3?}");
+    for bad in [&["--expand", "4"][..], &["--layers", "2", "--expand", "65"]] {
+        let out = f.dir.path().join("bad_expand.txt");
+        let r = f.localize(&f.map, &f.seq, &out, bad);
+        assert!(!r.ok());
+        assert!(r.text().contains("--expand"), "{}", r.text());
+        assert!(!out.exists());
+    }
 }
 
 #[test]
