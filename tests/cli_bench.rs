@@ -188,6 +188,30 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
         "sixdof.height_m=0.3",
     ]);
     assert!(v["anneal"].is_null(), "{v}");
+    // A parameter the filter would refuse is refused at `--set`, by name,
+    // before any map is built.
+    for (set, name) in [
+        ("anneal.expand=0", "anneal.expand"),
+        ("sharpen=-1", "sharpen"),
+    ] {
+        let out = tempfile::tempdir().unwrap();
+        let dir = out.path().join("never");
+        let (o, text) = bench(&[
+            "table1-sixdof",
+            "--sequences",
+            "1",
+            "--set",
+            set,
+            "-o",
+            dir.to_str().unwrap(),
+        ]);
+        assert!(!o.status.success(), "{text}");
+        assert!(
+            text.contains("the filter would refuse") && text.contains(name),
+            "{text}"
+        );
+        assert!(!dir.exists());
+    }
     let v = config(&["table4", "--show-config"]);
     assert_eq!(v["motion"]["mode"], "Road", "{v}");
     assert_eq!(v["sampling"]["rays"], 4096, "{v}");

@@ -191,6 +191,9 @@ fn street_table4(a: &BenchArgs, table: &ClassEmbeddings) -> anyhow::Result<Strin
         encoder_stride: a.street.encoder_stride,
         out: a.out.clone(),
     };
+    // After `--set` was checked: nothing is made for a refused filter.
+    std::fs::create_dir_all(&params.out)
+        .with_context(|| format!("creating {}", params.out.display()))?;
     let pb = super::progress::spinner("Table IV");
     let t = run_table4(
         &params,

@@ -347,5 +347,11 @@ pub fn apply_overrides(config: FilterConfig, sets: &[String]) -> anyhow::Result<
         }
         *slot = value;
     }
-    serde_json::from_value(v).context("--set: the resulting configuration is invalid")
+    let config: FilterConfig =
+        serde_json::from_value(v).context("--set: the resulting configuration is invalid")?;
+    // Refused here, before any map is built, not at the first run.
+    config
+        .validate()
+        .context("--set: the filter would refuse this configuration")?;
+    Ok(config)
 }

@@ -43,23 +43,30 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
         "--rgbd-odometry adds a row to table1-sixdof, which is not asked for"
     );
     check_variants(a)?;
+    // Both blocks' filters are checked (`--set`) before anything is made.
+    let plan_spec = e
+        .contains(&Experiment::Table1Floorplan)
+        .then(|| block_spec(a, FilterConfig::default(), INDOOR_PARTICLES))
+        .transpose()?;
+    let six_spec = e
+        .contains(&Experiment::Table1Sixdof)
+        .then(|| block_spec(a, FilterConfig::six_dof(), SIX_DOF_PARTICLES))
+        .transpose()?;
     let mut ran = false;
+    if plan_spec.is_none() && six_spec.is_none() {
+        return Ok(ran);
+    }
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let names = a.plan.variants.as_deref();
     let progress = |m: &str| eprintln!("{m}");
-    if e.contains(&Experiment::Table1Floorplan) {
-        let b = table1_floorplan::block(
-            &block_spec(a, FilterConfig::default(), INDOOR_PARTICLES)?,
-            names,
-            &progress,
-        )?;
+    if let Some(spec) = plan_spec {
+        let b = table1_floorplan::block(&spec, names, &progress)?;
         write(a, "table1_floorplan", "2d", &b)?;
         println!("{}", b.markdown);
         ran = true;
     }
-    if e.contains(&Experiment::Table1Sixdof) {
+    if let Some(spec) = six_spec {
         let motion = block_overrides(&a.plan.set)?.sixdof;
-        let spec = block_spec(a, FilterConfig::six_dof(), SIX_DOF_PARTICLES)?;
         let odometry = a.sixdof.rgbd_odometry.as_deref();
         let b = table1_6dof::block(&spec, &motion, names, odometry, &progress)?;
         write(a, "table1_6dof", "6dof", &b)?;

@@ -88,6 +88,43 @@ pub const STREET_PARTICLES: usize = 512;
 pub const SIX_DOF_PARTICLES: usize = 4096;
 
 impl FilterConfig {
+    /// Checks the parameters (motion, early rejection, sharpening, layers,
+    /// miss score, boundary margin); [`Filter::new`] does too, and a
+    /// caller about to do long work first (building maps) can call it
+    /// before.
+    pub fn validate(&self) -> Result<(), MclError> {
+        self.motion.validate()?;
+        if let Some(e) = &self.sensor.early_reject {
+            e.validate()?;
+        }
+        if !(self.sharpen.is_finite() && self.sharpen >= 0.0) {
+            return Err(MclError::BadParam {
+                name: "sharpen",
+                why: format!("must be finite and >= 0, got {}", self.sharpen),
+            });
+        }
+        if let Some(a) = &self.anneal {
+            a.validate().map_err(|why| MclError::BadParam {
+                name: "anneal",
+                why,
+            })?;
+        }
+        if !self.sensor.miss_score.is_finite() {
+            return Err(MclError::BadParam {
+                name: "sensor.miss_score",
+                why: format!("must be finite, got {}", self.sensor.miss_score),
+            });
+        }
+        let width = self.sampling.boundary_margin_width;
+        if !(width.is_finite() && width >= 0.0) {
+            return Err(MclError::BadParam {
+                name: "sampling.boundary_margin_width",
+                why: format!("must be finite and >= 0, got {width}"),
+            });
+        }
+        Ok(())
+    }
+
     /// The filter for the full camera pose (Table I's 3-D block, with
     /// [`SIX_DOF_PARTICLES`]): noise on all six degrees of freedom
     /// ([`super::MotionMode::Full`]), two layers of progressive correction
@@ -224,35 +261,7 @@ impl Filter {
         config: FilterConfig,
         particles: Vec<Particle>,
     ) -> Result<Self, MclError> {
-        config.motion.validate()?;
-        if let Some(e) = &config.sensor.early_reject {
-            e.validate()?;
-        }
-        if !(config.sharpen.is_finite() && config.sharpen >= 0.0) {
-            return Err(MclError::BadParam {
-                name: "sharpen",
-                why: format!("must be finite and >= 0, got {}", config.sharpen),
-            });
-        }
-        if let Some(a) = &config.anneal {
-            a.validate().map_err(|why| MclError::BadParam {
-                name: "anneal",
-                why,
-            })?;
-        }
-        if !config.sensor.miss_score.is_finite() {
-            return Err(MclError::BadParam {
-                name: "sensor.miss_score",
-                why: format!("must be finite, got {}", config.sensor.miss_score),
-            });
-        }
-        let width = config.sampling.boundary_margin_width;
-        if !(width.is_finite() && width >= 0.0) {
-            return Err(MclError::BadParam {
-                name: "sampling.boundary_margin_width",
-                why: format!("must be finite and >= 0, got {width}"),
-            });
-        }
+        config.validate()?;
         if map.db().is_empty() {
             return Err(MclError::EmptyDb);
         }
