@@ -20,13 +20,14 @@
 //! has none: the text features of "floor" and "ceiling" ([`EXIT_WORDS`]);
 //! and each column's own base and top, the 3-D map's leaves within 0.10 m
 //! of the band's bottom or of the ceiling, averaged
-//! ([`TwoDParams::skirt`]). Each sampled pixel's ray is followed over the plan from the particle's
-//! pose ([`crate::raycast::PlanarCaster::with_heights`]): it hits the
-//! first column whose vertical extent (that of the leaves it averaged) it
-//! passes through (that column's base or top if it hits it there), so it
-//! looks over a table at the wall behind or down onto the table top; if it
-//! reaches the band's bottom (0.10 m above the floor)
-//! or the ceiling first, it hits the floor or ceiling of the column it
+//! ([`TwoDParams::skirt`]). Each sampled pixel's ray is followed over the
+//! plan from the particle's pose
+//! ([`crate::raycast::PlanarCaster::with_heights`]): it hits the first
+//! column whose vertical extent (that of the leaves it averaged) it passes
+//! through (that column's base or top if it hits it there), so it looks
+//! over a table at the wall behind or down onto the table top; if it
+//! reaches the band's bottom (0.10 m above the floor) or the ceiling
+//! first, it hits the floor or ceiling of the column it
 //! leaves the window over ([`crate::raycast::PlanarCaster::with_surfaces`]).
 //! Its score is the eq. 2 cosine with the row it hits, as in 3-D. Floor and ceiling pixels
 //! are therefore scored (they say where the walls and furniture stand, as
