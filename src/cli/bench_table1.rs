@@ -52,10 +52,10 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
         .contains(&Experiment::Table1Sixdof)
         .then(|| block_spec(a, FilterConfig::six_dof(), SIX_DOF_PARTICLES))
         .transpose()?;
-    let mut ran = false;
     if plan_spec.is_none() && six_spec.is_none() {
-        return Ok(ran);
+        return Ok(false);
     }
+    let mut ran = false;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let names = a.plan.variants.as_deref();
     let progress = |m: &str| eprintln!("{m}");

@@ -281,6 +281,45 @@ impl FloorPlan {
     /// [`FloorPlan::column_extents`], not in the plan file; for what a
     /// camera pixel looking down or up sees in plan view.
     pub fn surface_features(&self, map: &LanguageMap) -> [Vec<([i32; 2], Vec<f32>)>; 2] {
+        let (lo, hi) = (self.params.band_min, self.params.band_max);
+        self.column_sums(map, |_, centre, in_top| {
+            if centre < lo {
+                Some(0)
+            } else if in_top && centre > hi {
+                Some(1)
+            } else {
+                None
+            }
+        })
+    }
+
+    /// Per occupied column of the plan, the sum of the rows of `map`'s
+    /// leaves (the map the plan was projected from) whose centres lie in
+    /// `[lo, hi)` metres above `floor_z`, leaving out the map's highest
+    /// occupied layer (the ceiling); sorted by `(j, i)`. For a column's own
+    /// base and top ([`crate::raycast::PlanarCaster::with_skirts`]); not in
+    /// the plan file.
+    pub fn slab_features(&self, map: &LanguageMap, lo: f64, hi: f64) -> Vec<([i32; 2], Vec<f32>)> {
+        let [slab, _] = self.column_sums(map, |c, centre, in_top| {
+            let occupied = || {
+                self.cells
+                    .binary_search_by_key(&(c[1], c[0]), |p| (p[1], p[0]))
+                    .is_ok()
+            };
+            (!in_top && (lo..hi).contains(&centre) && occupied()).then_some(0)
+        });
+        slab
+    }
+
+    /// The sums of `map`'s rows per column `[i, j]` in two lists, sorted by
+    /// `(j, i)`: each leaf goes to the list `side(cell, centre height above
+    /// floor_z, whether it is in the map's highest occupied layer)` names,
+    /// or to none.
+    fn column_sums(
+        &self,
+        map: &LanguageMap,
+        mut side: impl FnMut(&crate::map::Cell, f64, bool) -> Option<usize>,
+    ) -> [Vec<([i32; 2], Vec<f32>)>; 2] {
         let g = map.grid();
         let r = g.resolution;
         let top = map.cell_bounds().map_or(i32::MAX, |(_, max)| max[2]);
@@ -288,14 +327,10 @@ impl FloorPlan {
         let mut sums: [HashMap<(i32, i32), Vec<f32>>; 2] = [HashMap::new(), HashMap::new()];
         for (c, &row) in map.cells().iter().zip(map.rows()) {
             let centre = g.origin.z + (c[2] as f64 + 0.5) * r - self.floor_z;
-            let side = if centre < self.params.band_min {
-                0
-            } else if c[2] == top && centre > self.params.band_max {
-                1
-            } else {
+            let Some(k) = side(c, centre, c[2] == top) else {
                 continue;
             };
-            let s = sums[side]
+            let s = sums[k]
                 .entry((c[1], c[0]))
                 .or_insert_with(|| vec![0.0; dim]);
             for (a, b) in s.iter_mut().zip(map.db().row(row as usize)) {
@@ -308,41 +343,6 @@ impl FloorPlan {
             v.sort_unstable_by_key(|(c, _)| (c[1], c[0]));
             v
         })
-    }
-
-    /// Per occupied column of the plan, the sum of the rows of `map`'s
-    /// leaves (the map the plan was projected from) whose centres lie in
-    /// `[lo, hi)` metres above `floor_z`, leaving out the map's highest
-    /// occupied layer (the ceiling); sorted by `(j, i)`. For a column's own
-    /// base and top ([`crate::raycast::PlanarCaster::with_skirts`]); not in
-    /// the plan file.
-    pub fn slab_features(&self, map: &LanguageMap, lo: f64, hi: f64) -> Vec<([i32; 2], Vec<f32>)> {
-        let g = map.grid();
-        let r = g.resolution;
-        let top = map.cell_bounds().map_or(i32::MAX, |(_, max)| max[2]);
-        let dim = map.db().dim();
-        let mut sums: HashMap<(i32, i32), Vec<f32>> = HashMap::new();
-        for (c, &row) in map.cells().iter().zip(map.rows()) {
-            let centre = g.origin.z + (c[2] as f64 + 0.5) * r - self.floor_z;
-            if c[2] == top || !(lo..hi).contains(&centre) {
-                continue;
-            }
-            if self
-                .cells
-                .binary_search_by_key(&(c[1], c[0]), |p| (p[1], p[0]))
-                .is_err()
-            {
-                continue;
-            }
-            let s = sums.entry((c[1], c[0])).or_insert_with(|| vec![0.0; dim]);
-            for (a, b) in s.iter_mut().zip(map.db().row(row as usize)) {
-                *a += b;
-            }
-        }
-        let mut v: Vec<([i32; 2], Vec<f32>)> =
-            sums.into_iter().map(|((j, i), f)| ([i, j], f)).collect();
-        v.sort_unstable_by_key(|(c, _)| (c[1], c[0]));
-        v
     }
 
     /// Height of `map`'s ceiling above `floor_z`, metres: the bottom of its

@@ -190,8 +190,16 @@ impl PlanarCaster {
     /// `exits`' one where the cell has none or lies outside the columns'
     /// bounding box. Each entry is a cell and its leaf.
     pub fn with_surfaces(mut self, floor: &[([i32; 2], u32)], ceiling: &[([i32; 2], u32)]) -> Self {
+        self.surfaces = Some(self.per_cell([floor, ceiling]));
+        self
+    }
+
+    /// A pair of leaves per grid cell (as `leaf`): `lists[k]`'s leaf of
+    /// the cell in slot `k`, `Hit::MISS` where it names none; cells outside
+    /// the columns' bounding box are dropped.
+    fn per_cell(&self, lists: [&[([i32; 2], u32)]; 2]) -> Vec<[u32; 2]> {
         let mut s = vec![[Hit::MISS; 2]; self.leaf.len()];
-        for (side, list) in [floor, ceiling].into_iter().enumerate() {
+        for (side, list) in lists.into_iter().enumerate() {
             for &(c, leaf) in list {
                 let (i, j) = (c[0] - self.lo[0], c[1] - self.lo[1]);
                 if (0..self.size[0]).contains(&i) && (0..self.size[1]).contains(&j) {
@@ -199,8 +207,7 @@ impl PlanarCaster {
                 }
             }
         }
-        self.surfaces = Some(s);
-        self
+        s
     }
 
     /// The same caster with each column's own base and top: a column hit
@@ -214,16 +221,7 @@ impl PlanarCaster {
         top: &[([i32; 2], u32)],
         heights: [f32; 2],
     ) -> Self {
-        let mut s = vec![[Hit::MISS; 2]; self.leaf.len()];
-        for (side, list) in [base, top].into_iter().enumerate() {
-            for &(c, leaf) in list {
-                let (i, j) = (c[0] - self.lo[0], c[1] - self.lo[1]);
-                if (0..self.size[0]).contains(&i) && (0..self.size[1]).contains(&j) {
-                    s[(j * self.size[0] + i) as usize][side] = leaf;
-                }
-            }
-        }
-        self.skirts = Some(s);
+        self.skirts = Some(self.per_cell([base, top]));
         self.skirt_z = heights.map(f64::from);
         self
     }
