@@ -212,6 +212,21 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
         );
         assert!(!dir.exists());
     }
+    // So is a 2-D parameter of the block (the height of the bases and tops).
+    let out = tempfile::tempdir().unwrap();
+    let dir = out.path().join("never");
+    let (o, text) = bench(&[
+        "table1-floorplan",
+        "--sequences",
+        "1",
+        "--set",
+        "two_d.skirt=0",
+        "-o",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success(), "{text}");
+    assert!(text.contains("two_d.skirt"), "{text}");
+    assert!(!dir.exists());
     let v = config(&["table4", "--show-config"]);
     assert_eq!(v["motion"]["mode"], "Road", "{v}");
     assert_eq!(v["sampling"]["rays"], 4096, "{v}");

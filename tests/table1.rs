@@ -62,13 +62,17 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
         plan.plan.len()
     );
     assert!(own(5) <= plan.plan.len() && own(6) <= plan.plan.len());
-    // A negative or non-finite weight of the words, or height of the
-    // bases and tops, is refused by name.
+    // A negative or non-finite weight of the words, or a height of the
+    // bases and tops that is not positive, not finite or so tall that
+    // the base and top meet, is refused by name.
     for (w, h) in [
         (-1.0, 0.1),
         (f32::INFINITY, 0.1),
         (0.5, 0.0),
         (0.5, f32::NAN),
+        // Taller than half the window: the base and top would meet.
+        (0.5, 1e30),
+        (0.5, 2.0),
     ] {
         let bad = TwoDParams {
             surfaces: Some(w),

@@ -201,6 +201,7 @@ fn block_spec(a: &BenchArgs, base: FilterConfig, particles: usize) -> anyhow::Re
         filter.sampling.rays = r;
     }
     let filter = super::bench_args::apply_overrides(filter, &rest)?;
+    two_d.validate().context("--set")?;
     Ok(BlockSpec {
         seeds: a.plan.first_seed..a.plan.first_seed + a.plan.sequences,
         world: a.plan.world,

@@ -160,17 +160,8 @@ impl PlanBench {
         exit_rows: Option<[&[f32]; 2]>,
         two_d: &TwoDParams,
     ) -> Result<Self, ExperimentError> {
+        two_d.validate()?;
         let surfaces = two_d.surfaces;
-        if let Some(w) = surfaces.filter(|w| !(w.is_finite() && *w >= 0.0)) {
-            return Err(ExperimentError::Config(format!(
-                "two_d.surfaces: the words' weight must be a finite number >= 0 (or null), got {w}"
-            )));
-        }
-        if let Some(s) = two_d.skirt.filter(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err(ExperimentError::Config(format!(
-                "two_d.skirt: the height must be a finite number > 0 m (or null), got {s}"
-            )));
-        }
         let cfg = |e: crate::map::floorplan::FloorPlanError| ExperimentError::Config(e.to_string());
         let plan = FloorPlan::from_map(map, params).map_err(cfg)?;
         let extents = plan.column_extents(map);
@@ -216,6 +207,13 @@ impl PlanBench {
             let h = h as f64;
             [params.band_min + h, ceiling - h]
         });
+        if let Some([z0, z1]) = skirt_z.filter(|[z0, z1]| z0 >= z1) {
+            return Err(ExperimentError::Config(format!(
+                "two_d.skirt: a base up to {z0:.2} m and a top from {z1:.2} m leave no middle \
+                 between them; the height must be below half the window ({:.2} to {:.2} m)",
+                params.band_min, ceiling
+            )));
+        }
         if let Some([z0, z1]) = skirt_z {
             let slabs = [
                 b.plan.slab_features(map, params.band_min, z0),
@@ -449,6 +447,26 @@ impl Default for TwoDParams {
             surfaces: Some(0.5),
             skirt: Some(0.1),
         }
+    }
+}
+
+impl TwoDParams {
+    /// Refuses, by name, a weight of the words that is negative or not
+    /// finite and a height of the bases and tops that is not a finite
+    /// number > 0. (A height that leaves the base and top no middle is
+    /// refused when the map's ceiling is known, by [`PlanBench::from_map`].)
+    pub fn validate(&self) -> Result<(), ExperimentError> {
+        if let Some(w) = self.surfaces.filter(|w| !(w.is_finite() && *w >= 0.0)) {
+            return Err(ExperimentError::Config(format!(
+                "two_d.surfaces: the words' weight must be a finite number >= 0 (or null), got {w}"
+            )));
+        }
+        if let Some(s) = self.skirt.filter(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(ExperimentError::Config(format!(
+                "two_d.skirt: the height must be a finite number > 0 m (or null), got {s}"
+            )));
+        }
+        Ok(())
     }
 }
 
