@@ -207,11 +207,20 @@ impl PlanBench {
             let h = h as f64;
             [params.band_min + h, ceiling - h]
         });
-        if let Some([z0, z1]) = skirt_z.filter(|[z0, z1]| z0 >= z1) {
+        if let (Some([z0, z1]), Some(h)) = (skirt_z, two_d.skirt)
+            && z0 >= z1
+        {
+            let h = if h < 1e4 {
+                h.to_string()
+            } else {
+                format!("{h:e}")
+            };
             return Err(ExperimentError::Config(format!(
-                "two_d.skirt: a base up to {z0:.2} m and a top from {z1:.2} m leave no middle \
-                 between them; the height must be below half the window ({:.2} to {:.2} m)",
-                params.band_min, ceiling
+                "two_d.skirt: {h} m would make the base and top meet; the height must be \
+                 below half the window from {:.2} to {:.2} m ({:.2} m)",
+                params.band_min,
+                ceiling,
+                0.5 * (ceiling - params.band_min)
             )));
         }
         if let Some([z0, z1]) = skirt_z {
