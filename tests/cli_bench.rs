@@ -175,10 +175,10 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
     let v = config(&["table1-sixdof", "--show-config"]);
     assert_eq!(v["motion"]["mode"], "Full", "{v}");
     assert_eq!(v["anneal"]["layers"], 2, "{v}");
-    assert_eq!(v["anneal"]["expand"], 4, "{v}");
-    assert_eq!(v["sampling"]["rays"], 512, "{v}");
-    let v = config(&["table1-sixdof", "--show-config", "--rays", "2048"]);
+    assert_eq!(v["anneal"]["expand"], 16, "{v}");
     assert_eq!(v["sampling"]["rays"], 2048, "{v}");
+    let v = config(&["table1-sixdof", "--show-config", "--rays", "512"]);
+    assert_eq!(v["sampling"]["rays"], 512, "{v}");
     let v = config(&[
         "table1-sixdof",
         "--show-config",

@@ -118,12 +118,12 @@ pub struct PlanArgs {
     /// and of the sequence is mapped.
     #[arg(long, default_value_t = 300)]
     pub map_frames: usize,
-    /// Particles (default 1024; table4: 512, the paper's outdoor setting;
-    /// table1-sixdof: 4096, chosen on its tuning sequences).
+    /// Particles (default 1024, the paper's indoor setting, table1-sixdof
+    /// too; table4: 512, the paper's outdoor setting).
     #[arg(long)]
     pub particles: Option<usize>,
     /// Rays, sampled pixels before duplicates are dropped (default 2048;
-    /// table4: 4096; table1-sixdof: 512).
+    /// table4: 4096).
     #[arg(long)]
     pub rays: Option<usize>,
     /// Only these variants (comma-separated: OMCL_GT, OMCL_LSeg,

@@ -189,8 +189,8 @@ pub(super) fn block_overrides(sets: &[String]) -> anyhow::Result<BlockOverrides>
 }
 
 /// The block's sequences and filter: `base` (the 2-D block's plain
-/// filter with 2048 rays, the 3-D block's [`FilterConfig::six_dof`] with
-/// 512) with `--rays` and `--set` applied, and `--particles` or the
+/// filter, the 3-D block's [`FilterConfig::six_dof`], both with 2048
+/// rays) with `--rays` and `--set` applied, and `--particles` or the
 /// block's `particles` ([`INDOOR_PARTICLES`], [`SIX_DOF_PARTICLES`]).
 fn block_spec(a: &BenchArgs, base: FilterConfig, particles: usize) -> anyhow::Result<BlockSpec> {
     let BlockOverrides {
