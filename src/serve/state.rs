@@ -338,13 +338,18 @@ impl State {
     fn spawn_step(self: &Arc<Self>, slot: Arc<Slot>, job: Job) {
         let state = self.clone();
         let task = move || {
-            state.run_step(&slot, job);
+            let (reply, answer, frame) = state.run_step(&slot, job);
             let mut q = lock(&slot.queue);
             let next = q.pending.take();
             if state.shutting_down.load(Ordering::Relaxed) || next.is_none() {
                 q.busy = false;
                 drop(q);
                 state.queued.fetch_sub(1, Ordering::Relaxed);
+                // The answer only once the step has left the queue: a
+                // client that sends its next frame on the answer must not
+                // find the queue still counting this step (a loaded host
+                // showed that race as a spurious "overloaded").
+                send(reply, answer, &frame);
                 // A frame that waited behind the last step is not stepped
                 // once shutdown began; it is told so.
                 if let Some(job) = next {
@@ -353,6 +358,7 @@ impl State {
                 }
             } else if let Some(next) = next {
                 drop(q);
+                send(reply, answer, &frame);
                 // To the back of the pool's queue: round robin.
                 state.spawn_step(slot.clone(), next);
             }
@@ -365,18 +371,17 @@ impl State {
         }
     }
 
-    fn run_step(&self, slot: &Slot, job: Job) {
+    /// Steps the frame; returns the answer and where it goes (the caller
+    /// sends it once the queue has let go of the step).
+    fn run_step(
+        &self,
+        slot: &Slot,
+        job: Job,
+    ) -> (Reply, Result<proto::PoseUpdate, Status>, FrameInput) {
         let Job { frame, reply } = job;
         if slot.closed.load(Ordering::Relaxed) {
-            send(
-                reply,
-                Err(Status::not_found(format!(
-                    "session {:?} was closed",
-                    slot.id
-                ))),
-                &frame,
-            );
-            return;
+            let st = Status::not_found(format!("session {:?} was closed", slot.id));
+            return (reply, Err(st), frame);
         }
         let mut session = lock(&slot.session);
         let classes = slot.map.classes();
@@ -433,7 +438,7 @@ impl State {
         };
         drop(session);
         slot.touch();
-        send(reply, answer, &frame);
+        (reply, answer, frame)
     }
 }
 
