@@ -227,6 +227,28 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
     assert!(!o.status.success(), "{text}");
     assert!(text.contains("two_d.skirt"), "{text}");
     assert!(!dir.exists());
+    // A height refused only once the map's ceiling is known (taller than
+    // half the room): refused by name, and the folder the run made is
+    // gone again.
+    let (o, text) = bench(&[
+        "table1-floorplan",
+        "--sequences",
+        "1",
+        "--frames",
+        "5",
+        "--variants",
+        "OMCL_GT",
+        "--set",
+        "two_d.skirt=1.3",
+        "-o",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success(), "{text}");
+    assert!(
+        text.contains("two_d.skirt") && text.contains("half the window"),
+        "{text}"
+    );
+    assert!(!dir.exists());
     let v = config(&["table4", "--show-config"]);
     assert_eq!(v["motion"]["mode"], "Road", "{v}");
     assert_eq!(v["sampling"]["rays"], 4096, "{v}");

@@ -55,15 +55,30 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     if plan_spec.is_none() && six_spec.is_none() {
         return Ok(false);
     }
-    let mut ran = false;
+    // A folder this run makes is removed again if the run fails before
+    // writing into it (a refusal found only once a map is built, such as
+    // a `two_d.skirt` taller than half the room); `remove_dir` leaves a
+    // folder with anything in it alone.
+    let made = !a.out.exists();
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let result = run_blocks(a, plan_spec, six_spec);
+    if result.is_err() && made {
+        let _ = std::fs::remove_dir(&a.out);
+    }
+    result.map(|()| true)
+}
+
+fn run_blocks(
+    a: &BenchArgs,
+    plan_spec: Option<BlockSpec>,
+    six_spec: Option<BlockSpec>,
+) -> anyhow::Result<()> {
     let names = a.plan.variants.as_deref();
     let progress = |m: &str| eprintln!("{m}");
     if let Some(spec) = plan_spec {
         let b = table1_floorplan::block(&spec, names, &progress)?;
         write(a, "table1_floorplan", "2d", &b)?;
         println!("{}", b.markdown);
-        ran = true;
     }
     if let Some(spec) = six_spec {
         let motion = block_overrides(&a.plan.set)?.sixdof;
@@ -71,9 +86,8 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
         let b = table1_6dof::block(&spec, &motion, names, odometry, &progress)?;
         write(a, "table1_6dof", "6dof", &b)?;
         println!("{}", b.markdown);
-        ran = true;
     }
-    Ok(ran)
+    Ok(())
 }
 
 /// `--variants` against the Table I blocks asked for: each block must get
