@@ -237,6 +237,26 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
         assert!(text.contains("two_d.skirt") && text.contains(why), "{text}");
         assert!(!dir.exists());
     }
+    // Any experiment: Table IV without its trajectory files fails by name
+    // and leaves no folder; a folder that was there before stays.
+    let missing = out.path().join("no-such-trajectories");
+    for existed in [false, true] {
+        if existed {
+            std::fs::create_dir(&dir).unwrap();
+        }
+        let (o, text) = bench(&[
+            "table4",
+            "--sequences",
+            "1",
+            "--trajectories",
+            missing.to_str().unwrap(),
+            "-o",
+            dir.to_str().unwrap(),
+        ]);
+        assert!(!o.status.success(), "{text}");
+        assert!(text.contains("KITTI_00_gt.txt"), "{text}");
+        assert_eq!(dir.exists(), existed);
+    }
     let v = config(&["table4", "--show-config"]);
     assert_eq!(v["motion"]["mode"], "Road", "{v}");
     assert_eq!(v["sampling"]["rays"], 4096, "{v}");

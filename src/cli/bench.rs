@@ -16,7 +16,22 @@ use omcl::sim::features::Preset;
 
 use super::bench_args::{BenchArgs, Experiment, apply_overrides};
 
+/// Runs what `a` asks for. A folder the run makes is removed again if the
+/// run fails before writing into it (a refusal found only once a map is
+/// built, such as a `two_d.skirt` taller than half the room, or a missing
+/// trajectory file for `table4`); `remove_dir` leaves a folder with anything
+/// in it alone, so a sweep's partial results stay for `--resume`.
 pub fn run(a: BenchArgs) -> anyhow::Result<()> {
+    let out = a.out.clone();
+    let made = !out.exists();
+    let result = run_experiments(a);
+    if result.is_err() && made {
+        let _ = std::fs::remove_dir(&out);
+    }
+    result
+}
+
+fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
     if a.show_config {
         // The filter the experiment starts from: the street's for table4,
         // the 6-DoF one for table1-sixdof, else the indoor default.

@@ -55,17 +55,10 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     if plan_spec.is_none() && six_spec.is_none() {
         return Ok(false);
     }
-    // A folder this run makes is removed again if the run fails before
-    // writing into it (a refusal found only once a map is built, such as
-    // a `two_d.skirt` taller than half the room); `remove_dir` leaves a
-    // folder with anything in it alone.
-    let made = !a.out.exists();
+    // (A folder made here and left empty by a failure is removed by
+    // `bench::run`.)
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let result = run_blocks(a, plan_spec, six_spec);
-    if result.is_err() && made {
-        let _ = std::fs::remove_dir(&a.out);
-    }
-    result.map(|()| true)
+    run_blocks(a, plan_spec, six_spec).map(|()| true)
 }
 
 fn run_blocks(
