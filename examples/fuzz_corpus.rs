@@ -260,6 +260,36 @@ fn main() -> Result<()> {
         "three_voxels.omcl",
         &omcl::map::file::to_bytes(&map),
     )?;
+    // A floor plan of two columns, the wall's row and a mixture's, as
+    // `omcl map floorplan` writes it.
+    let db = FeatureDb::from_rows(3, 0.05, vec![0.0, 1.0, 0.0, 0.0, 0.6, 0.8])?;
+    let plan = omcl::map::FloorPlan::from_parts(
+        0.05,
+        [-1.5, 0.25],
+        3.0,
+        omcl::map::FloorPlanParams::default(),
+        db,
+        "none",
+        vec![[0, 0], [-3, 7]],
+        vec![0, 1],
+    )?;
+    out(
+        "floor_plan",
+        "two_columns.plan",
+        &omcl::map::floorplan::to_bytes(&plan),
+    )?;
+    // The same two columns as `floor_plan_fields` draws them: version 1,
+    // resolution 0.05, origin (-1.5, 0), floor 0, band 0 to 2 m, dimension
+    // 3, tau 0.05, 2 columns, 2 rows, the promised shapes; cells (0, 0) and
+    // (1, 0), rows 0 and 1, features (1, 0, 0) and (0, 1, 0).
+    out(
+        "floor_plan_fields",
+        "two_columns",
+        &[
+            0, 9, 1, 0, 0, 0, 8, 2, 2, 0, 2, 2, 2, 1, 8, 1, 8, 1, 9, 1, 8, 1, 0, 1, 1, 4, 192, 4,
+            128, 4, 128, 4, 128, 4, 192, 4, 128,
+        ],
+    )?;
     println!("corpora written to fuzz/corpus/");
     Ok(())
 }

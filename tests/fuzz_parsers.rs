@@ -239,6 +239,7 @@ macro_rules! fuzz_tests {
         #[test]
         fn $name() {
             let (run, accepted) = fuzz($target);
+            eprintln!("{}: {run} inputs, {accepted} accepted", $target.name());
             assert!(run > iterations());
             // The seeds are valid files: a target that accepts nothing has
             // lost its reader (or its seeds), and would fuzz error paths only.
@@ -270,6 +271,8 @@ fuzz_tests! {
     fuzz_model_card => Target::ModelCard,
     fuzz_class_table => Target::ClassTable,
     fuzz_omcl_map => Target::OmclMap,
+    fuzz_floor_plan => Target::FloorPlan,
+    fuzz_floor_plan_fields => Target::FloorPlanFields,
 }
 
 #[test]

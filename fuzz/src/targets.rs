@@ -8,9 +8,11 @@
 //! the cap (the in-suite run checks it) is a finding: an `Err` is the right
 //! answer to most inputs.
 //!
-//! Structure-aware targets (`ply_header`, `las_header`, `npy_header`) keep a
-//! well-formed header and let the fuzzer choose its counts, types and sizes,
-//! which byte-level mutation of a whole file rarely reaches.
+//! Structure-aware targets (`ply_header`, `las_header`, `npy_header`,
+//! `png_header`, `floor_plan_fields`) keep a well-formed header and let the
+//! fuzzer choose its counts, types and sizes, which byte-level mutation of
+//! a whole file rarely reaches (a floor plan's checksum refuses every
+//! mutated byte before its values are read).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -40,11 +42,13 @@ pub enum Target {
     ModelCard,
     ClassTable,
     OmclMap,
+    FloorPlan,
+    FloorPlanFields,
 }
 
 impl Target {
     /// All targets, in the order the in-suite run takes them.
-    pub const ALL: [Target; 22] = [
+    pub const ALL: [Target; 24] = [
         Target::Ply,
         Target::PlyHeader,
         Target::Las,
@@ -67,6 +71,8 @@ impl Target {
         Target::ModelCard,
         Target::ClassTable,
         Target::OmclMap,
+        Target::FloorPlan,
+        Target::FloorPlanFields,
     ];
 
     /// The target's name (the AFL++ binary's and the corpus folder's).
@@ -94,6 +100,8 @@ impl Target {
             Target::ModelCard => "model_card",
             Target::ClassTable => "class_table",
             Target::OmclMap => "omcl_map",
+            Target::FloorPlan => "floor_plan",
+            Target::FloorPlanFields => "floor_plan_fields",
         }
     }
 
@@ -193,6 +201,10 @@ pub fn run(target: Target, data: &[u8]) -> bool {
             io::labels::EmbeddingTable::read(&l, &e).is_ok()
         }
         Target::OmclMap => omcl::map::file::from_bytes(data, Path::new("in.omcl")).is_ok(),
+        Target::FloorPlan => omcl::map::floorplan::from_bytes(data, Path::new("in.plan")).is_ok(),
+        Target::FloorPlanFields => {
+            omcl::map::floorplan::from_bytes(&plan_from(data), Path::new("in.plan")).is_ok()
+        }
     }
 }
 
@@ -410,5 +422,122 @@ pub fn npy_from(data: &[u8]) -> Vec<u8> {
     out.extend_from_slice(&(dict.len() as u16).to_le_bytes());
     out.extend_from_slice(dict.as_bytes());
     out.extend_from_slice(d.0);
+    out
+}
+
+/// A floor-plan file (safetensors) whose header values, tensor shapes and
+/// contents come from the bytes, sealed with the checksum the reader
+/// expects ([`omcl::map::floorplan::CHECKED_FIELDS`], then the tensors), so
+/// that the values reach the plan's own checks.
+pub fn plan_from(data: &[u8]) -> Vec<u8> {
+    let mut d = Draw(data);
+    let number = |d: &mut Draw| -> String {
+        match d.byte() % 10 {
+            0 => "0".into(),
+            1 => "-1.5".into(),
+            2 => "NaN".into(),
+            3 => "inf".into(),
+            4 => "1e-300".into(),
+            5 => "1e300".into(),
+            6 => f32::from_bits(d.u32()).to_string(),
+            7 => (d.u32() as i32).to_string(),
+            8 => "2.0".into(),
+            _ => "0.05".into(),
+        }
+    };
+    let version = ["1", "1", "1", "2", "0", "x"][d.byte() as usize % 6];
+    let resolution = number(&mut d);
+    let (ox, oy, fz) = (number(&mut d), number(&mut d), number(&mut d));
+    let (b0, b1) = (number(&mut d), number(&mut d));
+    let dim = match d.byte() % 4 {
+        0 => 0,
+        1 => d.u32() as usize % 1_000_000,
+        _ => 1 + d.byte() as usize % 8,
+    };
+    let tau = ["0.05", "0", "2", "3", "NaN", "-1"][d.byte() as usize % 6];
+    let n = d.byte() as usize % 24;
+    let k = d.byte() as usize % 8;
+    // Mostly the shapes the header promises; sometimes not.
+    let (n_t, k_t, dim_t) = match d.byte() % 8 {
+        0 => (n + 1, k, dim),
+        1 => (n, k + 1, dim),
+        _ => (n, k, dim.min(64)),
+    };
+    let mut cells = Vec::new();
+    for _ in 0..n_t * 2 {
+        let v = match d.byte() % 4 {
+            0 => d.u32() as i32,
+            _ => (d.byte() % 16) as i32 - 8,
+        };
+        cells.extend_from_slice(&v.to_le_bytes());
+    }
+    let mut rows = Vec::new();
+    for _ in 0..n_t {
+        let v = match d.byte() % 8 {
+            0 => d.u32(),
+            _ => d.byte() as u32 % (k as u32 + 1).max(1),
+        };
+        rows.extend_from_slice(&v.to_le_bytes());
+    }
+    let mut features = Vec::new();
+    for _ in 0..k_t * dim_t {
+        let v = match d.byte() % 8 {
+            0 => f32::NAN,
+            1 => f32::INFINITY,
+            2 => 0.0,
+            3 => f32::from_bits(d.u32()),
+            _ => (d.byte() as f32 - 128.0) / 64.0,
+        };
+        features.extend_from_slice(&v.to_le_bytes());
+    }
+    let meta: Vec<(&str, String)> = vec![
+        ("format", omcl::map::floorplan::FORMAT.into()),
+        ("version", version.into()),
+        ("resolution", resolution),
+        ("origin_x", ox),
+        ("origin_y", oy),
+        ("floor_z", fz),
+        ("band_min", b0),
+        ("band_max", b1),
+        ("feature_dim", dim.to_string()),
+        ("tau", tau.into()),
+        ("encoder", "fuzz".into()),
+        ("cells", n.to_string()),
+        ("rows", k.to_string()),
+    ];
+    let mut crc = crc32fast::Hasher::new();
+    for name in omcl::map::floorplan::CHECKED_FIELDS {
+        let v = meta.iter().find(|(k, _)| *k == name).map_or("", |(_, v)| v);
+        crc.update(format!("{name}={v}\n").as_bytes());
+    }
+    for t in [&cells, &rows, &features] {
+        crc.update(t);
+    }
+    let mut json = String::from("{\"__metadata__\":{");
+    for (k, v) in &meta {
+        json.push_str(&format!("\"{k}\":\"{v}\","));
+    }
+    json.push_str(&format!("\"crc32\":\"{:08x}\"}}", crc.finalize()));
+    let mut at = 0;
+    for (name, dtype, shape, bytes) in [
+        ("cells", "I32", format!("[{n_t},2]"), &cells),
+        ("rows", "U32", format!("[{n_t}]"), &rows),
+        ("features", "F32", format!("[{k_t},{dim_t}]"), &features),
+    ] {
+        json.push_str(&format!(
+            ",\"{name}\":{{\"dtype\":\"{dtype}\",\"shape\":{shape},\"data_offsets\":[{at},{}]}}",
+            at + bytes.len()
+        ));
+        at += bytes.len();
+    }
+    json.push('}');
+    while json.len() % 8 != 0 {
+        json.push(' ');
+    }
+    let mut out = (json.len() as u64).to_le_bytes().to_vec();
+    out.extend_from_slice(json.as_bytes());
+    for t in [cells, rows, features] {
+        out.extend_from_slice(&t);
+    }
     out
 }
