@@ -265,6 +265,13 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
         v["anneal"].is_null() && v["motion"]["mode"] == "Planar",
         "{v}"
     );
+    assert_eq!(v["sampling"]["rays"], 2048, "{v}");
+    assert_eq!(v["sharpen"], 80.0, "{v}");
+    // The 2-D block's own filter: more pixels, a sharper exponent.
+    let v = config(&["table1-floorplan", "--show-config"]);
+    assert_eq!(v["sampling"]["rays"], 8192, "{v}");
+    assert_eq!(v["sharpen"], 160.0, "{v}");
+    assert!(v["anneal"].is_null(), "{v}");
 }
 
 /// Table V and both ablations in one call (maps shared), on a tiny
@@ -388,14 +395,15 @@ fn table1_blocks_write_tables_and_figure4() {
             .map(|r| r["variant"].as_str().unwrap())
             .collect();
         assert_eq!(got, rows, "{name}");
-        if name == "table1_6dof" {
-            // The block states the filter it ran: --particles and --rays
-            // over its own defaults, and its two layers.
-            assert!(
-                md.contains("Filter: 64 particles x 128 rays, 2 layer(s)"),
-                "{md}"
-            );
-        }
+        // Each block states the filter it ran: --particles and --rays
+        // over its own defaults, the 3-D block's two layers, the 2-D
+        // block's exponent.
+        let filter = if name == "table1_6dof" {
+            "Filter: 64 particles x 128 rays, 2 layer(s)"
+        } else {
+            "Filter: 64 particles x 128 sampled pixels a frame, likelihood exponent 160"
+        };
+        assert!(md.contains(filter), "{md}");
         for r in json.as_array().unwrap() {
             let runs = r["per_sequence"].as_array().unwrap();
             assert_eq!(runs[0]["errors_m"].as_array().unwrap().len(), 6, "{r}");

@@ -12,14 +12,16 @@ use omcl::map::FloorPlanParams;
 use omcl::mcl::FilterConfig;
 use omcl::mcl::baselines::Baseline;
 
-const BOUND_2D: f64 = 0.5;
+const BOUND_2D: f64 = 0.15;
 const BOUND_6DOF: f64 = 0.35;
 const BOUND_HEIGHT: f64 = 0.2;
 use omcl::sim::features::Preset;
 
 /// OMCL_GT on the floor plan of sequence 1 (tuning range), 60 frames,
-/// 512 particles: the horizontal APE stays bounded, and the baselines run
-/// to the end of the same sequence on the same plan.
+/// 512 particles, the block's filter: the horizontal APE stays within
+/// 0.15 m (0.100 m on 2026-11-26; the README's ten held-out sequences,
+/// 1024 particles: 0.123), and the baselines run to the end of the same
+/// sequence on the same plan.
 #[test]
 fn two_d_omcl_tracks_on_the_floor_plan() {
     let table = builtin_table().unwrap();
@@ -89,9 +91,10 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
         };
         assert!(e.to_string().contains(name), "{e}");
     }
+    // The block's filter (8192 pixels, exponent 160).
     let filter = FilterConfig {
         seed: 1,
-        ..FilterConfig::default()
+        ..FilterConfig::floor_plan()
     };
     let (r, _) = track_2d(&seq, &plan, Preset::Gt, filter, 512, &TwoDParams::default()).unwrap();
     assert_eq!(r.errors_m.len(), 60);

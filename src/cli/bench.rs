@@ -34,10 +34,12 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
 fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
     if a.show_config {
         // The filter the experiment starts from: the street's for table4,
-        // the 6-DoF one for table1-sixdof, else the indoor default.
+        // the 6-DoF one for table1-sixdof, the floor plan's for
+        // table1-floorplan, else the indoor default.
         let mut base = match a.plan.experiments.as_slice() {
             [Experiment::Table4] => Table4Params::filter_default(),
             [Experiment::Table1Sixdof] => omcl::mcl::FilterConfig::six_dof(),
+            [Experiment::Table1Floorplan] => omcl::mcl::FilterConfig::floor_plan(),
             _ => omcl::mcl::FilterConfig::default(),
         };
         if let Some(r) = a.plan.rays {

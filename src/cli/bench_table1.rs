@@ -46,7 +46,7 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     // Both blocks' filters are checked (`--set`) before anything is made.
     let plan_spec = e
         .contains(&Experiment::Table1Floorplan)
-        .then(|| block_spec(a, FilterConfig::default(), INDOOR_PARTICLES))
+        .then(|| block_spec(a, FilterConfig::floor_plan(), INDOOR_PARTICLES))
         .transpose()?;
     let six_spec = e
         .contains(&Experiment::Table1Sixdof)
@@ -195,10 +195,10 @@ pub(super) fn block_overrides(sets: &[String]) -> anyhow::Result<BlockOverrides>
     Ok(b)
 }
 
-/// The block's sequences and filter: `base` (the 2-D block's plain
-/// filter, the 3-D block's [`FilterConfig::six_dof`], both with 2048
-/// rays) with `--rays` and `--set` applied, and `--particles` or the
-/// block's `particles` ([`INDOOR_PARTICLES`], [`SIX_DOF_PARTICLES`]).
+/// The block's sequences and filter: `base` (the 2-D block's
+/// [`FilterConfig::floor_plan`], the 3-D block's [`FilterConfig::six_dof`])
+/// with `--rays` and `--set` applied, and `--particles` or the block's
+/// `particles` ([`INDOOR_PARTICLES`], [`SIX_DOF_PARTICLES`]).
 fn block_spec(a: &BenchArgs, base: FilterConfig, particles: usize) -> anyhow::Result<BlockSpec> {
     let BlockOverrides {
         plan, two_d, rest, ..

@@ -886,7 +886,11 @@ pub fn track_baseline(
         if i > 0 {
             motion.predict(&mut ps, &seq.increment(i), &mut rng)?;
         }
-        let pixels = sampling::sample_pixels(&f, plan.map.db(), &filter.sampling, &mut rng)?;
+        let sampling = crate::mcl::SamplingParams {
+            rays: params.pixels,
+            ..filter.sampling
+        };
+        let pixels = sampling::sample_pixels(&f, plan.map.db(), &sampling, &mut rng)?;
         let obs = observe(&f, &frame, &pixels, &classes, &seq.intrinsics)?;
         let log_l: Vec<f64> = ps
             .par_iter()
@@ -980,6 +984,14 @@ pub fn block(
         &rows,
         &PAPER_2D,
     );
+    markdown.push_str(&format!(
+        "\nFilter: {} particles x {} sampled pixels a frame, likelihood exponent {}; the \
+         baselines sample {} pixels a frame the same way.\n",
+        spec.particles,
+        spec.filter.sampling.rays,
+        spec.filter.sharpen,
+        crate::mcl::baselines::BaselineParams::default().pixels
+    ));
     markdown.push_str(&spec.preset_note());
     Ok(BlockResult {
         rows,

@@ -60,8 +60,8 @@ pub use crate::frame::{DenseFeatures, FrameFeatures};
 pub use anneal::Anneal;
 pub use estimate::{Estimate, EstimateParams, average_rotations, estimate};
 pub use filter::{
-    Filter, FilterConfig, INDOOR_PARTICLES, SIX_DOF_PARTICLES, STREET_PARTICLES, StepReport,
-    StepTimings,
+    FLOOR_PLAN_RAYS, FLOOR_PLAN_SHARPEN, Filter, FilterConfig, INDOOR_PARTICLES, SIX_DOF_PARTICLES,
+    STREET_PARTICLES, StepReport, StepTimings,
 };
 pub use init::{FloorParams, FloorSampler, PromptParams, global_init, local_init, prompt_init};
 pub use motion::{MotionMode, MotionModel};
