@@ -9,10 +9,11 @@
 //! similar to its averaged feature, a pixel's label the class most similar
 //! to its feature. Both sample their pixels as OMCL does (stratified over
 //! the frame's clusters; 2048 a frame, [`BaselineParams::pixels`], where
-//! the 2-D OMCL filter takes 8192), and both combine per-pixel likelihoods as a product, tempered the way AMCL
-//! tempers its beams: `log w = (beams / N) sum_j log p_j` with `beams` 30
-//! (AMCL's `laser_max_beams`), so that about as much evidence enters a step
-//! as a 30-beam scan gives.
+//! the 2-D OMCL filter takes 8192), and both combine per-pixel
+//! likelihoods as a product, tempered the way AMCL tempers its beams:
+//! `log w = (beams / N) sum_j log p_j` with `beams` 30 (AMCL's
+//! `laser_max_beams`), so that about as much evidence enters a step as a
+//! 30-beam scan gives.
 //!
 //! **SeDAR\*** (Mendez et al., ICRA 2018, "SeDAR - Semantic Detection and
 //! Ranging"; IJCV 2020): particles cast rays in a semantic floor plan and
@@ -80,7 +81,7 @@ pub struct BaselineParams {
     /// this count instead of the OMCL filter's). 2048, the count both
     /// baselines were run and reported with; with the 2-D OMCL filter's
     /// 8192 ([`super::FLOOR_PLAN_RAYS`]) SeDAR* lost six of ten held-out
-    /// sequences instead of two (README, "More pixels, sharper").
+    /// sequences, with 2048 one (README, "More pixels, sharper").
     #[serde(default = "default_pixels")]
     pub pixels: usize,
 }
