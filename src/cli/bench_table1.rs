@@ -58,14 +58,6 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     // (A folder made here and left empty by a failure is removed by
     // `bench::run`.)
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    run_blocks(a, plan_spec, six_spec).map(|()| true)
-}
-
-fn run_blocks(
-    a: &BenchArgs,
-    plan_spec: Option<BlockSpec>,
-    six_spec: Option<BlockSpec>,
-) -> anyhow::Result<()> {
     let names = a.plan.variants.as_deref();
     let progress = |m: &str| eprintln!("{m}");
     if let Some(spec) = plan_spec {
@@ -80,7 +72,7 @@ fn run_blocks(
         write(a, "table1_6dof", "6dof", &b)?;
         println!("{}", b.markdown);
     }
-    Ok(())
+    Ok(true)
 }
 
 /// `--variants` against the Table I blocks asked for: each block must get

@@ -874,6 +874,11 @@ pub fn track_baseline(
     let rows = super::run::class_rows(seq, &plan.map);
     let (mut estimates, mut step_seconds, mut encoder_seconds) = (vec![], vec![], vec![]);
     let mut rays = 0usize;
+    // The filter's sampling with the baselines' own pixel count.
+    let pixel_sampling = crate::mcl::SamplingParams {
+        rays: params.pixels,
+        ..filter.sampling
+    };
     for i in 0..seq.len() {
         let frame = seq.render(i);
         let t = Instant::now();
@@ -886,11 +891,7 @@ pub fn track_baseline(
         if i > 0 {
             motion.predict(&mut ps, &seq.increment(i), &mut rng)?;
         }
-        let sampling = crate::mcl::SamplingParams {
-            rays: params.pixels,
-            ..filter.sampling
-        };
-        let pixels = sampling::sample_pixels(&f, plan.map.db(), &sampling, &mut rng)?;
+        let pixels = sampling::sample_pixels(&f, plan.map.db(), &pixel_sampling, &mut rng)?;
         let obs = observe(&f, &frame, &pixels, &classes, &seq.intrinsics)?;
         let log_l: Vec<f64> = ps
             .par_iter()
