@@ -189,6 +189,23 @@ fn read_tum(p: &Path) -> Vec<(f64, [f64; 7])> {
         .collect()
 }
 
+/// The value printed after `label` is the RMSE of `errors` (to the
+/// printed 3 decimals).
+fn assert_printed_rmse(r: &Run, label: &str, errors: &[f64]) {
+    let rmse = (errors.iter().map(|d| d * d).sum::<f64>() / errors.len() as f64).sqrt();
+    let printed: f64 = r
+        .stdout
+        .split(label)
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no {label:?} printed:\n{}", r.text()));
+    assert!(
+        (printed - rmse).abs() < 1.5e-3,
+        "printed rmse {printed}, from the files {rmse}"
+    );
+}
+
 fn distance(a: &[f64; 7], b: &[f64; 7]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
@@ -243,18 +260,7 @@ fn localizes_the_synthetic_sequence_near_ground_truth() {
 
     // The printed APE (no alignment, paired by index) is the RMSE of these
     // distances.
-    let rmse = (errors.iter().map(|d| d * d).sum::<f64>() / errors.len() as f64).sqrt();
-    let printed: f64 = r
-        .stdout
-        .split("APE rmse ")
-        .nth(1)
-        .and_then(|t| t.split_whitespace().next())
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| panic!("no APE rmse printed:\n{}", r.text()));
-    assert!(
-        (printed - rmse).abs() < 1.5e-3,
-        "printed rmse {printed}, from the files {rmse}"
-    );
+    assert_printed_rmse(&r, "APE rmse ", &errors);
 
     // A diagnostics row per frame, in order, with sane values.
     let csv = std::fs::read_to_string(&diag).unwrap();
@@ -640,4 +646,177 @@ fn ground_truth_shorter_than_the_odometry_does_not_panic() {
             "--frames 3",
         ],
     );
+}
+
+/// The horizontal (x, y) distance between two TUM poses.
+fn horizontal(a: &[f64; 7], b: &[f64; 7]) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+/// How far a TUM pose's camera is from level: the angle between its image
+/// y axis and the world's -z, degrees.
+fn tilt_deg(p: &[f64; 7]) -> f64 {
+    let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+        p[6], p[3], p[4], p[5],
+    ));
+    let y = q * nalgebra::Vector3::y();
+    (-y.z).clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+#[test]
+fn localizes_on_the_floor_plan_near_ground_truth() {
+    let f = Fixture::new();
+    let out = f.dir.path().join("est2d.txt");
+    let frames = FRAMES.to_string();
+    let r = f.localize(&f.map, &f.seq, &out, &["--frames", &frames, "--floorplan"]);
+    assert!(r.ok(), "{}", r.text());
+    assert!(
+        r.stdout.contains("floor plan: ") && r.stdout.contains("band 0.10 to 2.00 m"),
+        "{}",
+        r.text()
+    );
+
+    // Level estimates at one height (a 2-D pose), stamped like the ground
+    // truth and near it horizontally.
+    let est = read_tum(&out);
+    let gt = read_tum(&f.seq.join("poses.txt"));
+    assert_eq!(est.len(), FRAMES, "{}", r.text());
+    let mut errors = Vec::new();
+    for (i, ((te, e), (tg, g))) in est.iter().zip(&gt).enumerate() {
+        assert!((te - tg).abs() < 1e-6, "frame {i}: stamp {te}, truth {tg}");
+        assert!(tilt_deg(e) < 1e-4, "frame {i}: {e:?} is not level");
+        assert!(
+            (e[2] - est[0].1[2]).abs() < 1e-9,
+            "frame {i}: height {}",
+            e[2]
+        );
+        let d = horizontal(e, g);
+        // Measured on this fixture (64 x 48 px, 64 particles, 128 rays, 10
+        // cm map): at most 0.30 m, mean 0.16 m (seeds 1-6 of the filter:
+        // RMSE 0.15 to 0.25 m).
+        assert!(d < 0.5, "frame {i}: {d:.3} m from ground truth");
+        errors.push(d);
+    }
+    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+    assert!(mean < 0.25, "mean error {mean:.3} m: {errors:.3?}");
+    // The printed APE is horizontal: the RMSE of these distances.
+    assert_printed_rmse(&r, "APE (horizontal) rmse ", &errors);
+
+    // The plan file `omcl map floorplan` writes (the same default band)
+    // gives the same scene, so the same estimates, byte for byte.
+    let plan = f.dir.path().join("seq.plan");
+    let r = omcl(&["map", "floorplan", s(&f.map), "-o", s(&plan)]);
+    assert!(r.ok(), "{}", r.text());
+    let out2 = f.dir.path().join("est2d_file.txt");
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &out2,
+        &["--frames", &frames, "--floorplan", s(&plan)],
+    );
+    assert!(r.ok(), "{}", r.text());
+    assert!(r.stdout.contains(s(&plan)), "{}", r.text());
+    assert_eq!(
+        std::fs::read_to_string(&out).unwrap(),
+        std::fs::read_to_string(&out2).unwrap()
+    );
+}
+
+#[test]
+fn floorplan_refuses_foreign_and_future_plans_and_what_it_cannot_do() {
+    let f = Fixture::new();
+    let out = f.existing_out("est.txt");
+    let d = f.dir.path();
+    let plan = |map: &Path, name: &str| {
+        let p = d.join(name);
+        let r = omcl(&["map", "floorplan", s(map), "-o", s(&p)]);
+        assert!(r.ok(), "{}", r.text());
+        p
+    };
+
+    // A plan of another map (the same frames at 20 cm): named, with why.
+    let coarse = d.join("coarse.omcl");
+    let r = omcl(&[
+        "map",
+        "rgbd",
+        s(&f.seq),
+        "-o",
+        s(&coarse),
+        "--resolution",
+        "0.2",
+    ]);
+    assert!(r.ok(), "{}", r.text());
+    let foreign = plan(&coarse, "coarse.plan");
+    let r = f.localize(&f.map, &f.seq, &out, &["--floorplan", s(&foreign)]);
+    assert_clean_failure(
+        &r,
+        &out,
+        &[s(&foreign), "not the projection of the map", "0.2 m"],
+    );
+
+    // A plan from a future version of omcl.
+    let good = plan(&f.map, "seq.plan");
+    let bytes = std::fs::read(&good).unwrap();
+    let pat = b"\"version\":\"1\"";
+    let at = bytes.windows(pat.len()).position(|w| w == pat).unwrap();
+    let mut future = bytes.clone();
+    future[at + 11] = b'7';
+    let future_plan = d.join("future.plan");
+    std::fs::write(&future_plan, &future).unwrap();
+    let r = f.localize(&f.map, &f.seq, &out, &["--floorplan", s(&future_plan)]);
+    assert_clean_failure(&r, &out, &[s(&future_plan), "version 7"]);
+
+    // A 3-D map where the plan belongs, and a missing plan.
+    let r = f.localize(&f.map, &f.seq, &out, &["--floorplan", s(&f.map)]);
+    assert_clean_failure(&r, &out, &[s(&f.map)]);
+    let missing = d.join("missing.plan");
+    let r = f.localize(&f.map, &f.seq, &out, &["--floorplan", s(&missing)]);
+    assert_clean_failure(&r, &out, &[s(&missing)]);
+
+    // Frames of another feature dimension than the plan's.
+    let seq = f.copy_seq("dim7");
+    let bad = seq.join("features").join("000001.npy");
+    let (h, w) = (HEIGHT / 4, WIDTH / 4);
+    npy::write_npy(&bad, &[h, w, 7], &vec![0.1; h * w * 7]).unwrap();
+    let r = f.localize(
+        &f.map,
+        &seq,
+        &out,
+        &["--frames", "4", "--use-features", "--floorplan", s(&good)],
+    );
+    assert_clean_failure(&r, &out, &[s(&bad), "dimension 7", &MAP_DIM.to_string()]);
+
+    // What a 2-D pose cannot do: start on the 3-D map's floor voxels,
+    // recover over them, or move in 6-DoF.
+    for (extra, needle) in [
+        (&["--init", "global"][..], "--floorplan starts from a pose"),
+        (
+            &["--init", "prompt", "--prompt", "chair"][..],
+            "--floorplan starts from a pose",
+        ),
+        (&["--recovery"][..], "--floorplan does not take --recovery"),
+        (&["--motion", "full"][..], "--motion planar only"),
+    ] {
+        let args = [&["--floorplan"][..], extra].concat();
+        let r = f.localize(&f.map, &f.seq, &out, &args);
+        assert_clean_failure(&r, &out, &[needle]);
+    }
+}
+
+/// `--text-model` is the source of word features when given (it was
+/// ignored before 2026-11-26): a text encoder of another feature space than
+/// the map is refused by name, with or without `--floorplan`.
+#[test]
+fn a_text_model_of_another_dimension_than_the_map_is_refused() {
+    let f = Fixture::new();
+    let out = f.existing_out("est.txt");
+    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/encode/tiny_text.onnx");
+    for extra in [
+        &["--init", "prompt", "--prompt", "chair"][..],
+        &["--floorplan"][..],
+    ] {
+        let args = [&["--text-model", s(&model)][..], extra].concat();
+        let r = f.localize(&f.map, &f.seq, &out, &args);
+        assert_clean_failure(&r, &out, &[s(&model), "4-d features", "512"]);
+    }
 }

@@ -5,7 +5,7 @@
 use omcl::experiment::features::builtin_table;
 use omcl::experiment::mapping::BenchMap;
 use omcl::experiment::table1_6dof::{SixDofMotion, sixdof_sequence, track_6dof};
-use omcl::experiment::table1_floorplan::{PlanBench, TwoDParams, track_2d, track_baseline};
+use omcl::experiment::table1_floorplan::{TwoDParams, plan_scene, track_2d, track_baseline};
 use omcl::experiment::variant::TABLE1_VARIANTS;
 use omcl::experiment::{MapParams, MapSource, SimSequence};
 use omcl::map::FloorPlanParams;
@@ -34,8 +34,7 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
     )
     .unwrap();
     let two_d = TwoDParams::default();
-    let plan =
-        PlanBench::from_bench(&map, &FloorPlanParams::default(), &seq.table, &two_d).unwrap();
+    let plan = plan_scene(&map, &FloorPlanParams::default(), &seq.table, &two_d).unwrap();
     // The plan is a one-layer map of the 3-D map's columns.
     assert!(plan.map.cells().iter().all(|c| c[2] == 0));
     assert!(plan.plan.len() > 1000 && plan.plan.len() < map.map.len());
@@ -81,7 +80,7 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
             skirt: Some(h),
             ..two_d
         };
-        let e = PlanBench::from_bench(&map, &FloorPlanParams::default(), &seq.table, &bad)
+        let e = plan_scene(&map, &FloorPlanParams::default(), &seq.table, &bad)
             .err()
             .expect("refused");
         let name = if w == 0.5 {

@@ -15,9 +15,11 @@ use omcl::io::poses::{self, PoseFormat};
 use omcl::io::rgbd;
 use omcl::io::sevenscenes::FramePick;
 use omcl::map;
+use omcl::map::FloorPlanParams;
 use omcl::mcl::{
     self, EarlyReject, FilterConfig, FloorParams, MotionMode, PromptParams, SamplingStrategy,
 };
+use omcl::session::floorplan::{self, EXIT_WORDS, PlanScene, PlanSight};
 use omcl::session::sequence::{
     self, CameraSequence, FrameSource, Layout, LocalizedFrame, Odometry,
 };
@@ -247,10 +249,27 @@ pub struct LocalizeArgs {
     pub recovery: bool,
     #[command(flatten)]
     pub encoder: super::encoders::EncoderArgs,
-    /// Text encoder for --prompt and "floor" (default: the sequence's
-    /// classes.txt + embeddings.npy).
+    /// Text encoder for --prompt, "floor" and, with --floorplan,
+    /// "ceiling" (default: the sequence's classes.txt + embeddings.npy).
     #[arg(long, value_name = "ONNX")]
     pub text_model: Option<PathBuf>,
+    /// Localize in 2-D on the map's floor plan, the paper's Table I 2-D
+    /// mode: the pose is x, y and yaw of a camera held level at the start
+    /// pose's height (a robot's; the odometry's horizontal motion and
+    /// heading move it, planar motion noise), the map's features are
+    /// averaged along the vertical over a height band, and each sampled
+    /// pixel's ray is followed over the plan with the 3-D map's column
+    /// heights, floors and ceilings (what it sees in plan view). With a value, the plan file
+    /// `omcl map floorplan` made from --map (its band); without one, --map
+    /// projected with the default band, 0.10 to 2.00 m above its floor.
+    /// The filter of Table I's 2-D block (8192 pixels, exponent 160)
+    /// unless --rays or --sharpen; errors are horizontal. Starts from a
+    /// pose only (--init local). The words "floor" and "ceiling" come from
+    /// --text-model or the class table (without them, rays leaving the
+    /// plan's height window score only the columns' own floors and
+    /// ceilings).
+    #[arg(long, value_name = "PLAN", num_args = 0..=1)]
+    pub floorplan: Option<Option<PathBuf>>,
 }
 
 /// What to do when global or prompt initialization cannot place particles,
@@ -274,26 +293,86 @@ fn parse_pose(s: &str) -> anyhow::Result<Pose> {
     rgbd::parse_tum_pose(s).map_err(|e| anyhow::anyhow!("--init-pose {s:?}: {e}"))
 }
 
-fn word_features(
-    table: &EmbeddingTable,
-    words: &str,
-    path: &Path,
-) -> anyhow::Result<Vec<Vec<f32>>> {
-    words
-        .split(',')
-        .map(str::trim)
-        .filter(|w| !w.is_empty())
-        .map(|w| {
-            let i = table
-                .names
-                .iter()
-                .position(|n| n.eq_ignore_ascii_case(w))
-                .with_context(|| {
-                    format!("prompt word {w:?} is not a class of {}", path.display())
-                })?;
-            Ok(table.data[i * table.dim..(i + 1) * table.dim].to_vec())
+/// A lowercase word and its text feature.
+type WordFeature = (String, Vec<f32>);
+
+/// Where the features of words (prompt words, "floor", "ceiling") come
+/// from: `--text-model`, which encodes every word the run needs once, else
+/// the sequence's class table (classes.txt + embeddings.npy).
+struct Words<'a> {
+    /// The text encoder and its features of the run's words.
+    encoded: Option<(PathBuf, Vec<WordFeature>)>,
+    table: Option<&'a LabelTable>,
+    classes: &'a Path,
+}
+
+impl<'a> Words<'a> {
+    /// With `--text-model`, encodes `--prompt`'s words and the map words
+    /// the run may use (features of dimension `dim`, the map's).
+    fn new(
+        a: &LocalizeArgs,
+        table: Option<&'a LabelTable>,
+        classes: &'a Path,
+        dim: usize,
+    ) -> anyhow::Result<Self> {
+        let encoded = match &a.text_model {
+            Some(model) => {
+                let mut words: Vec<String> = split_words(a.prompt.as_deref().unwrap_or(""))
+                    .chain(["floor"].into_iter().chain(EXIT_WORDS))
+                    .map(str::to_lowercase)
+                    .collect();
+                words.sort();
+                words.dedup();
+                let (name, rows) =
+                    super::encoders::text_features(model, a.encoder.ort_lib.as_deref(), &words)?;
+                let got = rows.first().map_or(0, Vec::len);
+                ensure!(
+                    got == dim,
+                    "--text-model {} ({name}) gives {got}-d features, the map {} has {dim}",
+                    model.display(),
+                    a.map.display()
+                );
+                Some((model.clone(), words.into_iter().zip(rows).collect()))
+            }
+            None => None,
+        };
+        Ok(Words {
+            encoded,
+            table,
+            classes,
         })
-        .collect()
+    }
+
+    /// Whether any source of word features was given.
+    fn available(&self) -> bool {
+        self.encoded.is_some() || self.table.is_some()
+    }
+
+    /// The features of the comma-separated `words`; `what` names them in
+    /// errors ("prompt word", "map word").
+    fn features(&self, words: &str, what: &str) -> anyhow::Result<Vec<Vec<f32>>> {
+        split_words(words)
+            .map(|w| match (&self.encoded, self.table) {
+                (Some((model, rows)), _) => rows
+                    .iter()
+                    .find(|(n, _)| n.eq_ignore_ascii_case(w))
+                    .map(|(_, f)| f.clone())
+                    .with_context(|| format!("{what} {w:?} was not encoded by {}", model.display())),
+                (None, Some(t)) => t.word(w).map(<[f32]>::to_vec).with_context(|| {
+                    format!("{what} {w:?} is not a class of {}", self.classes.display())
+                }),
+                (None, None) => bail!(
+                    "{what} {w:?} needs word features: --text-model ONNX, or classes.txt and                      embeddings.npy beside label images ({})",
+                    self.classes.display()
+                ),
+            })
+            .collect()
+    }
+}
+
+/// The trimmed, non-empty words of a comma-separated list.
+fn split_words(words: &str) -> impl Iterator<Item = &str> {
+    words.split(',').map(str::trim).filter(|w| !w.is_empty())
 }
 
 /// The odometry noise made from ground truth: metres, degrees and whether
@@ -351,8 +430,7 @@ fn odometry_source(a: &LocalizeArgs, inputs: &CameraSequence) -> anyhow::Result<
 fn start(
     a: &LocalizeArgs,
     gt: Option<&Trajectory>,
-    table: Option<&LabelTable>,
-    classes: &Path,
+    words_of: &Words,
     is_kitti: bool,
 ) -> anyhow::Result<Start> {
     let init_sigma_deg =
@@ -377,9 +455,8 @@ fn start(
                 .prompt
                 .as_deref()
                 .context("--init prompt needs --prompt \"word, word\"")?;
-            let t = table.context("--init prompt needs classes.txt and embeddings.npy")?;
             Start::Prompt {
-                words: word_features(t.table(), words, classes)?,
+                words: words_of.features(words, "prompt word")?,
                 params: PromptParams {
                     radius: a.prompt_radius,
                     rho: a.prompt_rho,
@@ -406,7 +483,9 @@ fn particle_count(a: &LocalizeArgs, is_kitti: bool) -> usize {
 fn filter_config(a: &LocalizeArgs, inputs: &CameraSequence) -> FilterConfig {
     let layout = inputs.layout();
     let is_kitti = layout == Layout::Kitti;
-    let base = if is_kitti {
+    let base = if a.floorplan.is_some() {
+        FilterConfig::floor_plan()
+    } else if is_kitti {
         FilterConfig::street()
     } else {
         FilterConfig::default()
@@ -427,6 +506,7 @@ fn filter_config(a: &LocalizeArgs, inputs: &CameraSequence) -> FilterConfig {
         SamplingArg::Equal => SamplingStrategy::EqualWithDuplicates,
     };
     let motion = a.motion.unwrap_or(match layout {
+        _ if a.floorplan.is_some() => MotionArg::Planar,
         Layout::Kitti => MotionArg::Road,
         Layout::SevenScenes => MotionArg::Full,
         Layout::Rgbd => MotionArg::Planar,
@@ -515,7 +595,21 @@ fn report_against_truth(
     let d = &a.sequence;
     let is_kitti = d.join("calib.txt").exists();
     let reference = Trajectory::new(g.stamps()[..n].to_vec(), g.poses()[..n].to_vec())?;
-    let e = ape(&reference, est, PoseRelation::Translation)?;
+    // On a floor plan the error is horizontal (x and y), as Table I's 2-D
+    // block measures it.
+    let e = if a.floorplan.is_some() {
+        let flat = |t: &Trajectory| {
+            let poses = t.poses().iter().map(|p| {
+                let mut p = *p;
+                p.translation.vector.z = 0.0;
+                p
+            });
+            Trajectory::new(t.stamps().to_vec(), poses.collect())
+        };
+        ape(&flat(&reference)?, &flat(est)?, PoseRelation::Translation)?
+    } else {
+        ape(&reference, est, PoseRelation::Translation)?
+    };
     let rule = CompletionRule::default();
     // The rule judges frames after its first `skip_frames`: a shorter
     // run is not judged rather than called completed.
@@ -550,8 +644,17 @@ fn report_against_truth(
         )?;
     }
     print!(
-        "; APE rmse {:.3} m, mean {:.3}, median {:.3}, max {:.3}; completed: {}",
-        e.stats.rmse, e.stats.mean, e.stats.median, e.stats.max, done
+        "; APE{} rmse {:.3} m, mean {:.3}, median {:.3}, max {:.3}; completed: {}",
+        if a.floorplan.is_some() {
+            " (horizontal)"
+        } else {
+            ""
+        },
+        e.stats.rmse,
+        e.stats.mean,
+        e.stats.median,
+        e.stats.max,
+        done
     );
     if let (Some(mt), true) = (metric, is_kitti) {
         print!(
@@ -596,22 +699,24 @@ fn open_session(
     a: &LocalizeArgs,
     shared: Arc<SharedMap>,
     inputs: &CameraSequence,
-    table: Option<&LabelTable>,
+    words: &Words,
 ) -> anyhow::Result<Session> {
-    let (k, gt, classes) = (
-        inputs.intrinsics,
-        inputs.ground_truth.as_ref(),
-        inputs.classes.as_path(),
-    );
+    let (k, gt) = (inputs.intrinsics, inputs.ground_truth.as_ref());
     let is_kitti = inputs.layout() == Layout::Kitti;
-    let start = start(a, gt, table, classes, is_kitti)?;
+    let mut start = start(a, gt, words, is_kitti)?;
+    if let (Some(_), Start::Pose { pose, .. }) = (&a.floorplan, &mut start) {
+        let tilt = floorplan::tilt_deg(pose);
+        if tilt > 2.0 {
+            eprintln!(
+                "note: the start pose is {tilt:.1} degrees from level; --floorplan holds the \
+                 camera level at its height"
+            );
+        }
+        *pose = floorplan::level(pose, pose.translation.vector.z);
+    }
     let floor_feature = match (a.init, a.recovery) {
         (InitArg::Local, false) => None,
-        _ => {
-            let t = table
-                .context("global and prompt initialization need classes.txt with \"floor\"")?;
-            Some(word_features(t.table(), "floor", classes)?.remove(0))
-        }
+        _ => Some(words.features("floor", "map word")?.remove(0)),
     };
     let config = SessionConfig {
         intrinsics: k,
@@ -670,8 +775,9 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         "--expand {} needs --layers 2 or more (the copies are the first of several layers)",
         a.expand
     );
-    let shared = Arc::new(SharedMap::new("map", map::load(&a.map)?)?);
-    let m = shared.map();
+    check_floorplan_args(&a)?;
+    let map3 = map::load(&a.map)?;
+    let m = &map3;
     let d = &a.sequence;
     let mut image = super::encoders::open_image_source(&a.encoder)?;
     let pick = FramePick {
@@ -699,13 +805,46 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             m.db().dim()
         );
     }
+    ensure!(
+        a.floorplan.is_none() || inputs.layout() != Layout::Kitti,
+        "{}: --floorplan localizes an indoor camera under a ceiling; a KITTI sequence \
+         localizes in the 3-D map (leave --floorplan out)",
+        d.display()
+    );
     let table = class_table(&a, &inputs, image.is_some(), m)?;
-    let odom = inputs.odometry(&odometry_source(&a, &inputs)?)?;
+    let words = Words::new(&a, table.as_ref(), classes, m.db().dim())?;
+    let mut odom = inputs.odometry(&odometry_source(&a, &inputs)?)?;
     let n = inputs.frames(odom.len(), a.frames)?;
+    if a.floorplan.is_some() {
+        // A 2-D pose is a level camera: the odometry's horizontal motion and
+        // heading move it, its height, roll and pitch do not.
+        let z = odom.first().map_or(0.0, |p| p.translation.vector.z);
+        for p in &mut odom {
+            *p = floorplan::level(p, z);
+        }
+    }
 
-    let mut session = open_session(&a, shared.clone(), &inputs, table.as_ref())?;
+    // The session's map: the 3-D map with its Embree scene, or (with
+    // --floorplan) the floor plan's sighted map with its planar caster, the
+    // label table bound to it, and the 3-D map kept for the plot.
+    let (shared, plan_table, map3) = match &a.floorplan {
+        Some(plan) => {
+            let shared = plan_map(&a, plan.as_deref(), &map3, &words)?;
+            let t = table
+                .as_ref()
+                .map(|t| LabelTable::new(t.table().clone(), shared.map()))
+                .transpose()?;
+            (shared, t, Some(map3))
+        }
+        None => (SharedMap::new("map", map3)?, None, None),
+    };
+    let shared = Arc::new(shared);
+    let m = map3.as_ref().unwrap_or(shared.map());
+    let frames_table = plan_table.as_ref().or(table.as_ref());
+
+    let mut session = open_session(&a, shared.clone(), &inputs, &words)?;
     let stamps = inputs.stamps(n);
-    let mut source = match (image.as_mut(), table.as_ref()) {
+    let mut source = match (image.as_mut(), frames_table) {
         (Some(src), _) => FrameSource::Images(src),
         (None, Some(t)) if !a.use_features => FrameSource::Labels(t),
         _ => FrameSource::Features,
@@ -749,6 +888,9 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         particle_count(&a, is_kitti),
         filter_config(&a, &inputs).sampling.rays,
         match (is_kitti, a.particles.is_none() && a.rays.is_none()) {
+            _ if a.floorplan.is_some() && a.rays.is_none() => {
+                " (Table I's 2-D block; --particles, --rays)"
+            }
             (true, true) => " (the paper's street setting; --particles, --rays)",
             (false, true) => " (the paper's indoor setting; --particles, --rays)",
             _ => "",
@@ -806,15 +948,94 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     match &gt {
         Some(g) => {
             // The floor's feature colours the plot's floor plan.
-            let floor = table
-                .as_ref()
-                .and_then(|t| word_features(t.table(), "floor", classes).ok())
+            let floor = words
+                .available()
+                .then(|| words.features("floor", "map word").ok())
+                .flatten()
                 .and_then(|mut w| w.pop());
             report_against_truth(&a, g, &est, n, metric.as_ref(), floor.as_deref(), m)?
         }
         None => println!(),
     }
     Ok(())
+}
+
+/// `--floorplan`'s limits, by name: a pose start and planar motion.
+fn check_floorplan_args(a: &LocalizeArgs) -> anyhow::Result<()> {
+    if a.floorplan.is_none() {
+        return Ok(());
+    }
+    ensure!(
+        matches!(a.init, InitArg::Local),
+        "--floorplan starts from a pose (--init local, with --init-pose or the first \
+         ground-truth pose): global and prompt starts place particles on the 3-D map's floor \
+         voxels"
+    );
+    ensure!(
+        !a.recovery,
+        "--floorplan does not take --recovery: it injects poses over the 3-D map's floor voxels"
+    );
+    ensure!(
+        matches!(a.motion, None | Some(MotionArg::Planar)),
+        "--floorplan estimates x, y and yaw: it takes --motion planar only"
+    );
+    Ok(())
+}
+
+/// The floor-plan map of `--floorplan`: the plan file `plan` checked
+/// against `map3` (the map it must have been made from), or `map3`
+/// projected with the default band; its sighted map and planar caster,
+/// with the words "floor" and "ceiling" when `words` has them.
+fn plan_map(
+    a: &LocalizeArgs,
+    plan: Option<&Path>,
+    map3: &omcl::map::LanguageMap,
+    words: &Words,
+) -> anyhow::Result<SharedMap> {
+    let exits = words
+        .available()
+        .then(|| words.features(&EXIT_WORDS.join(","), "map word"))
+        .transpose()
+        .unwrap_or_else(|e| {
+            eprintln!("note: {e:#}");
+            None
+        });
+    if exits.is_none() {
+        eprintln!(
+            "note: no features of \"floor\" and \"ceiling\" (--text-model, or a class table \
+             with both): rays leaving the plan's height window score only the columns' own \
+             floors and ceilings"
+        );
+    }
+    let rows = exits.as_ref().map(|f| [f[0].as_slice(), f[1].as_slice()]);
+    let sight = PlanSight::default();
+    let scene = match plan {
+        Some(p) => {
+            let file = map::floorplan::load(p)?;
+            PlanScene::from_plan_of(file, map3, rows, &sight)
+                .with_context(|| format!("{} with the map {}", p.display(), a.map.display()))?
+        }
+        None => PlanScene::from_map(map3, &FloorPlanParams::default(), rows, &sight)
+            .with_context(|| format!("the floor plan of {}", a.map.display()))?,
+    };
+    let band = scene.plan.params;
+    println!(
+        "floor plan: {} columns of {} m, {} feature rows, band {:.2} to {:.2} m above the floor{}",
+        scene.plan.len(),
+        scene.plan.resolution,
+        scene.plan.db().len(),
+        band.band_min,
+        band.band_max,
+        match plan {
+            Some(p) => format!(" ({})", p.display()),
+            None => String::new(),
+        }
+    );
+    Ok(SharedMap::from_parts(
+        "floor plan",
+        scene.sighted_map,
+        scene.sighted,
+    ))
 }
 
 /// What the camera gives: images through --encoder, else label images

@@ -59,4 +59,6 @@ pub enum ExperimentError {
     Poses(#[from] crate::io::poses::PosesError),
     #[error("{0}")]
     Config(String),
+    #[error(transparent)]
+    Plan(#[from] crate::session::floorplan::PlanSceneError),
 }

@@ -12,7 +12,7 @@
 //!
 //! # The 2-D sensor: what a pixel sees in plan view
 //!
-//! The map ([`PlanBench::sighted_map`]) is the plan's columns with their
+//! The map ([`PlanScene::sighted_map`]) is the plan's columns with their
 //! averaged rows, plus the surfaces the band leaves out: each column's own
 //! floor and ceiling (the 3-D map's leaves below the band and in its top
 //! layer, averaged, plus half the text feature of "floor" or "ceiling";
@@ -77,7 +77,7 @@
 //! one row, its band's average, at every height. So a pixel that hits a
 //! column within [`TwoDParams::skirt`] of the band's bottom (0.10 m) or of
 //! the ceiling scores that column's own 3-D leaves there, averaged
-//! ([`FloorPlan::slab_features`], admitted with the plan's tau;
+//! ([`crate::map::FloorPlan::slab_features`], admitted with the plan's tau;
 //! [`crate::raycast::PlanarCaster::with_skirts`]); the band's average
 //! elsewhere. Tuning seeds 0-2 as above, OMCL_GT APE RMSE, m, per
 //! sequence and over the three:
@@ -110,218 +110,28 @@ use super::table1::{BlockResult, FIGURE4_PANELS, Figure4Panel, PaperRow, block_m
 use super::variant::{TABLE1_VARIANTS, named_in};
 use crate::eval::ErrorStats;
 use crate::eval::localization::CompletionRule;
-use crate::map::{FloorPlan, FloorPlanParams, LanguageMap};
+use crate::map::{FloorPlanParams, LanguageMap};
 use crate::mcl::baselines::Baseline;
 use crate::mcl::{FilterConfig, FrameFeatures, MotionMode, StepTimings};
-use crate::raycast::{PlanarCaster, RayCaster};
+use crate::raycast::RayCaster;
+pub use crate::session::floorplan::{EXIT_WORDS, PlanScene, PlanSight};
 use crate::sim::embeddings::ClassEmbeddings;
 use crate::sim::features::Preset;
 use crate::sim::render::Frame;
 
-/// A variant's floor plan with its one-layer map and planar casters.
-pub struct PlanBench {
-    pub plan: FloorPlan,
-    /// The plan as a one-layer map (the baselines').
-    pub map: LanguageMap,
-    /// Columns as infinitely tall prisms (the baselines' plan).
-    pub caster: Arc<PlanarCaster>,
-    /// OMCL's 2-D map: the plan's columns and rows (layer 0), with
-    /// [`TwoDParams::surfaces`] each column's own floor and ceiling
-    /// (layers 1 and 2, their rows admitted with the plan's tau), and the
-    /// text features of "floor" and "ceiling" as two more rows, each held
-    /// by one leaf of the first column (layers 3 and 4) for where a column
-    /// has no floor or ceiling of its own; with [`TwoDParams::skirt`],
-    /// each occupied column's own base and top (layers 5 and 6, admitted
-    /// with the plan's tau). The same as `map` for a plan made without its
-    /// 3-D map.
-    pub sighted_map: LanguageMap,
-    /// Columns with their heights, rays ending on the floor and ceiling
-    /// leaves of `sighted_map` (OMCL's 2-D sensor: what a pixel sees in
-    /// plan view, see [`crate::raycast::PlanarCaster::with_heights`]). The
-    /// same as `caster` for a plan made without its 3-D map.
-    pub sighted: Arc<PlanarCaster>,
-}
-
-/// The words of the surfaces a floor plan leaves out below and above its
-/// band, whose rows OMCL's 2-D map adds (floor exit, ceiling exit).
-pub const EXIT_WORDS: [&str; 2] = ["floor", "ceiling"];
-
-impl PlanBench {
-    /// Projects a 3-D map to its floor plan; the sighted caster gets each
-    /// column's extent, the window from the plan's band bottom to the
-    /// map's ceiling, and the floor and ceiling rows `exit_rows` (unit
-    /// text features of [`EXIT_WORDS`]; without them rays leaving the
-    /// window miss) and, with [`TwoDParams::surfaces`] (the words'
-    /// weight), each column's own floor and ceiling, with
-    /// [`TwoDParams::skirt`] each column's own base and top.
-    pub fn from_map(
-        map: &LanguageMap,
-        params: &FloorPlanParams,
-        exit_rows: Option<[&[f32]; 2]>,
-        two_d: &TwoDParams,
-    ) -> Result<Self, ExperimentError> {
-        two_d.validate()?;
-        let surfaces = two_d.surfaces;
-        let cfg = |e: crate::map::floorplan::FloorPlanError| ExperimentError::Config(e.to_string());
-        let plan = FloorPlan::from_map(map, params).map_err(cfg)?;
-        let extents = plan.column_extents(map);
-        let ceiling = plan.ceiling_height(map).unwrap_or(f64::INFINITY);
-        let own = surfaces.map(|_| plan.surface_features(map));
-        let mut b = Self::from_plan(plan)?;
-        let cfg = |e: crate::map::MapError| ExperimentError::Config(e.to_string());
-        // The sighted map: the plan's leaves on layer 0; with `surfaces`,
-        // each column's own floor and ceiling on layers 1 and 2, their
-        // rows admitted to the plan's database with its tau; the plan-wide
-        // exit leaves on layers 3 and 4 of the first column (no columns
-        // for the caster); with `skirt`, each column's own base and top on
-        // layers 5 and 6.
-        let mut leaves: Vec<(crate::map::Cell, u32)> = b
-            .map
-            .cells()
-            .into_iter()
-            .zip(b.map.rows().iter().copied())
-            .collect();
-        let mut db = b.plan.db().clone();
-        for (side, list) in own.iter().flatten().enumerate() {
-            for (c, sum) in list {
-                // The column's own surface (unit) plus the word's row
-                // times `surfaces`.
-                let mut f = sum.clone();
-                if let (Some(rows), Some(w)) = (exit_rows, surfaces) {
-                    let n = crate::map::features::dot(&f, &f).sqrt();
-                    if n > 0.0 {
-                        for (a, b) in f.iter_mut().zip(rows[side]) {
-                            *a = *a / n + w * b;
-                        }
-                    }
-                }
-                match db.admit(&f) {
-                    Ok(row) => leaves.push(([c[0], c[1], 1 + side as i32], row as u32)),
-                    Err(crate::map::FeatureDbError::Degenerate { .. }) => {}
-                    Err(e) => return Err(e.into()),
-                }
-            }
-        }
-        // With `skirt`, each column's own base and top (layers 5 and 6).
-        let skirt_z = two_d.skirt.map(|h| {
-            let h = h as f64;
-            [params.band_min + h, ceiling - h]
-        });
-        if let (Some([z0, z1]), Some(h)) = (skirt_z, two_d.skirt)
-            && z0 >= z1
-        {
-            let h = if h < 1e4 {
-                h.to_string()
-            } else {
-                format!("{h:e}")
-            };
-            return Err(ExperimentError::Config(format!(
-                "two_d.skirt: {h} m would make the base and top meet; the height must be \
-                 below half the window from {:.2} to {:.2} m ({:.2} m)",
-                params.band_min,
-                ceiling,
-                0.5 * (ceiling - params.band_min)
-            )));
-        }
-        if let Some([z0, z1]) = skirt_z {
-            let slabs = [
-                b.plan.slab_features(map, params.band_min, z0),
-                b.plan.slab_features(map, z1, ceiling),
-            ];
-            for (side, list) in slabs.iter().enumerate() {
-                for (c, sum) in list {
-                    match db.admit(sum) {
-                        Ok(row) => leaves.push(([c[0], c[1], 5 + side as i32], row as u32)),
-                        Err(crate::map::FeatureDbError::Degenerate { .. }) => {}
-                        Err(e) => return Err(e.into()),
-                    }
-                }
-            }
-        }
-        let k = db.len() as u32;
-        let mut db_rows = db.rows().to_vec();
-        if let (Some(rows), Some(&[i, j])) = (exit_rows, b.plan.cells().first()) {
-            for (n, r) in rows.iter().enumerate() {
-                db_rows.extend_from_slice(r);
-                leaves.push(([i, j, 3 + n as i32], k + n as u32));
-            }
-        }
-        let db = crate::map::FeatureDb::from_rows(b.plan.db().dim(), b.plan.db().tau(), db_rows)?;
-        let sighted_map =
-            LanguageMap::from_cells(*b.map.grid(), db, b.map.encoder(), leaves).map_err(cfg)?;
-        // Each leaf's extent, the exits' and the columns' floor and ceiling
-        // leaf indices, in the sighted map's own leaf order.
-        let mut exits = [crate::raycast::Hit::MISS; 2];
-        let mut sides: [Vec<([i32; 2], u32)>; 2] = [Vec::new(), Vec::new()];
-        let mut skirts: [Vec<([i32; 2], u32)>; 2] = [Vec::new(), Vec::new()];
-        let by_leaf: Vec<[f32; 2]> = sighted_map
-            .cells()
-            .iter()
-            .enumerate()
-            .map(|(leaf, c)| {
-                match c[2] {
-                    1 | 2 => sides[(c[2] - 1) as usize].push(([c[0], c[1]], leaf as u32)),
-                    3 | 4 => exits[(c[2] - 3) as usize] = leaf as u32,
-                    5 | 6 => skirts[(c[2] - 5) as usize].push(([c[0], c[1]], leaf as u32)),
-                    _ => {}
-                }
-                b.plan
-                    .cells()
-                    .binary_search_by_key(&(c[1], c[0]), |p| (p[1], p[0]))
-                    .ok()
-                    .and_then(|n| extents.get(n).copied())
-                    .unwrap_or([f32::NEG_INFINITY, f32::INFINITY])
-            })
-            .collect();
-        let window = [params.band_min as f32, ceiling as f32];
-        let caster = PlanarCaster::new(sighted_map.grid().resolution as f32, &sighted_map.cells());
-        let caster = caster.with_heights(&by_leaf, window, exits);
-        let caster = if surfaces.is_some() {
-            caster.with_surfaces(&sides[0], &sides[1])
-        } else {
-            caster
-        };
-        b.sighted = Arc::new(match skirt_z {
-            Some(z) => caster.with_skirts(&skirts[0], &skirts[1], z.map(|z| z as f32)),
-            None => caster,
-        });
-        b.sighted_map = sighted_map;
-        Ok(b)
-    }
-
-    /// A plan with its one-layer map and caster (columns infinitely tall:
-    /// the plan alone holds no heights).
-    pub fn from_plan(plan: FloorPlan) -> Result<Self, ExperimentError> {
-        let map = plan
-            .to_language_map()
-            .map_err(|e| ExperimentError::Config(e.to_string()))?;
-        let caster = Arc::new(PlanarCaster::new(
-            map.grid().resolution as f32,
-            &map.cells(),
-        ));
-        Ok(PlanBench {
-            plan,
-            sighted_map: map.clone(),
-            map,
-            sighted: caster.clone(),
-            caster,
-        })
-    }
-
-    /// Projects a benchmark map, the exit rows from the sequence's class
-    /// table.
-    pub fn from_bench(
-        map: &BenchMap,
-        params: &FloorPlanParams,
-        table: &ClassEmbeddings,
-        two_d: &TwoDParams,
-    ) -> Result<Self, ExperimentError> {
-        let rows = match EXIT_WORDS.map(|w| table.text_feature(w)) {
-            [Some(f), Some(c)] => Some([f, c]),
-            _ => None,
-        };
-        Self::from_map(&map.map, params, rows, two_d)
-    }
+/// Projects a benchmark map to its [`PlanScene`], the exit rows from the
+/// sequence's class table.
+pub fn plan_scene(
+    map: &BenchMap,
+    params: &FloorPlanParams,
+    table: &ClassEmbeddings,
+    two_d: &TwoDParams,
+) -> Result<PlanScene, ExperimentError> {
+    let rows = match EXIT_WORDS.map(|w| table.text_feature(w)) {
+        [Some(f), Some(c)] => Some([f, c]),
+        _ => None,
+    };
+    Ok(PlanScene::from_map(&map.map, params, rows, &two_d.sight())?)
 }
 
 /// Replaces a run's errors with horizontal ones (x, y only) and recomputes
@@ -422,7 +232,7 @@ pub struct TwoDParams {
     pub max_elevation_deg: f64,
     /// Cast against the columns' heights between floor and ceiling, rays
     /// leaving through the floor or ceiling scored against those words
-    /// ([`PlanBench::sighted`]); `false`: infinitely tall columns, rays
+    /// ([`PlanScene::sighted`]); `false`: infinitely tall columns, rays
     /// that hit none miss (the block's model before 2026-11-24).
     pub heights: bool,
     /// Silence the pixels of [`OUT_OF_BAND_WORDS`] ([`InBandFeatures`]).
@@ -432,7 +242,7 @@ pub struct TwoDParams {
     pub silence_rho: Option<f32>,
     /// With `heights`: a ray leaving through the floor or ceiling hits that
     /// column's own floor or ceiling, the 3-D map's leaves below the band
-    /// or in its top layer averaged ([`FloorPlan::surface_features`]),
+    /// or in its top layer averaged ([`crate::map::FloorPlan::surface_features`]),
     /// plus this weight times the word's text feature (the column's own
     /// average has unit length); the plan-wide word rows where a column
     /// has none. `null`: the word rows everywhere (before 2026-11-25).
@@ -440,7 +250,7 @@ pub struct TwoDParams {
     /// With `heights`: each column's own base and top, this many metres
     /// high: a pixel hitting a column within it of the band's bottom or of
     /// the ceiling scores that column's 3-D leaves there, averaged
-    /// ([`FloorPlan::slab_features`]), instead of the band's average.
+    /// ([`crate::map::FloorPlan::slab_features`]), instead of the band's average.
     /// `null`: the band's average at every height. Default 0.10 m (the
     /// module documentation has the tuning).
     pub skirt: Option<f32>,
@@ -462,20 +272,17 @@ impl Default for TwoDParams {
 impl TwoDParams {
     /// Refuses, by name, a weight of the words that is negative or not
     /// finite and a height of the bases and tops that is not a finite
-    /// number > 0. (A height that leaves the base and top no middle is
-    /// refused when the map's ceiling is known, by [`PlanBench::from_map`].)
+    /// number > 0 ([`PlanSight::validate`]).
     pub fn validate(&self) -> Result<(), ExperimentError> {
-        if let Some(w) = self.surfaces.filter(|w| !(w.is_finite() && *w >= 0.0)) {
-            return Err(ExperimentError::Config(format!(
-                "two_d.surfaces: the words' weight must be a finite number >= 0 (or null), got {w}"
-            )));
+        Ok(self.sight().validate()?)
+    }
+
+    /// What the sighted 2-D map adds to the plan's columns.
+    pub fn sight(&self) -> PlanSight {
+        PlanSight {
+            surfaces: self.surfaces,
+            skirt: self.skirt,
         }
-        if let Some(s) = self.skirt.filter(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err(ExperimentError::Config(format!(
-                "two_d.skirt: the height must be a finite number > 0 m (or null), got {s}"
-            )));
-        }
-        Ok(())
     }
 }
 
@@ -490,7 +297,7 @@ pub const OUT_OF_BAND_WORDS: [&str; 3] = ["floor", "ceiling", "rug"];
 /// times.
 pub fn track_2d(
     seq: &SimSequence,
-    plan: &PlanBench,
+    plan: &PlanScene,
     preset: Preset,
     filter: FilterConfig,
     particles: usize,
@@ -703,7 +510,7 @@ pub fn omcl_rows(
                 &spec.map_params,
                 &|_| {},
             )?;
-            let plan = PlanBench::from_bench(&map, &spec.plan, &seq.table, &spec.two_d)?;
+            let plan = plan_scene(&map, &spec.plan, &seq.table, &spec.two_d)?;
             for (k, &b) in baselines.iter().enumerate() {
                 let filter = FilterConfig {
                     seed,
@@ -732,7 +539,7 @@ pub fn omcl_rows(
         }
         for (k, v) in variants.iter().enumerate() {
             let map = BenchMap::build(&seq, v.map, &spec.map_params, &|_| {})?;
-            let plan = PlanBench::from_bench(&map, &spec.plan, &seq.table, &spec.two_d)?;
+            let plan = plan_scene(&map, &spec.plan, &seq.table, &spec.two_d)?;
             let filter = FilterConfig {
                 seed,
                 ..spec.filter
@@ -831,7 +638,7 @@ fn observe(
 /// nearest to their `preset` features.
 pub fn track_baseline(
     seq: &SimSequence,
-    plan: &PlanBench,
+    plan: &PlanScene,
     baseline: crate::mcl::baselines::Baseline,
     params: &crate::mcl::baselines::BaselineParams,
     preset: Preset,

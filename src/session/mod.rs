@@ -19,6 +19,7 @@
 //! made from ground truth has one definition in the library,
 //! [`crate::sim::paths::odometry`].
 
+pub mod floorplan;
 pub mod frames;
 pub mod sequence;
 
