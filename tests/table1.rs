@@ -16,6 +16,11 @@ const BOUND_2D: f64 = 0.15;
 const BOUND_6DOF: f64 = 0.35;
 const BOUND_HEIGHT: f64 = 0.2;
 use omcl::sim::features::Preset;
+use std::sync::Arc;
+
+use nalgebra::{UnitQuaternion, Vector3};
+use omcl::geometry::Pose;
+use omcl::session::{Session, SessionConfig, SessionError, SharedMap, Start};
 
 /// OMCL_GT on the floor plan of sequence 1 (tuning range), 60 frames,
 /// 512 particles, the block's filter: the horizontal APE stays within
@@ -132,6 +137,60 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
         assert_eq!(r.errors_m.len(), 60);
         assert!(r.errors_m.iter().all(|e| e.is_finite()));
         eprintln!("{} RMSE {:.3} m", b.name(), r.stats.rmse);
+    }
+
+    // A session on the plan (`SharedMap::floor_plan`, what `omcl localize
+    // --floorplan` runs) holds the camera level: a start pose pitched 10
+    // degrees and odometry that climbs, pitches and rolls leave every
+    // particle level at the start's height; a global start is refused.
+    let scene = plan_scene(&map, &FloorPlanParams::default(), &seq.table, &two_d).unwrap();
+    let shared = Arc::new(SharedMap::floor_plan("plan", scene));
+    let config = SessionConfig {
+        intrinsics: seq.intrinsics,
+        particles: 64,
+        filter,
+        floor: Default::default(),
+        floor_feature: None,
+    };
+    let e = Session::new(shared.clone(), config.clone(), &Start::Global)
+        .err()
+        .expect("refused");
+    assert!(matches!(e, SessionError::PoseStartOnly(_)), "{e}");
+    let turn = |pitch: f64, roll: f64| {
+        UnitQuaternion::from_euler_angles(pitch.to_radians(), 0.0, 0.0)
+            * UnitQuaternion::from_euler_angles(0.0, 0.0, roll.to_radians())
+    };
+    let p0 = seq.poses()[0];
+    let z0 = p0.translation.vector.z;
+    let start = Start::Pose {
+        pose: Pose::from_parts(p0.translation, p0.rotation * turn(10.0, 0.0)),
+        sigma_m: 0.1,
+        sigma_rad: 0.1,
+    };
+    let mut session = Session::new(shared, config, &start).unwrap();
+    let all_level = |s: &Session| {
+        s.particles().iter().all(|p| {
+            let y = p.pose.rotation * Vector3::y();
+            (y.z + 1.0).abs() < 1e-9 && (p.pose.translation.vector.z - z0).abs() < 1e-9
+        })
+    };
+    assert!(all_level(&session));
+    let dim = plan.plan.db().dim();
+    let (w, h) = (seq.intrinsics.width, seq.intrinsics.height);
+    let frame = omcl::mcl::DenseFeatures {
+        width: w,
+        height: h,
+        dim,
+        data: (0..(w * h) as usize * dim)
+            .map(|i| ((i % 7) as f32 - 3.0) / 3.0)
+            .collect(),
+    };
+    for k in 1..4 {
+        let k = k as f64;
+        let mut odom = Pose::from_parts(p0.translation, p0.rotation * turn(4.0 * k, 3.0 * k));
+        odom.translation.vector += Vector3::new(0.1 * k, 0.0, 0.05 * k);
+        session.step(&odom, k, &frame).unwrap();
+        assert!(all_level(&session), "step {k}");
     }
 }
 

@@ -703,16 +703,15 @@ fn open_session(
 ) -> anyhow::Result<Session> {
     let (k, gt) = (inputs.intrinsics, inputs.ground_truth.as_ref());
     let is_kitti = inputs.layout() == Layout::Kitti;
-    let mut start = start(a, gt, words, is_kitti)?;
-    if let (Some(_), Start::Pose { pose, .. }) = (&a.floorplan, &mut start) {
+    let start = start(a, gt, words, is_kitti)?;
+    if let (true, Start::Pose { pose, .. }) = (shared.is_level(), &start) {
         let tilt = floorplan::tilt_deg(pose);
         if tilt > 2.0 {
             eprintln!(
-                "note: the start pose is {tilt:.1} degrees from level; --floorplan holds the \
-                 camera level at its height"
+                "note: the start pose is {tilt:.1} degrees from level; on a floor plan the \
+                 camera is held level at its height"
             );
         }
-        *pose = floorplan::level(pose, pose.translation.vector.z);
     }
     let floor_feature = match (a.init, a.recovery) {
         (InitArg::Local, false) => None,
@@ -813,16 +812,8 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     );
     let table = class_table(&a, &inputs, image.is_some(), m)?;
     let words = Words::new(&a, table.as_ref(), classes, m.db().dim())?;
-    let mut odom = inputs.odometry(&odometry_source(&a, &inputs)?)?;
+    let odom = inputs.odometry(&odometry_source(&a, &inputs)?)?;
     let n = inputs.frames(odom.len(), a.frames)?;
-    if a.floorplan.is_some() {
-        // A 2-D pose is a level camera: the odometry's horizontal motion and
-        // heading move it, its height, roll and pitch do not.
-        let z = odom.first().map_or(0.0, |p| p.translation.vector.z);
-        for p in &mut odom {
-            *p = floorplan::level(p, z);
-        }
-    }
 
     // The session's map: the 3-D map with its Embree scene, or (with
     // --floorplan) the floor plan's sighted map with its planar caster, the
@@ -1031,11 +1022,7 @@ fn plan_map(
             None => String::new(),
         }
     );
-    Ok(SharedMap::from_parts(
-        "floor plan",
-        scene.sighted_map,
-        scene.sighted,
-    ))
+    Ok(SharedMap::floor_plan("floor plan", scene))
 }
 
 /// What the camera gives: images through --encoder, else label images

@@ -78,6 +78,20 @@ pub fn level(pose: &Pose, z: f64) -> Pose {
     Pose::from_parts(Translation3::new(t.x, t.y, z), rotation)
 }
 
+/// `prev_camera_from_camera` of a level camera, levelled: the increment's
+/// motion along the camera's x and z axes (the floor, for a level camera)
+/// and its turn about the camera's y axis, as [`level`] keeps them for a
+/// camera levelled at the previous pose.
+pub fn level_increment(increment: &Pose) -> Pose {
+    // A level camera at the origin, heading along the world's x axis.
+    let m = Matrix3::new(0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
+    let prev = Pose::from_parts(
+        Translation3::identity(),
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m)),
+    );
+    prev.inverse() * level(&(prev * increment), 0.0)
+}
+
 /// The angle, degrees, between `pose`'s image y axis and the world's -z:
 /// how far the camera is from level.
 pub fn tilt_deg(pose: &Pose) -> f64 {
@@ -455,5 +469,40 @@ mod tests {
         let l = level(&down, 1.0);
         let f = l.rotation * Vector3::z();
         assert!((f - Vector3::y()).norm() < 1e-9, "{f:?}");
+    }
+
+    #[test]
+    fn levelled_increments_compose_like_levelled_poses() {
+        // Two tilted poses of a camera that moves 0.3 m, turns 20 degrees,
+        // and whose height, pitch and roll change on the way.
+        let tilt = |p: Pose, pitch: f64, roll: f64, dz: f64| {
+            Pose::from_parts(
+                Translation3::from(p.translation.vector + Vector3::new(0.0, 0.0, dz)),
+                p.rotation
+                    * UnitQuaternion::from_euler_angles(pitch.to_radians(), 0.0, 0.0)
+                    * UnitQuaternion::from_euler_angles(0.0, 0.0, roll.to_radians()),
+            )
+        };
+        let a = tilt(camera(0.4, 1.5), 8.0, -3.0, 0.0);
+        let mut b = tilt(camera(0.4 + 20f64.to_radians(), 1.5), -5.0, 4.0, 0.07);
+        b.translation.vector += Vector3::new(0.2, -0.22, 0.0);
+        // The levelled increment moves the levelled first pose onto the
+        // levelled second (at the first's height).
+        let inc = level_increment(&(a.inverse() * b));
+        let moved = level(&a, 1.5) * inc;
+        let want = level(&b, 1.5);
+        // Not exact: the increment is levelled in the first camera's
+        // tilted frame; the tilts here are a few degrees.
+        assert!(
+            (moved.translation.vector - want.translation.vector).norm() < 0.02,
+            "{moved:?} vs {want:?}"
+        );
+        assert!(moved.rotation.angle_to(&want.rotation) < 1.5f64.to_radians());
+        assert!(tilt_deg(&moved) < 1e-6);
+        // A level increment is kept.
+        let flat = level(&a, 1.5).inverse() * level(&b, 1.5);
+        let kept = level_increment(&flat);
+        assert!((kept.translation.vector - flat.translation.vector).norm() < 1e-12);
+        assert!(kept.rotation.angle_to(&flat.rotation) < 1e-9);
     }
 }

@@ -8,7 +8,9 @@
 //! encoder's output) with an odometry pose and a stamp, and answers each
 //! with a [`PoseReport`]: the pose, its 6x6 covariance and the filter's
 //! confidence. It can be reinitialized from a new pose or prompt at any
-//! time; dropping it closes it.
+//! time; dropping it closes it. A shared map can also be a floor plan's 2-D
+//! scene ([`SharedMap::floor_plan`], [`floorplan`]): its sessions hold the
+//! camera level and start from a pose.
 //!
 //! Odometry is given as poses (`odom_from_camera`, as a robot's odometry
 //! frame publishes them); the session turns consecutive poses into the
@@ -63,6 +65,11 @@ pub enum SessionError {
     NoFloorFeature(&'static str),
     #[error("initialization: {0}")]
     Init(MclError),
+    #[error(
+        "map {0:?} is a floor plan: sessions on it start from a pose (global and prompt starts \
+         and recovery use a 3-D map's floor voxels)"
+    )]
+    PoseStartOnly(String),
     #[error("recovery injects poses over the floor: {0}")]
     Recovery(MclError),
     #[error(transparent)]
@@ -77,6 +84,9 @@ pub struct SharedMap {
     name: String,
     map: LanguageMap,
     caster: Arc<dyn RayCaster>,
+    /// A 2-D scene ([`SharedMap::floor_plan`]): sessions hold the camera
+    /// level.
+    level: bool,
     classes: Option<LabelTable>,
     /// The image encoder raw frames go through (one at a time).
     encoder: Option<Mutex<ImageEncoder>>,
@@ -91,6 +101,7 @@ impl SharedMap {
             name: name.into(),
             map,
             caster: Arc::new(caster),
+            level: false,
             classes: None,
             encoder: None,
         })
@@ -107,9 +118,30 @@ impl SharedMap {
             name: name.into(),
             map,
             caster,
+            level: false,
             classes: None,
             encoder: None,
         }
+    }
+
+    /// A floor plan's 2-D scene ([`floorplan::PlanScene`]: its sighted map
+    /// and planar caster). A pose on it is x, y and yaw of a camera held
+    /// level, as a robot carries it: its sessions level the start pose at
+    /// its own height and every odometry pose and increment
+    /// ([`floorplan::level`]), so the odometry's horizontal motion and
+    /// heading move the particles and its height, roll and pitch do not;
+    /// they start from a pose only (global and prompt starts place
+    /// particles on a 3-D map's floor voxels).
+    pub fn floor_plan(name: impl Into<String>, scene: floorplan::PlanScene) -> Self {
+        SharedMap {
+            level: true,
+            ..Self::from_parts(name, scene.sighted_map, scene.sighted)
+        }
+    }
+
+    /// Whether sessions on this map hold the camera level (a floor plan).
+    pub fn is_level(&self) -> bool {
+        self.level
     }
 
     /// Reads the map file at `path` and builds its scene.
@@ -261,6 +293,9 @@ impl Session {
         start: &Start,
         init_seed: u64,
     ) -> Result<Self, SessionError> {
+        if map.level && config.filter.recovery.is_some() {
+            return Err(SessionError::PoseStartOnly(map.name.clone()));
+        }
         let mut init_rng = ChaCha8Rng::seed_from_u64(init_seed);
         let particles = initial_particles(&map, &config, start, &mut init_rng)?;
         let mut filter = Filter::new(
@@ -328,12 +363,17 @@ impl Session {
         frame: &dyn FrameFeatures,
     ) -> Result<PoseReport, SessionError> {
         check_input(odom, stamp)?;
+        let odom = if self.map.level {
+            floorplan::level(odom, 0.0)
+        } else {
+            *odom
+        };
         let increment = match &self.last_odom {
             Some(prev) => prev.inverse() * odom,
             None => Pose::identity(),
         };
         let report = self.step_by(&increment, stamp, frame)?;
-        self.last_odom = Some(*odom);
+        self.last_odom = Some(odom);
         Ok(report)
     }
 
@@ -348,7 +388,12 @@ impl Session {
         frame: &dyn FrameFeatures,
     ) -> Result<PoseReport, SessionError> {
         check_input(increment, stamp)?;
-        let step = self.filter.step(increment, frame).map_err(|e| match e {
+        let increment = if self.map.level {
+            floorplan::level_increment(increment)
+        } else {
+            *increment
+        };
+        let step = self.filter.step(&increment, frame).map_err(|e| match e {
             MclError::DimMismatch { .. } | MclError::ImageSize { .. } => {
                 SessionError::BadFrame(e.to_string())
             }
@@ -394,6 +439,9 @@ fn initial_particles(
             .as_deref()
             .ok_or(SessionError::NoFloorFeature(what))
     };
+    if map.level && !matches!(start, Start::Pose { .. }) {
+        return Err(SessionError::PoseStartOnly(map.name.clone()));
+    }
     match start {
         Start::Pose {
             pose,
@@ -401,6 +449,13 @@ fn initial_particles(
             sigma_rad,
         } => {
             mcl::motion::check_pose(pose).map_err(SessionError::Init)?;
+            let level;
+            let pose = if map.level {
+                level = floorplan::level(pose, pose.translation.vector.z);
+                &level
+            } else {
+                pose
+            };
             if !(sigma_m.is_finite()
                 && *sigma_m >= 0.0
                 && sigma_rad.is_finite()
