@@ -16,43 +16,49 @@ fn s(p: &std::path::Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `omcl localize` on the fixture with the sessions' particles, rays and
+/// frames, seed `seed` and `extra` options: its trajectory.
+fn cli_localize(f: &Fixture, seed: u64, extra: &[&str]) -> Vec<[f64; 7]> {
+    let out = f
+        .dir
+        .path()
+        .join(format!("est{seed}{}.txt", extra.join("")));
+    let (particles, rays, seed_s, frames) = (
+        PARTICLES.to_string(),
+        RAYS.to_string(),
+        seed.to_string(),
+        FRAMES.to_string(),
+    );
+    let args = [
+        "localize",
+        "--map",
+        s(&f.map),
+        "--sequence",
+        s(&f.seq),
+        "-o",
+        s(&out),
+        "--particles",
+        &particles,
+        "--rays",
+        &rays,
+        "--seed",
+        &seed_s,
+        "--frames",
+        &frames,
+    ];
+    let r = omcl(&[&args[..], extra].concat());
+    assert!(r.status.success(), "{r:?}");
+    read_tum(&out)
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn two_sessions_give_the_trajectories_of_two_cli_runs() {
     let f = Fixture::new();
     // The CLI, seeds 3 and 4 (4 with two-pass likelihoods).
-    let mut cli = Vec::new();
-    for seed in [3u64, 4] {
-        let out = f.dir.path().join(format!("est{seed}.txt"));
-        let (particles, rays, seed_s, frames) = (
-            PARTICLES.to_string(),
-            RAYS.to_string(),
-            seed.to_string(),
-            FRAMES.to_string(),
-        );
-        let mut args = vec![
-            "localize",
-            "--map",
-            s(&f.map),
-            "--sequence",
-            s(&f.seq),
-            "-o",
-            s(&out),
-            "--particles",
-            &particles,
-            "--rays",
-            &rays,
-            "--seed",
-            &seed_s,
-            "--frames",
-            &frames,
-        ];
-        if seed == 4 {
-            args.push("--early-reject");
-        }
-        let r = omcl(&args);
-        assert!(r.status.success(), "{r:?}");
-        cli.push(read_tum(&out));
-    }
+    let cli = [
+        cli_localize(&f, 3, &[]),
+        cli_localize(&f, 4, &["--early-reject"]),
+    ];
     assert_ne!(cli[0], cli[1], "seeds 3 and 4 should differ");
 
     let server = Server::start(&f, &[]);
@@ -571,4 +577,54 @@ async fn raw_rgb_frames_are_encoded_on_the_server_as_localize_encodes_them() {
     let e = c.localize(fr).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
     assert!(e.message().contains("image encoder"), "{e:?}");
+}
+
+/// `omcl serve --floorplan`: a session on the floor plan gives the
+/// trajectory of `omcl localize --floorplan` with the same seed (the same
+/// library scene, levelled camera and 2-D filter); the map is listed as a
+/// floor plan; a global start on it is refused by name.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_floor_plan_session_gives_the_trajectory_of_the_cli() {
+    let f = Fixture::new();
+    let cli = cli_localize(&f, 3, &["--floorplan"]);
+    assert_eq!(cli.len(), FRAMES);
+
+    let server = Server::start(&f, &["--floorplan", "room"]);
+    let mut c = server.client(Auth::good()).await;
+    let maps = c
+        .list_maps(proto::ListMapsRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .maps;
+    assert!(maps.len() == 1 && maps[0].floor_plan, "{maps:?}");
+    let (_, http_maps) = server.get("/v1/maps", &[("authorization", &format!("Bearer {TOKEN}"))]);
+    assert!(http_maps.contains("\"floor_plan\":true"), "{http_maps}");
+
+    let a = c.create_session(f.create(3)).await.unwrap().into_inner();
+    for (i, want) in cli.iter().enumerate() {
+        let u = c
+            .localize(f.frame(&a.session_id, i))
+            .await
+            .unwrap()
+            .into_inner();
+        let got = pose_of(&u);
+        for k in 0..7 {
+            assert!(
+                (got[k] - want[k]).abs() < 1e-9,
+                "frame {i}: server {got:?}, CLI {want:?}"
+            );
+        }
+    }
+    let e = c
+        .create_session(proto::CreateSessionRequest {
+            start: Some(proto::create_session_request::Start::Global(
+                proto::GlobalStart {},
+            )),
+            ..f.create(4)
+        })
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
+    assert!(e.message().contains("floor plan"), "{e:?}");
 }

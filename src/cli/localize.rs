@@ -15,11 +15,10 @@ use omcl::io::poses::{self, PoseFormat};
 use omcl::io::rgbd;
 use omcl::io::sevenscenes::FramePick;
 use omcl::map;
-use omcl::map::FloorPlanParams;
 use omcl::mcl::{
     self, EarlyReject, FilterConfig, FloorParams, MotionMode, PromptParams, SamplingStrategy,
 };
-use omcl::session::floorplan::{self, EXIT_WORDS, PlanScene, PlanSight};
+use omcl::session::floorplan::{self, EXIT_WORDS, PlanScene};
 use omcl::session::sequence::{
     self, CameraSequence, FrameSource, Layout, LocalizedFrame, Odometry,
 };
@@ -999,16 +998,11 @@ fn plan_map(
         );
     }
     let rows = exits.as_ref().map(|f| [f[0].as_slice(), f[1].as_slice()]);
-    let sight = PlanSight::default();
-    let scene = match plan {
-        Some(p) => {
-            let file = map::floorplan::load(p)?;
-            PlanScene::from_plan_of(file, map3, rows, &sight)
-                .with_context(|| format!("{} with the map {}", p.display(), a.map.display()))?
-        }
-        None => PlanScene::from_map(map3, &FloorPlanParams::default(), rows, &sight)
-            .with_context(|| format!("the floor plan of {}", a.map.display()))?,
-    };
+    let file = plan.map(map::floorplan::load).transpose()?;
+    let scene = PlanScene::for_map(map3, file, rows).with_context(|| match plan {
+        Some(p) => format!("{} with the map {}", p.display(), a.map.display()),
+        None => format!("the floor plan of {}", a.map.display()),
+    })?;
     let band = scene.plan.params;
     println!(
         "floor plan: {} columns of {} m, {} feature rows, band {:.2} to {:.2} m above the floor{}",

@@ -4,14 +4,16 @@
 use omcl::encode::Encoder as _;
 use std::io::Write;
 use std::net::SocketAddr;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{Context, bail};
 use clap::Args;
 
 use omcl::io::labels::EmbeddingTable;
+use omcl::map;
 use omcl::serve::{Limits, ServeConfig, TlsFiles, Token};
+use omcl::session::floorplan::{EXIT_WORDS, PlanScene};
 use omcl::session::{LabelTable, SharedMap};
 
 /// Environment variable holding the bearer token (if no --token-file).
@@ -36,6 +38,15 @@ pub struct ServeArgs {
     /// frames, prompt words and global localization ("floor").
     #[arg(long = "classes", value_name = "NAME=DIR")]
     pub classes: Vec<String>,
+    /// Serve the --map NAME on its floor plan, in 2-D (Table I's 2-D block,
+    /// as `omcl localize --floorplan`): NAME alone projects the map with the
+    /// default band (0.10 to 2.00 m), NAME=PLAN takes the plan file `omcl
+    /// map floorplan` made from it. Its sessions hold the camera level at
+    /// the start pose's height, start from a pose only, and default to the
+    /// block's filter (8192 pixels, exponent 160); the words "floor" and
+    /// "ceiling" come from --classes NAME=DIR. Repeatable.
+    #[arg(long = "floorplan", value_name = "NAME[=PLAN]")]
+    pub floorplans: Vec<String>,
     /// An image encoder for a map, as NAME=MODEL.onnx (with its
     /// .card.json beside it): frames may then be raw RGB images, encoded on
     /// the server (one at a time per map) before the filter step.
@@ -188,27 +199,54 @@ fn read_token(a: &ServeArgs) -> anyhow::Result<Token> {
 }
 
 /// The maps of --map, with their --classes tables and --image-model
-/// encoders.
+/// encoders; those of --floorplan as their floor plans.
 fn open_maps(a: &ServeArgs) -> anyhow::Result<Vec<SharedMap>> {
-    let mut maps: Vec<SharedMap> = Vec::new();
+    let mut specs: Vec<(String, PathBuf)> = Vec::new();
     for spec in &a.maps {
         let (name, path) = split(spec, "--map")?;
-        if maps.iter().any(|m| m.name() == name) {
+        if specs.iter().any(|(n, _)| *n == name) {
             bail!("--map {spec:?}: a map named {name:?} is already given");
         }
-        maps.push(SharedMap::open(name, &path)?);
+        specs.push((name, path));
     }
+    let known = |name: &str| specs.iter().any(|(n, _)| n == name);
+    let mut tables: Vec<(String, EmbeddingTable)> = Vec::new();
     for spec in &a.classes {
         let (name, dir) = split(spec, "--classes")?;
-        let i = maps
-            .iter()
-            .position(|m| m.name() == name)
-            .with_context(|| format!("--classes {spec:?}: no --map named {name:?}"))?;
+        if !known(&name) {
+            bail!("--classes {spec:?}: no --map named {name:?}");
+        }
         let table = EmbeddingTable::read(&dir.join("classes.txt"), &dir.join("embeddings.npy"))?;
-        let bound =
-            LabelTable::new(table, maps[i].map()).with_context(|| format!("--classes {spec:?}"))?;
-        let m = maps.remove(i);
-        maps.insert(i, m.with_classes(bound));
+        tables.push((name, table));
+    }
+    let mut plans: Vec<(String, Option<PathBuf>)> = Vec::new();
+    for spec in &a.floorplans {
+        let (name, plan) = match spec.split_once('=') {
+            Some((n, p)) if !n.is_empty() && !p.is_empty() => (n.to_string(), Some(p.into())),
+            Some(_) => bail!("--floorplan {spec:?}: expected NAME or NAME=PLAN"),
+            None => (spec.clone(), None),
+        };
+        if !known(&name) {
+            bail!("--floorplan {spec:?}: no --map named {name:?}");
+        }
+        if plans.iter().any(|(n, _)| *n == name) {
+            bail!("--floorplan {spec:?}: map {name:?} is already served as a floor plan");
+        }
+        plans.push((name, plan));
+    }
+    let mut maps: Vec<SharedMap> = Vec::new();
+    for (name, path) in specs {
+        let table = tables.iter().find(|(n, _)| *n == name).map(|(_, t)| t);
+        let mut shared = match plans.iter().find(|(n, _)| *n == name) {
+            Some((_, plan)) => floor_plan_map(&name, &path, plan.as_deref(), table)?,
+            None => SharedMap::open(name.clone(), &path)?,
+        };
+        if let Some(t) = table {
+            let bound = LabelTable::new(t.clone(), shared.map())
+                .with_context(|| format!("--classes for map {name:?}"))?;
+            shared = shared.with_classes(bound);
+        }
+        maps.push(shared);
     }
     for spec in &a.image_models {
         let (name, model) = split(spec, "--image-model")?;
@@ -227,6 +265,44 @@ fn open_maps(a: &ServeArgs) -> anyhow::Result<Vec<SharedMap>> {
         );
     }
     Ok(maps)
+}
+
+/// Map `name` (the 3-D map at `path`) served on its floor plan: `plan` (a
+/// plan file made from it) or its projection with the default band, the
+/// words "floor" and "ceiling" from its class table.
+fn floor_plan_map(
+    name: &str,
+    path: &Path,
+    plan: Option<&Path>,
+    table: Option<&EmbeddingTable>,
+) -> anyhow::Result<SharedMap> {
+    let m = map::load(path)?;
+    let word = |t: &EmbeddingTable, w: &str| {
+        let i = t.names.iter().position(|n| n.eq_ignore_ascii_case(w))?;
+        Some(t.data[i * t.dim..(i + 1) * t.dim].to_vec())
+    };
+    let exits = table.and_then(|t| match EXIT_WORDS.map(|w| word(t, w)) {
+        [Some(f), Some(c)] => Some([f, c]),
+        _ => None,
+    });
+    if exits.is_none() {
+        eprintln!(
+            "note: map {name:?}: no features of \"floor\" and \"ceiling\" (--classes \
+             {name}=DIR with both): rays leaving the plan's height window score only the \
+             columns' own floors and ceilings"
+        );
+    }
+    let rows = exits.as_ref().map(|[f, c]| [f.as_slice(), c.as_slice()]);
+    let file = plan.map(map::floorplan::load).transpose()?;
+    let scene = PlanScene::for_map(&m, file, rows).with_context(|| match plan {
+        Some(p) => format!(
+            "--floorplan {name}={} with --map {}",
+            p.display(),
+            path.display()
+        ),
+        None => format!("--floorplan {name}: the floor plan of {}", path.display()),
+    })?;
+    Ok(SharedMap::floor_plan(name, scene))
 }
 
 async fn shutdown_signal() {

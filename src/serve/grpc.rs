@@ -123,9 +123,13 @@ impl Localization for Service {
                 "particles: {particles}, expected 1..=1000000"
             )));
         }
-        let rays = r
-            .rays
-            .map_or(crate::mcl::SamplingParams::default().rays, |r| r as usize);
+        // A floor plan's sessions default to Table I's 2-D filter.
+        let base = if map.is_level() {
+            FilterConfig::floor_plan()
+        } else {
+            FilterConfig::default()
+        };
+        let rays = r.rays.map_or(base.sampling.rays, |r| r as usize);
         if !(1..=1_000_000).contains(&rays) {
             return Err(Status::invalid_argument(format!(
                 "rays: {rays}, expected 1..=1000000"
@@ -143,7 +147,7 @@ impl Localization for Service {
         };
         let mut filter = FilterConfig {
             seed: r.seed,
-            ..FilterConfig::default()
+            ..base
         };
         filter.sampling.rays = rays;
         if r.recovery {

@@ -115,7 +115,7 @@ async fn maps(AxState(ctx): AxState<Ctx>) -> Response {
             serde_json::json!({
                 "name": m.name, "leaves": m.leaves, "feature_rows": m.feature_rows,
                 "feature_dim": m.feature_dim, "resolution": m.resolution,
-                "classes": m.classes, "sessions": m.sessions,
+                "classes": m.classes, "sessions": m.sessions, "floor_plan": m.floor_plan,
             })
         })
         .collect();

@@ -100,6 +100,7 @@ pub fn map_infos(state: &State) -> Vec<proto::MapInfo> {
                 .map(|c| c.table().names.clone())
                 .unwrap_or_default(),
             sessions: sessions.iter().filter(|s| Arc::ptr_eq(&s.map, m)).count() as u32,
+            floor_plan: m.is_level(),
         })
         .collect()
 }

@@ -149,9 +149,10 @@ pub fn status_of(e: &SessionError) -> Status {
         SessionError::BadFrame(_) | SessionError::BadOdometry(_) | SessionError::BadStamp(_) => {
             Status::invalid_argument(e.to_string())
         }
-        SessionError::NoFloorFeature(_) | SessionError::Init(_) | SessionError::Recovery(_) => {
-            Status::failed_precondition(e.to_string())
-        }
+        SessionError::NoFloorFeature(_)
+        | SessionError::Init(_)
+        | SessionError::Recovery(_)
+        | SessionError::PoseStartOnly(_) => Status::failed_precondition(e.to_string()),
         _ => Status::internal(e.to_string()),
     }
 }

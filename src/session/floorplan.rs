@@ -241,6 +241,22 @@ impl PlanScene {
         Self::build(plan, map, exit_rows, sight)
     }
 
+    /// The scene `omcl localize --floorplan` and `omcl serve --floorplan`
+    /// localize in, with [`PlanSight::default`]: `plan` (a plan file's,
+    /// checked against `map` by [`PlanScene::from_plan_of`]) or, without
+    /// one, `map` projected with [`FloorPlanParams::default`].
+    pub fn for_map(
+        map: &LanguageMap,
+        plan: Option<FloorPlan>,
+        exit_rows: Option<[&[f32]; 2]>,
+    ) -> Result<Self, PlanSceneError> {
+        let sight = PlanSight::default();
+        match plan {
+            Some(plan) => Self::from_plan_of(plan, map, exit_rows, &sight),
+            None => Self::from_map(map, &FloorPlanParams::default(), exit_rows, &sight),
+        }
+    }
+
     /// [`PlanScene::from_map`] for a plan read from a file (`omcl map
     /// floorplan`'s output): its band, columns and rows are used, and
     /// `map` (the 3-D map it was projected from) gives the heights,
