@@ -176,7 +176,8 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
     assert_eq!(v["motion"]["mode"], "Full", "{v}");
     assert_eq!(v["anneal"]["layers"], 2, "{v}");
     assert_eq!(v["anneal"]["expand"], 16, "{v}");
-    assert_eq!(v["sampling"]["rays"], 2048, "{v}");
+    assert_eq!(v["sampling"]["rays"], 4096, "{v}");
+    assert_eq!(v["sharpen"], 240.0, "{v}");
     let v = config(&["table1-sixdof", "--show-config", "--rays", "512"]);
     assert_eq!(v["sampling"]["rays"], 512, "{v}");
     let v = config(&[
@@ -396,10 +397,10 @@ fn table1_blocks_write_tables_and_figure4() {
             .collect();
         assert_eq!(got, rows, "{name}");
         // Each block states the filter it ran: --particles and --rays
-        // over its own defaults, the 3-D block's two layers, the 2-D
-        // block's exponent.
+        // over its own defaults, each block's exponent, the 3-D block's
+        // two layers.
         let filter = if name == "table1_6dof" {
-            "Filter: 64 particles x 128 rays, 2 layer(s)"
+            "Filter: 64 particles x 128 rays, likelihood exponent 240, 2 layer(s)"
         } else {
             "Filter: 64 particles x 128 sampled pixels a frame, likelihood exponent 160"
         };

@@ -413,7 +413,8 @@ pub fn block(
     markdown.push_str(&format!(
         "\nSequences: the benchmark path with height +-{} m, pitch +-{} deg and roll +-{} deg \
          (periods {:?} frames); odometry noise {} m and {} deg per axis a step. \
-         Filter: {} particles x {} rays, {} layer(s) of progressive correction a frame{}.\n",
+         Filter: {} particles x {} rays, likelihood exponent {}, {} layer(s) of progressive \
+         correction a frame{}.\n",
         motion.height_m,
         motion.pitch_deg,
         motion.roll_deg,
@@ -422,6 +423,7 @@ pub fn block(
         motion.sigma_rotation_deg,
         spec.particles,
         spec.filter.sampling.rays,
+        spec.filter.sharpen,
         spec.filter.anneal.map_or(1, |a| a.layers),
         match spec.filter.anneal.map_or(1, |a| a.expand) {
             1 => String::new(),

@@ -89,8 +89,18 @@ pub const FLOOR_PLAN_RAYS: usize = 8192;
 /// 80 with 2048 pixels), chosen with [`FLOOR_PLAN_RAYS`].
 pub const FLOOR_PLAN_SHARPEN: f64 = 160.0;
 
+/// Sampled pixels a frame of the full-pose filter
+/// ([`FilterConfig::six_dof`]), chosen with [`SIX_DOF_SHARPEN`] on the
+/// 6-DoF block's tuning sequences (README, "More pixels, sharper: the
+/// 6-DoF block's filter").
+pub const SIX_DOF_RAYS: usize = 4096;
+
+/// Exponent of the full-pose filter's likelihood (spread over its two
+/// layers), chosen with [`SIX_DOF_RAYS`].
+pub const SIX_DOF_SHARPEN: f64 = 240.0;
+
 /// Particles of the full-pose filter (with [`FilterConfig::six_dof`]'s
-/// 2048 rays and a first layer on 16 copies of each particle):
+/// rays and a first layer on 16 copies of each particle):
 /// `omcl bench table1-sixdof` defaults to it. The paper's 1024 x 2048;
 /// chosen on the 6-DoF block's tuning sequences 0-5 against 4096 x 512
 /// with four copies (the block's filter before 2026-11-26): OMCL_GT 0.152
@@ -140,10 +150,13 @@ impl FilterConfig {
     /// [`SIX_DOF_PARTICLES`]): noise on all six degrees of freedom
     /// ([`super::MotionMode::Full`]), two layers of progressive correction
     /// ([`Anneal::default`]), the first on 16 copies of each particle and
-    /// every 16th pixel ([`Anneal::expand`]), and the paper's 2048 rays.
-    /// The six-dimensional particle cloud is what limits the estimate: the
-    /// layers and the copies put particles where the likelihood is high,
-    /// and the second layer weighs them with every ray (README, "6-DoF").
+    /// every 16th pixel ([`Anneal::expand`]), [`SIX_DOF_RAYS`] sampled
+    /// pixels and the exponent [`SIX_DOF_SHARPEN`] (the paper's 2048 and
+    /// the indoor 80 before 2026-11-26). The six-dimensional particle cloud
+    /// is what limits the estimate: the layers and the copies put particles
+    /// where the likelihood is high, and the second layer weighs them with
+    /// every ray (README, "6-DoF"); twice the pixels give a steadier mean
+    /// cosine, which the sharper exponent uses.
     pub fn six_dof() -> Self {
         let mut config = FilterConfig::default();
         config.motion.mode = super::motion::MotionMode::Full;
@@ -151,7 +164,8 @@ impl FilterConfig {
             expand: 16,
             ..Anneal::default()
         });
-        config.sampling.rays = 2048;
+        config.sampling.rays = SIX_DOF_RAYS;
+        config.sharpen = SIX_DOF_SHARPEN;
         config
     }
 
