@@ -258,9 +258,10 @@ pub struct LocalizeArgs {
     /// heading move it, planar motion noise), the map's features are
     /// averaged along the vertical over a height band, and each sampled
     /// pixel's ray is followed over the plan with the 3-D map's column
-    /// heights, floors and ceilings (what it sees in plan view). With a value, the plan file
-    /// `omcl map floorplan` made from --map (its band); without one, --map
-    /// projected with the default band, 0.10 to 2.00 m above its floor.
+    /// heights, floors and ceilings (what it sees in plan view). With a
+    /// value, the plan file `omcl map floorplan` made from --map (its
+    /// band); without one, --map projected with the default band, 0.10 to
+    /// 2.00 m above its floor.
     /// The filter of Table I's 2-D block (8192 pixels, exponent 160)
     /// unless --rays or --sharpen; errors are horizontal. Starts from a
     /// pose only (--init local). The words "floor" and "ceiling" come from
@@ -356,12 +357,15 @@ impl<'a> Words<'a> {
                     .iter()
                     .find(|(n, _)| n.eq_ignore_ascii_case(w))
                     .map(|(_, f)| f.clone())
-                    .with_context(|| format!("{what} {w:?} was not encoded by {}", model.display())),
+                    .with_context(|| {
+                        format!("{what} {w:?} was not encoded by {}", model.display())
+                    }),
                 (None, Some(t)) => t.word(w).map(<[f32]>::to_vec).with_context(|| {
                     format!("{what} {w:?} is not a class of {}", self.classes.display())
                 }),
                 (None, None) => bail!(
-                    "{what} {w:?} needs word features: --text-model ONNX, or classes.txt and                      embeddings.npy beside label images ({})",
+                    "{what} {w:?} needs word features: --text-model ONNX, or classes.txt and \
+                     embeddings.npy beside label images ({})",
                     self.classes.display()
                 ),
             })
