@@ -766,9 +766,16 @@ fn floorplan_refuses_foreign_and_future_plans_and_what_it_cannot_do() {
     let r = f.localize(&f.map, &f.seq, &out, &["--floorplan", s(&future_plan)]);
     assert_clean_failure(&r, &out, &[s(&future_plan), "version 7"]);
 
-    // A 3-D map where the plan belongs, and a missing plan.
+    // A 3-D map where the plan belongs, a plan where the map belongs, and
+    // a missing plan: each named for what it is.
     let r = f.localize(&f.map, &f.seq, &out, &["--floorplan", s(&f.map)]);
-    assert_clean_failure(&r, &out, &[s(&f.map)]);
+    assert_clean_failure(
+        &r,
+        &out,
+        &[s(&f.map), "not an omcl floor plan", "(a 3-D language map)"],
+    );
+    let r = f.localize(&good, &f.seq, &out, &[]);
+    assert_clean_failure(&r, &out, &[s(&good), "not an omcl map", "(a floor plan"]);
     let missing = d.join("missing.plan");
     let r = f.localize(&f.map, &f.seq, &out, &["--floorplan", s(&missing)]);
     assert_clean_failure(&r, &out, &[s(&missing)]);

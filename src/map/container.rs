@@ -152,6 +152,19 @@ impl<'a> Container<'a> {
 }
 
 /// Little-endian 4-byte values.
+/// A file's `format` field as an error names it: quoted, with what it is
+/// when it is one of omcl's own ("missing" when there is none).
+pub(crate) fn describe_format(found: &Option<String>) -> String {
+    match found.as_deref() {
+        None => "missing".into(),
+        Some(f) if f == super::file::FORMAT => format!("{f:?} (a 3-D language map)"),
+        Some(f) if f == super::floorplan::FORMAT => {
+            format!("{f:?} (a floor plan, `omcl map floorplan`'s output)")
+        }
+        Some(f) => format!("{f:?}"),
+    }
+}
+
 pub(crate) fn le_4<T>(bytes: &[u8], from: fn([u8; 4]) -> T) -> Vec<T> {
     bytes
         .chunks_exact(4)

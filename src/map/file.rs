@@ -78,7 +78,10 @@ pub enum MapFileError {
     },
     #[error("{path}: not an omcl map: not a safetensors file ({reason})")]
     NotSafetensors { path: PathBuf, reason: String },
-    #[error("{path}: not an omcl map: header field `format` is {found:?}, expected \"{FORMAT}\"")]
+    #[error(
+        "{path}: not an omcl map: header field `format` is {}, expected \"{FORMAT}\"",
+        super::container::describe_format(found)
+    )]
     Foreign {
         path: PathBuf,
         found: Option<String>,

@@ -468,7 +468,8 @@ pub enum FloorPlanFileError {
     #[error("{path}: not an omcl floor plan: not a safetensors file ({reason})")]
     NotSafetensors { path: PathBuf, reason: String },
     #[error(
-        "{path}: not an omcl floor plan: header field `format` is {found:?}, expected \"{FORMAT}\""
+        "{path}: not an omcl floor plan: header field `format` is {}, expected \"{FORMAT}\"",
+        super::container::describe_format(found)
     )]
     Foreign {
         path: PathBuf,
