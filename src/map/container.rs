@@ -152,13 +152,19 @@ impl<'a> Container<'a> {
 }
 
 /// Little-endian 4-byte values.
+/// The `format` field of a 3-D language map file ([`super::file`]).
+pub(crate) const MAP_FORMAT: &str = "omcl-language-map";
+
+/// The `format` field of a floor-plan file ([`super::floorplan`]).
+pub(crate) const PLAN_FORMAT: &str = "omcl-floor-plan";
+
 /// A file's `format` field as an error names it: quoted, with what it is
 /// when it is one of omcl's own ("missing" when there is none).
 pub(crate) fn describe_format(found: &Option<String>) -> String {
     match found.as_deref() {
         None => "missing".into(),
-        Some(f) if f == super::file::FORMAT => format!("{f:?} (a 3-D language map)"),
-        Some(f) if f == super::floorplan::FORMAT => {
+        Some(f) if f == MAP_FORMAT => format!("{f:?} (a 3-D language map)"),
+        Some(f) if f == PLAN_FORMAT => {
             format!("{f:?} (a floor plan, `omcl map floorplan`'s output)")
         }
         Some(f) => format!("{f:?}"),

@@ -30,7 +30,7 @@ use super::key::GridSpec;
 use super::octree::{LanguageMap, MapError};
 
 /// Value of the `format` field.
-pub const FORMAT: &str = "omcl-language-map";
+pub const FORMAT: &str = super::container::MAP_FORMAT;
 /// Version this build writes and reads. Version 2 put the header values
 /// under the checksum.
 pub const VERSION: u32 = 2;

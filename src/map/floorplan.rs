@@ -45,7 +45,7 @@ use super::key::GridSpec;
 use super::octree::{LanguageMap, MapError};
 
 /// Value of the `format` field.
-pub const FORMAT: &str = "omcl-floor-plan";
+pub const FORMAT: &str = super::container::PLAN_FORMAT;
 /// Version this build writes and reads.
 pub const VERSION: u32 = 1;
 
