@@ -277,11 +277,7 @@ fn floor_plan_map(
     table: Option<&EmbeddingTable>,
 ) -> anyhow::Result<SharedMap> {
     let m = map::load(path)?;
-    let word = |t: &EmbeddingTable, w: &str| {
-        let i = t.names.iter().position(|n| n.eq_ignore_ascii_case(w))?;
-        Some(t.data[i * t.dim..(i + 1) * t.dim].to_vec())
-    };
-    let exits = table.and_then(|t| match EXIT_WORDS.map(|w| word(t, w)) {
+    let exits = table.and_then(|t| match EXIT_WORDS.map(|w| t.word(w)) {
         [Some(f), Some(c)] => Some([f, c]),
         _ => None,
     });
@@ -292,9 +288,8 @@ fn floor_plan_map(
              columns' own floors and ceilings"
         );
     }
-    let rows = exits.as_ref().map(|[f, c]| [f.as_slice(), c.as_slice()]);
     let file = plan.map(map::floorplan::load).transpose()?;
-    let scene = PlanScene::for_map(&m, file, rows).with_context(|| match plan {
+    let scene = PlanScene::for_map(&m, file, exits).with_context(|| match plan {
         Some(p) => format!(
             "--floorplan {name}={} with --map {}",
             p.display(),

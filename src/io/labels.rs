@@ -318,6 +318,15 @@ impl EmbeddingTable {
         self.row_of.get(&id).copied()
     }
 
+    /// The embedding of the class named `name` (case-insensitive).
+    pub fn word(&self, name: &str) -> Option<&[f32]> {
+        let r = self
+            .names
+            .iter()
+            .position(|n| n.eq_ignore_ascii_case(name))?;
+        Some(&self.data[r * self.dim..(r + 1) * self.dim])
+    }
+
     /// The embedding of class `id`.
     pub fn row(&self, id: u32) -> Option<&[f32]> {
         self.row_of

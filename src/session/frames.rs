@@ -48,9 +48,7 @@ impl LabelTable {
 
     /// The feature of the class named `word` (case-insensitive).
     pub fn word(&self, word: &str) -> Option<&[f32]> {
-        let t = &self.table;
-        let i = t.names.iter().position(|n| n.eq_ignore_ascii_case(word))?;
-        Some(&t.data[i * t.dim..(i + 1) * t.dim])
+        self.table.word(word)
     }
 }
 

@@ -372,7 +372,7 @@ impl Session {
             Some(prev) => prev.inverse() * odom,
             None => Pose::identity(),
         };
-        let report = self.step_by(&increment, stamp, frame)?;
+        let report = self.step_level(&increment, stamp, frame)?;
         self.last_odom = Some(odom);
         Ok(report)
     }
@@ -393,7 +393,19 @@ impl Session {
         } else {
             *increment
         };
-        let step = self.filter.step(&increment, frame).map_err(|e| match e {
+        self.step_level(&increment, stamp, frame)
+    }
+
+    /// One frame with an increment already checked, and level on a floor
+    /// plan ([`Session::step`] levels the poses, [`Session::step_by`] the
+    /// increment).
+    fn step_level(
+        &mut self,
+        increment: &Pose,
+        stamp: f64,
+        frame: &dyn FrameFeatures,
+    ) -> Result<PoseReport, SessionError> {
+        let step = self.filter.step(increment, frame).map_err(|e| match e {
             MclError::DimMismatch { .. } | MclError::ImageSize { .. } => {
                 SessionError::BadFrame(e.to_string())
             }
