@@ -628,3 +628,77 @@ async fn a_floor_plan_session_gives_the_trajectory_of_the_cli() {
     assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
     assert!(e.message().contains("floor plan"), "{e:?}");
 }
+
+/// A session created with `ground` holds the camera at the start's height
+/// and tilt: fed odometry that sinks 2 cm a frame, it gives the trajectory
+/// of `omcl localize` on the undrifted odometry (positions to 1e-9 m), where
+/// a session without it sinks. A tilted start with recovery (which injects
+/// level cameras) is refused.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_ground_session_holds_the_camera_against_drifting_odometry() {
+    let f = Fixture::new();
+    let cli = cli_localize(&f, 3, &[]);
+    let server = Server::start(&f, &[]);
+    let mut c = server.client(Auth::good()).await;
+    let sinking = |session: &str, i: usize| {
+        let mut fr = f.frame(session, i);
+        let p = fr.odometry.as_mut().unwrap().position.as_mut().unwrap();
+        p.z -= 0.02 * i as f64;
+        fr
+    };
+    let held = c
+        .create_session(proto::CreateSessionRequest {
+            ground: true,
+            ..f.create(3)
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    let free = c.create_session(f.create(3)).await.unwrap().into_inner();
+    let mut last_free = 0.0;
+    for (i, want) in cli.iter().enumerate() {
+        let u = c
+            .localize(sinking(&held.session_id, i))
+            .await
+            .unwrap()
+            .into_inner();
+        let got = pose_of(&u);
+        for k in 0..3 {
+            assert!(
+                (got[k] - want[k]).abs() < 1e-9,
+                "frame {i}: server {got:?}, CLI {want:?}"
+            );
+        }
+        let u = c
+            .localize(sinking(&free.session_id, i))
+            .await
+            .unwrap()
+            .into_inner();
+        last_free = pose_of(&u)[2];
+    }
+    assert!(
+        cli[0][2] - last_free > 0.2,
+        "the free session's height {last_free}, the start's {}",
+        cli[0][2]
+    );
+
+    let mut tilted = f.create(5);
+    if let Some(proto::create_session_request::Start::InitialPose(p)) = &mut tilted.start {
+        let q = p.pose.as_mut().unwrap().pose.as_mut().unwrap();
+        let o = q.orientation.as_mut().unwrap();
+        let r = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+            o.w, o.x, o.y, o.z,
+        )) * nalgebra::UnitQuaternion::from_euler_angles(15f64.to_radians(), 0.0, 0.0);
+        (o.x, o.y, o.z, o.w) = (r.i, r.j, r.k, r.w);
+    }
+    let e = c
+        .create_session(proto::CreateSessionRequest {
+            ground: true,
+            recovery: true,
+            ..tilted
+        })
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
+    assert!(e.message().contains("15.0 degrees from level"), "{e:?}");
+}

@@ -151,6 +151,7 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
         filter,
         floor: Default::default(),
         floor_feature: None,
+        ground: false,
     };
     let e = Session::new(shared.clone(), config.clone(), &Start::Global)
         .err()

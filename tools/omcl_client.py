@@ -109,10 +109,11 @@ class OmclClient:
 
     def create_session(self, map_name, camera, initial_pose=None, prompt=None,
                        particles=None, rays=None, seed=0, recovery=False,
-                       early_reject=False):
+                       early_reject=False, ground=False):
         """camera: (fx, fy, cx, cy, width, height); initial_pose: (t, q);
         prompt: words; neither: global localization. early_reject: two-pass
-        likelihoods (omcl localize --early-reject)."""
+        likelihoods (omcl localize --early-reject); ground: the camera held
+        at its start's height and tilt (omcl localize --ground)."""
         fx, fy, cx, cy, w, h = camera
         req = pb.CreateSessionRequest(
             map=map_name,
@@ -120,6 +121,7 @@ class OmclClient:
             seed=seed,
             recovery=recovery,
             early_reject=early_reject,
+            ground=ground,
         )
         if particles is not None:
             req.particles = particles
@@ -215,6 +217,9 @@ def main():
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--early-reject", action="store_true",
                     help="two-pass likelihoods (omcl localize --early-reject)")
+    ap.add_argument("--ground", action="store_true",
+                    help="hold the camera at its start's height, roll and pitch, as a "
+                         "robot on a flat floor carries it (omcl localize --ground)")
     ap.add_argument("--global", dest="global_", action="store_true",
                     help="start globally instead of at the first ground-truth pose")
     a = ap.parse_args()
@@ -239,7 +244,7 @@ def main():
     init = None if a.global_ else (gt[0][1], gt[0][2])
     sid = client.create_session(a.map, camera, initial_pose=init,
                                 particles=a.particles, rays=a.rays, seed=a.seed,
-                                early_reject=a.early_reject)
+                                early_reject=a.early_reject, ground=a.ground)
 
     # One frame at a time through the stream: the next frame is sent once
     # the previous one is answered, so none is dropped (a camera sending at

@@ -18,7 +18,8 @@ use omcl::map;
 use omcl::mcl::{
     self, EarlyReject, FilterConfig, FloorParams, MotionMode, PromptParams, SamplingStrategy,
 };
-use omcl::session::floorplan::{self, EXIT_WORDS, PlanScene};
+use omcl::session::floorplan::{EXIT_WORDS, PlanScene};
+use omcl::session::ground;
 use omcl::session::sequence::{
     self, CameraSequence, FrameSource, Layout, LocalizedFrame, Odometry,
 };
@@ -270,6 +271,14 @@ pub struct LocalizeArgs {
     /// ceilings).
     #[arg(long, value_name = "PLAN", num_args = 0..=1)]
     pub floorplan: Option<Option<PathBuf>>,
+    /// Hold the camera to the ground, as a robot on a flat floor carries
+    /// it: its height, roll and pitch stay the start pose's (level for
+    /// --init global and prompt), and only the odometry's horizontal
+    /// motion and turn move it; its drift in height and tilt does not.
+    /// Planar motion (the default with it); indoor sequences only (KITTI
+    /// streets climb). --floorplan always does, with the camera level.
+    #[arg(long)]
+    pub ground: bool,
 }
 
 /// What to do when global or prompt initialization cannot place particles,
@@ -509,7 +518,7 @@ fn filter_config(a: &LocalizeArgs, inputs: &CameraSequence) -> FilterConfig {
         SamplingArg::Equal => SamplingStrategy::EqualWithDuplicates,
     };
     let motion = a.motion.unwrap_or(match layout {
-        _ if a.floorplan.is_some() => MotionArg::Planar,
+        _ if a.floorplan.is_some() || a.ground => MotionArg::Planar,
         Layout::Kitti => MotionArg::Road,
         Layout::SevenScenes => MotionArg::Full,
         Layout::Rgbd => MotionArg::Planar,
@@ -708,7 +717,7 @@ fn open_session(
     let is_kitti = inputs.layout() == Layout::Kitti;
     let start = start(a, gt, words, is_kitti)?;
     if let (true, Start::Pose { pose, .. }) = (shared.is_level(), &start) {
-        let tilt = floorplan::tilt_deg(pose);
+        let tilt = ground::tilt_deg(pose);
         if tilt > 2.0 {
             eprintln!(
                 "note: the start pose is {tilt:.1} degrees from level; on a floor plan the \
@@ -726,6 +735,7 @@ fn open_session(
         filter: filter_config(a, inputs),
         floor: FloorParams::default(),
         floor_feature,
+        ground: a.ground,
     };
     Session::new(shared, config, &start).map_err(|e| match e {
         SessionError::Init(e) => match &a.prompt {
@@ -811,6 +821,12 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         a.floorplan.is_none() || inputs.layout() != Layout::Kitti,
         "{}: --floorplan localizes an indoor camera under a ceiling; a KITTI sequence \
          localizes in the 3-D map (leave --floorplan out)",
+        d.display()
+    );
+    ensure!(
+        !a.ground || inputs.layout() != Layout::Kitti,
+        "{}: --ground holds the camera at its start's height, and KITTI streets climb (leave \
+         --ground out; the road motion follows them)",
         d.display()
     );
     let table = class_table(&a, &inputs, image.is_some(), m)?;
@@ -954,8 +970,13 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `--floorplan`'s limits, by name: a pose start and planar motion.
+/// `--floorplan`'s and `--ground`'s limits, by name: planar motion, and
+/// for a floor plan a pose start.
 fn check_floorplan_args(a: &LocalizeArgs) -> anyhow::Result<()> {
+    ensure!(
+        !a.ground || matches!(a.motion, None | Some(MotionArg::Planar)),
+        "--ground holds the camera's height, roll and pitch: it takes --motion planar only"
+    );
     if a.floorplan.is_none() {
         return Ok(());
     }

@@ -159,6 +159,7 @@ pub fn run(
         filter: spec.filter,
         floor: FloorParams::default(),
         floor_feature,
+        ground: false,
     };
     let shared = Arc::new(SharedMap::from_parts("benchmark", map.clone(), caster));
     let mut session = Session::with_init_seed(shared, config, &start, spec.filter.seed ^ 0x57a7)

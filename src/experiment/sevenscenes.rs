@@ -345,6 +345,7 @@ pub fn run_track(
         filter,
         floor: Default::default(),
         floor_feature: None,
+        ground: false,
     };
     let start = Start::Pose {
         pose: gt[0],

@@ -343,6 +343,7 @@ pub fn track_with(
         filter,
         floor: crate::mcl::FloorParams::default(),
         floor_feature: None,
+        ground: false,
     };
     let shared = Arc::new(SharedMap::from_parts("floor plan", map.clone(), caster));
     let mut f = Session::with_init_seed(shared, config, &start, filter.seed ^ 0x57a7)

@@ -165,6 +165,7 @@ impl Localization for Service {
                 .classes()
                 .and_then(|c| c.word("floor"))
                 .map(<[f32]>::to_vec),
+            ground: r.ground,
         };
         let m = map.clone();
         let session = self

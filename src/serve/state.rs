@@ -152,7 +152,9 @@ pub fn status_of(e: &SessionError) -> Status {
         SessionError::NoFloorFeature(_)
         | SessionError::Init(_)
         | SessionError::Recovery(_)
-        | SessionError::PoseStartOnly(_) => Status::failed_precondition(e.to_string()),
+        | SessionError::PoseStartOnly(_)
+        | SessionError::GroundMotion(_)
+        | SessionError::TiltedRecovery(_) => Status::failed_precondition(e.to_string()),
         _ => Status::internal(e.to_string()),
     }
 }

@@ -18,17 +18,13 @@
 //! ([`PlanScene::from_plan`]) gives infinitely tall columns, the view of
 //! the SeDAR\* baseline.
 //!
-//! A session on a scene ([`super::SharedMap::from_parts`] with
-//! [`PlanScene::sighted_map`] and [`PlanScene::sighted`]) runs the 3-D
-//! filter's own pieces with planar motion (x, y and yaw; height, roll and
-//! pitch follow the odometry). The choices and their measurements are in
-//! [`crate::experiment::table1_floorplan`].
+//! A session on a scene ([`super::SharedMap::floor_plan`]) runs the 3-D
+//! filter's own pieces with planar motion and the camera held level at
+//! the start's height ([`super::ground`]): x, y and yaw. The choices and
+//! their measurements are in [`crate::experiment::table1_floorplan`].
 
 use std::sync::Arc;
 
-use nalgebra::{Matrix3, Rotation3, Translation3, UnitQuaternion};
-
-use crate::geometry::Pose;
 use crate::map::floorplan::FloorPlanError;
 use crate::map::{FeatureDbError, FloorPlan, FloorPlanParams, LanguageMap, MapError};
 use crate::raycast::PlanarCaster;
@@ -52,51 +48,6 @@ pub enum PlanSceneError {
     Features(#[from] FeatureDbError),
     #[error(transparent)]
     Map(#[from] MapError),
-}
-
-/// `world_from_camera` held level at height `z`: the camera's x, y and
-/// heading (its optical axis projected on the floor; the image's up
-/// direction for a camera looking straight up or down), its image's y axis
-/// along the world's -z. A 2-D pose (x, y, yaw) is a camera carried level
-/// at a known height, as a robot carries it; this is the 3-D pose it
-/// stands for.
-pub fn level(pose: &Pose, z: f64) -> Pose {
-    let r = pose.rotation.to_rotation_matrix();
-    let forward = r * nalgebra::Vector3::z();
-    let up = r * -nalgebra::Vector3::y();
-    let h = if forward.x.hypot(forward.y) > 1e-6 {
-        forward
-    } else {
-        up
-    };
-    let heading = h.y.atan2(h.x);
-    let (s, c) = heading.sin_cos();
-    // Columns: camera x (right), y (down), z (forward) in the world.
-    let m = Matrix3::new(s, 0.0, c, -c, 0.0, s, 0.0, -1.0, 0.0);
-    let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m));
-    let t = pose.translation.vector;
-    Pose::from_parts(Translation3::new(t.x, t.y, z), rotation)
-}
-
-/// `prev_camera_from_camera` of a level camera, levelled: the increment's
-/// motion along the camera's x and z axes (the floor, for a level camera)
-/// and its turn about the camera's y axis, as [`level`] keeps them for a
-/// camera levelled at the previous pose.
-pub fn level_increment(increment: &Pose) -> Pose {
-    // A level camera at the origin, heading along the world's x axis.
-    let m = Matrix3::new(0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
-    let prev = Pose::from_parts(
-        Translation3::identity(),
-        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m)),
-    );
-    prev.inverse() * level(&(prev * increment), 0.0)
-}
-
-/// The angle, degrees, between `pose`'s image y axis and the world's -z:
-/// how far the camera is from level.
-pub fn tilt_deg(pose: &Pose) -> f64 {
-    let y = pose.rotation * nalgebra::Vector3::y();
-    (-y.z).clamp(-1.0, 1.0).acos().to_degrees()
 }
 
 /// What the sighted 2-D map adds to the plan's columns (see the module
@@ -431,94 +382,5 @@ impl PlanScene {
             sighted: caster.clone(),
             caster,
         })
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use nalgebra::{UnitQuaternion, Vector3};
-
-    /// A level camera at heading `h` (radians from the world's x axis).
-    fn camera(h: f64, z: f64) -> Pose {
-        let (s, c) = h.sin_cos();
-        let m = Matrix3::new(s, 0.0, c, -c, 0.0, s, 0.0, -1.0, 0.0);
-        Pose::from_parts(
-            Translation3::new(1.0, 2.0, z),
-            UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m)),
-        )
-    }
-
-    #[test]
-    fn level_keeps_position_and_heading_and_drops_tilt() {
-        for h in [0.0, 0.7, 2.0, -2.5] {
-            let p = camera(h, 1.5);
-            assert!(tilt_deg(&p) < 1e-6);
-            // Forward along (cos h, sin h, 0), image y down.
-            let f = p.rotation * Vector3::z();
-            assert!((f - Vector3::new(h.cos(), h.sin(), 0.0)).norm() < 1e-12);
-            // Level already: only the height changes.
-            let l = level(&p, 1.2);
-            assert!((l.translation.vector - Vector3::new(1.0, 2.0, 1.2)).norm() < 1e-12);
-            assert!(l.rotation.angle_to(&p.rotation) < 1e-9);
-            // Pitched down 20 degrees and rolled 5 (about the camera's x
-            // and z axes): levelled back to the same heading.
-            let tilted = Pose::from_parts(
-                p.translation,
-                p.rotation
-                    * UnitQuaternion::from_euler_angles(-20f64.to_radians(), 0.0, 0.0)
-                    * UnitQuaternion::from_euler_angles(0.0, 0.0, 5f64.to_radians()),
-            );
-            let t = tilt_deg(&tilted);
-            assert!((t - 20.6).abs() < 0.1, "tilt {t}");
-            let l = level(&tilted, 1.5);
-            assert!(tilt_deg(&l) < 1e-6);
-            assert!(l.rotation.angle_to(&p.rotation) < 1e-9, "heading {h}");
-        }
-        // Looking straight down with the image's top towards +y: heading +y.
-        let down = Pose::from_parts(
-            Translation3::new(0.0, 0.0, 1.0),
-            UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(Matrix3::new(
-                1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0,
-            ))),
-        );
-        let l = level(&down, 1.0);
-        let f = l.rotation * Vector3::z();
-        assert!((f - Vector3::y()).norm() < 1e-9, "{f:?}");
-    }
-
-    #[test]
-    fn levelled_increments_compose_like_levelled_poses() {
-        // Two tilted poses of a camera that moves 0.3 m, turns 20 degrees,
-        // and whose height, pitch and roll change on the way.
-        let tilt = |p: Pose, pitch: f64, roll: f64, dz: f64| {
-            Pose::from_parts(
-                Translation3::from(p.translation.vector + Vector3::new(0.0, 0.0, dz)),
-                p.rotation
-                    * UnitQuaternion::from_euler_angles(pitch.to_radians(), 0.0, 0.0)
-                    * UnitQuaternion::from_euler_angles(0.0, 0.0, roll.to_radians()),
-            )
-        };
-        let a = tilt(camera(0.4, 1.5), 8.0, -3.0, 0.0);
-        let mut b = tilt(camera(0.4 + 20f64.to_radians(), 1.5), -5.0, 4.0, 0.07);
-        b.translation.vector += Vector3::new(0.2, -0.22, 0.0);
-        // The levelled increment moves the levelled first pose onto the
-        // levelled second (at the first's height).
-        let inc = level_increment(&(a.inverse() * b));
-        let moved = level(&a, 1.5) * inc;
-        let want = level(&b, 1.5);
-        // Not exact: the increment is levelled in the first camera's
-        // tilted frame; the tilts here are a few degrees.
-        assert!(
-            (moved.translation.vector - want.translation.vector).norm() < 0.02,
-            "{moved:?} vs {want:?}"
-        );
-        assert!(moved.rotation.angle_to(&want.rotation) < 1.5f64.to_radians());
-        assert!(tilt_deg(&moved) < 1e-6);
-        // A level increment is kept.
-        let flat = level(&a, 1.5).inverse() * level(&b, 1.5);
-        let kept = level_increment(&flat);
-        assert!((kept.translation.vector - flat.translation.vector).norm() < 1e-12);
-        assert!(kept.rotation.angle_to(&flat.rotation) < 1e-9);
     }
 }

@@ -10,7 +10,9 @@
 //! confidence. It can be reinitialized from a new pose or prompt at any
 //! time; dropping it closes it. A shared map can also be a floor plan's 2-D
 //! scene ([`SharedMap::floor_plan`], [`floorplan`]): its sessions hold the
-//! camera level and start from a pose.
+//! camera level and start from a pose. On a 3-D map a session can hold the
+//! camera to the ground as a robot carries it ([`SessionConfig::ground`],
+//! [`ground`]).
 //!
 //! Odometry is given as poses (`odom_from_camera`, as a robot's odometry
 //! frame publishes them); the session turns consecutive poses into the
@@ -23,6 +25,7 @@
 
 pub mod floorplan;
 pub mod frames;
+pub mod ground;
 pub mod sequence;
 
 use std::path::Path;
@@ -40,6 +43,7 @@ use crate::mcl::{
     PromptParams, SensorModel, StepReport,
 };
 use crate::raycast::RayCaster;
+use ground::Mount;
 
 pub use frames::{LabelTable, feature_grid, label_frame};
 
@@ -70,6 +74,16 @@ pub enum SessionError {
          and recovery use a 3-D map's floor voxels)"
     )]
     PoseStartOnly(String),
+    #[error(
+        "a camera held to the ground (a floor plan, or `ground`) moves with planar motion noise, \
+         not {0:?}"
+    )]
+    GroundMotion(mcl::MotionMode),
+    #[error(
+        "recovery injects level cameras, and the start pose is {0:.1} degrees from level: a \
+         camera held to the ground keeps its start's tilt (start level, or without recovery)"
+    )]
+    TiltedRecovery(f64),
     #[error("recovery injects poses over the floor: {0}")]
     Recovery(MclError),
     #[error(transparent)]
@@ -128,7 +142,7 @@ impl SharedMap {
     /// and planar caster). A pose on it is x, y and yaw of a camera held
     /// level, as a robot carries it: its sessions level the start pose at
     /// its own height and every odometry pose and increment
-    /// ([`floorplan::level`]), so the odometry's horizontal motion and
+    /// ([`ground::level`]), so the odometry's horizontal motion and
     /// heading move the particles and its height, roll and pitch do not;
     /// they start from a pose only (global and prompt starts place
     /// particles on a 3-D map's floor voxels).
@@ -243,6 +257,13 @@ pub struct SessionConfig {
     /// The feature of "floor", needed by global and prompt starts and by
     /// recovery (`filter.recovery`).
     pub floor_feature: Option<Vec<f32>>,
+    /// Hold the camera to the ground, as a robot on a flat floor carries
+    /// it ([`ground`]): its height, roll and pitch stay the start's (a
+    /// pose start's own; a global or prompt start's cameras are level),
+    /// and only the odometry's horizontal motion and turn move it. Needs
+    /// planar motion noise. A floor plan's sessions always do, with the
+    /// camera level.
+    pub ground: bool,
 }
 
 /// The answer to one frame.
@@ -269,6 +290,8 @@ pub struct Session {
     filter: Filter,
     /// Draws of the initializations (the filter has its own generator).
     init_rng: ChaCha8Rng,
+    /// How the camera is held to the ground (floor plans, `ground`).
+    mount: Option<Mount>,
     last_odom: Option<Pose>,
     frames: u64,
 }
@@ -296,6 +319,7 @@ impl Session {
         if map.level && config.filter.recovery.is_some() {
             return Err(SessionError::PoseStartOnly(map.name.clone()));
         }
+        let mount = mount(&map, &config, start)?;
         let mut init_rng = ChaCha8Rng::seed_from_u64(init_seed);
         let particles = initial_particles(&map, &config, start, &mut init_rng)?;
         let mut filter = Filter::new(
@@ -319,6 +343,7 @@ impl Session {
             config,
             filter,
             init_rng,
+            mount,
             last_odom: None,
             frames: 0,
         })
@@ -347,8 +372,10 @@ impl Session {
     /// new pose or prompt). The next frame's odometry is taken as the new
     /// reference (it moves nothing).
     pub fn reinitialize(&mut self, start: &Start) -> Result<(), SessionError> {
+        let mount = mount(&self.map, &self.config, start)?;
         let particles = initial_particles(&self.map, &self.config, start, &mut self.init_rng)?;
         self.filter.reinitialize(particles)?;
+        self.mount = mount;
         self.last_odom = None;
         Ok(())
     }
@@ -363,10 +390,9 @@ impl Session {
         frame: &dyn FrameFeatures,
     ) -> Result<PoseReport, SessionError> {
         check_input(odom, stamp)?;
-        let odom = if self.map.level {
-            floorplan::level(odom, 0.0)
-        } else {
-            *odom
+        let odom = match &self.mount {
+            Some(m) => m.hold(odom),
+            None => *odom,
         };
         let increment = match &self.last_odom {
             Some(prev) => prev.inverse() * odom,
@@ -388,17 +414,16 @@ impl Session {
         frame: &dyn FrameFeatures,
     ) -> Result<PoseReport, SessionError> {
         check_input(increment, stamp)?;
-        let increment = if self.map.level {
-            floorplan::level_increment(increment)
-        } else {
-            *increment
+        let increment = match &self.mount {
+            Some(m) => m.hold_increment(increment),
+            None => *increment,
         };
         self.step_level(&increment, stamp, frame)
     }
 
-    /// One frame with an increment already checked, and level on a floor
-    /// plan ([`Session::step`] levels the poses, [`Session::step_by`] the
-    /// increment).
+    /// One frame with an increment already checked, and held to the ground
+    /// when the session holds the camera ([`Session::step`] holds the poses,
+    /// [`Session::step_by`] the increment).
     fn step_level(
         &mut self,
         increment: &Pose,
@@ -422,6 +447,33 @@ impl Session {
             step,
         })
     }
+}
+
+/// How a session on `map` with `config` holds its camera from `start`:
+/// `None` free; a floor plan's level; with `config.ground` the pose
+/// start's tilt, or level for global and prompt starts (their cameras are
+/// level).
+fn mount(
+    map: &SharedMap,
+    config: &SessionConfig,
+    start: &Start,
+) -> Result<Option<Mount>, SessionError> {
+    if !(map.level || config.ground) {
+        return Ok(None);
+    }
+    let mode = config.filter.motion.mode;
+    if mode != mcl::MotionMode::Planar {
+        return Err(SessionError::GroundMotion(mode));
+    }
+    let mount = match start {
+        Start::Pose { pose, .. } if !map.level => Mount::of(pose),
+        _ => Mount::level(),
+    };
+    let tilt = mount.tilt_deg();
+    if config.filter.recovery.is_some() && tilt > 1e-6 {
+        return Err(SessionError::TiltedRecovery(tilt));
+    }
+    Ok(Some(mount))
 }
 
 /// A frame's stamp must be finite and its odometry a finite rigid motion.
@@ -463,7 +515,7 @@ fn initial_particles(
             mcl::motion::check_pose(pose).map_err(SessionError::Init)?;
             let level;
             let pose = if map.level {
-                level = floorplan::level(pose, pose.translation.vector.z);
+                level = ground::level(pose, pose.translation.vector.z);
                 &level
             } else {
                 pose

@@ -176,6 +176,7 @@ impl Fixture {
             recovery: false,
             frame_id: String::new(),
             early_reject: false,
+            ground: false,
         }
     }
 }
