@@ -15,6 +15,7 @@ lint: deps
 	$(CARGO) fmt --all -- --check
 	$(CARGO) clippy --all-targets -- -D warnings
 	python3 tools/check_cycles.py src
+	RUSTDOCFLAGS="-D warnings" $(CARGO) doc --no-deps --quiet
 
 test: deps lint
 	$(CARGO) test --lib --bins --tests

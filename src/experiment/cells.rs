@@ -1,5 +1,5 @@
 //! The results of a sweep by table cell, as each experiment's report reads
-//! them ([`Ctx`]), and the writers of the report's files.
+//! them (`Ctx`), and the writers of the report's files.
 
 use std::path::{Path, PathBuf};
 

@@ -407,7 +407,7 @@ impl FeatureDb {
     }
 
     /// The rank of the rows' span when [`FeatureDb::dots_and_norms`] goes
-    /// through it (see [`Span`]), else `None`.
+    /// through it (see `Span`), else `None`.
     pub fn span_rank(&self) -> Option<usize> {
         self.span().map(|s| s.rank)
     }

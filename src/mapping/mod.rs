@@ -7,7 +7,7 @@
 //! - Option 2, point clouds ([`cloud`]): each point's feature (or label row)
 //!   added to its voxel.
 //!
-//! Both take features through [`FrameFeatures`]/[`PointFeatures`]: a row of
+//! Frames give features through [`FrameFeatures`], points one [`Feature`] each: a row of
 //! a fixed table (labels with an embedding table: the ground-truth mode) or
 //! a feature vector (feature files, encoders). No I/O here.
 

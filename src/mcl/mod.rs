@@ -7,7 +7,7 @@
 //!   duplicates);
 //! - [`sensor`]: the paper's eq. 2 via a per-frame similarity table;
 //! - [`resample`]: low-variance resampling triggered by ESS;
-//! - [`estimate`]: weighted mean near the best particle, quaternion averaging;
+//! - [`mod@estimate`]: weighted mean near the best particle, quaternion averaging;
 //! - [`init`]: local, global (floor) and prompt-augmented initialization;
 //! - [`kld`]: KLD-adaptive particle count;
 //! - [`recovery`]: augmented-MCL injection after track loss;

@@ -18,7 +18,7 @@
 //! frame publishes them); the session turns consecutive poses into the
 //! filter's increments, so the first frame moves nothing
 //! ([`Session::step_by`] takes the increments themselves, as the
-//! benchmark's runs in [`crate::experiment::run`] do). [`sequence`] reads a
+//! benchmark's runs in [`mod@crate::experiment::run`] do). [`sequence`] reads a
 //! recorded sequence from disk and localizes it (`omcl localize`). Noisy odometry
 //! made from ground truth has one definition in the library,
 //! [`crate::sim::paths::odometry`].

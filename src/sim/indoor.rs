@@ -1,15 +1,15 @@
 //! Indoor worlds: their classes, layouts and the kinds there are.
 //!
 //! Three kinds of world ([`WorldKind`]): the corridor apartment
-//! ([`super::corridor`], rooms off both sides of one corridor, the
-//! benchmark's default), the open-plan home ([`super::open_plan`], one
+//! (`corridor`, rooms off both sides of one corridor, the
+//! benchmark's default), the open-plan home (`open_plan`, one
 //! large living, dining and kitchen space with long sight lines and two
 //! side rooms) and the office floor ([`super::offices`], 20 or more rooms
 //! round two corridors, most of them identical offices). Every layout
 //! records its rooms (floor rectangle, door, a viewpoint kept free) and a
 //! hall graph of the shared space that camera paths walk
 //! ([`super::paths`]). Furniture is placed by room kind
-//! ([`super::furniture`]), never in the strip from a door to its room's
+//! (`furniture`), never in the strip from a door to its room's
 //! viewpoint, so paths through doors and viewpoints are collision-free.
 //! All sizes are metres, world z up, floor at z = 0.
 
