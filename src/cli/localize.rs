@@ -716,12 +716,17 @@ fn open_session(
     let (k, gt) = (inputs.intrinsics, inputs.ground_truth.as_ref());
     let is_kitti = inputs.layout() == Layout::Kitti;
     let start = start(a, gt, words, is_kitti)?;
-    if let (true, Start::Pose { pose, .. }) = (shared.is_level(), &start) {
+    if let Start::Pose { pose, .. } = &start {
         let tilt = ground::tilt_deg(pose);
-        if tilt > 2.0 {
+        if tilt > 2.0 && shared.is_level() {
             eprintln!(
                 "note: the start pose is {tilt:.1} degrees from level; on a floor plan the \
                  camera is held level at its height"
+            );
+        } else if tilt > 2.0 && a.ground {
+            eprintln!(
+                "note: --ground holds the camera {tilt:.1} degrees from level, the start \
+                 pose's tilt, for the whole run"
             );
         }
     }
