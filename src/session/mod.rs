@@ -398,7 +398,7 @@ impl Session {
             Some(prev) => prev.inverse() * odom,
             None => Pose::identity(),
         };
-        let report = self.step_level(&increment, stamp, frame)?;
+        let report = self.step_held(&increment, stamp, frame)?;
         self.last_odom = Some(odom);
         Ok(report)
     }
@@ -418,13 +418,13 @@ impl Session {
             Some(m) => m.hold_increment(increment),
             None => *increment,
         };
-        self.step_level(&increment, stamp, frame)
+        self.step_held(&increment, stamp, frame)
     }
 
     /// One frame with an increment already checked, and held to the ground
     /// when the session holds the camera ([`Session::step`] holds the poses,
     /// [`Session::step_by`] the increment).
-    fn step_level(
+    fn step_held(
         &mut self,
         increment: &Pose,
         stamp: f64,
