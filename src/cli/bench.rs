@@ -50,6 +50,20 @@ fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
         let sets = super::bench_table1::block_overrides(&a.plan.set)?.rest;
         let config = apply_overrides(base, &sets)?;
         println!("{}", serde_json::to_string_pretty(&config)?);
+        if a.plan.experiments == [Experiment::Table1Sixdof] {
+            let mut cloud = omcl::mcl::FilterConfig::six_dof_point_cloud();
+            if let Some(r) = a.plan.rays {
+                cloud.sampling.rays = r;
+            }
+            let cloud = apply_overrides(cloud, &sets)?;
+            if cloud != config {
+                eprintln!(
+                    "(the point-cloud row, OMCL_Open_LSeg, has its own, with --rays and --set \
+                     applied to it too: {} rays, exponent {})",
+                    cloud.sampling.rays, cloud.sharpen
+                );
+            }
+        }
         return Ok(());
     }
     if let Some(dir) = &a.sixdof.export_frames {

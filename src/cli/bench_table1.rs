@@ -26,7 +26,7 @@ pub fn export(a: &BenchArgs, dir: &Path) -> anyhow::Result<()> {
     let progress = |m: &str| eprintln!("{m}");
     let motion = block_overrides(&a.plan.set)?.sixdof;
     let dirs = table1_6dof::export_block(
-        &block_spec(a, FilterConfig::six_dof(), SIX_DOF_PARTICLES)?,
+        &block_spec(a, six_dof_filters(), SIX_DOF_PARTICLES)?,
         &motion,
         dir,
         &progress,
@@ -46,11 +46,11 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     // Both blocks' filters are checked (`--set`) before anything is made.
     let plan_spec = e
         .contains(&Experiment::Table1Floorplan)
-        .then(|| block_spec(a, FilterConfig::floor_plan(), INDOOR_PARTICLES))
+        .then(|| block_spec(a, [FilterConfig::floor_plan(); 2], INDOOR_PARTICLES))
         .transpose()?;
     let six_spec = e
         .contains(&Experiment::Table1Sixdof)
-        .then(|| block_spec(a, FilterConfig::six_dof(), SIX_DOF_PARTICLES))
+        .then(|| block_spec(a, six_dof_filters(), SIX_DOF_PARTICLES))
         .transpose()?;
     if plan_spec.is_none() && six_spec.is_none() {
         return Ok(false);
@@ -187,19 +187,33 @@ pub(super) fn block_overrides(sets: &[String]) -> anyhow::Result<BlockOverrides>
     Ok(b)
 }
 
-/// The block's sequences and filter: `base` (the 2-D block's
-/// [`FilterConfig::floor_plan`], the 3-D block's [`FilterConfig::six_dof`])
-/// with `--rays` and `--set` applied, and `--particles` or the block's
-/// `particles` ([`INDOOR_PARTICLES`], [`SIX_DOF_PARTICLES`]).
-fn block_spec(a: &BenchArgs, base: FilterConfig, particles: usize) -> anyhow::Result<BlockSpec> {
+/// The 6-DoF block's filters: the frame-built maps' and the point-cloud
+/// map's.
+fn six_dof_filters() -> [FilterConfig; 2] {
+    [FilterConfig::six_dof(), FilterConfig::six_dof_point_cloud()]
+}
+
+/// The block's sequences and filters: `base` (the 2-D block's
+/// [`FilterConfig::floor_plan`] for every row, the 3-D block's
+/// [`FilterConfig::six_dof`] and, for the point-cloud row,
+/// [`FilterConfig::six_dof_point_cloud`]) with `--rays` and `--set`
+/// applied to both, and `--particles` or the block's `particles`
+/// ([`INDOOR_PARTICLES`], [`SIX_DOF_PARTICLES`]).
+fn block_spec(
+    a: &BenchArgs,
+    base: [FilterConfig; 2],
+    particles: usize,
+) -> anyhow::Result<BlockSpec> {
     let BlockOverrides {
         plan, two_d, rest, ..
     } = block_overrides(&a.plan.set)?;
-    let mut filter = base;
-    if let Some(r) = a.plan.rays {
-        filter.sampling.rays = r;
-    }
-    let filter = super::bench_args::apply_overrides(filter, &rest)?;
+    let [filter, point_cloud_filter] = base.map(|mut f| {
+        if let Some(r) = a.plan.rays {
+            f.sampling.rays = r;
+        }
+        super::bench_args::apply_overrides(f, &rest)
+    });
+    let (filter, point_cloud_filter) = (filter?, point_cloud_filter?);
     two_d.validate().context("--set")?;
     Ok(BlockSpec {
         seeds: a.plan.first_seed..a.plan.first_seed + a.plan.sequences,
@@ -210,6 +224,7 @@ fn block_spec(a: &BenchArgs, base: FilterConfig, particles: usize) -> anyhow::Re
             ..Default::default()
         },
         filter,
+        point_cloud_filter,
         particles: a.plan.particles.unwrap_or(particles),
         plan,
         two_d,

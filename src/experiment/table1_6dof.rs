@@ -153,10 +153,7 @@ pub fn rows_3d(
         let seq = sixdof_sequence_in(spec.world, seed, spec.frames, &table, motion)?;
         for (k, v) in variants.iter().enumerate() {
             let map = BenchMap::build(&seq, v.map, &spec.map_params, &|_| {})?;
-            let filter = FilterConfig {
-                seed,
-                ..spec.filter
-            };
+            let filter = spec.filter_for(v, seed);
             let r = track_6dof(&seq, &map, v, filter, spec.particles)?;
             let split = ErrorSplit::of(seq.poses(), &r.estimates);
             progress(&format!(
@@ -430,6 +427,20 @@ pub fn block(
             m => format!(", the first on {m} copies of each particle and every {m}th pixel"),
         }
     ));
+    let cloud = &spec.point_cloud_filter;
+    let differs =
+        (cloud.sampling.rays, cloud.sharpen) != (spec.filter.sampling.rays, spec.filter.sharpen);
+    if differs
+        && variants
+            .iter()
+            .any(|v| v.map == super::mapping::MapSource::PointCloud)
+    {
+        markdown.push_str(&format!(
+            "The point-cloud row (a map from a labelled point cloud) has its own filter: {} rays, \
+             likelihood exponent {}.\n",
+            cloud.sampling.rays, cloud.sharpen
+        ));
+    }
     markdown.push_str(&spec.preset_note());
     if let Some(dir) = odometry {
         let row = odometry_row(spec, motion, dir)?;

@@ -428,6 +428,11 @@ pub struct BlockSpec {
     /// The filter (its seed is replaced by each sequence's seed, as the
     /// 3-D rows do).
     pub filter: FilterConfig,
+    /// The filter of the rows whose map is a labelled point cloud
+    /// ([`super::mapping::MapSource::PointCloud`], OMCL_Open_LSeg): the
+    /// 6-DoF block's [`FilterConfig::six_dof_point_cloud`]; the 2-D
+    /// block's is [`BlockSpec::filter`].
+    pub point_cloud_filter: FilterConfig,
     pub particles: usize,
     pub plan: FloorPlanParams,
     pub two_d: TwoDParams,
@@ -441,6 +446,15 @@ pub struct BlockSpec {
 }
 
 impl BlockSpec {
+    /// The filter of variant `v`'s row, seeded with `seed`.
+    pub fn filter_for(&self, v: &super::variant::Variant, seed: u64) -> FilterConfig {
+        let base = match v.map {
+            super::mapping::MapSource::PointCloud => self.point_cloud_filter,
+            _ => self.filter,
+        };
+        FilterConfig { seed, ..base }
+    }
+
     /// The variants named in `names` (comma-separated; `None`: all) among
     /// `rows`, localizing with [`BlockSpec::preset`] when it is set.
     pub fn variants(&self, rows: &[&str], names: Option<&str>) -> Vec<super::variant::Variant> {
@@ -541,10 +555,7 @@ pub fn omcl_rows(
         for (k, v) in variants.iter().enumerate() {
             let map = BenchMap::build(&seq, v.map, &spec.map_params, &|_| {})?;
             let plan = plan_scene(&map, &spec.plan, &seq.table, &spec.two_d)?;
-            let filter = FilterConfig {
-                seed,
-                ..spec.filter
-            };
+            let filter = spec.filter_for(v, seed);
             let (r, t2) = track_2d(&seq, &plan, v.localize, filter, spec.particles, &spec.two_d)?;
             let steps = r.step_seconds.len();
             let cast_ms = |t: &StepTimings| 1e3 * t.cast.as_secs_f64() / steps.max(1) as f64;
@@ -813,6 +824,36 @@ pub fn block(
 mod tests {
     use super::*;
     use crate::frame::DenseFeatures;
+
+    #[test]
+    fn the_point_cloud_row_gets_its_own_filter_with_the_sequence_seed() {
+        let spec = BlockSpec {
+            seeds: 0..1,
+            world: Default::default(),
+            frames: 1,
+            map_params: Default::default(),
+            filter: FilterConfig::six_dof(),
+            point_cloud_filter: FilterConfig::six_dof_point_cloud(),
+            particles: 1,
+            plan: Default::default(),
+            two_d: Default::default(),
+            compare_3d: false,
+            preset: None,
+        };
+        for v in &TABLE1_VARIANTS {
+            let f = spec.filter_for(v, 7);
+            let want = if v.name == "OMCL_Open_LSeg" {
+                FilterConfig::six_dof_point_cloud()
+            } else {
+                FilterConfig::six_dof()
+            };
+            assert_eq!(f, FilterConfig { seed: 7, ..want }, "{}", v.name);
+        }
+        assert_ne!(
+            FilterConfig::six_dof_point_cloud().sharpen,
+            FilterConfig::six_dof().sharpen
+        );
+    }
 
     /// Classes wall (x), floor (y) and ceiling (z) in 3-D; a 2 x 2 image
     /// whose pixels are: (0, 0) 0.8 floor + 0.6 wall (cosine 0.8 with the

@@ -99,6 +99,16 @@ pub const SIX_DOF_RAYS: usize = 4096;
 /// layers), chosen with [`SIX_DOF_RAYS`].
 pub const SIX_DOF_SHARPEN: f64 = 240.0;
 
+/// Sampled pixels a frame of the full-pose filter on a point-cloud map
+/// ([`FilterConfig::six_dof_point_cloud`]), chosen with
+/// [`SIX_DOF_POINT_CLOUD_SHARPEN`] on the point-cloud row's tuning
+/// sequences (README, "The point-cloud row's own filter").
+pub const SIX_DOF_POINT_CLOUD_RAYS: usize = 512;
+
+/// Exponent of the full-pose filter's likelihood on a point-cloud map,
+/// chosen with [`SIX_DOF_POINT_CLOUD_RAYS`].
+pub const SIX_DOF_POINT_CLOUD_SHARPEN: f64 = 20.0;
+
 /// Particles of the full-pose filter (with [`FilterConfig::six_dof`]'s
 /// rays and a first layer on 16 copies of each particle):
 /// `omcl bench table1-sixdof` defaults to it. The paper's 1024 x 2048;
@@ -166,6 +176,22 @@ impl FilterConfig {
         });
         config.sampling.rays = SIX_DOF_RAYS;
         config.sharpen = SIX_DOF_SHARPEN;
+        config
+    }
+
+    /// The full-pose filter on a map whose features come from a point
+    /// encoder rather than the camera's image encoder (a labelled point
+    /// cloud, Table I's OMCL_Open_LSeg row): [`FilterConfig::six_dof`]
+    /// with [`SIX_DOF_POINT_CLOUD_RAYS`] pixels and the softer exponent
+    /// [`SIX_DOF_POINT_CLOUD_SHARPEN`]. The two encoders agree less, so a
+    /// particle's mean cosine is a weaker cue and more of its modes must
+    /// stay alive; chosen on the row's tuning sequences, where the sharp
+    /// filter of the frame-built maps completed 3 of 10 (README, "The
+    /// point-cloud row's own filter").
+    pub fn six_dof_point_cloud() -> Self {
+        let mut config = FilterConfig::six_dof();
+        config.sampling.rays = SIX_DOF_POINT_CLOUD_RAYS;
+        config.sharpen = SIX_DOF_POINT_CLOUD_SHARPEN;
         config
     }
 
