@@ -36,26 +36,25 @@ fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
         // The filter the experiment starts from: the street's for table4,
         // the 6-DoF one for table1-sixdof, the floor plan's for
         // table1-floorplan, else the indoor default.
-        let mut base = match a.plan.experiments.as_slice() {
+        let base = match a.plan.experiments.as_slice() {
             [Experiment::Table4] => Table4Params::filter_default(),
             [Experiment::Table1Sixdof] => omcl::mcl::FilterConfig::six_dof(),
             [Experiment::Table1Floorplan] => omcl::mcl::FilterConfig::floor_plan(),
             _ => omcl::mcl::FilterConfig::default(),
         };
-        if let Some(r) = a.plan.rays {
-            base.sampling.rays = r;
-        }
         // The Table I blocks' own paths (plan.*, two_d.*, sixdof.*) are not
         // the filter's.
         let sets = super::bench_table1::block_overrides(&a.plan.set)?.rest;
-        let config = apply_overrides(base, &sets)?;
+        let with_args = |mut f: omcl::mcl::FilterConfig| {
+            if let Some(r) = a.plan.rays {
+                f.sampling.rays = r;
+            }
+            apply_overrides(f, &sets)
+        };
+        let config = with_args(base)?;
         println!("{}", serde_json::to_string_pretty(&config)?);
         if a.plan.experiments == [Experiment::Table1Sixdof] {
-            let mut cloud = omcl::mcl::FilterConfig::six_dof_point_cloud();
-            if let Some(r) = a.plan.rays {
-                cloud.sampling.rays = r;
-            }
-            let cloud = apply_overrides(cloud, &sets)?;
+            let cloud = with_args(omcl::mcl::FilterConfig::six_dof_point_cloud())?;
             if cloud != config {
                 eprintln!(
                     "(the point-cloud row, OMCL_Open_LSeg, has its own, with --rays and --set \

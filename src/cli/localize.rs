@@ -792,7 +792,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         "--expand {} needs --layers 2 or more (the copies are the first of several layers)",
         a.expand
     );
-    check_floorplan_args(&a)?;
+    check_plan_and_ground_args(&a)?;
     let map3 = map::load(&a.map)?;
     let m = &map3;
     let d = &a.sequence;
@@ -977,7 +977,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
 
 /// `--floorplan`'s and `--ground`'s limits, by name: planar motion, and
 /// for a floor plan a pose start.
-fn check_floorplan_args(a: &LocalizeArgs) -> anyhow::Result<()> {
+fn check_plan_and_ground_args(a: &LocalizeArgs) -> anyhow::Result<()> {
     ensure!(
         !a.ground || matches!(a.motion, None | Some(MotionArg::Planar)),
         "--ground holds the camera's height, roll and pitch: it takes --motion planar only"

@@ -151,7 +151,6 @@ impl<'a> Container<'a> {
     }
 }
 
-/// Little-endian 4-byte values.
 /// The `format` field of a 3-D language map file ([`super::file`]).
 pub(crate) const MAP_FORMAT: &str = "omcl-language-map";
 
@@ -171,6 +170,7 @@ pub(crate) fn describe_format(found: &Option<String>) -> String {
     }
 }
 
+/// Little-endian 4-byte values.
 pub(crate) fn le_4<T>(bytes: &[u8], from: fn([u8; 4]) -> T) -> Vec<T> {
     bytes
         .chunks_exact(4)
