@@ -901,3 +901,109 @@ fn ground_holds_the_camera_against_drifting_odometry() {
     let r = f.localize(&f.map, &drift, &out, &["--ground", "--motion", "full"]);
     assert_clean_failure(&r, &out, &["--ground", "--motion planar only"]);
 }
+
+/// `--filter` starts from a tuned filter and the other options change it:
+/// `six-dof` brings full motion, its exponent and two layers with 16
+/// copies, and tracks; `--layers 1` takes the layers away again; `auto`
+/// says which it chose. A filter whose motion is not planar with
+/// `--ground` or `--floorplan`, `--expand` on a filter without layers and
+/// an unknown name are refused before anything is written.
+#[test]
+fn named_filters_start_the_run_and_options_change_them() {
+    let f = Fixture::new();
+    let frames = FRAMES.to_string();
+    let out = f.dir.path().join("six.txt");
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &out,
+        &["--frames", &frames, "--filter", "six-dof"],
+    );
+    assert!(r.ok(), "{}", r.text());
+    for line in [
+        "filter six-dof: full motion noise, likelihood exponent 240",
+        "2 layers of progressive correction a frame (--layers), the first on 16 copies",
+        // --rays (the fixture's 128) over the preset's 4096.
+        "64 particles x 128 rays a frame",
+    ] {
+        assert!(r.text().contains(line), "{line:?} in {}", r.text());
+    }
+    let errors = errors_against_truth(&f, &out);
+    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+    assert!(mean < 0.5, "mean error {mean:.3} m: {errors:.3?}");
+
+    let out = f.dir.path().join("one_layer.txt");
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &out,
+        &[
+            "--frames",
+            &frames,
+            "--filter",
+            "six-dof-point-cloud",
+            "--layers",
+            "1",
+            "--sharpen",
+            "30",
+        ],
+    );
+    assert!(r.ok(), "{}", r.text());
+    assert!(
+        r.text()
+            .contains("filter six-dof-point-cloud: full motion noise, likelihood exponent 30"),
+        "{}",
+        r.text()
+    );
+    assert!(!r.text().contains("layers of progressive"), "{}", r.text());
+
+    let out = f.dir.path().join("auto.txt");
+    let r = f.localize(&f.map, &f.seq, &out, &["--frames", "3"]);
+    assert!(r.ok(), "{}", r.text());
+    assert!(
+        r.text()
+            .contains("filter indoor (auto): planar motion noise, likelihood exponent 80"),
+        "{}",
+        r.text()
+    );
+
+    let out = f.existing_out("refused.txt");
+    for (bad, needles) in [
+        (
+            &["--filter", "six-dof", "--ground"][..],
+            &["--ground", "--filter six-dof"][..],
+        ),
+        (
+            &["--filter", "street", "--floorplan"],
+            &["--floorplan", "--filter street"],
+        ),
+        (&["--filter", "indoor", "--expand", "4"], &["--expand"]),
+    ] {
+        let r = f.localize(&f.map, &f.seq, &out, bad);
+        assert_clean_failure(&r, &out, needles);
+    }
+    // An unknown name is the argument parser's usage error (exit 2).
+    let r = f.localize(&f.map, &f.seq, &out, &["--filter", "6dof"]);
+    assert_eq!(r.code, Some(2), "{}", r.text());
+    for n in ["6dof", "six-dof-point-cloud", "floor-plan"] {
+        assert!(r.stderr.contains(n), "message lacks {n:?}:\n{}", r.text());
+    }
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), OLD_OUT);
+    // The motion asked for by name overrides the preset's, and then
+    // --ground is fine.
+    let out = f.dir.path().join("planar_six.txt");
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &out,
+        &[
+            "--frames", "3", "--filter", "six-dof", "--motion", "planar", "--ground",
+        ],
+    );
+    assert!(r.ok(), "{}", r.text());
+    assert!(
+        r.text().contains("filter six-dof: planar motion noise"),
+        "{}",
+        r.text()
+    );
+}

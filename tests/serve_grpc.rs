@@ -16,6 +16,25 @@ fn s(p: &std::path::Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `got` equals `want` in its first `n` entries to 1e-9 (frame `i`).
+fn assert_close(got: &[f64; 7], want: &[f64; 7], n: usize, i: usize) {
+    for k in 0..n {
+        assert!(
+            (got[k] - want[k]).abs() < 1e-9,
+            "frame {i}: server {got:?}, CLI {want:?}"
+        );
+    }
+}
+
+/// Sends the fixture's frames to `session` one by one and checks each
+/// answer's pose against the CLI's, to 1e-9.
+async fn assert_session_gives(c: &mut Client, f: &Fixture, session: &str, cli: &[[f64; 7]]) {
+    for (i, want) in cli.iter().enumerate() {
+        let u = c.localize(f.frame(session, i)).await.unwrap().into_inner();
+        assert_close(&pose_of(&u), want, 7, i);
+    }
+}
+
 /// `omcl localize` on the fixture with the sessions' particles, rays and
 /// frames, seed `seed` and `extra` options: its trajectory.
 fn cli_localize(f: &Fixture, seed: u64, extra: &[&str]) -> Vec<[f64; 7]> {
@@ -562,13 +581,7 @@ async fn raw_rgb_frames_are_encoded_on_the_server_as_localize_encodes_them() {
     for (i, want) in cli.iter().enumerate() {
         let u = c.localize(rgb_frame(i)).await.unwrap().into_inner();
         assert_eq!(u.frame, i as u64 + 1);
-        let got = pose_of(&u);
-        for k in 0..7 {
-            assert!(
-                (got[k] - want[k]).abs() < 1e-9,
-                "frame {i}: server {got:?}, CLI {want:?}"
-            );
-        }
+        assert_close(&pose_of(&u), want, 7, i);
     }
     // The labels map has no encoder.
     let room = c.create_session(f.create(3)).await.unwrap().into_inner();
@@ -602,20 +615,7 @@ async fn a_floor_plan_session_gives_the_trajectory_of_the_cli() {
     assert!(http_maps.contains("\"floor_plan\":true"), "{http_maps}");
 
     let a = c.create_session(f.create(3)).await.unwrap().into_inner();
-    for (i, want) in cli.iter().enumerate() {
-        let u = c
-            .localize(f.frame(&a.session_id, i))
-            .await
-            .unwrap()
-            .into_inner();
-        let got = pose_of(&u);
-        for k in 0..7 {
-            assert!(
-                (got[k] - want[k]).abs() < 1e-9,
-                "frame {i}: server {got:?}, CLI {want:?}"
-            );
-        }
-    }
+    assert_session_gives(&mut c, &f, &a.session_id, &cli).await;
     let e = c
         .create_session(proto::CreateSessionRequest {
             start: Some(proto::create_session_request::Start::Global(
@@ -662,13 +662,7 @@ async fn a_ground_session_holds_the_camera_against_drifting_odometry() {
             .await
             .unwrap()
             .into_inner();
-        let got = pose_of(&u);
-        for k in 0..3 {
-            assert!(
-                (got[k] - want[k]).abs() < 1e-9,
-                "frame {i}: server {got:?}, CLI {want:?}"
-            );
-        }
+        assert_close(&pose_of(&u), want, 3, i);
         let u = c
             .localize(sinking(&free.session_id, i))
             .await
@@ -701,4 +695,56 @@ async fn a_ground_session_holds_the_camera_against_drifting_odometry() {
         .unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
     assert!(e.message().contains("15.0 degrees from level"), "{e:?}");
+}
+
+/// A session created with a named filter runs that tuned filter: with
+/// `six-dof` (full motion, two layers, the first on 16 copies) its poses,
+/// rotations included, equal `omcl localize --filter six-dof`'s with the
+/// same seed. An unknown name is refused naming the known ones; a filter
+/// whose motion is not planar is refused with `ground`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_named_filter_session_equals_the_cli_with_that_filter() {
+    let f = Fixture::new();
+    let cli = cli_localize(&f, 6, &["--filter", "six-dof"]);
+    let plain = cli_localize(&f, 6, &[]);
+    let server = Server::start(&f, &[]);
+    let mut c = server.client(Auth::good()).await;
+    let a = c
+        .create_session(proto::CreateSessionRequest {
+            filter: "six-dof".into(),
+            ..f.create(6)
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    assert_session_gives(&mut c, &f, &a.session_id, &cli).await;
+    // The filter made a difference: the default's path is another.
+    let apart = cli
+        .iter()
+        .zip(&plain)
+        .map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt())
+        .fold(0.0, f64::max);
+    assert!(apart > 1e-6, "six-dof and indoor gave the same path");
+
+    let e = c
+        .create_session(proto::CreateSessionRequest {
+            filter: "6dof".into(),
+            ..f.create(6)
+        })
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    for name in ["\"6dof\"", "six-dof-point-cloud", "floor-plan", "street"] {
+        assert!(e.message().contains(name), "{e:?}");
+    }
+    let e = c
+        .create_session(proto::CreateSessionRequest {
+            filter: "six-dof".into(),
+            ground: true,
+            ..f.create(6)
+        })
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
+    assert!(e.message().contains("planar"), "{e:?}");
 }

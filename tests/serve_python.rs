@@ -37,9 +37,12 @@ fn python_client_streams_the_sequence_and_prints_the_cli_poses() {
         "--frames",
         frames,
         "--use-features",
-        // Two-pass likelihoods on both sides: the client's flag reaches
-        // the session (the plain filter is compared in serve_grpc.rs).
+        // Two-pass likelihoods and the 6-DoF filter on both sides: the
+        // client's flags reach the session (the plain filter is compared
+        // in serve_grpc.rs).
         "--early-reject",
+        "--filter",
+        "six-dof",
     ]);
     assert!(r.status.success(), "{r:?}");
     let want = read_tum(&out);
@@ -53,7 +56,7 @@ fn python_client_streams_the_sequence_and_prints_the_cli_poses() {
             .args(["--sequence", s(&f.seq), "--frames", frames, "--seed", "5"])
             .args(["--particles", &PARTICLES.to_string()])
             .args(["--rays", &RAYS.to_string()])
-            .arg("--early-reject")
+            .args(["--early-reject", "--filter", "six-dof"])
             .env("OMCL_TOKEN", token)
             .output()
             .unwrap()

@@ -109,11 +109,13 @@ class OmclClient:
 
     def create_session(self, map_name, camera, initial_pose=None, prompt=None,
                        particles=None, rays=None, seed=0, recovery=False,
-                       early_reject=False, ground=False):
+                       early_reject=False, ground=False, filter_name=""):
         """camera: (fx, fy, cx, cy, width, height); initial_pose: (t, q);
         prompt: words; neither: global localization. early_reject: two-pass
         likelihoods (omcl localize --early-reject); ground: the camera held
-        at its start's height and tilt (omcl localize --ground)."""
+        at its start's height and tilt (omcl localize --ground); filter_name:
+        a tuned filter by name (omcl localize --filter; empty: the map's
+        default)."""
         fx, fy, cx, cy, w, h = camera
         req = pb.CreateSessionRequest(
             map=map_name,
@@ -122,6 +124,7 @@ class OmclClient:
             recovery=recovery,
             early_reject=early_reject,
             ground=ground,
+            filter=filter_name,
         )
         if particles is not None:
             req.particles = particles
@@ -220,6 +223,10 @@ def main():
     ap.add_argument("--ground", action="store_true",
                     help="hold the camera at its start's height, roll and pitch, as a "
                          "robot on a flat floor carries it (omcl localize --ground)")
+    ap.add_argument("--filter", default="",
+                    help="a tuned filter by name: indoor, floor-plan, six-dof, "
+                         "six-dof-point-cloud, street (omcl localize --filter; "
+                         "default: the map's)")
     ap.add_argument("--global", dest="global_", action="store_true",
                     help="start globally instead of at the first ground-truth pose")
     a = ap.parse_args()
@@ -244,7 +251,8 @@ def main():
     init = None if a.global_ else (gt[0][1], gt[0][2])
     sid = client.create_session(a.map, camera, initial_pose=init,
                                 particles=a.particles, rays=a.rays, seed=a.seed,
-                                early_reject=a.early_reject, ground=a.ground)
+                                early_reject=a.early_reject, ground=a.ground,
+                                filter_name=a.filter)
 
     # One frame at a time through the stream: the next frame is sent once
     # the previous one is answered, so none is dropped (a camera sending at

@@ -16,7 +16,8 @@ use omcl::io::rgbd;
 use omcl::io::sevenscenes::FramePick;
 use omcl::map;
 use omcl::mcl::{
-    self, EarlyReject, FilterConfig, FloorParams, MotionMode, PromptParams, SamplingStrategy,
+    self, EarlyReject, FilterConfig, FilterPreset, FloorParams, MotionMode, PromptParams,
+    SamplingStrategy,
 };
 use omcl::session::floorplan::{EXIT_WORDS, PlanScene};
 use omcl::session::ground;
@@ -41,6 +42,31 @@ pub enum MotionArg {
     Planar,
     Full,
     Road,
+}
+
+/// `--filter`: one of the tuned filters ([`FilterPreset`]), or `auto`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FilterArg {
+    Auto,
+    Indoor,
+    FloorPlan,
+    SixDof,
+    SixDofPointCloud,
+    Street,
+}
+
+impl FilterArg {
+    /// The preset named, `None` for `auto`.
+    fn preset(self) -> Option<FilterPreset> {
+        match self {
+            FilterArg::Auto => None,
+            FilterArg::Indoor => Some(FilterPreset::Indoor),
+            FilterArg::FloorPlan => Some(FilterPreset::FloorPlan),
+            FilterArg::SixDof => Some(FilterPreset::SixDof),
+            FilterArg::SixDofPointCloud => Some(FilterPreset::SixDofPointCloud),
+            FilterArg::Street => Some(FilterPreset::Street),
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -149,6 +175,21 @@ pub struct LocalizeArgs {
     /// on a KITTI sequence, its street setting].
     #[arg(long)]
     pub particles: Option<usize>,
+    /// The tuned filter to start from; --rays, --sharpen, --motion,
+    /// --layers, --expand and the other filter options then change it.
+    /// auto: floor-plan with --floorplan, street on a KITTI sequence,
+    /// indoor elsewhere (on 7-Scenes with full motion and the odometry's
+    /// noise). indoor: 2048 pixels, exponent 80, planar motion (the paper's
+    /// indoor setting). floor-plan: 8192 pixels, exponent 160, planar
+    /// (Table I's 2-D block). six-dof: full 6-DoF motion, two layers of
+    /// progressive correction, the first on 16 copies of each particle,
+    /// 4096 pixels, exponent 240 (Table I's 6-DoF block). six-dof-point-cloud:
+    /// six-dof with 512 pixels and exponent 20, for a map made from a
+    /// labelled point cloud (`omcl map cloud`) with frames from an image
+    /// encoder (Table I's 6-DoF OMCL_Open_LSeg row). street: road motion,
+    /// 4096 pixels, two-pass likelihoods (Table IV, KITTI).
+    #[arg(long, value_enum, default_value = "auto")]
+    pub filter: FilterArg,
     /// Sampled pixels per frame before duplicates are dropped [default:
     /// 2048, the paper's indoor setting; 4096 on a KITTI sequence, its
     /// street setting].
@@ -176,16 +217,18 @@ pub struct LocalizeArgs {
     /// layer) and weighed with the rest: it helps the full 6-DoF motion
     /// model (Table I's 6-DoF block: 0.246 -> 0.197 m on tuning
     /// sequences with 2), at the cost of casting every ray once a layer.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8))]
-    pub layers: u32,
+    /// [default: 1; 2 with --filter six-dof and six-dof-point-cloud]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub layers: Option<u32>,
     /// With --layers 2 or more: the first layer weighs this many copies of
     /// each particle (each with its own motion noise) on every N-th
     /// sampled pixel, the same rays; the second goes back to --particles.
-    /// Table I's 6-DoF block uses 16 with 1024 particles x 2048 rays
-    /// (README, "6-DoF").
-    #[arg(long, default_value_t = 1, value_name = "N",
+    /// Table I's 6-DoF block uses 16 with 1024 particles x 4096 rays
+    /// (README, "6-DoF"). [default: 1; 16 with --filter six-dof and
+    /// six-dof-point-cloud]
+    #[arg(long, value_name = "N",
           value_parser = clap::value_parser!(u32).range(1..=omcl::mcl::anneal::MAX_EXPAND as i64))]
-    pub expand: u32,
+    pub expand: Option<u32>,
     /// Score rays with the plain cosine of eq. 2 instead of the per-pixel
     /// contrast-rescaled cosine (see `SensorParams::contrast`).
     #[arg(long)]
@@ -490,18 +533,48 @@ fn particle_count(a: &LocalizeArgs, is_kitti: bool) -> usize {
     })
 }
 
+/// The tuned filter `--filter` names, or `auto`'s: the 2-D block's with
+/// `--floorplan`, the street filter on KITTI sequences, the indoor one
+/// elsewhere.
+fn filter_preset(a: &LocalizeArgs, is_kitti: bool) -> FilterPreset {
+    a.filter.preset().unwrap_or(if a.floorplan.is_some() {
+        FilterPreset::FloorPlan
+    } else if is_kitti {
+        FilterPreset::Street
+    } else {
+        FilterPreset::Indoor
+    })
+}
+
+/// The layers of progressive correction: the preset's (`base`), with
+/// `--layers` and `--expand` over them (`--layers 1`: none).
+fn anneal(a: &LocalizeArgs, base: Option<mcl::Anneal>) -> Option<mcl::Anneal> {
+    let layers = a.layers.unwrap_or(base.map_or(1, |b| b.layers));
+    (layers > 1).then(|| {
+        let b = base.unwrap_or_default();
+        mcl::Anneal {
+            layers,
+            expand: a.expand.unwrap_or(b.expand),
+            ..b
+        }
+    })
+}
+
+/// `--motion`'s word for a motion mode.
+fn motion_name(m: MotionMode) -> &'static str {
+    match m {
+        MotionMode::Planar => "planar",
+        MotionMode::Full => "full",
+        MotionMode::Road => "road",
+    }
+}
+
 /// The filter's configuration from the options (KITTI sequences default to
 /// road motion; 7-Scenes to full 6-DoF motion with the odometry's noise).
 fn filter_config(a: &LocalizeArgs, inputs: &CameraSequence) -> FilterConfig {
     let layout = inputs.layout();
     let is_kitti = layout == Layout::Kitti;
-    let base = if a.floorplan.is_some() {
-        FilterConfig::floor_plan()
-    } else if is_kitti {
-        FilterConfig::street()
-    } else {
-        FilterConfig::default()
-    };
+    let base = filter_preset(a, is_kitti).config();
     let mut config = FilterConfig {
         seed: a.seed,
         ..base
@@ -517,22 +590,24 @@ fn filter_config(a: &LocalizeArgs, inputs: &CameraSequence) -> FilterConfig {
         SamplingArg::Uniform => SamplingStrategy::Uniform,
         SamplingArg::Equal => SamplingStrategy::EqualWithDuplicates,
     };
-    let motion = a.motion.unwrap_or(match layout {
-        _ if a.floorplan.is_some() || a.ground => MotionArg::Planar,
-        Layout::Kitti => MotionArg::Road,
-        Layout::SevenScenes => MotionArg::Full,
-        Layout::Rgbd => MotionArg::Planar,
+    // A named filter brings its own motion; `auto` the sequence's.
+    let motion = a.motion.or(match (a.filter, layout) {
+        (FilterArg::Auto, _) if a.floorplan.is_some() || a.ground => Some(MotionArg::Planar),
+        (FilterArg::Auto, Layout::SevenScenes) => Some(MotionArg::Full),
+        _ => None,
     });
     if layout == Layout::SevenScenes {
         let (m, deg, _) = odometry_noise(a, inputs);
         config.motion.sigma_translation = m;
         config.motion.sigma_rotation = deg.to_radians();
     }
-    config.motion.mode = match motion {
-        MotionArg::Planar => MotionMode::Planar,
-        MotionArg::Full => MotionMode::Full,
-        MotionArg::Road => MotionMode::Road,
-    };
+    if let Some(m) = motion {
+        config.motion.mode = match m {
+            MotionArg::Planar => MotionMode::Planar,
+            MotionArg::Full => MotionMode::Full,
+            MotionArg::Road => MotionMode::Road,
+        };
+    }
     if let Some(v) = a.motion_sigma_m {
         config.motion.sigma_translation = v;
     }
@@ -542,13 +617,7 @@ fn filter_config(a: &LocalizeArgs, inputs: &CameraSequence) -> FilterConfig {
     if let Some(s) = a.sharpen {
         config.sharpen = s;
     }
-    if a.layers > 1 {
-        config.anneal = Some(mcl::Anneal {
-            layers: a.layers,
-            expand: a.expand,
-            ..Default::default()
-        });
-    }
+    config.anneal = anneal(a, base.anneal);
     config.sensor.contrast = !a.no_contrast;
     config.sensor.early_reject = match (a.early_reject, a.every_ray) {
         (_, true) => None,
@@ -787,11 +856,13 @@ fn diagnostics(frames: &[LocalizedFrame]) -> (Vec<Pose>, String, f64, f64) {
 }
 
 pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
-    ensure!(
-        a.expand == 1 || a.layers > 1,
-        "--expand {} needs --layers 2 or more (the copies are the first of several layers)",
-        a.expand
-    );
+    if let Some(e) = a.expand.filter(|&e| e > 1) {
+        let base = a.filter.preset().and_then(|p| p.config().anneal);
+        ensure!(
+            anneal(&a, base).is_some(),
+            "--expand {e} needs --layers 2 or more (the copies are the first of several layers)"
+        );
+    }
     check_plan_and_ground_args(&a)?;
     let map3 = map::load(&a.map)?;
     let m = &map3;
@@ -898,20 +969,38 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         write_metrics(p, d, n, mt, n as f64 / filter_s.max(1e-12))?;
     }
     let is_kitti = inputs.layout() == Layout::Kitti;
+    let config = filter_config(&a, &inputs);
     println!(
         "{} particles x {} rays a frame{}",
         particle_count(&a, is_kitti),
-        filter_config(&a, &inputs).sampling.rays,
+        config.sampling.rays,
         match (is_kitti, a.particles.is_none() && a.rays.is_none()) {
-            _ if a.floorplan.is_some() && a.rays.is_none() => {
-                " (Table I's 2-D block; --particles, --rays)"
+            _ if a.filter != FilterArg::Auto && a.rays.is_none() => {
+                format!(
+                    " (--filter {}'s rays; --particles, --rays)",
+                    filter_preset(&a, is_kitti)
+                )
             }
-            (true, true) => " (the paper's street setting; --particles, --rays)",
-            (false, true) => " (the paper's indoor setting; --particles, --rays)",
-            _ => "",
+            _ if a.floorplan.is_some() && a.rays.is_none() => {
+                " (Table I's 2-D block; --particles, --rays)".into()
+            }
+            (true, true) => " (the paper's street setting; --particles, --rays)".into(),
+            (false, true) => " (the paper's indoor setting; --particles, --rays)".into(),
+            _ => String::new(),
         }
     );
-    if let Some(e) = filter_config(&a, &inputs).sensor.early_reject {
+    println!(
+        "filter {}{}: {} motion noise, likelihood exponent {} (--filter, --motion, --sharpen)",
+        filter_preset(&a, is_kitti),
+        if a.filter == FilterArg::Auto {
+            " (auto)"
+        } else {
+            ""
+        },
+        motion_name(config.motion.mode),
+        config.sharpen
+    );
+    if let Some(e) = config.sensor.early_reject {
         println!(
             "two-pass likelihoods: one pixel in {} first, the rest for particles within {:.0} % \
              of the best{}",
@@ -924,14 +1013,14 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             }
         );
     }
-    if a.layers > 1 {
+    if let Some(an) = config.anneal {
         println!(
             "{} layers of progressive correction a frame (--layers){}",
-            a.layers,
-            if a.expand > 1 {
+            an.layers,
+            if an.expand > 1 {
                 format!(
                     ", the first on {} copies of each particle (--expand)",
-                    a.expand
+                    an.expand
                 )
             } else {
                 String::new()
@@ -978,10 +1067,27 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
 /// `--floorplan`'s and `--ground`'s limits, by name: planar motion, and
 /// for a floor plan a pose start.
 fn check_plan_and_ground_args(a: &LocalizeArgs) -> anyhow::Result<()> {
-    ensure!(
-        !a.ground || matches!(a.motion, None | Some(MotionArg::Planar)),
-        "--ground holds the camera's height, roll and pitch: it takes --motion planar only"
-    );
+    // The option that asks for motion other than planar, if one does.
+    let non_planar = match a.motion {
+        Some(MotionArg::Planar) => None,
+        Some(m) => Some(format!("--motion {}", format!("{m:?}").to_lowercase())),
+        None => a
+            .filter
+            .preset()
+            .filter(|p| p.config().motion.mode != MotionMode::Planar)
+            .map(|p| format!("--filter {p}, whose motion is not planar")),
+    };
+    if let Some(what) = &non_planar {
+        ensure!(
+            !a.ground,
+            "--ground holds the camera's height, roll and pitch: it takes --motion planar only \
+             ({what})"
+        );
+        ensure!(
+            a.floorplan.is_none(),
+            "--floorplan estimates x, y and yaw: it takes --motion planar only ({what})"
+        );
+    }
     if a.floorplan.is_none() {
         return Ok(());
     }
@@ -994,10 +1100,6 @@ fn check_plan_and_ground_args(a: &LocalizeArgs) -> anyhow::Result<()> {
     ensure!(
         !a.recovery,
         "--floorplan does not take --recovery: it injects poses over the 3-D map's floor voxels"
-    );
-    ensure!(
-        matches!(a.motion, None | Some(MotionArg::Planar)),
-        "--floorplan estimates x, y and yaw: it takes --motion planar only"
     );
     Ok(())
 }

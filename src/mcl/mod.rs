@@ -13,7 +13,8 @@
 //! - [`recovery`]: augmented-MCL injection after track loss;
 //! - [`anneal`]: progressive correction (the likelihood over layers, for
 //!   6-DoF);
-//! - [`filter`]: the loop that strings them together.
+//! - [`filter`]: the loop that strings them together;
+//! - [`preset`]: the tuned filters by name.
 //!
 //! # Parameters the paper leaves open, and the defaults
 //!
@@ -51,6 +52,7 @@ pub mod init;
 pub mod kld;
 pub mod motion;
 pub mod particles;
+pub mod preset;
 pub mod recovery;
 pub mod resample;
 pub mod sampling;
@@ -67,6 +69,7 @@ pub use filter::{
 pub use init::{FloorParams, FloorSampler, PromptParams, global_init, local_init, prompt_init};
 pub use motion::{MotionMode, MotionModel};
 pub use particles::Particle;
+pub use preset::{FilterPreset, UnknownFilter};
 pub use resample::ResamplePolicy;
 pub use sampling::{SamplingParams, SamplingStrategy};
 pub use sensor::{

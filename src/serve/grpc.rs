@@ -11,7 +11,7 @@ use tonic::metadata::MetadataMap;
 use tonic::{Request, Response, Status, Streaming};
 
 use crate::geometry::Intrinsics;
-use crate::mcl::FilterConfig;
+use crate::mcl::{FilterConfig, FilterPreset};
 use crate::session::{Session, SessionConfig, Start};
 
 use super::auth::{MISPLACED, Token};
@@ -124,10 +124,17 @@ impl Localization for Service {
             )));
         }
         // A floor plan's sessions default to Table I's 2-D filter.
-        let base = if map.is_level() {
-            FilterConfig::floor_plan()
+        let base = if r.filter.is_empty() {
+            if map.is_level() {
+                FilterConfig::floor_plan()
+            } else {
+                FilterConfig::default()
+            }
         } else {
-            FilterConfig::default()
+            r.filter
+                .parse::<FilterPreset>()
+                .map_err(|e| Status::invalid_argument(format!("filter: {e}")))?
+                .config()
         };
         let rays = r.rays.map_or(base.sampling.rays, |r| r as usize);
         if !(1..=1_000_000).contains(&rays) {

@@ -177,6 +177,7 @@ impl Fixture {
             frame_id: String::new(),
             early_reject: false,
             ground: false,
+            filter: String::new(),
         }
     }
 }

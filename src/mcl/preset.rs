@@ -1,0 +1,129 @@
+//! The tuned filters by name, for callers that choose one by a word
+//! (`omcl localize --filter`, `omcl serve`'s `CreateSession.filter`)
+//! instead of setting its fields one by one.
+//!
+//! | name | filter | tuned on |
+//! |---|---|---|
+//! | `indoor` | [`FilterConfig::default`]: 2048 pixels, exponent 80, planar motion | Table I's 3-D map with planar motion (the paper's indoor setting) |
+//! | `floor-plan` | [`FilterConfig::floor_plan`]: 8192 pixels, exponent 160, planar motion | Table I's 2-D block |
+//! | `six-dof` | [`FilterConfig::six_dof`]: full motion, two layers, the first on 16 copies, 4096 pixels, exponent 240 | Table I's 6-DoF block |
+//! | `six-dof-point-cloud` | [`FilterConfig::six_dof_point_cloud`]: as `six-dof` with 512 pixels and the exponent 20 | the 6-DoF OMCL_Open_LSeg row (a map from a labelled point cloud, frames from an image encoder) |
+//! | `street` | [`FilterConfig::street`]: road motion, 4096 pixels, two-pass likelihoods | Table IV (KITTI) |
+
+use std::fmt;
+use std::str::FromStr;
+
+use super::filter::FilterConfig;
+
+/// One of the tuned filters (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FilterPreset {
+    Indoor,
+    FloorPlan,
+    SixDof,
+    SixDofPointCloud,
+    Street,
+}
+
+/// A filter name that names no [`FilterPreset`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown filter {given:?}: expected one of {}", FilterPreset::names())]
+pub struct UnknownFilter {
+    pub given: String,
+}
+
+impl FilterPreset {
+    /// Every preset, in the order the help lists them.
+    pub const ALL: [FilterPreset; 5] = [
+        FilterPreset::Indoor,
+        FilterPreset::FloorPlan,
+        FilterPreset::SixDof,
+        FilterPreset::SixDofPointCloud,
+        FilterPreset::Street,
+    ];
+
+    /// The preset's name, as [`FilterPreset::from_str`] reads it.
+    pub fn name(self) -> &'static str {
+        match self {
+            FilterPreset::Indoor => "indoor",
+            FilterPreset::FloorPlan => "floor-plan",
+            FilterPreset::SixDof => "six-dof",
+            FilterPreset::SixDofPointCloud => "six-dof-point-cloud",
+            FilterPreset::Street => "street",
+        }
+    }
+
+    /// Every name, comma-separated.
+    pub fn names() -> String {
+        FilterPreset::ALL.map(FilterPreset::name).join(", ")
+    }
+
+    /// The preset's filter (seed 0).
+    pub fn config(self) -> FilterConfig {
+        match self {
+            FilterPreset::Indoor => FilterConfig::default(),
+            FilterPreset::FloorPlan => FilterConfig::floor_plan(),
+            FilterPreset::SixDof => FilterConfig::six_dof(),
+            FilterPreset::SixDofPointCloud => FilterConfig::six_dof_point_cloud(),
+            FilterPreset::Street => FilterConfig::street(),
+        }
+    }
+}
+
+impl fmt::Display for FilterPreset {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for FilterPreset {
+    type Err = UnknownFilter;
+
+    /// A preset by its name (exactly, as [`FilterPreset::name`] gives it).
+    fn from_str(s: &str) -> Result<Self, UnknownFilter> {
+        FilterPreset::ALL
+            .into_iter()
+            .find(|p| p.name() == s)
+            .ok_or_else(|| UnknownFilter {
+                given: s.to_string(),
+            })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mcl::{MotionMode, SIX_DOF_POINT_CLOUD_RAYS, SIX_DOF_RAYS};
+
+    #[test]
+    fn every_name_reads_back_and_unknown_names_list_the_known() {
+        for p in FilterPreset::ALL {
+            assert_eq!(p.name().parse::<FilterPreset>(), Ok(p));
+            assert_eq!(p.to_string(), p.name());
+        }
+        let e = "6dof".parse::<FilterPreset>().unwrap_err();
+        let text = e.to_string();
+        assert!(text.contains("\"6dof\""), "{text}");
+        for p in FilterPreset::ALL {
+            assert!(text.contains(p.name()), "{text}");
+        }
+        assert!("Six-DoF".parse::<FilterPreset>().is_err());
+    }
+
+    #[test]
+    fn presets_are_the_tuned_filters() {
+        let six = FilterPreset::SixDof.config();
+        assert_eq!(six.motion.mode, MotionMode::Full);
+        assert_eq!(six.sampling.rays, SIX_DOF_RAYS);
+        let anneal = six.anneal.expect("two layers");
+        assert_eq!((anneal.layers, anneal.expand), (2, 16));
+        let cloud = FilterPreset::SixDofPointCloud.config();
+        assert_eq!(cloud.motion.mode, MotionMode::Full);
+        assert_eq!(cloud.sampling.rays, SIX_DOF_POINT_CLOUD_RAYS);
+        assert_eq!(cloud.sharpen, crate::mcl::SIX_DOF_POINT_CLOUD_SHARPEN);
+        assert_eq!(cloud.anneal, six.anneal);
+        assert_eq!(FilterPreset::Indoor.config(), FilterConfig::default());
+        assert_eq!(FilterPreset::FloorPlan.config(), FilterConfig::floor_plan());
+        assert_eq!(FilterPreset::Street.config().motion.mode, MotionMode::Road);
+    }
+}
