@@ -130,9 +130,10 @@ pub struct LocalizeArgs {
     pub odom_noise_deg: Option<f64>,
     /// Motion model of the particles: planar (x, y, yaw; height, roll and
     /// pitch follow the odometry), full (6-DoF noise in the camera frame)
-    /// or road (planar plus a little height, pitch and roll noise). Default
-    /// planar; road for a KITTI sequence; full for 7-Scenes (a handheld
-    /// camera).
+    /// or road (planar plus a little height, pitch and roll noise). Default:
+    /// the --filter's (full for six-dof and six-dof-point-cloud, road for
+    /// street, planar for the others); with --filter auto planar, road for a
+    /// KITTI sequence, full for 7-Scenes (a handheld camera).
     #[arg(long, value_enum)]
     pub motion: Option<MotionArg>,
     /// Particle motion noise per step: metres (paper 0.10; 7-Scenes: the
@@ -191,8 +192,9 @@ pub struct LocalizeArgs {
     #[arg(long, value_enum, default_value = "auto")]
     pub filter: FilterArg,
     /// Sampled pixels per frame before duplicates are dropped [default:
-    /// 2048, the paper's indoor setting; 4096 on a KITTI sequence, its
-    /// street setting].
+    /// the --filter's: 2048 indoor (the paper's indoor setting), 8192
+    /// floor-plan, 4096 six-dof and street (the paper's street setting),
+    /// 512 six-dof-point-cloud].
     #[arg(long)]
     pub rays: Option<usize>,
     /// Ray sampling strategy.
@@ -208,7 +210,9 @@ pub struct LocalizeArgs {
     /// structures are what fixes a car at corners).
     #[arg(long, value_name = "CELLS")]
     pub boundary_margin: Option<u32>,
-    /// Exponent on the likelihood (1 = the paper's eq. 2).
+    /// Exponent on the likelihood (1 = the paper's eq. 2) [default: the
+    /// --filter's: 80 indoor and street, 160 floor-plan, 240 six-dof, 20
+    /// six-dof-point-cloud].
     #[arg(long)]
     pub sharpen: Option<f64>,
     /// Layers of progressive correction a frame (1: the paper's filter).
