@@ -748,3 +748,72 @@ async fn a_named_filter_session_equals_the_cli_with_that_filter() {
     assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
     assert!(e.message().contains("planar"), "{e:?}");
 }
+
+/// Names a client sends (map, session, filter) come back in error
+/// messages cut to a readable length: a megabyte-long name is refused with
+/// a short message, and the server serves on.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn long_names_are_refused_with_short_messages() {
+    let f = Fixture::new();
+    let server = Server::start(&f, &[]);
+    let mut c = server.client(Auth::good()).await;
+    let long = "x".repeat(1 << 20);
+    let cases = [
+        (
+            proto::CreateSessionRequest {
+                map: long.clone(),
+                ..f.create(1)
+            },
+            Code::NotFound,
+        ),
+        (
+            proto::CreateSessionRequest {
+                filter: long.clone(),
+                ..f.create(1)
+            },
+            Code::InvalidArgument,
+        ),
+        (
+            proto::CreateSessionRequest {
+                start: Some(proto::create_session_request::Start::Prompt(
+                    proto::PromptStart {
+                        words: vec![long.clone()],
+                        ..Default::default()
+                    },
+                )),
+                ..f.create(1)
+            },
+            Code::InvalidArgument,
+        ),
+    ];
+    for (req, code) in cases {
+        let e = c.create_session(req).await.unwrap_err();
+        assert_eq!(e.code(), code, "{:.200}", e.message());
+        assert!(e.message().len() < 400, "{:.200}...", e.message());
+        assert!(e.message().contains("xxxx"), "{:.200}", e.message());
+    }
+    let e = c
+        .close_session(proto::CloseSessionRequest {
+            session_id: long.clone(),
+        })
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::NotFound, "{:.200}", e.message());
+    assert!(e.message().len() < 400, "{:.200}...", e.message());
+    let e = c.localize(f.frame(&long, 0)).await.unwrap_err();
+    assert_eq!(e.code(), Code::NotFound, "{:.200}", e.message());
+    assert!(
+        e.message().contains("(1048576 bytes)"),
+        "{:.200}",
+        e.message()
+    );
+    assert_eq!(
+        c.list_maps(proto::ListMapsRequest {})
+            .await
+            .unwrap()
+            .into_inner()
+            .maps
+            .len(),
+        1
+    );
+}

@@ -186,6 +186,20 @@ pub fn initial_pose(p: &proto::PoseWithCovarianceStamped) -> Result<Start, Statu
     })
 }
 
+/// Most characters of a client's string an error message quotes.
+const QUOTED_CHARS: usize = 64;
+
+/// A client's string (a map or session name, a word) quoted for an error
+/// message: whole up to 64 characters, else its start and
+/// its length. A status message travels in an HTTP/2 header, so a
+/// megabyte-long name echoed whole broke the answer into a protocol error.
+pub fn quoted(s: &str) -> String {
+    match s.char_indices().nth(QUOTED_CHARS) {
+        None => format!("{s:?}"),
+        Some((end, _)) => format!("{:?}... ({} bytes)", &s[..end], s.len()),
+    }
+}
+
 /// A prompt start: the words looked up in the map's class table.
 pub fn prompt(p: &proto::PromptStart, map: &SharedMap) -> Result<Start, Status> {
     let classes = map.classes().ok_or_else(|| {
@@ -203,7 +217,8 @@ pub fn prompt(p: &proto::PromptStart, map: &SharedMap) -> Result<Start, Status> 
         .map(|w| {
             classes.word(w.trim()).map(<[f32]>::to_vec).ok_or_else(|| {
                 Status::invalid_argument(format!(
-                    "prompt word {w:?} is not a class of map {:?}",
+                    "prompt word {} is not a class of map {:?}",
+                    quoted(w),
                     map.name()
                 ))
             })
@@ -367,4 +382,19 @@ fn image_features(
             ))
         })?;
     Ok(Features::Image(rgb))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::quoted;
+
+    #[test]
+    fn quoted_names_are_whole_when_short_and_cut_on_a_character_when_long() {
+        assert_eq!(quoted("room"), "\"room\"");
+        let edge = "é".repeat(64);
+        assert_eq!(quoted(&edge), format!("{edge:?}"));
+        let long = "é".repeat(65);
+        let q = quoted(&long);
+        assert_eq!(q, format!("{:?}... (130 bytes)", "é".repeat(64)));
+    }
 }

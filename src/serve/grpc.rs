@@ -133,7 +133,13 @@ impl Localization for Service {
         } else {
             r.filter
                 .parse::<FilterPreset>()
-                .map_err(|e| Status::invalid_argument(format!("filter: {e}")))?
+                .map_err(|_| {
+                    Status::invalid_argument(format!(
+                        "filter: unknown filter {}: expected one of {}",
+                        convert::quoted(&r.filter),
+                        FilterPreset::names()
+                    ))
+                })?
                 .config()
         };
         let rays = r.rays.map_or(base.sampling.rays, |r| r as usize);

@@ -175,15 +175,16 @@ impl State {
     }
 
     pub fn map(&self, name: &str) -> Result<&Arc<SharedMap>, Status> {
-        self.maps
-            .iter()
-            .find(|m| m.name() == name)
-            .ok_or_else(|| Status::not_found(format!("unknown map {name:?}")))
+        self.maps.iter().find(|m| m.name() == name).ok_or_else(|| {
+            Status::not_found(format!("unknown map {}", super::convert::quoted(name)))
+        })
     }
 
     pub fn session(&self, id: &str) -> Result<Arc<Slot>, Status> {
         let s = lock(&self.sessions).get(id).cloned();
-        s.ok_or_else(|| Status::not_found(format!("unknown session {id:?}")))
+        s.ok_or_else(|| {
+            Status::not_found(format!("unknown session {}", super::convert::quoted(id)))
+        })
     }
 
     pub fn sessions(&self) -> Vec<Arc<Slot>> {
@@ -248,7 +249,9 @@ impl State {
 
     pub fn remove_session(&self, id: &str) -> Result<Arc<Slot>, Status> {
         let s = lock(&self.sessions).remove(id);
-        let s = s.ok_or_else(|| Status::not_found(format!("unknown session {id:?}")))?;
+        let s = s.ok_or_else(|| {
+            Status::not_found(format!("unknown session {}", super::convert::quoted(id)))
+        })?;
         s.closed.store(true, Ordering::Relaxed);
         Ok(s)
     }
