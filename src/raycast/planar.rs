@@ -491,17 +491,22 @@ impl PlanarCaster {
     /// `t` in `[a, b]` (the walk's units): its leaf and `t`. Compared in z,
     /// a multiply-add a column; the division only for the hit.
     fn first_met(&self, list: &[Crossing], oz: f64, m: f64, a: f64, b: f64) -> Option<(u32, f64)> {
+        // Plain comparisons, not `f64::max` / `min` (whose NaN handling
+        // was most of this loop by `perf`): no operand here is NaN, and
+        // the slope's sign says which end of a crossing is the lower.
+        let rising = m >= 0.0;
         for c in list {
-            let lo = c.t_in.max(a);
+            let lo = if c.t_in > a { c.t_in } else { a };
             if lo > b {
                 return None;
             }
-            let hi = c.t_out.min(b);
+            let hi = if c.t_out < b { c.t_out } else { b };
             if lo > hi {
                 continue;
             }
             let (z0, z1) = (oz + m * lo, oz + m * hi);
-            if z0.max(z1) < c.bottom || z0.min(z1) > c.top {
+            let (z_min, z_max) = if rising { (z0, z1) } else { (z1, z0) };
+            if z_max < c.bottom || z_min > c.top {
                 continue;
             }
             let t = if (c.bottom..=c.top).contains(&z0) {
