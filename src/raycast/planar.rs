@@ -265,8 +265,11 @@ impl PlanarCaster {
             }
         } else {
             let (t1, t2) = ((zl - oz) / dz, (zh - oz) / dz);
-            a = a.max(t1.min(t2));
-            let end = t1.max(t2);
+            // Plain comparisons (no NaN here; see `first_met`).
+            let (near, end) = if t1 < t2 { (t1, t2) } else { (t2, t1) };
+            if near > a {
+                a = near;
+            }
             if end <= b {
                 b = end;
                 exit = usize::from(dz > 0.0);
@@ -353,7 +356,8 @@ impl PlanarCaster {
                 let leaf = self.leaf[idx];
                 let a = if next[0] < next[1] { 0 } else { 1 };
                 if leaf != Hit::MISS {
-                    if visit(idx, leaf, t, next[a].min(t1)) {
+                    let out = if next[a] < t1 { next[a] } else { t1 };
+                    if visit(idx, leaf, t, out) {
                         return;
                     }
                 } else {
@@ -656,8 +660,10 @@ impl RayCaster for PlanarCaster {
             window.clear();
             window.extend(slopes[s..e].iter().zip(&t_max[s..e]).map(|(&m, &tm)| {
                 let range = self.window_range(origin[2], m, 0.0, tm);
-                if let Some((_, b, _)) = range {
-                    reach = reach.max(b);
+                if let Some((_, b, _)) = range
+                    && b > reach
+                {
+                    reach = b;
                 }
                 range
             }));
