@@ -749,7 +749,7 @@ async fn a_named_filter_session_equals_the_cli_with_that_filter() {
     assert!(e.message().contains("planar"), "{e:?}");
 }
 
-/// Names a client sends (map, session, filter) come back in error
+/// Names a client sends (map, session, filter, prompt word) come back in error
 /// messages cut to a readable length: a megabyte-long name is refused with
 /// a short message, and the server serves on.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -1034,7 +1034,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     if is_kitti {
         println!(
             "rays that hit nothing score {}{}",
-            filter_config(&a, &inputs).sensor.miss_score,
+            config.sensor.miss_score,
             if a.miss_score.is_some() {
                 " (--miss-score)"
             } else {

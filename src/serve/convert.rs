@@ -190,9 +190,9 @@ pub fn initial_pose(p: &proto::PoseWithCovarianceStamped) -> Result<Start, Statu
 const QUOTED_CHARS: usize = 64;
 
 /// A client's string (a map or session name, a word) quoted for an error
-/// message: whole up to 64 characters, else its start and
-/// its length. A status message travels in an HTTP/2 header, so a
-/// megabyte-long name echoed whole broke the answer into a protocol error.
+/// message: whole up to 64 characters, else its start and its length. A
+/// status message travels in an HTTP/2 header, so a megabyte-long name
+/// echoed whole broke the answer into a protocol error.
 pub fn quoted(s: &str) -> String {
     match s.char_indices().nth(QUOTED_CHARS) {
         None => format!("{s:?}"),
