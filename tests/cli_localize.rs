@@ -1007,3 +1007,64 @@ fn named_filters_start_the_run_and_options_change_them() {
         r.text()
     );
 }
+
+/// Outputs over what the run reads are refused before anything is read,
+/// naming both, through any path to them: `-o seq/poses.txt` once wrote the
+/// estimate over the sequence's ground truth. The ground truth, the
+/// odometry and the map stay byte for byte; two outputs naming one file
+/// are refused too, and a run writing beside them works.
+#[test]
+fn outputs_over_the_inputs_are_refused_and_leave_them_intact() {
+    let f = Fixture::new();
+    let seq = f.copy_seq("kept");
+    let files = [
+        seq.join("poses.txt"),
+        seq.join("odometry.txt"),
+        f.map.clone(),
+    ];
+    let before: Vec<Vec<u8>> = files.iter().map(|p| std::fs::read(p).unwrap()).collect();
+    let cases = [
+        (
+            "--out",
+            seq.join("labels/../poses.txt"),
+            "a file of the sequence",
+        ),
+        ("--out", files[1].clone(), "a file of the sequence"),
+        ("--out", f.map.clone(), "the map"),
+    ];
+    for (option, out, what) in &cases {
+        let r = f.localize(&f.map, &seq, out, &["--frames", "4"]);
+        let text = r.text();
+        assert_eq!(r.code, Some(1), "{option} {}:\n{text}", out.display());
+        assert!(
+            r.stderr.contains(&format!("{option} is {what}")) && r.stderr.contains("replace"),
+            "{text}"
+        );
+    }
+    let est = f.dir.path().join("est.txt");
+    let r = f.localize(
+        &f.map,
+        &seq,
+        &est,
+        &["--frames", "4", "--plot", s(&files[0])],
+    );
+    assert!(
+        r.stderr.contains("--plot is a file of the sequence"),
+        "{}",
+        r.text()
+    );
+    let r = f.localize(
+        &f.map,
+        &seq,
+        &est,
+        &["--frames", "4", "--diagnostics", s(&est)],
+    );
+    assert!(r.stderr.contains("--diagnostics and --out"), "{}", r.text());
+    assert!(!est.exists());
+    for (p, b) in files.iter().zip(&before) {
+        assert_eq!(&std::fs::read(p).unwrap(), b, "{} changed", p.display());
+    }
+    let r = f.localize(&f.map, &seq, &est, &["--frames", "4"]);
+    assert!(r.ok(), "{}", r.text());
+    assert_eq!(read_tum(&est).len(), 4);
+}

@@ -167,3 +167,50 @@ fn floorplan_projects_the_band_and_refuses_a_non_map() {
     assert!(!ok && err.contains("cloud.ply"), "{err}");
     assert!(!bad_plan.exists());
 }
+
+/// Every map command that writes a file refuses to write it over the map
+/// it reads, through whatever path names it (here `sub/../m.omcl`), and
+/// `floorplan` its PNG over its plan: exit 1, both named, the map intact
+/// byte for byte. `floorplan -o m.omcl` once replaced the map by its plan.
+#[test]
+fn map_commands_refuse_to_write_over_their_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("m.omcl");
+    write_map(&p);
+    let before = std::fs::read(&p).unwrap();
+    std::fs::create_dir(dir.path().join("sub")).unwrap();
+    let same = dir.path().join("sub/../m.omcl");
+    let (map, same) = (p.to_str().unwrap(), same.to_str().unwrap());
+    for args in [
+        vec!["map", "floorplan", map, "-o", same],
+        vec!["map", "export", map, "-o", same],
+        vec!["map", "query", map, "wall", "-o", same],
+        vec!["map", "ground", map, "wall", "-o", same],
+        vec!["map", "upgrade", map, "-o", same],
+        vec!["map", "cloud", map, "-o", same],
+    ] {
+        let (ok, out, err) = omcl(&args);
+        assert!(!ok, "{args:?} wrote over its map: {out}");
+        assert!(
+            err.contains("--out is") && err.contains("m.omcl") && err.contains("replace"),
+            "{args:?}: {err}"
+        );
+        assert_eq!(
+            std::fs::read(&p).unwrap(),
+            before,
+            "{args:?} changed the map"
+        );
+    }
+    let plan = dir.path().join("m.plan");
+    let (ok, _, err) = omcl(&[
+        "map",
+        "floorplan",
+        map,
+        "-o",
+        plan.to_str().unwrap(),
+        "--png",
+        plan.to_str().unwrap(),
+    ]);
+    assert!(!ok && err.contains("--png and --out"), "{err}");
+    assert!(!plan.exists());
+}

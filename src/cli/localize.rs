@@ -868,6 +868,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         );
     }
     check_plan_and_ground_args(&a)?;
+    refuse_replacing_inputs(&a)?;
     let map3 = map::load(&a.map)?;
     let m = &map3;
     let d = &a.sequence;
@@ -1070,6 +1071,46 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
 
 /// `--floorplan`'s and `--ground`'s limits, by name: planar motion, and
 /// for a floor plan a pose start.
+/// Refuses outputs over the files a run reads (the map, the plan, the
+/// odometry, the sequence's ground truth, calibration and class table) or
+/// over each other, before anything is read.
+fn refuse_replacing_inputs(a: &LocalizeArgs) -> anyhow::Result<()> {
+    let mut outputs = vec![("--out", a.out.as_path())];
+    for (option, p) in [
+        ("--metrics", &a.metrics),
+        ("--plot", &a.plot),
+        ("--diagnostics", &a.diagnostics),
+    ] {
+        outputs.extend(p.as_deref().map(|p| (option, p)));
+    }
+    let d = &a.sequence;
+    let files = [
+        "poses.txt",
+        "odometry.txt",
+        "intrinsics.txt",
+        "classes.txt",
+        "embeddings.npy",
+        "calib.txt",
+        "times.txt",
+        "camera-intrinsics.txt",
+    ]
+    .map(|f| d.join(f));
+    let mut inputs = vec![("the map", a.map.as_path())];
+    inputs.extend(
+        a.floorplan
+            .iter()
+            .flatten()
+            .map(|p| ("the floor plan", p.as_path())),
+    );
+    inputs.extend(a.odometry.as_deref().map(|p| ("the odometry", p)));
+    inputs.extend(
+        files
+            .iter()
+            .map(|p| ("a file of the sequence,", p.as_path())),
+    );
+    super::outputs::refuse_overlaps(&outputs, &inputs)
+}
+
 fn check_plan_and_ground_args(a: &LocalizeArgs) -> anyhow::Result<()> {
     // The option that asks for motion other than planar, if one does.
     let non_planar = match a.motion {

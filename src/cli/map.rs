@@ -81,11 +81,7 @@ pub fn run(cmd: MapCommand) -> anyhow::Result<()> {
         MapCommand::Classes(a) => super::map_build::classes(&a),
         MapCommand::Project(a) => super::map_build::project(&a),
         MapCommand::Upgrade(a) => {
-            anyhow::ensure!(
-                a.file != a.out,
-                "--out must differ from the input: {} is kept as it is",
-                a.file.display()
-            );
+            super::outputs::refuse_overlaps(&[("--out", &a.out)], &[("the map", &a.file)])?;
             let map = file::upgrade(&a.file, &a.out)?;
             println!(
                 "{} -> {} (format version {}, {} voxels, {} rows)",

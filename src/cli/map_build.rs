@@ -176,6 +176,10 @@ pub struct CloudArgs {
 }
 
 pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
+    let mut inputs = vec![("the input", a.input.as_path())];
+    inputs.extend(a.labels.as_deref().map(|p| ("--labels", p)));
+    inputs.extend(a.features.as_deref().map(|p| ("--features", p)));
+    super::outputs::refuse_overlaps(&[("--out", &a.build.out)], &inputs)?;
     a.build.check()?;
     let input = CloudInput {
         path: a.input.clone(),
@@ -498,6 +502,7 @@ pub struct GroundArgs {
 }
 
 pub fn ground(a: &GroundArgs) -> anyhow::Result<()> {
+    super::outputs::refuse_overlaps(&[("--out", &a.out)], &[("the map", &a.map)])?;
     let mut m = map::load(&a.map)?;
     let words = parse_words(&a.words, a.prompt_file.as_deref())?;
     let prompts = a.source.features(&words, m.db().dim())?;
@@ -542,6 +547,7 @@ fn voxel_cloud(m: &LanguageMap, colors: Vec<[u8; 3]>) -> PointCloud {
 }
 
 pub fn query(a: &QueryArgs) -> anyhow::Result<()> {
+    super::outputs::refuse_overlaps(&[("--out", &a.out)], &[("the map", &a.map)])?;
     let m = map::load(&a.map)?;
     let words = parse_words(&a.words, None)?;
     let prompts = a.source.features(&words, m.db().dim())?;
@@ -569,6 +575,7 @@ pub struct ExportArgs {
 }
 
 pub fn export(a: &ExportArgs) -> anyhow::Result<()> {
+    super::outputs::refuse_overlaps(&[("--out", &a.out)], &[("the map", &a.map)])?;
     let m = map::load(&a.map)?;
     let cols = m.rows().iter().map(|&r| colors::row_color(r)).collect();
     ply::write_ply(&a.out, &voxel_cloud(&m, cols))?;

@@ -31,6 +31,9 @@ pub struct FloorplanArgs {
 }
 
 pub fn run(a: &FloorplanArgs) -> anyhow::Result<()> {
+    let mut outputs = vec![("--out", a.out.as_path())];
+    outputs.extend(a.png.as_deref().map(|p| ("--png", p)));
+    super::outputs::refuse_overlaps(&outputs, &[("the map", &a.map)])?;
     let map = omcl::map::load(&a.map)?;
     let params = FloorPlanParams {
         band_min: a.band_min,

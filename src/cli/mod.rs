@@ -13,6 +13,7 @@ pub mod localize;
 pub mod map;
 pub mod map_build;
 pub mod map_floorplan;
+pub mod outputs;
 pub mod progress;
 pub mod serve;
 pub mod sim;

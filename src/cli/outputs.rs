@@ -1,0 +1,104 @@
+//! Outputs that would replace what a command reads, or each other: refused
+//! by name before anything is read or written. `omcl localize --sequence
+//! seq -o seq/poses.txt` wrote its estimate over the sequence's ground
+//! truth, and `omcl map floorplan m.omcl -o m.omcl` its plan over the map.
+
+use std::path::{Path, PathBuf};
+
+/// A file's identity: its device and inode where it exists (a symlink, a
+/// hard link or a path through `..` to it is the same file), else the
+/// absolute path it would be created at.
+#[derive(Debug, PartialEq, Eq)]
+enum Identity {
+    Inode(u64, u64),
+    New(PathBuf),
+}
+
+fn identity(p: &Path) -> Option<Identity> {
+    use std::os::unix::fs::MetadataExt;
+    if let Ok(m) = std::fs::metadata(p) {
+        return Some(Identity::Inode(m.dev(), m.ino()));
+    }
+    let name = p.file_name()?;
+    let parent = match p.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    Some(Identity::New(
+        std::fs::canonicalize(parent).ok()?.join(name),
+    ))
+}
+
+/// Refuses when an output (`(option, path)`) is one of the `inputs`
+/// (`(what, path)`, files the command reads; those that do not exist are
+/// skipped, their readers say so) or another output, naming both.
+pub fn refuse_overlaps(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> anyhow::Result<()> {
+    let outs: Vec<_> = outputs.iter().map(|&(o, p)| (o, p, identity(p))).collect();
+    for (i, (option, path, id)) in outs.iter().enumerate() {
+        let Some(id) = id else { continue };
+        for &(what, input) in inputs {
+            if let Ok(true) = std::fs::exists(input)
+                && identity(input).as_ref() == Some(id)
+            {
+                anyhow::bail!(
+                    "{}: {option} is {what} {}; writing there would replace it (choose another path)",
+                    path.display(),
+                    input.display()
+                );
+            }
+        }
+        for (other, other_path, other_id) in &outs[..i] {
+            if other_id.as_ref() == Some(id) {
+                anyhow::bail!(
+                    "{}: {option} and {other} ({}) are the same file; one would replace the other",
+                    path.display(),
+                    other_path.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn outputs_over_inputs_or_each_other_are_refused_through_any_path() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let input = d.join("map.omcl");
+        std::fs::write(&input, b"map").unwrap();
+        std::fs::create_dir(d.join("sub")).unwrap();
+        std::os::unix::fs::symlink(&input, d.join("link.omcl")).unwrap();
+        std::fs::hard_link(&input, d.join("hard.omcl")).unwrap();
+        let ins = [("the map", input.as_path())];
+        for same in [
+            input.clone(),
+            d.join("sub/../map.omcl"),
+            d.join("link.omcl"),
+            d.join("hard.omcl"),
+        ] {
+            let e = refuse_overlaps(&[("--out", &same)], &ins).unwrap_err();
+            let text = e.to_string();
+            assert!(
+                text.contains("--out is the map") && text.contains("map.omcl"),
+                "{text}"
+            );
+        }
+        // Another file, new or existing, and a missing input: fine.
+        std::fs::write(d.join("other.omcl"), b"x").unwrap();
+        for other in [d.join("new.plan"), d.join("other.omcl")] {
+            refuse_overlaps(&[("--out", &other)], &ins).unwrap();
+        }
+        refuse_overlaps(&[("--out", &input)], &[("the plan", &d.join("none"))]).unwrap();
+        // Two outputs naming one new file, through different paths.
+        let (a, b) = (d.join("plan.png"), d.join("sub/../plan.png"));
+        let e = refuse_overlaps(&[("--out", &a), ("--png", &b)], &[]).unwrap_err();
+        assert!(e.to_string().contains("--png and --out"), "{e}");
+        // Nothing was written or removed.
+        assert_eq!(std::fs::read(&input).unwrap(), b"map");
+        assert!(!a.exists());
+    }
+}
