@@ -353,6 +353,40 @@ fn bad_input_fails_clearly_and_writes_nothing() {
         "--resolution=-1",
     ]);
     assert!(!ok && text.contains("--resolution"), "{text}");
+    // A map is never written over a file the command reads: the feature
+    // file, or a sequence folder's ground truth.
+    let before = std::fs::read(&feats).unwrap();
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        las.to_str().unwrap(),
+        "-o",
+        feats.to_str().unwrap(),
+        "--features",
+        feats.to_str().unwrap(),
+    ]);
+    assert!(!ok && text.contains("--out is --features"), "{text}");
+    let seq = dir.path().join("seq");
+    std::fs::create_dir(&seq).unwrap();
+    std::fs::write(seq.join("poses.txt"), "0 0 0 0 0 0 0 1\n").unwrap();
+    let gt = seq.join("poses.txt");
+    let (ok, text) = omcl(&[
+        "map",
+        "rgbd",
+        seq.to_str().unwrap(),
+        "-o",
+        gt.to_str().unwrap(),
+    ]);
+    assert!(
+        !ok && text.contains("--out is a file of the sequence"),
+        "{text}"
+    );
+    assert_eq!(std::fs::read_to_string(&gt).unwrap(), "0 0 0 0 0 0 0 1\n");
+    assert_eq!(
+        std::fs::read(&feats).unwrap(),
+        before,
+        "the feature file changed"
+    );
 }
 
 /// A single real SemanticKITTI scan maps with its labels found beside it,

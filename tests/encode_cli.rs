@@ -116,6 +116,20 @@ fn encode_errors_exit_non_zero_with_a_useful_message() {
         "{log}"
     );
     assert!(!out.exists());
+    // A point cloud's features are never written over the cloud.
+    let cloud = dir.path().join("cloud.npy");
+    std::fs::write(&cloud, b"kept").unwrap();
+    let (ok, log) = omcl(&[
+        "encode",
+        "points",
+        p(&cloud),
+        "--model",
+        p(&data("tiny_text.onnx")),
+        "--out",
+        p(&dir.path().join("./cloud.npy")),
+    ]);
+    assert!(!ok && log.contains("--out is the cloud"), "{log}");
+    assert_eq!(std::fs::read(&cloud).unwrap(), b"kept");
     let (ok, log) = omcl(&["encode", "tokens", "Hi there"]);
     assert!(ok && log.contains("49406 1883 997 49407"), "{log}");
 }

@@ -116,3 +116,71 @@ fn ape_sim3_json_matches_evo_and_bad_pairs_fail() {
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("counts must agree"));
 }
+
+/// `--save-aligned` and `--json` never replace the pose files read: the
+/// aligned estimate over the estimate (or the reference) is refused by
+/// name before anything is read, the files stay byte for byte, and
+/// writing beside them works.
+#[test]
+fn outputs_over_the_pose_files_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (reference, estimate) = (tmp.path().join("ref.txt"), tmp.path().join("est.txt"));
+    let line = |i: usize, dx: f64| format!("{i}.0 {} 0 0 0 0 0 1\n", i as f64 + dx);
+    let text = |dx: f64| (0..12).map(|i| line(i, dx)).collect::<String>();
+    std::fs::write(&reference, text(0.0)).unwrap();
+    std::fs::write(&estimate, text(0.1)).unwrap();
+    let run = |args: &[&std::ffi::OsStr]| {
+        Command::new(env!("CARGO_BIN_EXE_omcl"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let (r, e) = (reference.as_os_str(), estimate.as_os_str());
+    let through = tmp.path().join("./est.txt");
+    for (args, needle) in [
+        (
+            vec![
+                "eval".as_ref(),
+                "ape".as_ref(),
+                r,
+                e,
+                "--save-aligned".as_ref(),
+                through.as_os_str(),
+            ],
+            "--save-aligned is the estimate",
+        ),
+        (
+            vec!["eval".as_ref(), "ape".as_ref(), r, e, "--json".as_ref(), r],
+            "--json is the reference",
+        ),
+        (
+            vec!["eval".as_ref(), "rpe".as_ref(), r, e, "--json".as_ref(), e],
+            "--json is the estimate",
+        ),
+    ] {
+        let out = run(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(needle) && err.contains("replace"), "{err}");
+    }
+    assert_eq!(std::fs::read_to_string(&reference).unwrap(), text(0.0));
+    assert_eq!(std::fs::read_to_string(&estimate).unwrap(), text(0.1));
+    let aligned = tmp.path().join("aligned.txt");
+    let out = run(&[
+        "eval".as_ref(),
+        "ape".as_ref(),
+        r,
+        e,
+        "--save-aligned".as_ref(),
+        aligned.as_os_str(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        std::fs::read_to_string(&aligned).unwrap().lines().count(),
+        12
+    );
+}

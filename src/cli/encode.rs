@@ -287,6 +287,10 @@ fn read_cloud(path: &Path, color_max: Option<f32>) -> anyhow::Result<Cloud> {
 }
 
 fn points(a: &PointArgs) -> anyhow::Result<()> {
+    super::outputs::refuse_overlaps(
+        &[("--out", &a.out)],
+        &[("the cloud", &a.cloud), ("the model", &a.model)],
+    )?;
     let (pts, rgb) = read_cloud(&a.cloud, a.color_max)?;
     let rt = init_runtime(a.ort.ort_lib.as_deref())?;
     let mut enc = PointEncoder::load(rt, &a.model, a.ort.threads)?;

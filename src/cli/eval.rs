@@ -112,6 +112,31 @@ pub struct OutArgs {
     pub json: Option<PathBuf>,
 }
 
+impl OutArgs {
+    /// The files written, by option.
+    fn outputs(&self) -> Vec<(&'static str, &Path)> {
+        self.json
+            .as_deref()
+            .map(|p| ("--json", p))
+            .into_iter()
+            .collect()
+    }
+}
+
+impl PairArgs {
+    /// Refuses `outputs` over the pose and time files read, or over each
+    /// other ([`super::outputs::refuse_overlaps`]).
+    fn refuse_overlaps(&self, outputs: &[(&str, &Path)]) -> anyhow::Result<()> {
+        let mut inputs = vec![
+            ("the reference", self.reference.as_path()),
+            ("the estimate", self.estimate.as_path()),
+        ];
+        inputs.extend(self.ref_times.as_deref().map(|p| ("--ref-times", p)));
+        inputs.extend(self.est_times.as_deref().map(|p| ("--est-times", p)));
+        super::outputs::refuse_overlaps(outputs, &inputs)
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum AlignArg {
     None,
@@ -167,6 +192,9 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
             save_aligned,
             out,
         } => {
+            let mut outputs = out.outputs();
+            outputs.extend(save_aligned.as_deref().map(|p| ("--save-aligned", p)));
+            pair.refuse_overlaps(&outputs)?;
             let paired = load_pair(&pair)?;
             let (aligned, alignment) = align_trajectory(
                 &paired.estimate,
@@ -222,6 +250,7 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
                 DeltaUnitArg::M if delta > 0.0 && delta.is_finite() => Delta::Meters(delta),
                 DeltaUnitArg::M => bail!("--delta {delta}: a metric delta must be positive"),
             };
+            pair.refuse_overlaps(&out.outputs())?;
             let paired = load_pair(&pair)?;
             let (aligned, alignment) =
                 align_trajectory(&paired.estimate, &paired.reference, align.into(), None)?;
@@ -238,6 +267,7 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
             })
         }
         EvalCommand::Kitti { pair, step, out } => {
+            pair.refuse_overlaps(&out.outputs())?;
             let paired = load_pair(&pair)?;
             let metric =
                 kitti_metric_with(&paired.reference, &paired.estimate, &KITTI_LENGTHS, step)?;

@@ -1083,18 +1083,7 @@ fn refuse_replacing_inputs(a: &LocalizeArgs) -> anyhow::Result<()> {
     ] {
         outputs.extend(p.as_deref().map(|p| (option, p)));
     }
-    let d = &a.sequence;
-    let files = [
-        "poses.txt",
-        "odometry.txt",
-        "intrinsics.txt",
-        "classes.txt",
-        "embeddings.npy",
-        "calib.txt",
-        "times.txt",
-        "camera-intrinsics.txt",
-    ]
-    .map(|f| d.join(f));
+    let files = super::outputs::sequence_files(&a.sequence);
     let mut inputs = vec![("the map", a.map.as_path())];
     inputs.extend(
         a.floorplan

@@ -328,6 +328,12 @@ fn sevenscenes(a: &RgbdArgs) -> anyhow::Result<()> {
 
 pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
     a.build.check()?;
+    let files = super::outputs::sequence_files(&a.dir);
+    let inputs: Vec<_> = files
+        .iter()
+        .map(|p| ("a file of the sequence,", p.as_path()))
+        .collect();
+    super::outputs::refuse_overlaps(&[("--out", &a.build.out)], &inputs)?;
     let d = &a.dir;
     let is_sevenscenes =
         omcl::session::sequence::Layout::of(d) == omcl::session::sequence::Layout::SevenScenes;

@@ -29,6 +29,25 @@ fn identity(p: &Path) -> Option<Identity> {
     ))
 }
 
+/// The files of a sequence folder that its readers read besides the
+/// frames (ground truth, odometry, calibration, class table, stamps), in
+/// every layout.
+pub fn sequence_files(dir: &Path) -> Vec<PathBuf> {
+    [
+        "poses.txt",
+        "odometry.txt",
+        "intrinsics.txt",
+        "classes.txt",
+        "embeddings.npy",
+        "calib.txt",
+        "times.txt",
+        "camera-intrinsics.txt",
+    ]
+    .iter()
+    .map(|f| dir.join(f))
+    .collect()
+}
+
 /// Refuses when an output (`(option, path)`) is one of the `inputs`
 /// (`(what, path)`, files the command reads; those that do not exist are
 /// skipped, their readers say so) or another output, naming both.
