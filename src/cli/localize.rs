@@ -1069,8 +1069,6 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `--floorplan`'s and `--ground`'s limits, by name: planar motion, and
-/// for a floor plan a pose start.
 /// Refuses outputs over the files a run reads (the map, the plan, the
 /// odometry, the sequence's ground truth, calibration and class table) or
 /// over each other, before anything is read.
@@ -1100,6 +1098,8 @@ fn refuse_replacing_inputs(a: &LocalizeArgs) -> anyhow::Result<()> {
     super::outputs::refuse_overlaps(&outputs, &inputs)
 }
 
+/// `--floorplan`'s and `--ground`'s limits, by name: planar motion, and
+/// for a floor plan a pose start.
 fn check_plan_and_ground_args(a: &LocalizeArgs) -> anyhow::Result<()> {
     // The option that asks for motion other than planar, if one does.
     let non_planar = match a.motion {
