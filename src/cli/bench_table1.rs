@@ -46,7 +46,7 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     // Both blocks' filters are checked (`--set`) before anything is made.
     let plan_spec = e
         .contains(&Experiment::Table1Floorplan)
-        .then(|| block_spec(a, [FilterConfig::floor_plan(); 2], INDOOR_PARTICLES))
+        .then(|| block_spec(a, floor_plan_filters(), INDOOR_PARTICLES))
         .transpose()?;
     let six_spec = e
         .contains(&Experiment::Table1Sixdof)
@@ -189,31 +189,46 @@ pub(super) fn block_overrides(sets: &[String]) -> anyhow::Result<BlockOverrides>
 
 /// The 6-DoF block's filters: the frame-built maps' and the point-cloud
 /// map's.
-fn six_dof_filters() -> [FilterConfig; 2] {
-    [FilterConfig::six_dof(), FilterConfig::six_dof_point_cloud()]
+fn six_dof_filters() -> [FilterConfig; 3] {
+    [
+        FilterConfig::six_dof(),
+        FilterConfig::six_dof_point_cloud(),
+        FilterConfig::six_dof(),
+    ]
 }
 
-/// The block's sequences and filters: `base` (the 2-D block's
-/// [`FilterConfig::floor_plan`] for every row, the 3-D block's
-/// [`FilterConfig::six_dof`] and, for the point-cloud row,
-/// [`FilterConfig::six_dof_point_cloud`]) with `--rays` and `--set`
-/// applied to both, and `--particles` or the block's `particles`
-/// ([`INDOOR_PARTICLES`], [`SIX_DOF_PARTICLES`]).
+/// The 2-D block's filters: [`FilterConfig::floor_plan`], the same for the
+/// point-cloud row, [`FilterConfig::floor_plan_raw_features`] for the
+/// raw-feature row.
+fn floor_plan_filters() -> [FilterConfig; 3] {
+    [
+        FilterConfig::floor_plan(),
+        FilterConfig::floor_plan(),
+        FilterConfig::floor_plan_raw_features(),
+    ]
+}
+
+/// The block's sequences and filters: `base` (the rows', the point-cloud
+/// row's and the raw-feature row's: [`floor_plan_filters`],
+/// [`six_dof_filters`]) with `--rays` and `--set` applied to each, and
+/// `--particles` or the block's `particles` ([`INDOOR_PARTICLES`],
+/// [`SIX_DOF_PARTICLES`]).
 fn block_spec(
     a: &BenchArgs,
-    base: [FilterConfig; 2],
+    base: [FilterConfig; 3],
     particles: usize,
 ) -> anyhow::Result<BlockSpec> {
     let BlockOverrides {
         plan, two_d, rest, ..
     } = block_overrides(&a.plan.set)?;
-    let [filter, point_cloud_filter] = base.map(|mut f| {
+    let [filter, point_cloud_filter, raw_feature_filter] = base.map(|mut f| {
         if let Some(r) = a.plan.rays {
             f.sampling.rays = r;
         }
         super::bench_args::apply_overrides(f, &rest)
     });
-    let (filter, point_cloud_filter) = (filter?, point_cloud_filter?);
+    let (filter, point_cloud_filter, raw_feature_filter) =
+        (filter?, point_cloud_filter?, raw_feature_filter?);
     two_d.validate().context("--set")?;
     Ok(BlockSpec {
         seeds: a.plan.first_seed..a.plan.first_seed + a.plan.sequences,
@@ -225,6 +240,7 @@ fn block_spec(
         },
         filter,
         point_cloud_filter,
+        raw_feature_filter,
         particles: a.plan.particles.unwrap_or(particles),
         plan,
         two_d,

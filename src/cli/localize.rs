@@ -197,7 +197,12 @@ pub struct LocalizeArgs {
     /// 512 six-dof-point-cloud].
     #[arg(long)]
     pub rays: Option<usize>,
-    /// Ray sampling strategy.
+    /// Ray sampling strategy: stratified over the map's feature rows (the
+    /// paper's), or uniform over the image, the better choice for a floor
+    /// plan of raw image features (a map of an image model's features, not
+    /// grounded on classes: its hundreds of near-duplicate rows make
+    /// stratification draw as many pixels from each small cluster of odd
+    /// pixels as from the walls).
     #[arg(long, value_enum, default_value = "stratified")]
     pub sampling: SamplingArg,
     /// Stratified and equal sampling skip pixels whose clustering-grid

@@ -433,6 +433,11 @@ pub struct BlockSpec {
     /// 6-DoF block's [`FilterConfig::six_dof_point_cloud`]; the 2-D
     /// block's is [`BlockSpec::filter`].
     pub point_cloud_filter: FilterConfig,
+    /// The filter of the rows whose map is built from raw image features
+    /// ([`super::mapping::MapSource::Auto`], OMCL_auto_LSeg): the 2-D
+    /// block's [`FilterConfig::floor_plan_raw_features`]; the 6-DoF block
+    /// has no such row.
+    pub raw_feature_filter: FilterConfig,
     pub particles: usize,
     pub plan: FloorPlanParams,
     pub two_d: TwoDParams,
@@ -450,6 +455,7 @@ impl BlockSpec {
     pub fn filter_for(&self, v: &super::variant::Variant, seed: u64) -> FilterConfig {
         let base = match v.map {
             super::mapping::MapSource::PointCloud => self.point_cloud_filter,
+            super::mapping::MapSource::Auto(_) => self.raw_feature_filter,
             _ => self.filter,
         };
         FilterConfig { seed, ..base }
@@ -812,6 +818,24 @@ pub fn block(
         spec.filter.sharpen,
         crate::mcl::baselines::BaselineParams::default().pixels
     ));
+    let raw = spec.raw_feature_filter.sampling.strategy;
+    if raw != spec.filter.sampling.strategy
+        && variants
+            .iter()
+            .any(|v| matches!(v.map, super::mapping::MapSource::Auto(_)))
+    {
+        markdown.push_str(&format!(
+            "The raw-feature row (a map of raw image features, no classes) samples its pixels \
+             {}.\n",
+            match raw {
+                crate::mcl::SamplingStrategy::Uniform => "uniformly over the image",
+                crate::mcl::SamplingStrategy::Stratified => "stratified over the rows",
+                crate::mcl::SamplingStrategy::EqualWithDuplicates => {
+                    "equally per row, duplicates kept"
+                }
+            }
+        ));
+    }
     markdown.push_str(&spec.preset_note());
     Ok(BlockResult {
         rows,
@@ -826,7 +850,7 @@ mod tests {
     use crate::frame::DenseFeatures;
 
     #[test]
-    fn the_point_cloud_row_gets_its_own_filter_with_the_sequence_seed() {
+    fn the_point_cloud_and_raw_feature_rows_get_their_own_filters_with_the_sequence_seed() {
         let spec = BlockSpec {
             seeds: 0..1,
             world: Default::default(),
@@ -834,6 +858,7 @@ mod tests {
             map_params: Default::default(),
             filter: FilterConfig::six_dof(),
             point_cloud_filter: FilterConfig::six_dof_point_cloud(),
+            raw_feature_filter: FilterConfig::floor_plan_raw_features(),
             particles: 1,
             plan: Default::default(),
             two_d: Default::default(),
@@ -842,16 +867,25 @@ mod tests {
         };
         for v in &TABLE1_VARIANTS {
             let f = spec.filter_for(v, 7);
-            let want = if v.name == "OMCL_Open_LSeg" {
-                FilterConfig::six_dof_point_cloud()
-            } else {
-                FilterConfig::six_dof()
+            let want = match v.name {
+                "OMCL_Open_LSeg" => FilterConfig::six_dof_point_cloud(),
+                "OMCL_auto_LSeg" => FilterConfig::floor_plan_raw_features(),
+                _ => FilterConfig::six_dof(),
             };
             assert_eq!(f, FilterConfig { seed: 7, ..want }, "{}", v.name);
         }
         assert_ne!(
             FilterConfig::six_dof_point_cloud().sharpen,
             FilterConfig::six_dof().sharpen
+        );
+        let raw = FilterConfig::floor_plan_raw_features();
+        assert_eq!(raw.sampling.strategy, crate::mcl::SamplingStrategy::Uniform);
+        assert_eq!(
+            FilterConfig {
+                sampling: FilterConfig::floor_plan().sampling,
+                ..raw
+            },
+            FilterConfig::floor_plan()
         );
     }
 
