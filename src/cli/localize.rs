@@ -1098,7 +1098,7 @@ fn refuse_replacing_inputs(a: &LocalizeArgs) -> anyhow::Result<()> {
     inputs.extend(
         files
             .iter()
-            .map(|p| ("a file of the sequence,", p.as_path())),
+            .map(|p| (super::outputs::SEQUENCE_FILE, p.as_path())),
     );
     super::outputs::refuse_overlaps(&outputs, &inputs)
 }

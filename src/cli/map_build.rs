@@ -331,7 +331,7 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
     let files = super::outputs::sequence_files(&a.dir);
     let inputs: Vec<_> = files
         .iter()
-        .map(|p| ("a file of the sequence,", p.as_path()))
+        .map(|p| (super::outputs::SEQUENCE_FILE, p.as_path()))
         .collect();
     super::outputs::refuse_overlaps(&[("--out", &a.build.out)], &inputs)?;
     let d = &a.dir;

@@ -29,6 +29,10 @@ fn identity(p: &Path) -> Option<Identity> {
     ))
 }
 
+/// What [`refuse_overlaps`] calls one of [`sequence_files`]: `OUT: --out
+/// is a file of the sequence, seq/poses.txt; ...`.
+pub const SEQUENCE_FILE: &str = "a file of the sequence,";
+
 /// The files of a sequence folder that its readers read besides the
 /// frames (ground truth, odometry, calibration, class table, stamps), in
 /// every layout.
