@@ -57,12 +57,18 @@ pub fn sequence_files(dir: &Path) -> Vec<PathBuf> {
 /// skipped, their readers say so) or another output, naming both.
 pub fn refuse_overlaps(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> anyhow::Result<()> {
     let outs: Vec<_> = outputs.iter().map(|&(o, p)| (o, p, identity(p))).collect();
+    // Only inputs that exist: a missing one has no inode to share.
+    let ins: Vec<_> = inputs
+        .iter()
+        .filter_map(|&(what, p)| match identity(p) {
+            Some(id @ Identity::Inode(..)) => Some((what, p, id)),
+            _ => None,
+        })
+        .collect();
     for (i, (option, path, id)) in outs.iter().enumerate() {
         let Some(id) = id else { continue };
-        for &(what, input) in inputs {
-            if let Ok(true) = std::fs::exists(input)
-                && identity(input).as_ref() == Some(id)
-            {
+        for (what, input, input_id) in &ins {
+            if input_id == id {
                 anyhow::bail!(
                     "{}: {option} is {what} {}; writing there would replace it (choose another path)",
                     path.display(),
