@@ -100,6 +100,7 @@ fn indoor(a: &DemoArgs) -> anyhow::Result<()> {
         &[
             "sim",
             "indoor",
+            "--force",
             "--out",
             &s(&seq),
             "--seed",
@@ -183,6 +184,7 @@ fn outdoor(a: &DemoArgs) -> anyhow::Result<()> {
         &[
             "sim",
             "outdoor",
+            "--force",
             "--out",
             &s(&street),
             "--seed",

@@ -89,6 +89,66 @@ pub fn refuse_overlaps(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> a
     Ok(())
 }
 
+/// Makes `dir` ready for a simulation that writes `entries` into it
+/// (`omcl sim indoor` and `outdoor`, whose frames would otherwise mix with
+/// or replace what is there). A missing or empty folder is fine. A folder
+/// holding an earlier simulation (its `sim.json`) is replaced with
+/// `force`: its `entries` are removed first, so no frame of the earlier,
+/// longer run is left beside the new one; without `force` it is refused.
+/// Any other folder with something in it (a real sequence, say) is
+/// refused, `force` or not, and nothing in it is touched.
+pub fn prepare_sim_folder(dir: &Path, entries: &[&str], force: bool) -> anyhow::Result<()> {
+    let listing = match std::fs::read_dir(dir) {
+        Ok(l) => l,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotADirectory || dir.is_file() => {
+            anyhow::bail!("{}: --out is a file, not a folder", dir.display())
+        }
+        Err(e) => anyhow::bail!("{}: cannot read the --out folder: {e}", dir.display()),
+    };
+    let mut names: Vec<String> = listing
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    if names.is_empty() {
+        return Ok(());
+    }
+    names.sort();
+    if !dir.join("sim.json").is_file() {
+        let shown = names.iter().take(4).cloned().collect::<Vec<_>>().join(", ");
+        let more = if names.len() > 4 { ", ..." } else { "" };
+        anyhow::bail!(
+            "{}: --out is a folder with other files in it ({shown}{more}) and no earlier \
+             simulation (sim.json); a simulation writes {} there and would mix with or \
+             replace them: choose a new or empty folder",
+            dir.display(),
+            entries.join(", ")
+        );
+    }
+    if !force {
+        anyhow::bail!(
+            "{}: --out holds an earlier simulation (sim.json); pass --force to replace it \
+             (its frames and files are removed first), or choose a new folder",
+            dir.display()
+        );
+    }
+    for name in entries {
+        let p = dir.join(name);
+        let removed = match std::fs::symlink_metadata(&p) {
+            Ok(m) if m.is_dir() => std::fs::remove_dir_all(&p),
+            Ok(_) => std::fs::remove_file(&p),
+            Err(_) => continue,
+        };
+        removed.map_err(|e| {
+            anyhow::anyhow!(
+                "{}: cannot remove the earlier simulation's {name}: {e}",
+                dir.display()
+            )
+        })?;
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

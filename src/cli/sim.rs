@@ -28,9 +28,15 @@ pub enum SimCommand {
 /// The options of `omcl sim indoor`.
 #[derive(Debug, clap::Args)]
 pub struct IndoorArgs {
-    /// Output directory (created).
+    /// Output directory (created; a non-empty one is refused unless it
+    /// holds an earlier simulation and --force is given).
     #[arg(long)]
     pub out: PathBuf,
+    /// Replace an earlier simulation in --out (its frames and files are
+    /// removed first). A folder with other files and no sim.json is
+    /// refused either way.
+    #[arg(long)]
+    pub force: bool,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// The kind of world: corridor, open-plan or offices.
@@ -83,8 +89,15 @@ pub struct IndoorArgs {
 #[derive(Debug, clap::Args)]
 pub struct OutdoorArgs {
     /// Output directory (created); the sequence goes to DIR/sequences/00.
+    /// A non-empty one is refused unless it holds an earlier simulation
+    /// and --force is given.
     #[arg(long)]
     pub out: PathBuf,
+    /// Replace an earlier simulation in --out (its frames and files are
+    /// removed first). A folder with other files and no sim.json is
+    /// refused either way.
+    #[arg(long)]
+    pub force: bool,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// KITTI poses file of the driving path (default: KITTI 00 ground
@@ -123,10 +136,15 @@ pub struct OutdoorArgs {
 /// The options of `omcl sim classes`.
 #[derive(Debug, clap::Args)]
 pub struct ClassesArgs {
+    /// Folder in the layout of shared/data/clip_text.
     #[arg(long)]
     pub clip_dir: PathBuf,
+    /// Folder to write classes.txt and embeddings.npy into (created).
     #[arg(long)]
     pub out: PathBuf,
+    /// Replace a class table already in --out.
+    #[arg(long)]
+    pub force: bool,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
 }
@@ -163,6 +181,7 @@ pub fn run(cmd: SimCommand) -> anyhow::Result<()> {
 fn indoor(a: IndoorArgs) -> anyhow::Result<()> {
     let IndoorArgs {
         out,
+        force,
         seed,
         world,
         rooms,
@@ -211,6 +230,7 @@ fn indoor(a: IndoorArgs) -> anyhow::Result<()> {
         }
         None => (Vec::new(), None),
     };
+    super::outputs::prepare_sim_folder(&out, &dataset::INDOOR_ENTRIES, force)?;
     let table = load_table(table.as_deref())?;
     if features {
         eprintln!(
@@ -236,6 +256,7 @@ fn indoor(a: IndoorArgs) -> anyhow::Result<()> {
 fn outdoor(a: OutdoorArgs) -> anyhow::Result<()> {
     let OutdoorArgs {
         out,
+        force,
         seed,
         path,
         start,
@@ -274,6 +295,7 @@ fn outdoor(a: OutdoorArgs) -> anyhow::Result<()> {
     cfg.preset = preset;
     cfg.feature_stride = feature_stride.max(1);
     let table = load_table(table.as_deref())?;
+    super::outputs::prepare_sim_folder(&out, &dataset::OUTDOOR_ENTRIES, force)?;
     let pb = progress_bar(frames.min(gt.len() - start));
     pb.set_message("scanning");
     let summary = dataset::write_outdoor(&out, &cfg, &gt, &table, &|n| pb.set_position(n as u64))
@@ -287,8 +309,17 @@ fn classes(a: ClassesArgs) -> anyhow::Result<()> {
     let ClassesArgs {
         clip_dir,
         out,
+        force,
         seed,
     } = a;
+    for name in ["classes.txt", "embeddings.npy"] {
+        let p = out.join(name);
+        anyhow::ensure!(
+            force || !p.exists(),
+            "{}: a class table is already there; pass --force to replace it, or choose another --out",
+            p.display()
+        );
+    }
     let bank = files::load_clip_bank(&clip_dir)?;
     let table =
         omcl::sim::embeddings::build_table(&bank, omcl::sim::embeddings::SIM_CLASSES, seed)?;

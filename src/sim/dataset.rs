@@ -152,6 +152,34 @@ pub fn load_drift(trajectories: &Path) -> Result<(Vec<Pose>, String), SimError> 
     ))
 }
 
+/// What [`write_indoor`] writes into its folder: the sequence's frame
+/// folders and files, the world and `sim.json` (which marks a folder as a
+/// simulation's).
+pub const INDOOR_ENTRIES: [&str; 11] = [
+    "rgb",
+    "depth",
+    "labels",
+    "features",
+    "intrinsics.txt",
+    "poses.txt",
+    "odometry.txt",
+    "classes.txt",
+    "embeddings.npy",
+    "world",
+    "sim.json",
+];
+
+/// What [`write_outdoor`] writes into its folder: `sequences/` (the KITTI
+/// layout), the class tables, the world and `sim.json`.
+pub const OUTDOOR_ENTRIES: [&str; 6] = [
+    "sequences",
+    "classes.txt",
+    "embeddings.npy",
+    "semantickitti_ids.txt",
+    "world",
+    "sim.json",
+];
+
 /// Generates an indoor dataset into `dir` (created if missing). `table`
 /// must know every indoor class; `drift` are relative-motion errors to
 /// replay in the odometry (may be empty). `progress` is called with the
