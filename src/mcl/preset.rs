@@ -29,6 +29,8 @@ pub enum FilterPreset {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("unknown filter {given:?}: expected one of {}", FilterPreset::names())]
 pub struct UnknownFilter {
+    /// The name given, cut to its first [`MAX_QUOTED`] characters and
+    /// `...` when longer.
     pub given: String,
 }
 
@@ -85,8 +87,20 @@ impl FromStr for FilterPreset {
             .into_iter()
             .find(|p| p.name() == s)
             .ok_or_else(|| UnknownFilter {
-                given: s.to_string(),
+                given: quoted_prefix(s),
             })
+    }
+}
+
+/// Longest part of an unknown name [`UnknownFilter`] repeats, in
+/// characters: a name sent by a client may be of any length.
+pub const MAX_QUOTED: usize = 64;
+
+/// `s`, or its first [`MAX_QUOTED`] characters and `...`.
+fn quoted_prefix(s: &str) -> String {
+    match s.char_indices().nth(MAX_QUOTED) {
+        Some((end, _)) => format!("{}...", &s[..end]),
+        None => s.to_string(),
     }
 }
 
@@ -108,6 +122,11 @@ mod tests {
             assert!(text.contains(p.name()), "{text}");
         }
         assert!("Six-DoF".parse::<FilterPreset>().is_err());
+        // A long name is quoted in part, whole characters only.
+        let long = "é".repeat(10_000);
+        let e = long.parse::<FilterPreset>().unwrap_err();
+        assert_eq!(e.given, format!("{}...", "é".repeat(MAX_QUOTED)));
+        assert!(e.to_string().len() < 400, "{e}");
     }
 
     #[test]
