@@ -116,6 +116,15 @@ fn an_earlier_simulation_is_replaced_only_with_force_and_whole() {
     assert_eq!(std::fs::read(seq.join("poses.txt")).unwrap(), poses);
     assert_eq!(count(&seq.join("labels")), 8);
 
+    // A run that fails midway (the field of view is checked as the world
+    // is made) leaves the earlier simulation whole and no staging folder.
+    let r = sim_indoor(&seq, 4, &["--force", "--hfov", "200"]);
+    refused(&r, &["fov"]);
+    assert_eq!(std::fs::read(seq.join("poses.txt")).unwrap(), poses);
+    assert_eq!(count(&seq.join("labels")), 8);
+    assert!(seq.join("sim.json").is_file());
+    assert_eq!(count(dir.path()), 1, "only the simulation's folder");
+
     // Replaced: four frames, and none of the earlier eight left over.
     let r = sim_indoor(&seq, 4, &["--force"]);
     assert_eq!(r.code, Some(0), "{}", r.text());
@@ -124,6 +133,18 @@ fn an_earlier_simulation_is_replaced_only_with_force_and_whole() {
     }
     let lines = std::fs::read_to_string(seq.join("poses.txt")).unwrap();
     assert_eq!(lines.lines().filter(|l| !l.starts_with('#')).count(), 4);
+    assert_eq!(count(dir.path()), 1, "the staging folder is gone");
+    assert!(
+        r.stdout.contains(s(&seq)),
+        "the summary names --out:\n{}",
+        r.text()
+    );
+    // A new folder under folders that do not exist yet.
+    let deep = dir.path().join("a/b/sim");
+    let r = sim_indoor(&deep, 2, &[]);
+    assert_eq!(r.code, Some(0), "{}", r.text());
+    assert_eq!(count(&deep.join("labels")), 2);
+    assert_eq!(count(&dir.path().join("a/b")), 1);
     // And the replaced sequence maps.
     let map = dir.path().join("m.omcl");
     let r = omcl(&["map", "rgbd", s(&seq), "-o", s(&map)]);

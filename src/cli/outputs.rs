@@ -89,64 +89,118 @@ pub fn refuse_overlaps(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> a
     Ok(())
 }
 
-/// Makes `dir` ready for a simulation that writes `entries` into it
-/// (`omcl sim indoor` and `outdoor`, whose frames would otherwise mix with
-/// or replace what is there). A missing or empty folder is fine. A folder
-/// holding an earlier simulation (its `sim.json`) is replaced with
-/// `force`: its `entries` are removed first, so no frame of the earlier,
-/// longer run is left beside the new one; without `force` it is refused.
-/// Any other folder with something in it (a real sequence, say) is
-/// refused, `force` or not, and nothing in it is touched.
-pub fn prepare_sim_folder(dir: &Path, entries: &[&str], force: bool) -> anyhow::Result<()> {
-    let listing = match std::fs::read_dir(dir) {
-        Ok(l) => l,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) if e.kind() == std::io::ErrorKind::NotADirectory || dir.is_file() => {
-            anyhow::bail!("{}: --out is a file, not a folder", dir.display())
+/// A simulation's folder while it is written: the simulation writes into
+/// a hidden folder beside `--out` ([`SimStaging::path`]) and
+/// [`SimStaging::commit`] moves what it wrote into place, so a run that
+/// fails or is stopped midway leaves no half sequence and, with `--force`,
+/// the earlier simulation as it was.
+pub struct SimStaging {
+    out: PathBuf,
+    temp: tempfile::TempDir,
+    /// Entries of an earlier simulation to remove at commit (`--force`).
+    replace: &'static [&'static str],
+}
+
+/// Checks `out` for a simulation that writes `entries` into it (`omcl sim
+/// indoor` and `outdoor`, whose frames would otherwise mix with or replace
+/// what is there) and stages its writing. A missing or empty folder is
+/// fine. A folder holding an earlier simulation (its `sim.json`) is
+/// replaced with `force`: at commit its `entries` are removed first, so no
+/// frame of an earlier, longer run is left beside the new one; without
+/// `force` it is refused. Any other folder with something in it (a real
+/// sequence, say) is refused, `force` or not, and nothing in it is
+/// touched.
+pub fn stage_sim_folder(
+    out: &Path,
+    entries: &'static [&'static str],
+    force: bool,
+) -> anyhow::Result<SimStaging> {
+    let mut replace: &'static [&'static str] = &[];
+    match std::fs::read_dir(out) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(_) if out.is_file() => {
+            anyhow::bail!("{}: --out is a file, not a folder", out.display())
         }
-        Err(e) => anyhow::bail!("{}: cannot read the --out folder: {e}", dir.display()),
+        Err(e) => anyhow::bail!("{}: cannot read the --out folder: {e}", out.display()),
+        Ok(listing) => {
+            let mut names: Vec<String> = listing
+                .filter_map(|e| e.ok())
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .collect();
+            names.sort();
+            if !names.is_empty() && !out.join("sim.json").is_file() {
+                let shown = names.iter().take(4).cloned().collect::<Vec<_>>().join(", ");
+                let more = if names.len() > 4 { ", ..." } else { "" };
+                anyhow::bail!(
+                    "{}: --out is a folder with other files in it ({shown}{more}) and no \
+                     earlier simulation (sim.json); a simulation writes {} there and would \
+                     mix with or replace them: choose a new or empty folder",
+                    out.display(),
+                    entries.join(", ")
+                );
+            }
+            if !names.is_empty() && !force {
+                anyhow::bail!(
+                    "{}: --out holds an earlier simulation (sim.json); pass --force to replace \
+                     it (its frames and files are removed once the new one is written), or \
+                     choose a new folder",
+                    out.display()
+                );
+            }
+            if !names.is_empty() {
+                replace = entries;
+            }
+        }
+    }
+    let parent = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
     };
-    let mut names: Vec<String> = listing
-        .filter_map(|e| e.ok())
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .collect();
-    if names.is_empty() {
-        return Ok(());
+    std::fs::create_dir_all(parent)
+        .map_err(|e| anyhow::anyhow!("{}: cannot create the folder: {e}", parent.display()))?;
+    let temp = tempfile::Builder::new()
+        .prefix(".omcl-sim-")
+        .tempdir_in(parent)
+        .map_err(|e| anyhow::anyhow!("{}: cannot write there: {e}", parent.display()))?;
+    Ok(SimStaging {
+        out: out.to_path_buf(),
+        temp,
+        replace,
+    })
+}
+
+impl SimStaging {
+    /// Where the simulation writes.
+    pub fn path(&self) -> &Path {
+        self.temp.path()
     }
-    names.sort();
-    if !dir.join("sim.json").is_file() {
-        let shown = names.iter().take(4).cloned().collect::<Vec<_>>().join(", ");
-        let more = if names.len() > 4 { ", ..." } else { "" };
-        anyhow::bail!(
-            "{}: --out is a folder with other files in it ({shown}{more}) and no earlier \
-             simulation (sim.json); a simulation writes {} there and would mix with or \
-             replace them: choose a new or empty folder",
-            dir.display(),
-            entries.join(", ")
-        );
+
+    /// Moves what was written into `--out` (created if missing), after
+    /// removing the earlier simulation's entries; the staging folder goes.
+    pub fn commit(self) -> anyhow::Result<()> {
+        let out = &self.out;
+        let fail =
+            |what: &str, e: std::io::Error| anyhow::anyhow!("{}: {what}: {e}", out.display());
+        std::fs::create_dir_all(out).map_err(|e| fail("cannot create the folder", e))?;
+        for name in self.replace {
+            let p = out.join(name);
+            let removed = match std::fs::symlink_metadata(&p) {
+                Ok(m) if m.is_dir() => std::fs::remove_dir_all(&p),
+                Ok(_) => std::fs::remove_file(&p),
+                Err(_) => continue,
+            };
+            removed
+                .map_err(|e| fail(&format!("cannot remove the earlier simulation's {name}"), e))?;
+        }
+        let staged = std::fs::read_dir(self.temp.path())
+            .map_err(|e| fail("cannot read the staged simulation", e))?;
+        for entry in staged {
+            let entry = entry.map_err(|e| fail("cannot read the staged simulation", e))?;
+            std::fs::rename(entry.path(), out.join(entry.file_name()))
+                .map_err(|e| fail("cannot move the new simulation into place", e))?;
+        }
+        Ok(())
     }
-    if !force {
-        anyhow::bail!(
-            "{}: --out holds an earlier simulation (sim.json); pass --force to replace it \
-             (its frames and files are removed first), or choose a new folder",
-            dir.display()
-        );
-    }
-    for name in entries {
-        let p = dir.join(name);
-        let removed = match std::fs::symlink_metadata(&p) {
-            Ok(m) if m.is_dir() => std::fs::remove_dir_all(&p),
-            Ok(_) => std::fs::remove_file(&p),
-            Err(_) => continue,
-        };
-        removed.map_err(|e| {
-            anyhow::anyhow!(
-                "{}: cannot remove the earlier simulation's {name}: {e}",
-                dir.display()
-            )
-        })?;
-    }
-    Ok(())
 }
 
 #[cfg(test)]

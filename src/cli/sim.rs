@@ -230,7 +230,7 @@ fn indoor(a: IndoorArgs) -> anyhow::Result<()> {
         }
         None => (Vec::new(), None),
     };
-    super::outputs::prepare_sim_folder(&out, &dataset::INDOOR_ENTRIES, force)?;
+    let staging = super::outputs::stage_sim_folder(&out, &dataset::INDOOR_ENTRIES, force)?;
     let table = load_table(table.as_deref())?;
     if features {
         eprintln!(
@@ -244,11 +244,13 @@ fn indoor(a: IndoorArgs) -> anyhow::Result<()> {
     }
     let pb = progress_bar(frames);
     pb.set_message("rendering");
-    let summary = dataset::write_indoor(&out, &cfg, &table, (&drift, source), &|n| {
+    let mut summary = dataset::write_indoor(staging.path(), &cfg, &table, (&drift, source), &|n| {
         pb.set_position(n as u64)
     })
     .with_context(|| format!("writing the indoor dataset to {}", out.display()))?;
     pb.finish_and_clear();
+    staging.commit()?;
+    summary.dir = out;
     println!("{summary}");
     Ok(())
 }
@@ -295,12 +297,16 @@ fn outdoor(a: OutdoorArgs) -> anyhow::Result<()> {
     cfg.preset = preset;
     cfg.feature_stride = feature_stride.max(1);
     let table = load_table(table.as_deref())?;
-    super::outputs::prepare_sim_folder(&out, &dataset::OUTDOOR_ENTRIES, force)?;
+    let staging = super::outputs::stage_sim_folder(&out, &dataset::OUTDOOR_ENTRIES, force)?;
     let pb = progress_bar(frames.min(gt.len() - start));
     pb.set_message("scanning");
-    let summary = dataset::write_outdoor(&out, &cfg, &gt, &table, &|n| pb.set_position(n as u64))
-        .with_context(|| format!("writing the outdoor dataset to {}", out.display()))?;
+    let mut summary = dataset::write_outdoor(staging.path(), &cfg, &gt, &table, &|n| {
+        pb.set_position(n as u64)
+    })
+    .with_context(|| format!("writing the outdoor dataset to {}", out.display()))?;
     pb.finish_and_clear();
+    staging.commit()?;
+    summary.dir = out;
     println!("{summary}");
     Ok(())
 }

@@ -93,6 +93,8 @@ impl IndoorDatasetConfig {
 /// What a generation run produced.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct Summary {
+    /// The folder written (not in `sim.json`: a folder may be moved).
+    #[serde(skip)]
     pub dir: PathBuf,
     pub frames: usize,
     pub cells: usize,
