@@ -3,6 +3,9 @@
 //! onto the target. Readers see the old file or the whole new one; after
 //! an error the target is untouched and the temporary file is removed.
 //!
+//! A symbolic link is written through, and a character device or a named
+//! pipe (`-o /dev/null`) written into, never replaced by a regular file.
+//!
 //! The temporary file is created as any new file is (mode 0666 less the
 //! process umask, so 0644 under the usual umask 022), not private as
 //! `tempfile` makes it by default: maps, trajectories and figures are for
@@ -13,8 +16,64 @@ use std::io::{self, BufWriter, Write};
 use std::path::Path;
 
 /// Writes `path` atomically with `fill`, which writes the contents into a
-/// buffered writer.
+/// buffered writer. A symbolic link is written through (its final target
+/// is replaced; the link stays), a character device or a named pipe
+/// (`/dev/null`, a FIFO a reader waits on) is written into directly, not
+/// replaced; a folder or another kind of file is refused.
 pub fn write_with(
+    path: &Path,
+    fill: impl FnOnce(&mut BufWriter<&File>) -> io::Result<()>,
+) -> io::Result<()> {
+    let target = follow_links(path)?;
+    match std::fs::metadata(&target) {
+        Ok(m) if m.is_file() => {}
+        Ok(m) if m.is_dir() => {
+            return Err(io::Error::new(
+                io::ErrorKind::IsADirectory,
+                "is a folder, not a file",
+            ));
+        }
+        Ok(m) => {
+            use std::os::unix::fs::FileTypeExt;
+            let t = m.file_type();
+            if !(t.is_char_device() || t.is_fifo()) {
+                return Err(io::Error::new(
+                    io::ErrorKind::InvalidInput,
+                    "is neither a regular file, a character device nor a named pipe",
+                ));
+            }
+            let f = std::fs::OpenOptions::new().write(true).open(&target)?;
+            let mut w = BufWriter::with_capacity(1 << 16, &f);
+            fill(&mut w)?;
+            return w.flush();
+        }
+        Err(_) => {}
+    }
+    replace_file(&target, fill)
+}
+
+/// `path` with its symbolic links followed to the last one's target
+/// (which need not exist yet).
+fn follow_links(path: &Path) -> io::Result<std::path::PathBuf> {
+    let mut p = path.to_path_buf();
+    for _ in 0..40 {
+        match std::fs::symlink_metadata(&p) {
+            Ok(m) if m.file_type().is_symlink() => {
+                let t = std::fs::read_link(&p)?;
+                p = match p.parent() {
+                    Some(d) if t.is_relative() => d.join(t),
+                    _ => t,
+                };
+            }
+            _ => return Ok(p),
+        }
+    }
+    Err(io::Error::other("too many levels of symbolic links"))
+}
+
+/// The atomic write itself: a temporary file beside `path`, renamed onto
+/// it.
+fn replace_file(
     path: &Path,
     fill: impl FnOnce(&mut BufWriter<&File>) -> io::Result<()>,
 ) -> io::Result<()> {
@@ -71,6 +130,67 @@ mod tests {
         assert_eq!(names, ["a.txt"]);
         // A missing directory is an error, not a panic.
         assert!(write(&dir.path().join("no/such/dir/b.txt"), b"x").is_err());
+    }
+
+    #[test]
+    fn links_are_written_through_and_special_files_not_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        // A link to an existing file, and a dangling one (relative).
+        std::fs::write(d.join("t.txt"), b"old").unwrap();
+        std::os::unix::fs::symlink("t.txt", d.join("link")).unwrap();
+        write(&d.join("link"), b"new").unwrap();
+        assert!(
+            std::fs::symlink_metadata(d.join("link"))
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+        assert_eq!(std::fs::read(d.join("t.txt")).unwrap(), b"new");
+        std::os::unix::fs::symlink("later.txt", d.join("dangling")).unwrap();
+        write(&d.join("dangling"), b"made").unwrap();
+        assert_eq!(std::fs::read(d.join("later.txt")).unwrap(), b"made");
+        assert!(
+            std::fs::symlink_metadata(d.join("dangling"))
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+        // A named pipe is written into, and stays a pipe.
+        let fifo = d.join("pipe");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::read(fifo).unwrap())
+        };
+        write(&fifo, b"through the pipe").unwrap();
+        assert_eq!(reader.join().unwrap(), b"through the pipe");
+        use std::os::unix::fs::FileTypeExt;
+        assert!(
+            std::fs::symlink_metadata(&fifo)
+                .unwrap()
+                .file_type()
+                .is_fifo()
+        );
+        // A folder is refused and left as it was.
+        std::fs::create_dir(d.join("sub")).unwrap();
+        let e = write(&d.join("sub"), b"x").unwrap_err();
+        assert!(e.to_string().contains("folder"), "{e}");
+        assert!(d.join("sub").is_dir());
+        // Nothing else was left behind.
+        let mut names: Vec<_> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        names.sort();
+        assert_eq!(
+            names,
+            ["dangling", "later.txt", "link", "pipe", "sub", "t.txt"]
+        );
     }
 
     /// Files are created with the usual mode (0666 less the umask), not the
