@@ -101,11 +101,27 @@ pub enum FloorPlanError {
     RowOutOfRange { cell: usize, row: u32, rows: usize },
     #[error("resolution must be a positive finite number of metres, got {0}")]
     BadResolution(f64),
+    #[error(
+        "the columns span {width} x {height} cells ({:.0} x {:.0} m at {resolution} m), more \
+         than {MAX_PLAN_CELLS} in all: is a voxel far from the rest (an outlier of the cloud)?",
+        *width as f64 * resolution,
+        *height as f64 * resolution
+    )]
+    TooLarge {
+        width: u64,
+        height: u64,
+        resolution: f64,
+    },
     #[error(transparent)]
     Features(#[from] FeatureDbError),
     #[error(transparent)]
     Map(#[from] MapError),
 }
+
+/// Most cells a plan's bounding rectangle may hold (2^28: 1.6 km square
+/// at 0.1 m). The planar caster and the plan's image are dense over that
+/// rectangle; one outlier 100 km away made a 4 TB grid.
+pub const MAX_PLAN_CELLS: u64 = 1 << 28;
 
 /// A floor plan: occupied columns of a 2-D grid and their feature rows.
 #[derive(Debug, Clone, PartialEq)]
@@ -150,6 +166,23 @@ impl FloorPlan {
             .position(|w| (w[0][1], w[0][0]) >= (w[1][1], w[1][0]))
         {
             return Err(FloorPlanError::Unsorted(i + 1));
+        }
+        if let (Some(first), Some(last)) = (cells.first(), cells.last()) {
+            // Sorted by (j, i): j's range is the ends'; i's needs a pass.
+            let (mut i_lo, mut i_hi) = (i64::MAX, i64::MIN);
+            for c in &cells {
+                i_lo = i_lo.min(c[0] as i64);
+                i_hi = i_hi.max(c[0] as i64);
+            }
+            let width = (i_hi - i_lo + 1) as u64;
+            let height = (last[1] as i64 - first[1] as i64 + 1) as u64;
+            if width.saturating_mul(height) > MAX_PLAN_CELLS {
+                return Err(FloorPlanError::TooLarge {
+                    width,
+                    height,
+                    resolution,
+                });
+            }
         }
         if let Some((cell, &row)) = rows
             .iter()
@@ -425,16 +458,17 @@ impl FloorPlan {
                 hi[a] = hi[a].max(c[a]);
             }
         }
-        let w = (hi[0] - lo[0] + 1) as u32;
-        let h = (hi[1] - lo[1] + 1) as u32;
-        let mut rgb = vec![255u8; (w * h * 3) as usize];
+        // At most MAX_PLAN_CELLS (checked at construction): no overflow.
+        let w = (hi[0] as i64 - lo[0] as i64 + 1) as usize;
+        let h = (hi[1] as i64 - lo[1] as i64 + 1) as usize;
+        let mut rgb = vec![255u8; w * h * 3];
         for (c, &row) in self.cells.iter().zip(&self.rows) {
-            let x = (c[0] - lo[0]) as u32;
-            let y = (hi[1] - c[1]) as u32;
-            let k = ((y * w + x) * 3) as usize;
+            let x = (c[0] as i64 - lo[0] as i64) as usize;
+            let y = (hi[1] as i64 - c[1] as i64) as usize;
+            let k = (y * w + x) * 3;
             rgb[k..k + 3].copy_from_slice(&row_colour(row));
         }
-        (w, h, rgb)
+        (w as u32, h as u32, rgb)
     }
 }
 
@@ -720,6 +754,30 @@ mod tests {
             ),
             Err(FloorPlanError::BadBand(..))
         ));
+    }
+
+    /// A map with one voxel far from the rest (an outlier of a cloud) is
+    /// refused by name before any dense grid is made; its image would
+    /// have overflowed 32 bits.
+    #[test]
+    fn a_plan_spanning_too_many_cells_is_refused() {
+        let m = hand_map();
+        let mut leaves: Vec<([i32; 3], u32)> = m
+            .cells()
+            .iter()
+            .copied()
+            .zip(m.rows().iter().copied())
+            .collect();
+        leaves.push(([1 << 19, 1 << 19, 1], 1));
+        let far = LanguageMap::from_cells(grid(), m.db().clone(), "hand", leaves).unwrap();
+        let e = FloorPlan::from_map(&far, &band()).unwrap_err();
+        assert!(matches!(e, FloorPlanError::TooLarge { .. }), "{e}");
+        assert!(e.to_string().contains("outlier"), "{e}");
+        // The same columns a little apart are a plan, and its image is
+        // one pixel a cell.
+        let plan = FloorPlan::from_map(&hand_map(), &band()).unwrap();
+        let (w, h, rgb) = plan.image();
+        assert_eq!((w, h, rgb.len()), (3, 2, 18));
     }
 
     /// The hand-made map's columns plus a low one (a table top at z 1 of
