@@ -195,6 +195,38 @@ fn a_png_declaring_ten_billion_pixels_is_refused_before_allocating() {
         msg.contains("depth.png") && msg.contains("100000 x 100000"),
         "{msg}"
     );
+    // A real image of zeros, 10000 x 7000 pixels in a file of about 70
+    // KB (deflate's ratio allows it): refused by its header's size before
+    // its 70 MB are decoded.
+    let (w, h) = (10_000u32, 7_000u32);
+    {
+        let file = std::fs::File::create(&p).unwrap();
+        let mut enc = png::Encoder::new(file, w, h);
+        enc.set_color(png::ColorType::Grayscale);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_compression(png::Compression::High);
+        let mut out = enc.write_header().unwrap().into_stream_writer().unwrap();
+        use std::io::Write;
+        let row = vec![0u8; w as usize];
+        for _ in 0..h {
+            out.write_all(&row).unwrap();
+        }
+        out.finish().unwrap();
+    }
+    let len = std::fs::metadata(&p).unwrap().len();
+    assert!(len < 1 << 20, "{len} bytes");
+    for e in [
+        omcl::io::rgbd::read_label_png(&p).map(|_| ()).unwrap_err(),
+        omcl::io::rgbd::read_depth_png(&p, 1000.0)
+            .map(|_| ())
+            .unwrap_err(),
+    ] {
+        let msg = e.to_string();
+        assert!(
+            msg.contains("depth.png") && msg.contains("10000 x 7000") && msg.contains("more than"),
+            "{msg}"
+        );
+    }
     // The same file at its true size reads.
     std::fs::write(&p, png_claiming(1, 1)).unwrap();
     let d = omcl::io::rgbd::read_depth_png(&p, 1000.0).unwrap();

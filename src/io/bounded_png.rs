@@ -13,6 +13,11 @@ use super::cloud::CloudError;
 /// 1032 to 1), rounded up.
 const MAX_DEFLATE_RATIO: u64 = 1100;
 
+/// Most pixels a PNG may declare (8192 x 8192; a 4K frame is 8.3
+/// million): a 760 KB file of zeros declaring 20000 x 20000 16-bit pixels
+/// was decoded (2.4 GB) before its size was compared with the camera's.
+pub const MAX_PNG_PIXELS: u64 = 1 << 26;
+
 pub(crate) fn open_png(
     path: &Path,
     transform: Transformations,
@@ -24,6 +29,15 @@ pub(crate) fn open_png(
     let mut reader = decoder
         .read_info()
         .map_err(|e| CloudError::format(path, format!("not a readable PNG: {e}")))?;
+    let (w, h) = (reader.info().width, reader.info().height);
+    if w as u64 * h as u64 > MAX_PNG_PIXELS {
+        return Err(CloudError::format(
+            path,
+            format!(
+                "its header declares {w} x {h} pixels, more than the {MAX_PNG_PIXELS} an image may have here"
+            ),
+        ));
+    }
     let size = reader
         .output_buffer_size()
         .ok_or_else(|| CloudError::format(path, "PNG image too large"))?;
