@@ -145,6 +145,18 @@ fn an_earlier_simulation_is_replaced_only_with_force_and_whole() {
     assert_eq!(r.code, Some(0), "{}", r.text());
     assert_eq!(count(&deep.join("labels")), 2);
     assert_eq!(count(&dir.path().join("a/b")), 1);
+
+    // A poses.txt shorter than the frames is refused by `map rgbd`, not
+    // mapped in part without a word; --frames asks for part.
+    let poses = std::fs::read_to_string(deep.join("poses.txt")).unwrap();
+    let first: Vec<&str> = poses.lines().filter(|l| !l.starts_with('#')).collect();
+    std::fs::write(deep.join("poses.txt"), format!("{}\n", first[0])).unwrap();
+    let m = dir.path().join("short.omcl");
+    let r = omcl(&["map", "rgbd", s(&deep), "-o", s(&m)]);
+    refused(&r, &["poses.txt", "1 poses but 2 depth images", "--frames"]);
+    assert!(!m.exists());
+    let r = omcl(&["map", "rgbd", s(&deep), "-o", s(&m), "--frames", "1"]);
+    assert_eq!(r.code, Some(0), "{}", r.text());
     // And the replaced sequence maps.
     let map = dir.path().join("m.omcl");
     let r = omcl(&["map", "rgbd", s(&seq), "-o", s(&map)]);

@@ -409,6 +409,24 @@ pub fn map_from_rgbd(
     let k = rgbd_io::read_intrinsics(&d.join("intrinsics.txt"))?;
     let traj = poses::read_poses(&d.join("poses.txt"))?.trajectory;
     let n = traj.poses().len().min(input.frames.unwrap_or(usize::MAX));
+    // A pose a frame: a poses.txt shorter or longer than the frames is a
+    // truncated or foreign file, not a request to map part of them.
+    if input.frames.is_none() {
+        let depth = d.join("depth");
+        let images = std::fs::read_dir(&depth)
+            .map_err(|e| PipelineError::Input(format!("{}: {e}", depth.display())))?
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().ends_with(".png"))
+            .count();
+        if images != traj.poses().len() {
+            return Err(PipelineError::Input(format!(
+                "{}: {} poses but {images} depth images in {}; pass --frames N to map the first N",
+                d.join("poses.txt").display(),
+                traj.poses().len(),
+                depth.display()
+            )));
+        }
+    }
     // Any origin works; the first camera, snapped, keeps coordinates small.
     let grid = grid_at(traj.poses()[0].translation.vector.into(), params.resolution);
     let db = observation_db(&features, d, params)?;
