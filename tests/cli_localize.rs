@@ -1061,6 +1061,21 @@ fn outputs_over_the_inputs_are_refused_and_leave_them_intact() {
     );
     assert!(r.stderr.contains("--diagnostics and --out"), "{}", r.text());
     assert!(!est.exists());
+    // A frame image, and a new file among the frames, are refused too
+    // (`-o seq/labels/000001.png` wrote the estimate over a label image).
+    let label = seq.join("labels/000001.png");
+    let label_before = std::fs::read(&label).unwrap();
+    for out in [label.clone(), seq.join("labels/est.txt")] {
+        let r = f.localize(&f.map, &seq, &out, &["--frames", "4"]);
+        assert_eq!(r.code, Some(1), "{}", r.text());
+        assert!(
+            r.stderr.contains("inside the sequence's folder"),
+            "{}",
+            r.text()
+        );
+    }
+    assert_eq!(std::fs::read(&label).unwrap(), label_before);
+    assert!(!seq.join("labels/est.txt").exists());
     for (p, b) in files.iter().zip(&before) {
         assert_eq!(&std::fs::read(p).unwrap(), b, "{} changed", p.display());
     }

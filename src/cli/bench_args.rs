@@ -104,7 +104,7 @@ pub struct PlanArgs {
     #[arg(value_enum, required = true, num_args = 1..)]
     pub experiments: Vec<Experiment>,
     /// Number of sequences (seeds first-seed .. first-seed + n).
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=100_000))]
     pub sequences: u64,
     /// First sequence seed. The default is the first held-out seed
     /// (reported tables); seeds 0-99 are the tuning range
@@ -120,11 +120,11 @@ pub struct PlanArgs {
     pub map_frames: usize,
     /// Particles (default 1024, the paper's indoor setting, table1-sixdof
     /// too; table4: 512, the paper's outdoor setting).
-    #[arg(long)]
+    #[arg(long, value_parser = super::count_in::<1, { super::MAX_COUNT }>)]
     pub particles: Option<usize>,
     /// Rays, sampled pixels before duplicates are dropped (default 2048;
     /// table4: 4096).
-    #[arg(long)]
+    #[arg(long, value_parser = super::count_in::<1, { super::MAX_COUNT }>)]
     pub rays: Option<usize>,
     /// Only these variants (comma-separated: OMCL_GT, OMCL_LSeg,
     /// OMCL_auto_LSeg, OMCL_Open_LSeg, OMCL_GT_exact; default all).

@@ -121,12 +121,12 @@ pub struct LocalizeArgs {
     /// form, as `omcl sim` writes odometry.txt). Default 0.10; on 7-Scenes
     /// the paper's noise in proportion to the picked frames' motion (0.10 m
     /// per 0.13 m), on all six axes.
-    #[arg(long)]
+    #[arg(long, value_parser = super::metres)]
     pub odom_noise_m: Option<f64>,
     /// Odometry noise per frame when made from ground truth: degrees about
     /// camera y (default 6; KITTI 5.73, the authors' 0.1 rad; 7-Scenes 6
     /// per 8 degrees of motion, on all three axes).
-    #[arg(long)]
+    #[arg(long, value_parser = super::degrees)]
     pub odom_noise_deg: Option<f64>,
     /// Motion model of the particles: planar (x, y, yaw; height, roll and
     /// pitch follow the odometry), full (6-DoF noise in the camera frame)
@@ -138,11 +138,11 @@ pub struct LocalizeArgs {
     pub motion: Option<MotionArg>,
     /// Particle motion noise per step: metres (paper 0.10; 7-Scenes: the
     /// odometry noise).
-    #[arg(long)]
+    #[arg(long, value_parser = super::metres)]
     pub motion_sigma_m: Option<f64>,
     /// Particle motion noise per step: degrees (paper 6; 7-Scenes: the
     /// odometry noise).
-    #[arg(long)]
+    #[arg(long, value_parser = super::degrees)]
     pub motion_sigma_deg: Option<f64>,
     /// How particles start.
     #[arg(long, value_enum, default_value = "local")]
@@ -152,9 +152,11 @@ pub struct LocalizeArgs {
     pub init_pose: Option<String>,
     /// Spread of --init local: metres and degrees (paper: 0.3, 17; for a
     /// KITTI sequence the authors' 0.3 m and 0.1 rad, 5.73 degrees).
-    #[arg(long, default_value_t = 0.3)]
+    #[arg(long, default_value_t = 0.3, value_parser = super::metres)]
     pub init_sigma_m: f64,
-    #[arg(long)]
+    /// Rotation spread of --init local, degrees [default: 17; 5.73 on a
+    /// KITTI sequence].
+    #[arg(long, value_parser = super::degrees)]
     pub init_sigma_deg: Option<f64>,
     /// Prompt words for --init prompt, comma-separated ("toilet, sink").
     #[arg(long)]
@@ -174,7 +176,7 @@ pub struct LocalizeArgs {
     pub prompt_k: f64,
     /// Number of particles [default: 1024, the paper's indoor setting; 512
     /// on a KITTI sequence, its street setting].
-    #[arg(long)]
+    #[arg(long, value_parser = super::count_in::<1, { super::MAX_COUNT }>)]
     pub particles: Option<usize>,
     /// The tuned filter to start from; --rays, --sharpen, --motion,
     /// --layers, --expand and the other filter options then change it.
@@ -195,7 +197,7 @@ pub struct LocalizeArgs {
     /// the --filter's: 2048 indoor (the paper's indoor setting), 8192
     /// floor-plan, 4096 six-dof and street (the paper's street setting),
     /// 512 six-dof-point-cloud].
-    #[arg(long)]
+    #[arg(long, value_parser = super::count_in::<1, { super::MAX_COUNT }>)]
     pub rays: Option<usize>,
     /// Ray sampling strategy: stratified over the map's feature rows (the
     /// paper's), or uniform over the image, the better choice for a floor
@@ -1100,7 +1102,8 @@ fn refuse_replacing_inputs(a: &LocalizeArgs) -> anyhow::Result<()> {
             .iter()
             .map(|p| (super::outputs::SEQUENCE_FILE, p.as_path())),
     );
-    super::outputs::refuse_overlaps(&outputs, &inputs)
+    super::outputs::refuse_overlaps(&outputs, &inputs)?;
+    super::outputs::refuse_inside_sequence(&outputs, &a.sequence)
 }
 
 /// `--floorplan`'s and `--ground`'s limits, by name: planar motion, and

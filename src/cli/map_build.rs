@@ -334,6 +334,7 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
         .map(|p| (super::outputs::SEQUENCE_FILE, p.as_path()))
         .collect();
     super::outputs::refuse_overlaps(&[("--out", &a.build.out)], &inputs)?;
+    super::outputs::refuse_inside_sequence(&[("--out", &a.build.out)], &a.dir)?;
     let d = &a.dir;
     let is_sevenscenes =
         omcl::session::sequence::Layout::of(d) == omcl::session::sequence::Layout::SevenScenes;

@@ -59,6 +59,41 @@ pub enum Command {
 }
 
 /// Runs a parsed command line.
+/// A whole number in `LO..=HI`: clap's parser for the counts that size
+/// allocations (`--particles 100000000000` asked for 6.4 TB and aborted).
+pub fn count_in<const LO: usize, const HI: usize>(s: &str) -> Result<usize, String> {
+    let n: usize = s.trim().parse().map_err(|e| format!("{e}"))?;
+    if (LO..=HI).contains(&n) {
+        Ok(n)
+    } else {
+        Err(format!("{n} is not in {LO}..={HI}"))
+    }
+}
+
+/// A finite number of metres in `0..=10000`: clap's parser for spreads
+/// and noise (`--odom-noise-m inf` ran and wrote infinite poses).
+pub fn metres(s: &str) -> Result<f64, String> {
+    finite_in(s, 0.0, 10_000.0)
+}
+
+/// A finite number of degrees in `0..=360` (spreads and noise).
+pub fn degrees(s: &str) -> Result<f64, String> {
+    finite_in(s, 0.0, 360.0)
+}
+
+fn finite_in(s: &str, lo: f64, hi: f64) -> Result<f64, String> {
+    let v: f64 = s.trim().parse().map_err(|e| format!("{e}"))?;
+    if v.is_finite() && (lo..=hi).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not a finite number in {lo}..={hi}"))
+    }
+}
+
+/// Most particles and most rays a filter takes from the command line (as
+/// `omcl serve` does).
+pub const MAX_COUNT: usize = 1_000_000;
+
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Map(cmd) => map::run(cmd),

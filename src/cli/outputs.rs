@@ -52,11 +52,76 @@ pub fn sequence_files(dir: &Path) -> Vec<PathBuf> {
     .collect()
 }
 
+/// Where `p` is or would be created: its canonical path if it exists
+/// (links followed), else its folder's canonical path and its name.
+fn absolute(p: &Path) -> Option<PathBuf> {
+    if let Ok(c) = std::fs::canonicalize(p) {
+        return Some(c);
+    }
+    let name = p.file_name()?;
+    let parent = match p.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    Some(std::fs::canonicalize(parent).ok()?.join(name))
+}
+
+/// Refuses an output that a reader of the sequence folder `seq` would
+/// read as part of it: anything inside one of its subfolders (where the
+/// frames are: `labels/`, `depth/`, `image_2/`, `velodyne/`, ...), and in
+/// the folder itself one of [`sequence_files`] (even a new one: a new
+/// `odometry.txt` is read as the odometry next time) or a 7-Scenes frame
+/// (`frame-*`). Other files beside the frames (`seq/estimate.txt`) are
+/// fine.
+pub fn refuse_inside_sequence(outputs: &[(&str, &Path)], seq: &Path) -> anyhow::Result<()> {
+    // A missing sequence is its reader's to report.
+    let Ok(root) = std::fs::canonicalize(seq) else {
+        return Ok(());
+    };
+    let names: Vec<PathBuf> = sequence_files(Path::new(""));
+    for &(option, p) in outputs {
+        let Some(abs) = absolute(p) else { continue };
+        let Ok(rel) = abs.strip_prefix(&root) else {
+            continue;
+        };
+        let parts: Vec<_> = rel.components().collect();
+        let frame_name = rel.to_str().is_some_and(|n| n.starts_with("frame-"));
+        if parts.len() > 1 {
+            anyhow::bail!(
+                "{}: {option} is inside the sequence's folder {}, where its frames are read \
+                 from; writing there would replace or add to them (choose another path)",
+                p.display(),
+                root.join(parts[0]).display()
+            );
+        }
+        if parts.len() == 1 && (names.iter().any(|n| n.as_path() == rel) || frame_name) {
+            anyhow::bail!(
+                "{}: {option} would be read as part of the sequence {} ({}); choose another \
+                 name",
+                p.display(),
+                seq.display(),
+                rel.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Refuses when an output (`(option, path)`) is one of the `inputs`
 /// (`(what, path)`, files the command reads; those that do not exist are
 /// skipped, their readers say so) or another output, naming both.
 pub fn refuse_overlaps(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> anyhow::Result<()> {
-    let outs: Vec<_> = outputs.iter().map(|&(o, p)| (o, p, identity(p))).collect();
+    // A character device or a pipe (`/dev/null`) is written into, not
+    // replaced: several outputs may go there.
+    let special = |p: &Path| {
+        use std::os::unix::fs::FileTypeExt;
+        std::fs::metadata(p)
+            .is_ok_and(|m| m.file_type().is_char_device() || m.file_type().is_fifo())
+    };
+    let outs: Vec<_> = outputs
+        .iter()
+        .map(|&(o, p)| (o, p, if special(p) { None } else { identity(p) }))
+        .collect();
     // Only inputs that exist: a missing one has no inode to share.
     let ins: Vec<_> = inputs
         .iter()
@@ -243,5 +308,40 @@ mod tests {
         // Nothing was written or removed.
         assert_eq!(std::fs::read(&input).unwrap(), b"map");
         assert!(!a.exists());
+    }
+
+    #[test]
+    fn outputs_among_a_sequences_frames_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let seq = dir.path().join("seq");
+        std::fs::create_dir_all(seq.join("labels")).unwrap();
+        std::fs::write(seq.join("labels/000005.png"), b"png").unwrap();
+        let refused = |p: &Path, needle: &str| {
+            let e = refuse_inside_sequence(&[("--out", p)], &seq).unwrap_err();
+            assert!(e.to_string().contains(needle), "{e}");
+        };
+        refused(
+            &seq.join("labels/000005.png"),
+            "inside the sequence's folder",
+        );
+        refused(&seq.join("labels/new.txt"), "inside the sequence's folder");
+        refused(&seq.join("labels/../labels/000009.png"), "labels");
+        refused(&seq.join("odometry.txt"), "read as part of the sequence");
+        refused(
+            &seq.join("frame-000001.pose.txt"),
+            "read as part of the sequence",
+        );
+        // Through a link to a frame from outside.
+        std::os::unix::fs::symlink(seq.join("labels/000005.png"), dir.path().join("l.png"))
+            .unwrap();
+        refused(&dir.path().join("l.png"), "inside");
+        // Beside the frames, or elsewhere: fine.
+        for ok in [seq.join("estimate.txt"), dir.path().join("est.txt")] {
+            refuse_inside_sequence(&[("--out", &ok)], &seq).unwrap();
+        }
+        assert_eq!(
+            std::fs::read(seq.join("labels/000005.png")).unwrap(),
+            b"png"
+        );
     }
 }

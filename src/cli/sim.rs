@@ -37,6 +37,8 @@ pub struct IndoorArgs {
     /// refused either way.
     #[arg(long)]
     pub force: bool,
+    /// Seed of every random draw (world, path, noise): the same seed, the
+    /// same files.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// The kind of world: corridor, open-plan or offices.
@@ -44,17 +46,19 @@ pub struct IndoorArgs {
     pub world: omcl::sim::indoor::WorldKind,
     /// Number of rooms (corridor: default 5; offices: at least 20, rounded
     /// up to a multiple of 4, default 24; the open plan has its own).
-    #[arg(long)]
+    #[arg(long, value_parser = super::count_in::<1, 200>)]
     pub rooms: Option<usize>,
     /// Voxel edge, metres.
     #[arg(long, default_value_t = 0.05)]
     pub resolution: f64,
     /// Number of frames.
-    #[arg(long, default_value_t = 300)]
+    #[arg(long, default_value_t = 300, value_parser = super::count_in::<1, 100_000>)]
     pub frames: usize,
-    #[arg(long, default_value_t = 540)]
+    /// Image width, pixels.
+    #[arg(long, default_value_t = 540, value_parser = clap::value_parser!(u32).range(1..=8192))]
     pub width: u32,
-    #[arg(long, default_value_t = 540)]
+    /// Image height, pixels.
+    #[arg(long, default_value_t = 540, value_parser = clap::value_parser!(u32).range(1..=8192))]
     pub height: u32,
     /// Horizontal field of view, degrees.
     #[arg(long, default_value_t = 90.0)]
@@ -70,9 +74,10 @@ pub struct IndoorArgs {
     #[arg(long, default_value_t = 8)]
     pub feature_stride: u32,
     /// Odometry noise per frame: translation (m) and rotation (degrees).
-    #[arg(long, default_value_t = 0.10)]
+    #[arg(long, default_value_t = 0.10, value_parser = super::metres)]
     pub odom_sigma_t: f64,
-    #[arg(long, default_value_t = 6.0)]
+    /// Odometry rotation noise per frame, degrees (with --odom-sigma-t).
+    #[arg(long, default_value_t = 6.0, value_parser = super::degrees)]
     pub odom_sigma_r: f64,
     /// Folder with KITTI_00_gt.txt and KITTI_00_ORB.txt whose relative
     /// motion errors are replayed as odometry drift; default: the shared
@@ -98,22 +103,25 @@ pub struct OutdoorArgs {
     /// refused either way.
     #[arg(long)]
     pub force: bool,
+    /// Seed of every random draw (world, path, noise): the same seed, the
+    /// same files.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// KITTI poses file of the driving path (default: KITTI 00 ground
     /// truth in the shared data beside the source tree).
     #[arg(long)]
     pub path: Option<PathBuf>,
-    /// First frame of the path and number of frames.
+    /// First frame of the driving path.
     #[arg(long, default_value_t = 0)]
     pub start: usize,
-    #[arg(long, default_value_t = 200)]
+    /// Number of frames from --start.
+    #[arg(long, default_value_t = 200, value_parser = super::count_in::<1, 100_000>)]
     pub frames: usize,
     /// Voxel edge, metres.
     #[arg(long, default_value_t = 0.2)]
     pub resolution: f64,
     /// LiDAR directions per revolution (64 beams each).
-    #[arg(long, default_value_t = 2048)]
+    #[arg(long, default_value_t = 2048, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub azimuth_steps: u32,
     /// Skip camera 2 (its images, label images and features).
     #[arg(long)]
@@ -145,6 +153,8 @@ pub struct ClassesArgs {
     /// Replace a class table already in --out.
     #[arg(long)]
     pub force: bool,
+    /// Seed of every random draw (world, path, noise): the same seed, the
+    /// same files.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
 }

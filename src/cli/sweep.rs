@@ -127,7 +127,9 @@ pub struct SlurmCmd {
     /// The omcl binary the tasks run [default: this one].
     #[arg(long)]
     pub omcl: Option<PathBuf>,
-    #[arg(long, default_value_t = 2)]
+    /// CPUs per task (`--cpus-per-task`; each run's thread pool takes
+    /// them).
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..))]
     pub cpus_per_task: u32,
     /// Memory per task, MB.
     #[arg(long, default_value_t = 2000)]
@@ -135,6 +137,7 @@ pub struct SlurmCmd {
     /// Time limit per task.
     #[arg(long, default_value = "01:00:00")]
     pub time: String,
+    /// Slurm partition [default: the cluster's default partition].
     #[arg(long)]
     pub partition: Option<String>,
     /// At most this many tasks of each array at once (`%P`).
@@ -147,6 +150,7 @@ pub struct SlurmCmd {
     /// Requeues of a failed task.
     #[arg(long, default_value_t = 2)]
     pub retries: u32,
+    /// Name of the array jobs in the queue (`--job-name`).
     #[arg(long, default_value = "omcl-sweep")]
     pub job_name: String,
 }
