@@ -244,7 +244,8 @@ fn read_cloud(path: &Path, color_max: Option<f32>) -> anyhow::Result<Cloud> {
         };
         (n, c, a.data)
     } else {
-        let bytes = std::fs::read(path).with_context(|| path.display().to_string())?;
+        let bytes = omcl::io::bounded_read::read_regular(path)
+            .with_context(|| path.display().to_string())?;
         if bytes.len() % 24 != 0 {
             bail!(
                 "{}: {} bytes is not a whole number of float32 x y z r g b rows",

@@ -476,8 +476,8 @@ fn parse_words(words: &[String], file: Option<&Path>) -> anyhow::Result<Vec<Stri
         .filter(|w| !w.is_empty())
         .collect();
     if let Some(f) = file {
-        let text =
-            std::fs::read_to_string(f).with_context(|| format!("reading {}", f.display()))?;
+        let text = omcl::io::bounded_read::read_text(f)
+            .with_context(|| format!("reading {}", f.display()))?;
         out.extend(
             text.lines()
                 .flat_map(|l| l.split(','))

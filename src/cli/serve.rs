@@ -125,8 +125,12 @@ pub fn run(a: ServeArgs) -> anyhow::Result<()> {
     let maps = open_maps(&a)?;
     let tls = match (&a.tls_cert, &a.tls_key) {
         (Some(c), Some(k)) => Some(TlsFiles {
-            cert_pem: std::fs::read(c).with_context(|| format!("--tls-cert {}", c.display()))?,
-            key_pem: std::fs::read(k).with_context(|| format!("--tls-key {}", k.display()))?,
+            cert_pem: omcl::io::bounded_read::read_text(c)
+                .map(String::into_bytes)
+                .with_context(|| format!("--tls-cert {}", c.display()))?,
+            key_pem: omcl::io::bounded_read::read_text(k)
+                .map(String::into_bytes)
+                .with_context(|| format!("--tls-key {}", k.display()))?,
         }),
         _ => None,
     };

@@ -65,10 +65,11 @@ impl FeatureCache {
         if !npy.is_file() || !meta_path.is_file() {
             return Ok(None);
         }
-        let text = std::fs::read_to_string(&meta_path).map_err(|err| EncodeError::Io {
-            path: meta_path.clone(),
-            err,
-        })?;
+        let text =
+            crate::io::bounded_read::read_text(&meta_path).map_err(|err| EncodeError::Io {
+                path: meta_path.clone(),
+                err,
+            })?;
         let meta: CacheMeta = serde_json::from_str(&text).map_err(|e| EncodeError::Card {
             path: meta_path.clone(),
             reason: format!("cache metadata: line {}: {e}", e.line()),

@@ -202,7 +202,7 @@ impl ModelCard {
     /// Reads the card beside `model` (see [`card_path_for`]).
     pub fn for_model(model: &Path) -> Result<ModelCard, EncodeError> {
         let path = card_path_for(model);
-        let text = std::fs::read_to_string(&path).map_err(|err| {
+        let text = crate::io::bounded_read::read_text(&path).map_err(|err| {
             if err.kind() == std::io::ErrorKind::NotFound {
                 EncodeError::Card {
                     path: path.clone(),

@@ -25,7 +25,7 @@ const RIGID_TOLERANCE: f64 = crate::io::poses::ROTATION_TOLERANCE;
 /// metres, LiDAR frame). Reflectance is not kept. Errors when the size is not
 /// a multiple of 16 bytes or a coordinate is not finite.
 pub fn read_velodyne_bin(path: &Path) -> Result<PointCloud, CloudError> {
-    let bytes = std::fs::read(path).map_err(|e| CloudError::io(path, e))?;
+    let bytes = crate::io::bounded_read::read_regular(path).map_err(|e| CloudError::io(path, e))?;
     if bytes.len() % 16 != 0 {
         return Err(CloudError::format(
             path,
@@ -51,7 +51,7 @@ pub fn read_velodyne_bin(path: &Path) -> Result<PointCloud, CloudError> {
 /// [`crate::io::labels::semantic_id`]). `expected_points` is the scan's point
 /// count; a different count is an error.
 pub fn read_label_file(path: &Path, expected_points: usize) -> Result<Vec<u32>, CloudError> {
-    let bytes = std::fs::read(path).map_err(|e| CloudError::io(path, e))?;
+    let bytes = crate::io::bounded_read::read_regular(path).map_err(|e| CloudError::io(path, e))?;
     if bytes.len() % 4 != 0 {
         return Err(CloudError::format(
             path,
@@ -162,7 +162,7 @@ pub struct KittiCalib {
 
 /// Reads `calib.txt` (`KEY: 12 numbers` lines; `Tr` required).
 pub fn read_calib(path: &Path) -> Result<KittiCalib, CloudError> {
-    let text = std::fs::read_to_string(path).map_err(|e| CloudError::io(path, e))?;
+    let text = crate::io::bounded_read::read_text(path).map_err(|e| CloudError::io(path, e))?;
     parse_calib(&text, path)
 }
 

@@ -354,8 +354,8 @@ impl EmbeddingTable {
 /// id its line index (counting only non-empty, non-comment lines); the
 /// first line decides, and mixing the two is an error.
 pub fn read_class_list(classes_path: &Path) -> Result<(Vec<u32>, Vec<String>), CloudError> {
-    let text =
-        std::fs::read_to_string(classes_path).map_err(|e| CloudError::io(classes_path, e))?;
+    let text = crate::io::bounded_read::read_text(classes_path)
+        .map_err(|e| CloudError::io(classes_path, e))?;
     let mut ids = Vec::new();
     let mut names = Vec::new();
     let mut with_ids: Option<bool> = None;

@@ -1,6 +1,7 @@
 //! Reading and writing files: parsing only, no math beyond it.
 pub mod atomic;
 pub mod bounded_png;
+pub mod bounded_read;
 pub mod npy;
 pub mod poses;
 pub mod rgb;

@@ -152,7 +152,7 @@ pub fn read_npy(path: &Path) -> Result<NpyArray, NpyError> {
         path: path.to_path_buf(),
         reason,
     };
-    let bytes = std::fs::read(path).map_err(io_err)?;
+    let bytes = crate::io::bounded_read::read_regular(path).map_err(io_err)?;
     let h = parse_header(&bytes).map_err(fmt)?;
     if h.fortran {
         return Err(unsupported(

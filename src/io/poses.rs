@@ -105,7 +105,7 @@ pub fn read_poses_in(path: &Path, format: PoseFormat) -> Result<PoseFile, PosesE
 }
 
 fn read_poses_as(path: &Path, expected: Option<PoseFormat>) -> Result<PoseFile, PosesError> {
-    let text = std::fs::read_to_string(path).map_err(|source| PosesError::Io {
+    let text = crate::io::bounded_read::read_text(path).map_err(|source| PosesError::Io {
         path: path.to_path_buf(),
         source,
     })?;
@@ -263,7 +263,7 @@ fn nearest_rotation(m: &Matrix3<f64>) -> Option<Rotation3<f64>> {
 
 /// Reads a KITTI `times.txt`: one time stamp (seconds) a line.
 pub fn read_times(path: &Path) -> Result<Vec<f64>, PosesError> {
-    let text = std::fs::read_to_string(path).map_err(|source| PosesError::Io {
+    let text = crate::io::bounded_read::read_text(path).map_err(|source| PosesError::Io {
         path: path.to_path_buf(),
         source,
     })?;

@@ -45,7 +45,7 @@ fn decode(path: &Path) -> Result<DynamicImage, CloudError> {
             }
         });
     }
-    let bytes = std::fs::read(path).map_err(|e| CloudError::io(path, e))?;
+    let bytes = crate::io::bounded_read::read_regular(path).map_err(|e| CloudError::io(path, e))?;
     let mut reader = image::ImageReader::new(Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| CloudError::io(path, e))?;

@@ -103,7 +103,7 @@ pub fn read_depth_png(path: &Path, units_per_metre: f64) -> Result<DepthImage, C
 /// Reads an intrinsics file: `fx fy cx cy width height` (whitespace
 /// separated, `#` comments), pixels, pixel centres at `u + 0.5`.
 pub fn read_intrinsics(path: &Path) -> Result<Intrinsics, CloudError> {
-    let text = std::fs::read_to_string(path).map_err(|e| CloudError::io(path, e))?;
+    let text = crate::io::bounded_read::read_text(path).map_err(|e| CloudError::io(path, e))?;
     let fields: Vec<&str> = text
         .lines()
         .map(|l| l.split('#').next().unwrap_or(""))
@@ -182,7 +182,7 @@ pub fn parse_tum_pose(line: &str) -> Result<Pose, String> {
 
 /// Reads a file holding a single TUM pose line (`#` lines ignored).
 pub fn read_single_tum_pose(path: &Path) -> Result<Pose, CloudError> {
-    let text = std::fs::read_to_string(path).map_err(|e| CloudError::io(path, e))?;
+    let text = crate::io::bounded_read::read_text(path).map_err(|e| CloudError::io(path, e))?;
     let line = text
         .lines()
         .map(str::trim)

@@ -8,7 +8,7 @@ use crate::io::cloud::{CloudError, PointCloud};
 /// Reads a float32 `x y z r g b` `.bin`. The size must be a multiple of 24
 /// bytes; colours must lie in 0-255 (rounded to the nearest integer).
 pub fn read_scannet_xyzrgb_bin(path: &Path) -> Result<PointCloud, CloudError> {
-    let bytes = std::fs::read(path).map_err(|e| CloudError::io(path, e))?;
+    let bytes = crate::io::bounded_read::read_regular(path).map_err(|e| CloudError::io(path, e))?;
     if bytes.len() % 24 != 0 {
         return Err(CloudError::format(
             path,

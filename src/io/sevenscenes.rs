@@ -84,7 +84,8 @@ impl SevenScenes {
         }
         numbers.sort_unstable();
         let k_path = dir.join("camera-intrinsics.txt");
-        let k_text = std::fs::read_to_string(&k_path).map_err(|e| CloudError::io(&k_path, e))?;
+        let k_text =
+            crate::io::bounded_read::read_text(&k_path).map_err(|e| CloudError::io(&k_path, e))?;
         let intrinsics = parse_intrinsics(&k_text).map_err(|r| CloudError::format(&k_path, r))?;
         let mut frames = Vec::with_capacity(numbers.len());
         let mut poses = Vec::with_capacity(numbers.len());
@@ -106,13 +107,15 @@ impl SevenScenes {
                     });
                 }
             }
-            let text = std::fs::read_to_string(&f.pose).map_err(|e| CloudError::io(&f.pose, e))?;
+            let text = crate::io::bounded_read::read_text(&f.pose)
+                .map_err(|e| CloudError::io(&f.pose, e))?;
             poses.push(parse_pose(&text).map_err(|r| CloudError::format(&f.pose, r))?);
             frames.push(f);
         }
         let g_path = dir.join("gravity-direction.txt");
         let gravity_in_first_camera = if g_path.exists() {
-            let text = std::fs::read_to_string(&g_path).map_err(|e| CloudError::io(&g_path, e))?;
+            let text = crate::io::bounded_read::read_text(&g_path)
+                .map_err(|e| CloudError::io(&g_path, e))?;
             Some(parse_gravity(&text).map_err(|r| CloudError::format(&g_path, r))?)
         } else {
             None
@@ -249,7 +252,7 @@ impl FramePick {
 /// little padding after it): the decoder fills a truncated file's missing
 /// rows silently, so truncation is caught here.
 fn check_jpeg_ends(path: &Path) -> Result<(), CloudError> {
-    let bytes = std::fs::read(path).map_err(|e| CloudError::io(path, e))?;
+    let bytes = crate::io::bounded_read::read_regular(path).map_err(|e| CloudError::io(path, e))?;
     let is_jpeg = bytes.starts_with(&[0xff, 0xd8]);
     let tail = &bytes[bytes.len().saturating_sub(32)..];
     if is_jpeg && !tail.windows(2).any(|w| w == [0xff, 0xd9]) {

@@ -194,7 +194,7 @@ pub fn save(map: &LanguageMap, path: &Path) -> Result<(), MapFileError> {
 
 /// Reads a map file.
 pub fn load(path: &Path) -> Result<LanguageMap, MapFileError> {
-    let bytes = std::fs::read(path).map_err(|source| MapFileError::Io {
+    let bytes = crate::io::bounded_read::read_regular(path).map_err(|source| MapFileError::Io {
         path: path.to_path_buf(),
         source,
     })?;
@@ -203,7 +203,7 @@ pub fn load(path: &Path) -> Result<LanguageMap, MapFileError> {
 
 /// The header fields of a map file, without reading its tensors.
 pub fn read_header(path: &Path) -> Result<HashMap<String, String>, MapFileError> {
-    let bytes = std::fs::read(path).map_err(|source| MapFileError::Io {
+    let bytes = crate::io::bounded_read::read_regular(path).map_err(|source| MapFileError::Io {
         path: path.to_path_buf(),
         source,
     })?;
@@ -223,7 +223,7 @@ pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<LanguageMap, MapFileError
 /// Reads a map file of version 1 or 2 (each checked by its own checksum
 /// rule) and writes it as the current version to `out`, atomically.
 pub fn upgrade(path: &Path, out: &Path) -> Result<LanguageMap, MapFileError> {
-    let bytes = std::fs::read(path).map_err(|source| MapFileError::Io {
+    let bytes = crate::io::bounded_read::read_regular(path).map_err(|source| MapFileError::Io {
         path: path.to_path_buf(),
         source,
     })?;

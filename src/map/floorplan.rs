@@ -599,10 +599,11 @@ pub fn save(plan: &FloorPlan, path: &Path) -> Result<(), FloorPlanFileError> {
 
 /// Reads a floor-plan file.
 pub fn load(path: &Path) -> Result<FloorPlan, FloorPlanFileError> {
-    let bytes = std::fs::read(path).map_err(|source| FloorPlanFileError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes =
+        crate::io::bounded_read::read_regular(path).map_err(|source| FloorPlanFileError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
     from_bytes(&bytes, path)
 }
 

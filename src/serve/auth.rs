@@ -45,7 +45,7 @@ impl Token {
 
     /// The first line of `path`.
     pub fn from_file(path: &Path) -> Result<Token, String> {
-        let text = std::fs::read_to_string(path)
+        let text = crate::io::bounded_read::read_text(path)
             .map_err(|e| format!("token file {}: {e}", path.display()))?;
         Token::new(text.lines().next().unwrap_or(""))
             .map_err(|e| format!("token file {}: {e}", path.display()))

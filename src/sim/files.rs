@@ -86,7 +86,7 @@ fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> SimIoError + '_ {
 }
 
 fn read_text(path: &Path) -> Result<String, SimIoError> {
-    std::fs::read_to_string(path).map_err(io_err(path))
+    crate::io::bounded_read::read_text(path).map_err(io_err(path))
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same directory.
