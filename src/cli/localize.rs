@@ -782,7 +782,9 @@ fn class_table(
         a.map.display(),
         m.db().dim()
     );
-    Ok(Some(LabelTable::new(t, m)?))
+    let bound =
+        LabelTable::new(t, m).with_context(|| format!("{}", inputs.embeddings.display()))?;
+    Ok(Some(bound))
 }
 
 /// The session of the run: its start, filter and floor (with advice when

@@ -150,6 +150,7 @@ pub fn status_of(e: &SessionError) -> Status {
             Status::invalid_argument(e.to_string())
         }
         SessionError::NoFloorFeature(_)
+        | SessionError::ClassTable(_)
         | SessionError::Init(_)
         | SessionError::Recovery(_)
         | SessionError::PoseStartOnly(_)

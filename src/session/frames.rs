@@ -16,15 +16,19 @@ use super::SessionError;
 #[derive(Debug, Clone)]
 pub struct LabelTable {
     table: EmbeddingTable,
-    map_row: Vec<u32>,
+    /// Per table row, the map row nearest its feature (`None`: a zero or
+    /// non-finite feature, a class with no direction, read as unknown).
+    map_row: Vec<Option<u32>>,
 }
 
 impl LabelTable {
-    /// Binds `table` to `map`; fails if the dimensions differ.
+    /// Binds `table` to `map`; fails if the dimensions differ or no class
+    /// has a feature with a direction (an all-zero `embeddings.npy` was
+    /// read as map row 0 for every class).
     pub fn new(table: EmbeddingTable, map: &LanguageMap) -> Result<Self, SessionError> {
         if table.dim != map.db().dim() {
-            return Err(SessionError::BadFrame(format!(
-                "class table features have dimension {}, the map has {}",
+            return Err(SessionError::ClassTable(format!(
+                "features have dimension {}, the map has {}",
                 table.dim,
                 map.db().dim()
             )));
@@ -35,9 +39,15 @@ impl LabelTable {
                     .nearest(&table.data[r * table.dim..(r + 1) * table.dim])
                     .ok()
                     .flatten()
-                    .map_or(0, |(i, _)| i as u32)
+                    .map(|(i, _)| i as u32)
             })
-            .collect();
+            .collect::<Vec<_>>();
+        if !table.ids.is_empty() && map_row.iter().all(Option::is_none) {
+            return Err(SessionError::ClassTable(format!(
+                "its {} features are all zero or not finite: no class has a direction",
+                table.ids.len()
+            )));
+        }
         Ok(LabelTable { table, map_row })
     }
 
@@ -57,7 +67,7 @@ impl LabelTable {
 /// table lacks).
 impl LabelLookup for LabelTable {
     fn row(&self, label: u32) -> Option<u32> {
-        self.table.row_index(label).map(|r| self.map_row[r])
+        self.table.row_index(label).and_then(|r| self.map_row[r])
     }
     fn feature(&self, label: u32) -> Option<&[f32]> {
         self.table.row(label)
@@ -68,14 +78,31 @@ impl LabelLookup for LabelTable {
 }
 
 /// A label image looked up in `table`, checked: `labels` holds `width x
-/// height` ids (the crate's one label frame, [`LabelImage`]).
+/// height` ids (the crate's one label frame, [`LabelImage`]), and at least
+/// one of them is a class of the table. A frame none of whose ids is (a
+/// class table of another dataset) gave likelihoods of 0 and the
+/// odometry as the estimate, without a word.
 pub fn label_frame<'a>(
     width: u32,
     height: u32,
     labels: &'a [u32],
     table: &'a LabelTable,
 ) -> Result<LabelImage<'a>, SessionError> {
-    LabelImage::new(width, height, labels, table).map_err(|e| SessionError::BadFrame(e.to_string()))
+    let f = LabelImage::new(width, height, labels, table)
+        .map_err(|e| SessionError::BadFrame(e.to_string()))?;
+    if !labels.iter().any(|&l| table.row(l).is_some()) {
+        let mut ids: Vec<u32> = labels.to_vec();
+        ids.sort_unstable();
+        ids.dedup();
+        let shown: Vec<String> = ids.iter().take(5).map(u32::to_string).collect();
+        let more = if ids.len() > 5 { ", ..." } else { "" };
+        return Err(SessionError::BadFrame(format!(
+            "none of its label ids ({}{more}) is a class of the class table: is the table \
+             the sequence's?",
+            shown.join(", ")
+        )));
+    }
+    Ok(f)
 }
 
 /// A dense feature map of `h x w x dim` (row-major, features last) for an
@@ -137,6 +164,24 @@ mod tests {
         .unwrap();
         let e = label_frame(2, 2, &[7, 7, 7], &table).err().unwrap();
         assert!(e.to_string().contains("needs 4 labels, got 3"), "{e}");
+        // Ids none of which the table has: named, not scored as nothing.
+        let e = label_frame(2, 2, &[101, 102, 101, 103], &table)
+            .err()
+            .unwrap();
+        assert!(
+            e.to_string()
+                .contains("none of its label ids (101, 102, 103)"),
+            "{e}"
+        );
+        assert!(label_frame(2, 2, &[101, 7, 101, 103], &table).is_ok());
+        // A table whose features are all zero has no class to score.
+        let zero = EmbeddingTable::new(vec![7], vec!["x".into()], 2, vec![0.0, 0.0]).unwrap();
+        let e = LabelTable::new(zero, &one_row_map()).err().unwrap();
+        assert!(
+            e.to_string()
+                .contains("class table: its 1 features are all zero"),
+            "{e}"
+        );
     }
 
     fn one_row_map() -> LanguageMap {

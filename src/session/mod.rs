@@ -61,6 +61,8 @@ pub enum SessionError {
     Scene(String),
     #[error("malformed frame: {0}")]
     BadFrame(String),
+    #[error("class table: {0}")]
+    ClassTable(String),
     #[error("odometry pose is not a finite rigid motion: {0}")]
     BadOdometry(String),
     #[error("stamp {0} is not a finite number")]
