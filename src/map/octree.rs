@@ -7,10 +7,20 @@ use nalgebra::Vector3;
 use super::features::{FeatureDb, FeatureDbError, dot};
 use super::key::{self, Cell, GridSpec};
 
+/// Smallest voxel edge a map may have, metres (0.1 mm). A header with
+/// 1e-300 loaded and then failed in the ray caster, which works in f32.
+pub const MIN_RESOLUTION: f64 = 1e-4;
+
+/// Largest voxel edge a map may have, metres (1 km; 1e300 became an
+/// infinite f32 edge in the ray caster).
+pub const MAX_RESOLUTION: f64 = 1e3;
+
 /// Errors assembling a map.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum MapError {
-    #[error("resolution must be a positive finite number of metres, got {0}")]
+    #[error(
+        "resolution must be a number of metres from {MIN_RESOLUTION} to {MAX_RESOLUTION}, got {0}"
+    )]
     BadResolution(f64),
     #[error("origin must be finite, got {0:?}")]
     BadOrigin([f64; 3]),
@@ -37,7 +47,7 @@ pub struct LanguageMap {
 impl LanguageMap {
     /// Checks a grid specification.
     pub fn check_grid(grid: &GridSpec) -> Result<(), MapError> {
-        if !(grid.resolution.is_finite() && grid.resolution > 0.0) {
+        if !(MIN_RESOLUTION..=MAX_RESOLUTION).contains(&grid.resolution) {
             return Err(MapError::BadResolution(grid.resolution));
         }
         if !grid.origin.iter().all(|v| v.is_finite()) {
@@ -292,5 +302,21 @@ mod tests {
             origin: Vector3::zeros(),
         };
         assert!(LanguageMap::from_sorted(bad, db2(), "t", vec![], vec![]).is_err());
+        // Finite but beyond what the f32 ray caster can hold.
+        for r in [1e300, 1e-300, 2e3, 5e-5, f64::NAN] {
+            let g = GridSpec {
+                resolution: r,
+                origin: Vector3::zeros(),
+            };
+            let e = LanguageMap::from_sorted(g, db2(), "t", vec![], vec![]).unwrap_err();
+            assert!(e.to_string().contains("from 0.0001 to 1000"), "{e}");
+        }
+        for r in [MIN_RESOLUTION, 0.05, MAX_RESOLUTION] {
+            let g = GridSpec {
+                resolution: r,
+                origin: Vector3::zeros(),
+            };
+            assert!(LanguageMap::from_sorted(g, db2(), "t", vec![], vec![]).is_ok());
+        }
     }
 }
