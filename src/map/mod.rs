@@ -18,4 +18,4 @@ pub use floorplan::{FloorPlan, FloorPlanParams};
 pub use ground::{GroundingReport, ground};
 pub use integrate::Integrator;
 pub use key::{Cell, GridSpec};
-pub use octree::{LanguageMap, MapError};
+pub use octree::{LanguageMap, MAX_RESOLUTION, MIN_RESOLUTION, MapError};
