@@ -109,7 +109,8 @@ pub struct PlanArgs {
     /// First sequence seed. The default is the first held-out seed
     /// (reported tables); seeds 0-99 are the tuning range
     /// (`omcl::experiment::seeds`).
-    #[arg(long, default_value_t = omcl::experiment::seeds::FIRST_REPORTING)]
+    #[arg(long, default_value_t = omcl::experiment::seeds::FIRST_REPORTING,
+          value_parser = clap::value_parser!(u64).range(..=1_000_000_000_000))]
     pub first_seed: u64,
     /// Frames per sequence.
     #[arg(long, default_value_t = 150)]

@@ -76,7 +76,7 @@ pub enum EvalCommand {
         #[command(flatten)]
         pair: PairArgs,
         /// Frames between segment starts.
-        #[arg(long, default_value_t = KITTI_STEP)]
+        #[arg(long, default_value_t = KITTI_STEP, value_parser = super::count_in::<1, { usize::MAX }>)]
         step: usize,
         #[command(flatten)]
         out: OutArgs,

@@ -28,7 +28,7 @@ pub struct BuildOptions {
     #[arg(long, default_value_t = 0.02)]
     pub tau: f32,
     /// Cap on observation rows for raw features (memory and time bound).
-    #[arg(long, default_value_t = 4096)]
+    #[arg(long, default_value_t = 4096, value_parser = super::count_in::<1, { usize::MAX }>)]
     pub max_rows: usize,
     /// The class list that turns labels into features (ground-truth mode):
     /// a file (`<id> <name>` lines, or one name a line) or a built-in list,
@@ -261,10 +261,10 @@ pub struct RgbdArgs {
     #[arg(long, default_value_t = 10.0)]
     pub max_depth: f32,
     /// Ignore points above this world height (crop the ceiling), metres.
-    #[arg(long)]
+    #[arg(long, value_parser = super::finite)]
     pub max_height: Option<f64>,
     /// Use every n-th pixel in each direction.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..))]
     pub stride: u32,
     /// Use per-frame feature files from features/ even if labels exist.
     #[arg(long)]

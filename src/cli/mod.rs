@@ -81,6 +81,21 @@ pub fn degrees(s: &str) -> Result<f64, String> {
     finite_in(s, 0.0, 360.0)
 }
 
+/// A finite number (a height, say: `--max-height nan` ran).
+pub fn finite(s: &str) -> Result<f64, String> {
+    finite_in(s, f64::MIN, f64::MAX)
+}
+
+/// A finite number of seconds above 0 (`serve --deadline-s 0` was taken).
+pub fn positive_seconds(s: &str) -> Result<f64, String> {
+    let v = finite_in(s, 0.0, 1e9)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err("must be above 0 seconds".into())
+    }
+}
+
 fn finite_in(s: &str, lo: f64, hi: f64) -> Result<f64, String> {
     let v: f64 = s.trim().parse().map_err(|e| format!("{e}"))?;
     if v.is_finite() && (lo..=hi).contains(&v) {

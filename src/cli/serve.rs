@@ -70,23 +70,23 @@ pub struct ServeArgs {
     #[arg(long)]
     pub threads: Option<usize>,
     /// Open sessions at most, in total.
-    #[arg(long, default_value_t = Limits::default().max_sessions)]
+    #[arg(long, default_value_t = Limits::default().max_sessions, value_parser = super::count_in::<1, { usize::MAX }>)]
     pub max_sessions: usize,
     /// Open sessions at most on one map.
-    #[arg(long, default_value_t = Limits::default().max_sessions_per_map)]
+    #[arg(long, default_value_t = Limits::default().max_sessions_per_map, value_parser = super::count_in::<1, { usize::MAX }>)]
     pub max_sessions_per_map: usize,
     /// Steps queued or running on the pool before frames are refused with
     /// RESOURCE_EXHAUSTED.
     #[arg(long, default_value_t = Limits::default().max_queued)]
     pub max_queued: usize,
     /// Sessions idle this long (seconds) are closed.
-    #[arg(long, default_value_t = 300.0)]
+    #[arg(long, default_value_t = 300.0, value_parser = super::positive_seconds)]
     pub idle_timeout_s: f64,
     /// Deadline of a unary call, seconds.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, value_parser = super::positive_seconds)]
     pub deadline_s: f64,
     /// Largest gRPC message, MiB.
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = 32, value_parser = super::count_in::<1, 4096>)]
     pub max_message_mib: usize,
     /// PEM certificate chain for TLS on both planes, gRPC and HTTPS (with
     /// --tls-key).

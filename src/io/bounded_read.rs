@@ -47,14 +47,20 @@ fn too_long(max: u64) -> io::Error {
     )
 }
 
-/// A text input of at most [`MAX_TEXT_BYTES`], as UTF-8.
+/// A text input of at most [`MAX_TEXT_BYTES`], as UTF-8, without a
+/// leading byte-order mark (some editors write one; `intrinsics.txt` with
+/// one read as "'\u{feff}48' is not a finite number").
 pub fn read_text(path: &Path) -> io::Result<String> {
-    String::from_utf8(read_capped(path, MAX_TEXT_BYTES)?).map_err(|_| {
+    let mut text = String::from_utf8(read_capped(path, MAX_TEXT_BYTES)?).map_err(|_| {
         io::Error::new(
             io::ErrorKind::InvalidData,
             "stream did not contain valid UTF-8",
         )
-    })
+    })?;
+    if text.starts_with('\u{feff}') {
+        text.drain(..'\u{feff}'.len_utf8());
+    }
+    Ok(text)
 }
 
 /// A binary input that must be a regular file (its length known before
@@ -106,6 +112,9 @@ mod tests {
         ] {
             assert!(e.unwrap_err().to_string().contains("folder"));
         }
+        // A byte-order mark is dropped.
+        std::fs::write(&p, "\u{feff}48 48\n").unwrap();
+        assert_eq!(read_text(&p).unwrap(), "48 48\n");
         // Not UTF-8.
         std::fs::write(&p, [0xff, 0xfe, 0x00]).unwrap();
         assert!(read_text(&p).is_err());
