@@ -19,14 +19,7 @@ fn identity(p: &Path) -> Option<Identity> {
     if let Ok(m) = std::fs::metadata(p) {
         return Some(Identity::Inode(m.dev(), m.ino()));
     }
-    let name = p.file_name()?;
-    let parent = match p.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    Some(Identity::New(
-        std::fs::canonicalize(parent).ok()?.join(name),
-    ))
+    absolute(p).map(Identity::New)
 }
 
 /// What [`refuse_overlaps`] calls one of [`sequence_files`]: `OUT: --out
@@ -193,7 +186,9 @@ pub fn stage_sim_folder(
                 .map(|e| e.file_name().to_string_lossy().into_owned())
                 .collect();
             names.sort();
-            if !names.is_empty() && !out.join("sim.json").is_file() {
+            if names.is_empty() {
+                // An empty folder: nothing to keep or replace.
+            } else if !out.join("sim.json").is_file() {
                 let shown = names.iter().take(4).cloned().collect::<Vec<_>>().join(", ");
                 let more = if names.len() > 4 { ", ..." } else { "" };
                 anyhow::bail!(
@@ -203,16 +198,14 @@ pub fn stage_sim_folder(
                     out.display(),
                     entries.join(", ")
                 );
-            }
-            if !names.is_empty() && !force {
+            } else if !force {
                 anyhow::bail!(
                     "{}: --out holds an earlier simulation (sim.json); pass --force to replace \
                      it (its frames and files are removed once the new one is written), or \
                      choose a new folder",
                     out.display()
                 );
-            }
-            if !names.is_empty() {
+            } else {
                 replace = entries;
             }
         }
