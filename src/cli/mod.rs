@@ -105,9 +105,9 @@ fn finite_in(s: &str, lo: f64, hi: f64) -> Result<f64, String> {
     }
 }
 
-/// Most particles and most rays a filter takes from the command line (as
-/// `omcl serve` does).
-pub const MAX_COUNT: usize = 1_000_000;
+/// Most particles and most rays a filter takes from the command line, as
+/// from `omcl serve`'s clients.
+pub use omcl::mcl::MAX_COUNT;
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {

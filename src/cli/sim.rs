@@ -33,8 +33,8 @@ pub struct IndoorArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Replace an earlier simulation in --out (its frames and files are
-    /// removed first). A folder with other files and no sim.json is
-    /// refused either way.
+    /// removed once the new one is whole). A folder with other files and
+    /// no sim.json is refused either way.
     #[arg(long)]
     pub force: bool,
     /// Seed of every random draw (world, path, noise): the same seed, the
@@ -99,8 +99,8 @@ pub struct OutdoorArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Replace an earlier simulation in --out (its frames and files are
-    /// removed first). A folder with other files and no sim.json is
-    /// refused either way.
+    /// removed once the new one is whole). A folder with other files and
+    /// no sim.json is refused either way.
     #[arg(long)]
     pub force: bool,
     /// Seed of every random draw (world, path, noise): the same seed, the

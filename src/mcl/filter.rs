@@ -75,6 +75,11 @@ impl Default for FilterConfig {
 /// sessions and the indoor benchmarks default to it.
 pub const INDOOR_PARTICLES: usize = 1024;
 
+/// Most particles, and most sampled pixels a frame, a filter takes from a
+/// caller (`omcl localize`, `omcl bench`, `omcl serve`'s sessions): the
+/// bound keeps a mistyped count from sizing terabytes.
+pub const MAX_COUNT: usize = 1_000_000;
+
 /// Particles of the filter on streets (the paper's outdoor setting, with
 /// [`FilterConfig::street`]'s 4096 rays): `omcl localize` on a KITTI
 /// folder and `omcl bench table4` default to it.

@@ -118,9 +118,10 @@ impl Localization for Service {
         let particles = r
             .particles
             .map_or(crate::mcl::INDOOR_PARTICLES, |p| p as usize);
-        if !(1..=1_000_000).contains(&particles) {
+        if !(1..=crate::mcl::MAX_COUNT).contains(&particles) {
             return Err(Status::invalid_argument(format!(
-                "particles: {particles}, expected 1..=1000000"
+                "particles: {particles}, expected 1..={}",
+                crate::mcl::MAX_COUNT
             )));
         }
         // A floor plan's sessions default to Table I's 2-D filter.
@@ -143,9 +144,10 @@ impl Localization for Service {
                 .config()
         };
         let rays = r.rays.map_or(base.sampling.rays, |r| r as usize);
-        if !(1..=1_000_000).contains(&rays) {
+        if !(1..=crate::mcl::MAX_COUNT).contains(&rays) {
             return Err(Status::invalid_argument(format!(
-                "rays: {rays}, expected 1..=1000000"
+                "rays: {rays}, expected 1..={}",
+                crate::mcl::MAX_COUNT
             )));
         }
         let start = match &r.start {
