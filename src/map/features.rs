@@ -57,6 +57,39 @@ pub fn dot(a: &[f32], b: &[f32]) -> f32 {
     acc.iter().sum::<f32>() + tail
 }
 
+/// `dst = lhs rhs` for `lhs` (`m x n`, row-major) and `rhs` (`n x p`,
+/// column-major), `dst` (`m x p`) row-major: `dst[i * p + c]` is row `i` of
+/// `lhs` dotted with column `c` of `rhs`. On the calling thread (callers
+/// parallelize over blocks of rows). faer's kernels (runtime-dispatched
+/// AVX2 / AVX-512) multiply the narrow shapes here (`p` the database's 20
+/// to 100 rows) without packing the wide operand, which is what
+/// `matrixmultiply` spent half its time on: 1.8 to 1.9 times faster on
+/// 18,225 x 512 features against 29 rows (README, "The features stage
+/// through faer").
+fn products(dst: &mut [f32], lhs: &[f32], rhs: &[f32], m: usize, n: usize, p: usize) {
+    use faer::{Accum, MatMut, MatRef, Par, linalg::matmul::matmul};
+    let a = MatRef::from_row_major_slice(lhs, m, n);
+    let b = MatRef::from_column_major_slice(rhs, n, p);
+    let c = MatMut::from_row_major_slice_mut(dst, m, p);
+    matmul(c, Accum::Replace, a, b, 1.0f32, Par::Seq);
+    clear_upper_registers();
+}
+
+/// Executes `vzeroupper` where the CPU has AVX. faer's x86 kernels are
+/// assembly that returns with the upper halves of the vector registers in
+/// use, and until they are cleared every SSE instruction of this thread
+/// (the baseline x86-64 code the rest of omcl compiles to) pays for the
+/// mixed state: the 2-D cast after the features stage took 34 ms a step
+/// instead of 25 on the held-out sequence 1000 (README, "The features
+/// stage through faer"). Compilers emit this instruction after their own
+/// AVX code; assembly has to be followed by it.
+fn clear_upper_registers() {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(avx) = pulp::core_arch::x86::Avx::try_new() {
+        avx._mm256_zeroupper();
+    }
+}
+
 /// The feature database.
 #[derive(Debug, Clone)]
 pub struct FeatureDb {
@@ -273,14 +306,9 @@ impl FeatureDb {
         fill: impl Fn(usize, &mut [f32]) + Sync,
         f: impl Fn(&[f32], &mut [f32]) -> T + Sync,
     ) -> Vec<T> {
-        use nalgebra::{DMatrixView, DMatrixViewMut};
         use rayon::prelude::*;
         const BLOCK: usize = 64;
         let (dim, k) = (self.dim, self.len());
-        // Column-major views: the rows are a dim x K matrix, a block of m
-        // features a dim x m matrix, and the block's products (row-major
-        // m x K) a K x m matrix: rows^T features.
-        let rows_t = DMatrixView::from_slice(&self.rows, dim, k).transpose();
         let blocks: Vec<Vec<T>> = (0..n.div_ceil(BLOCK))
             .into_par_iter()
             .map_init(
@@ -296,9 +324,7 @@ impl FeatureDb {
                     if k == 0 {
                         return fb.chunks_exact(dim).map(|feat| f(feat, &mut [])).collect();
                     }
-                    let fm = DMatrixView::from_slice(fb, dim, m);
-                    let mut om = DMatrixViewMut::from_slice(db, k, m);
-                    om.gemm(1.0, &rows_t, &fm, 0.0);
+                    products(db, fb, &self.rows, m, dim, k);
                     fb.chunks_exact(dim)
                         .zip(db.chunks_exact_mut(k))
                         .map(|(feat, dots)| f(feat, dots))
@@ -318,7 +344,6 @@ impl FeatureDb {
     /// fill function into per-thread blocks, as [`FeatureDb::map_dots`]
     /// does.
     pub fn dots_and_norms(&self, n: usize, source: Features<'_>) -> (Vec<f32>, Vec<f32>) {
-        use nalgebra::{DMatrixView, DMatrixViewMut};
         use rayon::prelude::*;
         let (dim, k) = (self.dim, self.len());
         // Larger blocks than `map_dots`'s: the products are kept, and a
@@ -329,7 +354,6 @@ impl FeatureDb {
         if let Features::Slice(s) = source {
             assert_eq!(s.len(), n * dim, "feature slice of the wrong length");
         }
-        let rows_t = DMatrixView::from_slice(&self.rows, dim, k).transpose();
         // Through the rows' span where it is narrower (see `Span`).
         let span = if k > 0 { self.span() } else { None };
         let rank = span.map_or(0, |s| s.rank);
@@ -354,19 +378,14 @@ impl FeatureDb {
                     for (nj, f) in norms.iter_mut().zip(feats.chunks_exact(dim)) {
                         *nj = dot(f, f).sqrt();
                     }
-                    let fm = DMatrixView::from_slice(feats, dim, m);
-                    let mut om = DMatrixViewMut::from_slice(out, k, m);
                     match span {
                         Some(s) => {
                             // Q^T f, then C^T (Q^T f).
-                            let q_t = DMatrixView::from_slice(&s.basis, dim, s.rank).transpose();
-                            let c_t = DMatrixView::from_slice(&s.coords, s.rank, k).transpose();
-                            let mut pm =
-                                DMatrixViewMut::from_slice(&mut proj[..s.rank * m], s.rank, m);
-                            pm.gemm(1.0, &q_t, &fm, 0.0);
-                            om.gemm(1.0, &c_t, &pm, 0.0);
+                            let proj = &mut proj[..m * s.rank];
+                            products(proj, feats, &s.basis, m, dim, s.rank);
+                            products(out, proj, &s.coords, m, s.rank, k);
                         }
-                        None if k > 0 => om.gemm(1.0, &rows_t, &fm, 0.0),
+                        None if k > 0 => products(out, feats, &self.rows, m, dim, k),
                         None => {}
                     }
                 },

@@ -171,16 +171,24 @@ fn cluster_grid(frame: &dyn FrameFeatures, db: &FeatureDb, stride: u32) -> Grid 
             _ => Features::Fill(&fill),
         };
         let (dots, norms) = db.dots_and_norms(todo.len(), source);
-        let mut slot = vec![u32::MAX; px.len()];
-        for (j, &i) in todo.iter().enumerate() {
-            slot[i] = j as u32;
-            let mut best = (0u32, f32::NEG_INFINITY);
-            for (r, &x) in dots[j * k..(j + 1) * k].iter().enumerate() {
-                if x > best.1 {
-                    best = (r as u32, x);
+        // Each feature's most similar row (the first of equals), in
+        // parallel: 18,225 x K comparisons are a millisecond on one core.
+        let nearest: Vec<u32> = dots
+            .par_chunks(k.max(1))
+            .map(|d| {
+                let mut best = (0u32, f32::NEG_INFINITY);
+                for (r, &x) in d.iter().enumerate() {
+                    if x > best.1 {
+                        best = (r as u32, x);
+                    }
                 }
-            }
-            rows[i] = Some(best.0);
+                best.0
+            })
+            .collect();
+        let mut slot = vec![u32::MAX; px.len()];
+        for (j, (&i, &r)) in todo.iter().zip(&nearest).enumerate() {
+            slot[i] = j as u32;
+            rows[i] = Some(r);
         }
         scores = Some(GridScores {
             k,
