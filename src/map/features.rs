@@ -295,7 +295,7 @@ impl FeatureDb {
     /// is written by `fill(j, buf)` into a zeroed buffer of the database's
     /// dimension, and `f(feature, dots)` (dots: its K products with the rows,
     /// in row order, free to modify) gives the `j`-th output. Features go in
-    /// blocks of 64, each block one matrix product ([`products`], faer's
+    /// blocks of 64, each block one matrix product (`products`, faer's
     /// kernels; nalgebra's GEMM before 2026-11-27, which was 2 times faster
     /// than one dot product at a time with 29 rows, 5 times with 200),
     /// blocks in parallel with buffers reused per thread.
