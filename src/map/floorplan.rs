@@ -269,19 +269,26 @@ impl FloorPlan {
     /// map the plan was projected from), metres above `floor_z`, in the
     /// order of [`FloorPlan::cells`]: `[bottom of the lowest leaf, top of
     /// the highest]`. A column reaching within one cell of the band's
-    /// bottom gets `-inf` (it stands on the floor), one reaching within one
-    /// cell of the band's top `+inf` (walls and tall furniture go on above
-    /// the band, up to the ceiling). The plan file does not hold these;
-    /// they are for what a camera pixel sees in plan view
+    /// bottom gets `-inf` (it stands on the floor). One reaching within one
+    /// cell of the band's top goes on up through its leaves above the band
+    /// (over holes of at most one cell): to `+inf` if they reach within
+    /// one cell of the ceiling ([`FloorPlan::ceiling_height`]; walls), else
+    /// to the top of the last of them (a 2.0 m wardrobe under a 2.6 m
+    /// ceiling ends at 2.0 m, and the pixels that see the ceiling above it
+    /// are followed over it). The plan file does not hold these; they are
+    /// for what a camera pixel sees in plan view
     /// ([`crate::raycast::PlanarCaster::with_heights`]).
     pub fn column_extents(&self, map: &LanguageMap) -> Vec<[f32; 2]> {
         let g = map.grid();
         let r = g.resolution;
         let (lo, hi) = (self.params.band_min, self.params.band_max);
         let mut ext = vec![[f64::INFINITY, f64::NEG_INFINITY]; self.cells.len()];
+        // Each column's leaves above the band (their centres): where a
+        // column reaching the band's top really ends.
+        let mut above: Vec<Vec<f64>> = vec![Vec::new(); self.cells.len()];
         for c in map.cells() {
             let centre = g.origin.z + (c[2] as f64 + 0.5) * r - self.floor_z;
-            if centre < lo || centre > hi {
+            if centre < lo {
                 continue;
             }
             let Ok(k) = self
@@ -290,17 +297,40 @@ impl FloorPlan {
             else {
                 continue;
             };
+            if centre > hi {
+                above[k].push(centre);
+                continue;
+            }
             ext[k][0] = ext[k][0].min(centre - r / 2.0);
             ext[k][1] = ext[k][1].max(centre + r / 2.0);
         }
+        let ceiling = self.ceiling_height(map).unwrap_or(f64::INFINITY);
         ext.into_iter()
-            .map(|[b, t]| {
+            .zip(above)
+            .map(|([b, t], mut above)| {
                 let b = if b <= lo + r {
                     f32::NEG_INFINITY
                 } else {
                     b as f32
                 };
-                let t = if t >= hi - r { f32::INFINITY } else { t as f32 };
+                if t < hi - r {
+                    return [b, t as f32];
+                }
+                // Up from the band's top through the column's leaves,
+                // over gaps of at most one cell (holes of the map).
+                above.sort_unstable_by(f64::total_cmp);
+                let mut top = t;
+                for z in above {
+                    if z - r / 2.0 > top + r * 1.01 {
+                        break;
+                    }
+                    top = top.max(z + r / 2.0);
+                }
+                let t = if top >= ceiling - r * 1.01 {
+                    f32::INFINITY
+                } else {
+                    top as f32
+                };
                 [b, t]
             })
             .collect()
@@ -805,6 +835,43 @@ mod tests {
         );
         // The highest layer, z 5, starts at 2.5 m.
         assert_eq!(plan.ceiling_height(&m), Some(2.5));
+    }
+
+    /// Columns reaching the band's top end where their leaves above it
+    /// end: the hand-made map's columns under a ceiling at z 7 (3.5 m) with
+    /// the wall (0, 0) going on up to it over z 4 and z 6 (a one-cell hole
+    /// at z 5 is bridged), the column (2, 1) ending at the band's top (a
+    /// wardrobe under a higher ceiling), a hanging cabinet at z 3 of
+    /// (1, 2), and a column at (3, 2) over z 1..=3 with one more leaf two
+    /// cells above (at z 6: not part of it).
+    #[test]
+    fn columns_end_where_their_leaves_above_the_band_end() {
+        let m = hand_map();
+        let mut leaves: Vec<_> = m
+            .cells()
+            .into_iter()
+            .zip(m.rows().iter().copied())
+            .filter(|(c, _)| c[2] != 5)
+            .collect();
+        leaves.extend([
+            ([0, 0, 4], 1),
+            ([0, 0, 6], 1),
+            ([0, 0, 7], 3),
+            ([1, 2, 3], 2),
+            ([3, 2, 1], 1),
+            ([3, 2, 2], 1),
+            ([3, 2, 3], 1),
+            ([3, 2, 6], 2),
+        ]);
+        let m = LanguageMap::from_cells(*m.grid(), m.db().clone(), "hand", leaves).unwrap();
+        let plan = FloorPlan::from_map(&m, &band()).unwrap();
+        assert_eq!(plan.cells(), &[[0, 0], [2, 1], [1, 2], [3, 2]]);
+        assert_eq!(plan.ceiling_height(&m), Some(3.5));
+        let inf = f32::INFINITY;
+        assert_eq!(
+            plan.column_extents(&m),
+            vec![[-inf, inf], [-inf, 2.0], [1.5, 2.0], [-inf, 2.0]]
+        );
     }
 
     /// The hand-made map's floor and ceiling per column: every one of the
