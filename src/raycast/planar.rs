@@ -20,7 +20,8 @@
 //! # What a pixel sees in plan view ([`PlanarCaster::with_heights`])
 //!
 //! A floor plan keeps, besides each column's averaged feature, the vertical
-//! extent of the leaves it averaged ([`crate::map::FloorPlan::column_extents`]);
+//! extent of the leaves it averaged, up to the ceiling only where its 3-D
+//! leaves go on up to it ([`crate::map::FloorPlan::column_extents`]);
 //! and the room has a floor and a ceiling the plan leaves out. With those,
 //! a pixel's ray is followed in 3-D over the plan: it ends where it leaves
 //! the vertical window `[z_lo, z_hi]` (below it, the pixel sees the floor;
