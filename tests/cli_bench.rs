@@ -271,7 +271,7 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
     // The 2-D block's own filter: more pixels, a sharper exponent.
     let v = config(&["table1-floorplan", "--show-config"]);
     assert_eq!(v["sampling"]["rays"], 8192, "{v}");
-    assert_eq!(v["sharpen"], 160.0, "{v}");
+    assert_eq!(v["sharpen"], 240.0, "{v}");
     assert!(v["anneal"].is_null(), "{v}");
 }
 
@@ -402,7 +402,7 @@ fn table1_blocks_write_tables_and_figure4() {
         let filter = if name == "table1_6dof" {
             "Filter: 64 particles x 128 rays, likelihood exponent 240, 2 layer(s)"
         } else {
-            "Filter: 64 particles x 128 sampled pixels a frame, likelihood exponent 160"
+            "Filter: 64 particles x 128 sampled pixels a frame, likelihood exponent 240"
         };
         assert!(md.contains(filter), "{md}");
         for r in json.as_array().unwrap() {

@@ -95,7 +95,7 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
         };
         assert!(e.to_string().contains(name), "{e}");
     }
-    // The block's filter (8192 pixels, exponent 160).
+    // The block's filter (8192 pixels, exponent 240).
     let filter = FilterConfig {
         seed: 1,
         ..FilterConfig::floor_plan()

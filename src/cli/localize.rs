@@ -183,7 +183,7 @@ pub struct LocalizeArgs {
     /// auto: floor-plan with --floorplan, street on a KITTI sequence,
     /// indoor elsewhere (on 7-Scenes with full motion and the odometry's
     /// noise). indoor: 2048 pixels, exponent 80, planar motion (the paper's
-    /// indoor setting). floor-plan: 8192 pixels, exponent 160, planar
+    /// indoor setting). floor-plan: 8192 pixels, exponent 240, planar
     /// (Table I's 2-D block). six-dof: full 6-DoF motion, two layers of
     /// progressive correction, the first on 16 copies of each particle,
     /// 4096 pixels, exponent 240 (Table I's 6-DoF block). six-dof-point-cloud:
@@ -218,7 +218,7 @@ pub struct LocalizeArgs {
     #[arg(long, value_name = "CELLS")]
     pub boundary_margin: Option<u32>,
     /// Exponent on the likelihood (1 = the paper's eq. 2) [default: the
-    /// --filter's: 80 indoor and street, 160 floor-plan, 240 six-dof, 20
+    /// --filter's: 80 indoor and street, 240 floor-plan, 240 six-dof, 20
     /// six-dof-point-cloud].
     #[arg(long)]
     pub sharpen: Option<f64>,
@@ -317,7 +317,7 @@ pub struct LocalizeArgs {
     /// value, the plan file `omcl map floorplan` made from --map (its
     /// band); without one, --map projected with the default band, 0.10 to
     /// 2.00 m above its floor.
-    /// The filter of Table I's 2-D block (8192 pixels, exponent 160)
+    /// The filter of Table I's 2-D block (8192 pixels, exponent 240)
     /// unless --rays or --sharpen; errors are horizontal. Starts from a
     /// pose only (--init local). The words "floor" and "ceiling" come from
     /// --text-model or the class table (without them, rays leaving the

@@ -5,7 +5,7 @@
 //! | name | filter | tuned on |
 //! |---|---|---|
 //! | `indoor` | [`FilterConfig::default`]: 2048 pixels, exponent 80, planar motion | Table I's 3-D map with planar motion (the paper's indoor setting) |
-//! | `floor-plan` | [`FilterConfig::floor_plan`]: 8192 pixels, exponent 160, planar motion | Table I's 2-D block |
+//! | `floor-plan` | [`FilterConfig::floor_plan`]: 8192 pixels, exponent 240, planar motion | Table I's 2-D block |
 //! | `six-dof` | [`FilterConfig::six_dof`]: full motion, two layers, the first on 16 copies, 4096 pixels, exponent 240 | Table I's 6-DoF block |
 //! | `six-dof-point-cloud` | [`FilterConfig::six_dof_point_cloud`]: as `six-dof` with 512 pixels and the exponent 20 | the 6-DoF OMCL_Open_LSeg row (a map from a labelled point cloud, frames from an image encoder) |
 //! | `street` | [`FilterConfig::street`]: road motion, 4096 pixels, two-pass likelihoods | Table IV (KITTI) |
