@@ -24,9 +24,10 @@ use omcl::session::{Session, SessionConfig, SessionError, SharedMap, Start};
 
 /// OMCL_GT on the floor plan of sequence 1 (tuning range), 60 frames,
 /// 512 particles, the block's filter: the horizontal APE stays within
-/// 0.12 m (0.090 m since columns end below the ceiling, 2026-11-27, 0.100
-/// before; the README's ten held-out sequences, 1024 particles: 0.116),
-/// and the baselines run to the end of the same sequence on the same plan.
+/// 0.12 m (0.091 m since columns end below the ceiling and the exponent
+/// is 240, 2026-11-27, 0.100 before; the README's ten held-out sequences,
+/// 1024 particles: 0.113), and the baselines run to the end of the same
+/// sequence on the same plan.
 #[test]
 fn two_d_omcl_tracks_on_the_floor_plan() {
     let table = builtin_table().unwrap();
