@@ -68,27 +68,40 @@ if ! alive /run/munge/munged.pid; then
   fi
 fi
 
-# A changed configuration restarts the Slurm daemons.
+# A changed configuration restarts the Slurm daemons. The old ones must
+# be gone before the new ones start: a slurmd started while the old one
+# still holds its port exits at once, before it writes to its log (seen
+# on a machine whose cluster an earlier run had started).
 if [ "$changed" = yes ]; then
   for p in /run/slurmd.pid /run/slurmctld.pid; do
-    if alive "$p"; then $SUDO kill "$(cat "$p")"; fi
+    if alive "$p"; then
+      pid="$(cat "$p")"
+      $SUDO kill "$pid"
+      for _ in $(seq 1 60); do kill -0 "$pid" 2>/dev/null || break; sleep 0.25; done
+    fi
   done
-  sleep 1
 fi
-for d in slurmctld slurmd; do
-  if ! alive "/run/$d.pid"; then
-    $SUDO rm -f "/run/$d.pid"
-    $SUDO "/usr/sbin/$d" || fail "$d did not start"
+start() {
+  if ! alive "/run/$1.pid"; then
+    $SUDO rm -f "/run/$1.pid"
+    $SUDO "/usr/sbin/$1" || fail "$1 did not start"
   fi
-done
+}
+start slurmctld
+start slurmd
 
-# Wait for the node to be idle (or allocated/mixed: busy from an earlier run).
-for _ in $(seq 1 60); do
+# Wait for the node to be idle (or allocated/mixed: busy from an earlier
+# run), starting slurmd again if it has exited meanwhile.
+for i in $(seq 1 60); do
   state="$(sinfo -h -N -o '%T' 2>/dev/null | head -1 || true)"
   case "$state" in
     idle*|alloc*|mix*) echo "slurm: node $host is $state ($cpus CPUs, MaxArraySize=$MAX_ARRAY)"; exit 0 ;;
     down*|drain*) $SUDO scontrol update nodename="$host" state=resume >/dev/null 2>&1 || true ;;
   esac
+  if [ $((i % 4)) -eq 0 ] && ! alive /run/slurmd.pid; then
+    echo "slurm: slurmd exited; starting it again" >&2
+    start slurmd
+  fi
   sleep 0.5
 done
 fail "node $host did not become idle (state: ${state:-none})"
