@@ -268,10 +268,12 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
     );
     assert_eq!(v["sampling"]["rays"], 2048, "{v}");
     assert_eq!(v["sharpen"], 80.0, "{v}");
-    // The 2-D block's own filter: more pixels, a sharper exponent.
+    // The 2-D block's own filter: more pixels, a sharper exponent, a
+    // wider estimate.
     let v = config(&["table1-floorplan", "--show-config"]);
     assert_eq!(v["sampling"]["rays"], 8192, "{v}");
     assert_eq!(v["sharpen"], 240.0, "{v}");
+    assert_eq!(v["estimate"]["radius"], 0.5, "{v}");
     assert!(v["anneal"].is_null(), "{v}");
 }
 

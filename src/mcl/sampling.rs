@@ -144,7 +144,13 @@ struct GridScores {
     norms: Vec<f32>,
 }
 
-fn cluster_grid(frame: &dyn FrameFeatures, db: &FeatureDb, stride: u32) -> Grid {
+/// `strata`: which rows a pixel may be clustered to (all when `None`).
+fn cluster_grid(
+    frame: &dyn FrameFeatures,
+    db: &FeatureDb,
+    stride: u32,
+    strata: Option<&[bool]>,
+) -> Grid {
     use rayon::prelude::*;
     let s = stride.max(1);
     let (w, h) = (frame.width(), frame.height());
@@ -171,14 +177,16 @@ fn cluster_grid(frame: &dyn FrameFeatures, db: &FeatureDb, stride: u32) -> Grid 
             _ => Features::Fill(&fill),
         };
         let (dots, norms) = db.dots_and_norms(todo.len(), source);
-        // Each feature's most similar row (the first of equals), in
-        // parallel: 18,225 x K comparisons are a millisecond on one core.
+        // Each feature's most similar row (the first of equals; among the
+        // strata rows), in parallel: 18,225 x K comparisons are a
+        // millisecond on one core.
+        let allowed = |r: usize| strata.is_none_or(|s| s.get(r).copied().unwrap_or(true));
         let nearest: Vec<u32> = dots
             .par_chunks(k.max(1))
             .map(|d| {
                 let mut best = (0u32, f32::NEG_INFINITY);
                 for (r, &x) in d.iter().enumerate() {
-                    if x > best.1 {
+                    if x > best.1 && allowed(r) {
                         best = (r as u32, x);
                     }
                 }
@@ -232,6 +240,24 @@ pub fn sample<R: Rng>(
     params: &SamplingParams,
     rng: &mut R,
 ) -> Result<Sample, MclError> {
+    sample_in_strata(frame, db, params, rng, None)
+}
+
+/// [`sample`] with the per-cluster strategies' clusters formed over the
+/// rows `strata` marks only (`strata[r]`; rows past its end count as
+/// marked): each grid pixel joins its most similar marked row. The
+/// products with every row are kept for the similarity table. A floor
+/// plan's 2-D map marks its own rows and the floor and ceiling words, not
+/// the blends its sensor derives from them
+/// ([`crate::session::floorplan::PlanScene::strata`]). Rows a frame
+/// names itself ([`FrameFeatures::nearest_row`]) are taken as named.
+pub fn sample_in_strata<R: Rng>(
+    frame: &dyn FrameFeatures,
+    db: &FeatureDb,
+    params: &SamplingParams,
+    rng: &mut R,
+    strata: Option<&[bool]>,
+) -> Result<Sample, MclError> {
     if frame.dim() != db.dim() {
         return Err(MclError::DimMismatch {
             expected: db.dim(),
@@ -262,7 +288,7 @@ pub fn sample<R: Rng>(
             }
         }
         SamplingStrategy::Stratified | SamplingStrategy::EqualWithDuplicates => {
-            let Grid { px, rows, scores } = cluster_grid(frame, db, params.stride);
+            let Grid { px, rows, scores } = cluster_grid(frame, db, params.stride, strata);
             let mut clusters: Vec<Vec<usize>> = vec![Vec::new(); db.len()];
             for (i, &r) in rows.iter().enumerate() {
                 if let Some(c) = clusters.get_mut(r as usize) {
@@ -383,6 +409,52 @@ mod tests {
         assert_eq!(px.len(), 40);
         let small = px.iter().filter(|(u, _)| *u >= 60).count();
         assert!(small <= 8, "uniform rarely hits a 6 % cluster: {small}");
+    }
+
+    /// Strata leave a blend row out of the clustering: three regions
+    /// (columns 0..30 along row 0, 30..60 along a blend row 2 of rows 0
+    /// and 1, 60..64 along row 1) are three clusters over every row but
+    /// two over rows 0 and 1, so the small region draws half the rays
+    /// instead of a third. Every row is still in the kept products.
+    #[test]
+    fn strata_leave_unmarked_rows_out_of_the_clusters() {
+        let n = (1.0f32 + 0.09).sqrt();
+        let db = FeatureDb::from_rows(2, 0.02, vec![1.0, 0.0, 0.0, 1.0, 1.0 / n, 0.3 / n]).unwrap();
+        let mut data = Vec::new();
+        for _v in 0..64 {
+            for u in 0..64 {
+                data.extend(match u {
+                    0..30 => [1.0, 0.0],
+                    30..60 => [1.0, 0.3],
+                    _ => [0.0, 1.0],
+                });
+            }
+        }
+        let f = DenseFeatures {
+            width: 64,
+            height: 64,
+            dim: 2,
+            data,
+        };
+        let p = SamplingParams {
+            strategy: SamplingStrategy::EqualWithDuplicates,
+            rays: 60,
+            stride: 1,
+            boundary_margin: Some(0),
+            ..Default::default()
+        };
+        let small = |strata: Option<&[bool]>| {
+            let mut rng = ChaCha8Rng::seed_from_u64(8);
+            let s = sample_in_strata(&f, &db, &p, &mut rng, strata).unwrap();
+            let (dots, norms) = s.scores.as_ref().unwrap();
+            assert_eq!(dots.len(), 3 * norms.len());
+            assert_eq!(norms.len(), s.pixels.len());
+            s.pixels.iter().filter(|(u, _)| *u >= 60).count()
+        };
+        assert_eq!(small(None), 20);
+        assert_eq!(small(Some(&[true, true, false])), 30);
+        // Marking every row is no mask at all.
+        assert_eq!(small(Some(&[true; 3])), 20);
     }
 
     #[test]

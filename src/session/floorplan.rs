@@ -171,6 +171,14 @@ pub struct PlanScene {
     /// plan view, see [`crate::raycast::PlanarCaster::with_heights`]). The
     /// same as `caster` for a plan made without its 3-D map.
     pub sighted: Arc<PlanarCaster>,
+    /// Per row of `sighted_map`'s database, whether pixels are stratified
+    /// over it ([`crate::mcl::Filter::with_strata`]): the plan's own rows
+    /// and the floor and ceiling words, not the rows the sighted map
+    /// derives from the 3-D map (each column's own floor, ceiling, base
+    /// and top: blends near what those rows hold, whose
+    /// clusters would be the pixels at boundaries, drawn as many times as a
+    /// wall's).
+    pub strata: Vec<bool>,
 }
 
 impl PlanScene {
@@ -326,6 +334,10 @@ impl PlanScene {
             }
         }
         let db = crate::map::FeatureDb::from_rows(b.plan.db().dim(), b.plan.db().tau(), db_rows)?;
+        let own_rows = b.plan.db().len();
+        b.strata = (0..db.len())
+            .map(|r| r < own_rows || r >= k as usize)
+            .collect();
         let sighted_map = LanguageMap::from_cells(*b.map.grid(), db, b.map.encoder(), leaves)?;
         // Each leaf's extent, the exits' and the columns' floor and ceiling
         // leaf indices, in the sighted map's own leaf order.
@@ -376,6 +388,7 @@ impl PlanScene {
             &map.cells(),
         ));
         Ok(PlanScene {
+            strata: vec![true; map.db().len()],
             plan,
             sighted_map: map.clone(),
             map,

@@ -103,6 +103,10 @@ pub struct SharedMap {
     /// A 2-D scene ([`SharedMap::floor_plan`]): sessions hold the camera
     /// level.
     level: bool,
+    /// The rows the sessions' pixels are stratified over
+    /// ([`crate::mcl::Filter::with_strata`]; a floor plan's own rows and
+    /// words); `None`: all.
+    strata: Option<Vec<bool>>,
     classes: Option<LabelTable>,
     /// The image encoder raw frames go through (one at a time).
     encoder: Option<Mutex<ImageEncoder>>,
@@ -118,6 +122,7 @@ impl SharedMap {
             map,
             caster: Arc::new(caster),
             level: false,
+            strata: None,
             classes: None,
             encoder: None,
         })
@@ -135,6 +140,7 @@ impl SharedMap {
             map,
             caster,
             level: false,
+            strata: None,
             classes: None,
             encoder: None,
         }
@@ -148,11 +154,22 @@ impl SharedMap {
     /// heading move the particles and its height, roll and pitch do not;
     /// they start from a pose only (global and prompt starts place
     /// particles on a 3-D map's floor voxels).
+    /// Its pixels are stratified over the plan's own rows and the floor
+    /// and ceiling words ([`floorplan::PlanScene::strata`]).
     pub fn floor_plan(name: impl Into<String>, scene: floorplan::PlanScene) -> Self {
         SharedMap {
             level: true,
+            strata: Some(scene.strata),
             ..Self::from_parts(name, scene.sighted_map, scene.sighted)
         }
+    }
+
+    /// The same map with its sessions' pixels stratified over the rows
+    /// `strata` marks only (`None`: all; see
+    /// [`crate::mcl::Filter::with_strata`]).
+    pub fn with_strata(mut self, strata: Option<Vec<bool>>) -> Self {
+        self.strata = strata;
+        self
     }
 
     /// Whether sessions on this map hold the camera level (a floor plan).
@@ -330,7 +347,8 @@ impl Session {
             config.intrinsics,
             config.filter,
             particles,
-        )?;
+        )?
+        .with_strata(map.strata.clone());
         if config.filter.recovery.is_some() {
             let floor = config
                 .floor_feature
