@@ -180,14 +180,29 @@ fn cluster_grid(
         // Each feature's most similar row (the first of equals; among the
         // strata rows), in parallel: 18,225 x K comparisons are a
         // millisecond on one core.
-        let allowed = |r: usize| strata.is_none_or(|s| s.get(r).copied().unwrap_or(true));
+        let allowed: Option<Vec<usize>> = strata.map(|s| {
+            (0..k)
+                .filter(|&r| s.get(r).copied().unwrap_or(true))
+                .collect()
+        });
         let nearest: Vec<u32> = dots
             .par_chunks(k.max(1))
             .map(|d| {
                 let mut best = (0u32, f32::NEG_INFINITY);
-                for (r, &x) in d.iter().enumerate() {
-                    if x > best.1 && allowed(r) {
-                        best = (r as u32, x);
+                match &allowed {
+                    None => {
+                        for (r, &x) in d.iter().enumerate() {
+                            if x > best.1 {
+                                best = (r as u32, x);
+                            }
+                        }
+                    }
+                    Some(rows) => {
+                        for &r in rows {
+                            if d[r] > best.1 {
+                                best = (r as u32, d[r]);
+                            }
+                        }
                     }
                 }
                 best.0
