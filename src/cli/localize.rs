@@ -183,8 +183,8 @@ pub struct LocalizeArgs {
     /// auto: floor-plan with --floorplan, street on a KITTI sequence,
     /// indoor elsewhere (on 7-Scenes with full motion and the odometry's
     /// noise). indoor: 2048 pixels, exponent 80, planar motion (the paper's
-    /// indoor setting). floor-plan: 8192 pixels, exponent 240, planar
-    /// (Table I's 2-D block). six-dof: full 6-DoF motion, two layers of
+    /// indoor setting). floor-plan: 8192 pixels, exponent 240, estimate
+    /// radius 0.5 m, planar (Table I's 2-D block). six-dof: full 6-DoF motion, two layers of
     /// progressive correction, the first on 16 copies of each particle,
     /// 4096 pixels, exponent 240 (Table I's 6-DoF block). six-dof-point-cloud:
     /// six-dof with 512 pixels and exponent 20, for a map made from a
@@ -317,8 +317,9 @@ pub struct LocalizeArgs {
     /// value, the plan file `omcl map floorplan` made from --map (its
     /// band); without one, --map projected with the default band, 0.10 to
     /// 2.00 m above its floor.
-    /// The filter of Table I's 2-D block (8192 pixels, exponent 240)
-    /// unless --rays or --sharpen; errors are horizontal. Starts from a
+    /// The filter of Table I's 2-D block (8192 pixels, exponent 240,
+    /// estimate radius 0.5 m, pixels stratified over the plan's own rows
+    /// and the words) unless --rays or --sharpen; errors are horizontal. Starts from a
     /// pose only (--init local). The words "floor" and "ceiling" come from
     /// --text-model or the class table (without them, rays leaving the
     /// plan's height window score only the columns' own floors and

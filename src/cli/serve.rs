@@ -43,7 +43,8 @@ pub struct ServeArgs {
     /// default band (0.10 to 2.00 m), NAME=PLAN takes the plan file `omcl
     /// map floorplan` made from it. Its sessions hold the camera level at
     /// the start pose's height, start from a pose only, and default to the
-    /// block's filter (8192 pixels, exponent 240); the words "floor" and
+    /// block's filter (8192 pixels, exponent 240, estimate radius 0.5 m,
+    /// pixels stratified over the plan's own rows); the words "floor" and
     /// "ceiling" come from --classes NAME=DIR. Repeatable.
     #[arg(long = "floorplan", value_name = "NAME[=PLAN]")]
     pub floorplans: Vec<String>,
