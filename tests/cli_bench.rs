@@ -274,7 +274,24 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
     assert_eq!(v["sampling"]["rays"], 8192, "{v}");
     assert_eq!(v["sharpen"], 240.0, "{v}");
     assert_eq!(v["estimate"]["radius"], 0.5, "{v}");
+    assert_eq!(v["sampling"]["map_strata"], true, "{v}");
     assert!(v["anneal"].is_null(), "{v}");
+    // Its point-cloud row stratifies over every row of the plan, unless
+    // --set gives it the block's strata.
+    let (o, text) = bench(&["table1-floorplan", "--show-config"]);
+    assert!(o.status.success(), "{text}");
+    let note = "OMCL_Open_LSeg, has its own";
+    assert!(
+        text.contains(note) && text.contains("over every row of the plan"),
+        "{text}"
+    );
+    let (o, text) = bench(&[
+        "table1-floorplan",
+        "--show-config",
+        "--set",
+        "sampling.map_strata=false",
+    ]);
+    assert!(o.status.success() && !text.contains(note), "{text}");
 }
 
 /// Table V and both ablations in one call (maps shared), on a tiny

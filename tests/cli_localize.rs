@@ -720,6 +720,41 @@ fn localizes_on_the_floor_plan_near_ground_truth() {
         std::fs::read_to_string(&out).unwrap(),
         std::fs::read_to_string(&out2).unwrap()
     );
+
+    // The point-cloud plan's filter (pixels stratified over every row of
+    // the plan) by name: level estimates near the truth too.
+    let out3 = f.dir.path().join("est2d_cloud.txt");
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &out3,
+        &[
+            "--frames",
+            &frames,
+            "--floorplan",
+            "--filter",
+            "floor-plan-point-cloud",
+        ],
+    );
+    assert!(r.ok(), "{}", r.text());
+    assert!(
+        r.text()
+            .contains("filter floor-plan-point-cloud: planar motion"),
+        "{}",
+        r.text()
+    );
+    let est = read_tum(&out3);
+    assert_eq!(est.len(), FRAMES, "{}", r.text());
+    let errors: Vec<f64> = est
+        .iter()
+        .zip(&gt)
+        .map(|((_, e), (_, g))| {
+            assert!(tilt_deg(e) < 1e-4, "{e:?} is not level");
+            horizontal(e, g)
+        })
+        .collect();
+    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+    assert!(mean < 0.25, "mean error {mean:.3} m: {errors:.3?}");
 }
 
 #[test]
@@ -985,7 +1020,12 @@ fn named_filters_start_the_run_and_options_change_them() {
     // An unknown name is the argument parser's usage error (exit 2).
     let r = f.localize(&f.map, &f.seq, &out, &["--filter", "6dof"]);
     assert_eq!(r.code, Some(2), "{}", r.text());
-    for n in ["6dof", "six-dof-point-cloud", "floor-plan"] {
+    for n in [
+        "6dof",
+        "six-dof-point-cloud",
+        "floor-plan",
+        "floor-plan-point-cloud",
+    ] {
         assert!(r.stderr.contains(n), "message lacks {n:?}:\n{}", r.text());
     }
     assert_eq!(std::fs::read_to_string(&out).unwrap(), OLD_OUT);

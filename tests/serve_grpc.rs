@@ -734,7 +734,13 @@ async fn a_named_filter_session_equals_the_cli_with_that_filter() {
         .await
         .unwrap_err();
     assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
-    for name in ["\"6dof\"", "six-dof-point-cloud", "floor-plan", "street"] {
+    for name in [
+        "\"6dof\"",
+        "six-dof-point-cloud",
+        "floor-plan",
+        "floor-plan-point-cloud",
+        "street",
+    ] {
         assert!(e.message().contains(name), "{e:?}");
     }
     let e = c

@@ -63,6 +63,20 @@ fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
                 );
             }
         }
+        if a.plan.experiments == [Experiment::Table1Floorplan] {
+            let cloud = with_args(omcl::mcl::FilterConfig::floor_plan_point_cloud())?;
+            if cloud.sampling.map_strata != config.sampling.map_strata {
+                eprintln!(
+                    "(the point-cloud row, OMCL_Open_LSeg, has its own, with --rays and --set \
+                     applied to it too: its pixels stratified over {})",
+                    if cloud.sampling.map_strata {
+                        "the plan's own rows only"
+                    } else {
+                        "every row of the plan"
+                    }
+                );
+            }
+        }
         return Ok(());
     }
     if let Some(dir) = &a.sixdof.export_frames {

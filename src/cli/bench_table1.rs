@@ -203,7 +203,7 @@ fn six_dof_filters() -> [FilterConfig; 3] {
 fn floor_plan_filters() -> [FilterConfig; 3] {
     [
         FilterConfig::floor_plan(),
-        FilterConfig::floor_plan(),
+        FilterConfig::floor_plan_point_cloud(),
         FilterConfig::floor_plan_raw_features(),
     ]
 }

@@ -50,6 +50,7 @@ pub enum FilterArg {
     Auto,
     Indoor,
     FloorPlan,
+    FloorPlanPointCloud,
     SixDof,
     SixDofPointCloud,
     Street,
@@ -62,6 +63,7 @@ impl FilterArg {
             FilterArg::Auto => None,
             FilterArg::Indoor => Some(FilterPreset::Indoor),
             FilterArg::FloorPlan => Some(FilterPreset::FloorPlan),
+            FilterArg::FloorPlanPointCloud => Some(FilterPreset::FloorPlanPointCloud),
             FilterArg::SixDof => Some(FilterPreset::SixDof),
             FilterArg::SixDofPointCloud => Some(FilterPreset::SixDofPointCloud),
             FilterArg::Street => Some(FilterPreset::Street),
@@ -184,7 +186,11 @@ pub struct LocalizeArgs {
     /// indoor elsewhere (on 7-Scenes with full motion and the odometry's
     /// noise). indoor: 2048 pixels, exponent 80, planar motion (the paper's
     /// indoor setting). floor-plan: 8192 pixels, exponent 240, estimate
-    /// radius 0.5 m, planar (Table I's 2-D block). six-dof: full 6-DoF motion, two layers of
+    /// radius 0.5 m, planar (Table I's 2-D block). floor-plan-point-cloud:
+    /// floor-plan with the pixels stratified over every row of the plan,
+    /// not only its own, for a plan of a map made from a labelled point
+    /// cloud with frames from an image encoder (Table I's 2-D
+    /// OMCL_Open_LSeg row). six-dof: full 6-DoF motion, two layers of
     /// progressive correction, the first on 16 copies of each particle,
     /// 4096 pixels, exponent 240 (Table I's 6-DoF block). six-dof-point-cloud:
     /// six-dof with 512 pixels and exponent 20, for a map made from a
@@ -195,7 +201,7 @@ pub struct LocalizeArgs {
     pub filter: FilterArg,
     /// Sampled pixels per frame before duplicates are dropped [default:
     /// the --filter's: 2048 indoor (the paper's indoor setting), 8192
-    /// floor-plan, 4096 six-dof and street (the paper's street setting),
+    /// floor-plan and floor-plan-point-cloud, 4096 six-dof and street (the paper's street setting),
     /// 512 six-dof-point-cloud].
     #[arg(long, value_parser = super::count_in::<1, { super::MAX_COUNT }>)]
     pub rays: Option<usize>,

@@ -476,7 +476,8 @@ pub struct BlockSpec {
     /// The filter of the rows whose map is a labelled point cloud
     /// ([`super::mapping::MapSource::PointCloud`], OMCL_Open_LSeg): the
     /// 6-DoF block's [`FilterConfig::six_dof_point_cloud`]; the 2-D
-    /// block's is [`BlockSpec::filter`].
+    /// block's [`FilterConfig::floor_plan_point_cloud`] (since 2026-11-27;
+    /// [`BlockSpec::filter`] before).
     pub point_cloud_filter: FilterConfig,
     /// The filter of the rows whose map is built from raw image features
     /// ([`super::mapping::MapSource::Auto`], OMCL_auto_LSeg): the 2-D
@@ -873,6 +874,20 @@ pub fn block(
                 }
             }
         ));
+    }
+    let cloud = spec.point_cloud_filter.sampling.map_strata;
+    if cloud != spec.filter.sampling.map_strata
+        && variants
+            .iter()
+            .any(|v| matches!(v.map, super::mapping::MapSource::PointCloud))
+    {
+        markdown.push_str(if cloud {
+            "The point-cloud row (a map from a labelled point cloud) stratifies its pixels over \
+             the plan's own rows only.\n"
+        } else {
+            "The point-cloud row (a map from a labelled point cloud) stratifies its pixels over \
+             every row of the plan, not only the plan's own.\n"
+        });
     }
     markdown.push_str(&spec.preset_note());
     Ok(BlockResult {

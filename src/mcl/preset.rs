@@ -5,7 +5,8 @@
 //! | name | filter | tuned on |
 //! |---|---|---|
 //! | `indoor` | [`FilterConfig::default`]: 2048 pixels, exponent 80, planar motion | Table I's 3-D map with planar motion (the paper's indoor setting) |
-//! | `floor-plan` | [`FilterConfig::floor_plan`]: 8192 pixels, exponent 240, planar motion | Table I's 2-D block |
+//! | `floor-plan` | [`FilterConfig::floor_plan`]: 8192 pixels, exponent 240, planar motion, estimate radius 0.5 m | Table I's 2-D block |
+//! | `floor-plan-point-cloud` | [`FilterConfig::floor_plan_point_cloud`]: as `floor-plan` with the pixels stratified over every row of the plan, not only its own | the 2-D OMCL_Open_LSeg row (a map from a labelled point cloud, frames from an image encoder) |
 //! | `six-dof` | [`FilterConfig::six_dof`]: full motion, two layers, the first on 16 copies, 4096 pixels, exponent 240 | Table I's 6-DoF block |
 //! | `six-dof-point-cloud` | [`FilterConfig::six_dof_point_cloud`]: as `six-dof` with 512 pixels and the exponent 20 | the 6-DoF OMCL_Open_LSeg row (a map from a labelled point cloud, frames from an image encoder) |
 //! | `street` | [`FilterConfig::street`]: road motion, 4096 pixels, two-pass likelihoods | Table IV (KITTI) |
@@ -20,6 +21,7 @@ use super::filter::FilterConfig;
 pub enum FilterPreset {
     Indoor,
     FloorPlan,
+    FloorPlanPointCloud,
     SixDof,
     SixDofPointCloud,
     Street,
@@ -36,9 +38,10 @@ pub struct UnknownFilter {
 
 impl FilterPreset {
     /// Every preset, in the order the help lists them.
-    pub const ALL: [FilterPreset; 5] = [
+    pub const ALL: [FilterPreset; 6] = [
         FilterPreset::Indoor,
         FilterPreset::FloorPlan,
+        FilterPreset::FloorPlanPointCloud,
         FilterPreset::SixDof,
         FilterPreset::SixDofPointCloud,
         FilterPreset::Street,
@@ -49,6 +52,7 @@ impl FilterPreset {
         match self {
             FilterPreset::Indoor => "indoor",
             FilterPreset::FloorPlan => "floor-plan",
+            FilterPreset::FloorPlanPointCloud => "floor-plan-point-cloud",
             FilterPreset::SixDof => "six-dof",
             FilterPreset::SixDofPointCloud => "six-dof-point-cloud",
             FilterPreset::Street => "street",
@@ -65,6 +69,7 @@ impl FilterPreset {
         match self {
             FilterPreset::Indoor => FilterConfig::default(),
             FilterPreset::FloorPlan => FilterConfig::floor_plan(),
+            FilterPreset::FloorPlanPointCloud => FilterConfig::floor_plan_point_cloud(),
             FilterPreset::SixDof => FilterConfig::six_dof(),
             FilterPreset::SixDofPointCloud => FilterConfig::six_dof_point_cloud(),
             FilterPreset::Street => FilterConfig::street(),
@@ -143,6 +148,13 @@ mod tests {
         assert_eq!(cloud.anneal, six.anneal);
         assert_eq!(FilterPreset::Indoor.config(), FilterConfig::default());
         assert_eq!(FilterPreset::FloorPlan.config(), FilterConfig::floor_plan());
+        // The point-cloud plan's filter is the block's but for its strata.
+        let plan = FilterConfig::floor_plan();
+        let cloud = FilterPreset::FloorPlanPointCloud.config();
+        assert!(plan.sampling.map_strata && !cloud.sampling.map_strata);
+        let mut same = cloud;
+        same.sampling.map_strata = true;
+        assert_eq!(same, plan);
         assert_eq!(FilterPreset::Street.config().motion.mode, MotionMode::Road);
     }
 }

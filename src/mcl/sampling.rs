@@ -83,10 +83,21 @@ pub struct SamplingParams {
     /// poses 0.14 m apart score the same.
     #[serde(default = "default_boundary_margin_width")]
     pub boundary_margin_width: f32,
+    /// Stratify over the rows the map marks when it marks some (a floor
+    /// plan's own rows and the floor and ceiling words, see
+    /// [`crate::mcl::Filter::with_strata`]); `false`: over every row of the
+    /// map's database whatever it marks. The default, `true`, is every
+    /// filter's but [`crate::mcl::FilterConfig::floor_plan_point_cloud`]'s.
+    #[serde(default = "default_map_strata")]
+    pub map_strata: bool,
 }
 
 fn default_boundary_margin_width() -> f32 {
     SamplingParams::default().boundary_margin_width
+}
+
+fn default_map_strata() -> bool {
+    SamplingParams::default().map_strata
 }
 
 impl SamplingParams {
@@ -108,6 +119,7 @@ impl Default for SamplingParams {
             stride: 4,
             boundary_margin: None,
             boundary_margin_width: 0.0075,
+            map_strata: true,
         }
     }
 }

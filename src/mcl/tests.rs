@@ -634,6 +634,40 @@ fn an_expanded_first_layer_tracks_and_keeps_the_count() {
     }
 }
 
+/// A filter whose sampling leaves the map's strata off
+/// (`SamplingParams::map_strata`, the floor plan's point-cloud filter)
+/// steps exactly as one on a map that marks none, and one that keeps them
+/// on draws other pixels, so another estimate.
+#[test]
+fn map_strata_off_ignores_the_rows_the_map_marks() {
+    let w = world();
+    let mut rng = ChaCha8Rng::seed_from_u64(31);
+    let (gt, odom) = path(&w, &mut rng);
+    let init = local_init(&gt[0], 128, 0.3, 17f64.to_radians(), &mut rng);
+    let frames: Vec<_> = gt[1..6]
+        .iter()
+        .map(|g| render(&w, g, 0.5, &mut rng))
+        .collect();
+    // Half the rows marked: the clustering then leaves the rest out.
+    let mask: Vec<bool> = (0..w.map.db().len()).map(|r| r % 2 == 0).collect();
+    let estimates = |map_strata: bool, strata: Option<Vec<bool>>| {
+        let mut config = FilterConfig::default();
+        config.sampling.rays = 256;
+        config.sampling.map_strata = map_strata;
+        let mut f = Filter::new(&w.map, w.caster.clone(), intrinsics(), config, init.clone())
+            .unwrap()
+            .with_strata(strata);
+        frames
+            .iter()
+            .zip(&odom)
+            .map(|(frame, inc)| f.step(inc, frame).unwrap().estimate)
+            .collect::<Vec<_>>()
+    };
+    let none = estimates(true, None);
+    assert_eq!(estimates(false, Some(mask.clone())), none);
+    assert_ne!(estimates(true, Some(mask)), none);
+}
+
 /// Every k-th pixel's table is those pixels' own table.
 #[test]
 fn every_kth_pixels_table_is_their_own() {
