@@ -110,8 +110,10 @@ impl Experiment {
     pub fn description(self) -> &'static str {
         match self {
             Experiment::Table1 => {
-                "Table I: tracking APE of the variants from the paper's local start, with \
-                 Figure 4 (trajectories coloured by APE over the floor plan)"
+                "Table I's variants tracked in the 3-D map with planar motion from the \
+                 paper's local start, with Figure 4 (trajectories coloured by APE over the \
+                 floor plan). The paper's Table I is its two blocks: `omcl bench \
+                 table1-floorplan table1-sixdof` prints both"
             }
             Experiment::Table2 => "Table II: measurement-map consistency of the variants",
             Experiment::Table5 => {
