@@ -228,7 +228,7 @@ pub struct StreetArgs {
     #[arg(long, default_value_t = 0)]
     pub street_start: usize,
     /// table4: frames of the street (KITTI 00 has 4541, 3.7 km; 300 are
-    /// the first 226 m).
+    /// the first 216 m).
     #[arg(long, default_value_t = 300)]
     pub street_frames: usize,
     /// table4: voxel edge of the street world and of its LiDAR map, metres

@@ -241,7 +241,7 @@ pub struct LocalizeArgs {
     /// each particle (each with its own motion noise) on every N-th
     /// sampled pixel, the same rays; the second goes back to --particles.
     /// Table I's 6-DoF block uses 16 with 1024 particles x 4096 rays
-    /// (README, "6-DoF"). [default: 1; 16 with --filter six-dof and
+    /// (docs/table1.md, "6-DoF (3-D block)"). [default: 1; 16 with --filter six-dof and
     /// six-dof-point-cloud]
     #[arg(long, value_name = "N",
           value_parser = clap::value_parser!(u32).range(1..=omcl::mcl::anneal::MAX_EXPAND as i64))]
@@ -260,14 +260,14 @@ pub struct LocalizeArgs {
     /// Cast every sampled pixel for every particle, as the paper's filter
     /// does, on a KITTI sequence too (whose default is two-pass
     /// likelihoods with every 2nd pixel first: faster and as accurate on
-    /// the tuning streets, see README "Outdoor speed")
+    /// the tuning streets, see docs/outdoor.md, "Outdoor speed")
     #[arg(long)]
     pub every_ray: bool,
     /// Score of a sampled pixel's ray that hits nothing in the map, on the
     /// contrast scale where a hit scores 0 (the pixel's least similar
     /// class) to 1 (its most similar). Default: 0.5 on a KITTI sequence,
     /// where a third of the image is sky and misses at 0 pull the filter
-    /// towards poses that turn the sky onto facades (README, "Misses on
+    /// towards poses that turn the sky onto facades (docs/outdoor.md, "Misses on
     /// streets"); 0 elsewhere
     #[arg(long, value_name = "SCORE")]
     pub miss_score: Option<f32>,

@@ -124,7 +124,9 @@ impl Experiment {
                 "Figure: APE and FPS against particles for several ray counts"
             }
             Experiment::Sampling => "Figure: stratified against equal and uniform ray sampling",
-            Experiment::All => "Everything above but table4, table1-floorplan and table1-sixdof",
+            Experiment::All => {
+                "Everything above but table4, table1-floorplan, table1-sixdof and sevenscenes"
+            }
         }
     }
 }

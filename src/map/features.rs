@@ -64,7 +64,7 @@ pub fn dot(a: &[f32], b: &[f32]) -> f32 {
 /// AVX2 / AVX-512) multiply the narrow shapes here (`p` the database's 20
 /// to 100 rows) without packing the wide operand, which is what
 /// `matrixmultiply` spent half its time on: 1.8 to 1.9 times faster on
-/// 18,225 x 512 features against 29 rows (README, "The features stage
+/// 18,225 x 512 features against 29 rows (docs/table1.md, "The features stage
 /// through faer").
 fn products(dst: &mut [f32], lhs: &[f32], rhs: &[f32], m: usize, n: usize, p: usize) {
     use faer::{Accum, MatMut, MatRef, Par, linalg::matmul::matmul};
@@ -80,7 +80,7 @@ fn products(dst: &mut [f32], lhs: &[f32], rhs: &[f32], m: usize, n: usize, p: us
 /// use, and until they are cleared every SSE instruction of this thread
 /// (the baseline x86-64 code the rest of omcl compiles to) pays for the
 /// mixed state: the 2-D cast after the features stage took 34 ms a step
-/// instead of 25 on the held-out sequence 1000 (README, "The features
+/// instead of 25 on the held-out sequence 1000 (docs/table1.md, "The features
 /// stage through faer"). Compilers emit this instruction after their own
 /// AVX code; assembly has to be followed by it.
 fn clear_upper_registers() {

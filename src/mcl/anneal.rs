@@ -21,7 +21,7 @@
 //! the proposals, each scored more coarsely; the resampling before the
 //! second layer returns to the filter's count, and the second layer casts
 //! every pixel. On the 6-DoF block's tuning sequences 0-2 (OMCL_GT, 4096
-//! particles x 512 rays, two layers; README, "6-DoF") APE RMSE 0.171 m
+//! particles x 512 rays, two layers; docs/table1.md, "6-DoF (3-D block)") APE RMSE 0.171 m
 //! without, 0.166 / 0.162 / 0.162 / 0.160 m with m = 2 / 4 / 8 / 16, at 5.3
 //! against 5.4 steps/s (m = 4); a third layer or a first share of 0.3 on
 //! top of m = 4 gave 0.162 and 0.163. With the copies, the second layer

@@ -81,7 +81,7 @@ pub struct BaselineParams {
     /// this count instead of the OMCL filter's). 2048, the count both
     /// baselines were run and reported with; with the 2-D OMCL filter's
     /// 8192 ([`super::FLOOR_PLAN_RAYS`]) SeDAR* lost six of ten held-out
-    /// sequences, with 2048 one (README, "More pixels, sharper").
+    /// sequences, with 2048 one (docs/table1.md, "More pixels, sharper").
     #[serde(default = "default_pixels")]
     pub pixels: usize,
 }

@@ -87,14 +87,14 @@ pub const STREET_PARTICLES: usize = 512;
 
 /// Sampled pixels a frame of the floor-plan filter
 /// ([`FilterConfig::floor_plan`]), chosen on the 2-D block's tuning
-/// sequences (README, "More pixels, sharper: the 2-D block's filter").
+/// sequences (docs/table1.md, "More pixels, sharper: the 2-D block's filter").
 pub const FLOOR_PLAN_RAYS: usize = 8192;
 
 /// Exponent of the floor-plan filter's likelihood (the indoor default's
 /// 80 with 2048 pixels), chosen with [`FLOOR_PLAN_RAYS`]: 160 until
 /// 2026-11-27; 240 since columns end below the ceiling, when the 2-D
 /// sensor's likelihood at the true pose rose (tuning seeds 0-19, OMCL_GT
-/// 0.109 -> 0.104 m; README, "Columns that end below the ceiling").
+/// 0.109 -> 0.104 m; docs/table1.md, "Columns that end below the ceiling").
 pub const FLOOR_PLAN_SHARPEN: f64 = 240.0;
 
 /// Radius (metres) of the floor-plan filter's estimate (the weighted mean
@@ -103,12 +103,12 @@ pub const FLOOR_PLAN_SHARPEN: f64 = 240.0;
 /// the same with either: on the 2-D block's tuning seeds 0-39 (OMCL_GT,
 /// before the plan's strata) 0.5 m gave 0.103 instead of 0.104 m on 0-19
 /// (better on 11) and 0.113 instead of 0.115 on 20-39 (12); 0.15 m 0.111
-/// on 0-19 (README, "Strata over the plan's own rows").
+/// on 0-19 (docs/table1.md, "Strata over the plan's own rows").
 pub const FLOOR_PLAN_ESTIMATE_RADIUS: f64 = 0.5;
 
 /// Sampled pixels a frame of the full-pose filter
 /// ([`FilterConfig::six_dof`]), chosen with [`SIX_DOF_SHARPEN`] on the
-/// 6-DoF block's tuning sequences (README, "More pixels, sharper: the
+/// 6-DoF block's tuning sequences (docs/table1.md, "More pixels, sharper: the
 /// 6-DoF block's filter").
 pub const SIX_DOF_RAYS: usize = 4096;
 
@@ -119,7 +119,7 @@ pub const SIX_DOF_SHARPEN: f64 = 240.0;
 /// Sampled pixels a frame of the full-pose filter on a point-cloud map
 /// ([`FilterConfig::six_dof_point_cloud`]), chosen with
 /// [`SIX_DOF_POINT_CLOUD_SHARPEN`] on the point-cloud row's tuning
-/// sequences (README, "The point-cloud row's own filter").
+/// sequences (docs/table1.md, "The point-cloud row's own filter").
 pub const SIX_DOF_POINT_CLOUD_RAYS: usize = 512;
 
 /// Exponent of the full-pose filter's likelihood on a point-cloud map,
@@ -132,7 +132,7 @@ pub const SIX_DOF_POINT_CLOUD_SHARPEN: f64 = 20.0;
 /// chosen on the 6-DoF block's tuning sequences 0-5 against 4096 x 512
 /// with four copies (the block's filter before 2026-11-26): OMCL_GT 0.152
 /// against 0.158 m, OMCL_LSeg (0-2) 0.152 against 0.169 m, about 6.4
-/// against 5.1 steps/s (README, "6-DoF").
+/// against 5.1 steps/s (docs/table1.md, "6-DoF (3-D block)").
 pub const SIX_DOF_PARTICLES: usize = 1024;
 
 impl FilterConfig {
@@ -182,7 +182,7 @@ impl FilterConfig {
     /// the indoor 80 before 2026-11-26). The six-dimensional particle cloud
     /// is what limits the estimate: the layers and the copies put particles
     /// where the likelihood is high, and the second layer weighs them with
-    /// every ray (README, "6-DoF"); twice the pixels give a steadier mean
+    /// every ray (docs/table1.md, "6-DoF (3-D block)"); twice the pixels give a steadier mean
     /// cosine, which the sharper exponent uses.
     pub fn six_dof() -> Self {
         let mut config = FilterConfig::default();
@@ -203,7 +203,7 @@ impl FilterConfig {
     /// [`SIX_DOF_POINT_CLOUD_SHARPEN`]. The two encoders agree less, so a
     /// particle's mean cosine is a weaker cue and more of its modes must
     /// stay alive; chosen on the row's tuning sequences, where the sharp
-    /// filter of the frame-built maps completed 3 of 10 (README, "The
+    /// filter of the frame-built maps completed 3 of 10 (docs/table1.md, "The
     /// point-cloud row's own filter").
     pub fn six_dof_point_cloud() -> Self {
         let mut config = FilterConfig::six_dof();
@@ -219,7 +219,7 @@ impl FilterConfig {
     /// column off that walk, so more pixels cost little there (8192
     /// instead of 2048: the cast 1.5 times dearer, where the 3-D one is 3
     /// times), and their mean cosine is steadier, which a sharper exponent
-    /// then uses (README, "More pixels, sharper: the 2-D block's filter");
+    /// then uses (docs/table1.md, "More pixels, sharper: the 2-D block's filter");
     /// the estimate's radius [`FLOOR_PLAN_ESTIMATE_RADIUS`].
     pub fn floor_plan() -> Self {
         let mut config = FilterConfig::default();
@@ -238,7 +238,7 @@ impl FilterConfig {
     /// of them near-duplicates or blends; stratified over them, every
     /// small cluster of odd pixels (edges, blends) draws as many pixels as
     /// the walls do. On tuning sequences 0-2 the row went from 1.77 m (1 of
-    /// 3 completed) to 0.331 m (2 of 3) (README, "The raw-feature row's
+    /// 3 completed) to 0.331 m (2 of 3) (docs/table1.md, "The raw-feature row's
     /// own sampling").
     pub fn floor_plan_raw_features() -> Self {
         let mut config = FilterConfig::floor_plan();

@@ -15,7 +15,7 @@
 //! pixel by pixel. Together these took the features stage of a step from
 //! 10.2 / 10.9 to 7.4 / 7.8 ms (3-D map, 29 rows) and from 13.4 / 14.0 to
 //! 10.8 / 11.3 ms (floor plan, 62 rows) on the held-out sequence 1000, two
-//! interleaved runs each (README, "Speed, 2-D against 3-D").
+//! interleaved runs each (docs/table1.md, "Speed, 2-D against 3-D").
 
 use rand::Rng;
 use rand::seq::SliceRandom;

@@ -26,7 +26,7 @@
 //! level, as fans ([`RayCaster::cast_fans`]): per image column its
 //! horizontal direction and per pixel a slope, no [`Ray`] made. On the
 //! held-out sequence 1000 that made the 2-D cast 25 instead of 36 ms a
-//! step (README, "Speed, 2-D against 3-D").
+//! step (docs/table1.md, "Speed, 2-D against 3-D").
 //!
 //! Measured with `cargo bench --bench mcl` on the 1 M-voxel rooms map,
 //! 1024 particles x 2048 pixels (2026-11-23, AMD EPYC Zen 3, two runs,
@@ -490,7 +490,7 @@ impl SensorModel {
     /// localize`, Zen 4, 2026-11-24, two interleaved runs each) edge 8
     /// gave 10.0 and 9.7 filter steps/s against edge 4's 8.9 and 8.7, and
     /// 10.3 and 10.2 with the high build quality (edge 4 with it: 8.8,
-    /// 8.6); see the README's "Outdoor speed".
+    /// 8.6); see docs/outdoor.md's "Outdoor speed".
     pub fn filter_build_options(resolution: f32, cells: &[Cell]) -> BuildOptions {
         let (lo, hi) = crate::raycast::column_bounds(cells);
         let across = (0..2)

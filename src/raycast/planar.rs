@@ -69,7 +69,7 @@
 //! Measured on the held-out sequence 1000 (150 frames, 1024 particles x
 //! 2048 rays, `omcl bench table1-floorplan --sequences 1 --variants
 //! OMCL_GT`, two interleaved runs each, AMD EPYC Zen 4, 2 cores,
-//! 2026-11-25): see the README's "Speed, 2-D against 3-D".
+//! 2026-11-25): see docs/table1.md's "Speed, 2-D against 3-D".
 
 use super::{Fan, Hit, RayCaster};
 use crate::geometry::Ray;
