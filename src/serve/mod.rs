@@ -257,7 +257,10 @@ async fn drain(
     let left = || deadline.saturating_duration_since(Instant::now());
     let grpc_res = tokio::time::timeout(left(), grpc_task).await;
     let http_res = tokio::time::timeout(left(), http_task).await;
-    while state.queue_depth().0 > 0 && Instant::now() < deadline {
+    // Until every pool task has finished and dropped what it held: the
+    // last reference to a map may be a step's, and the process must not
+    // exit while a pool thread releases its Embree scene.
+    while (state.queue_depth().0 > 0 || state.pool_running() > 0) && Instant::now() < deadline {
         tokio::time::sleep(Duration::from_millis(10)).await;
     }
     if let Ok(Ok(Err(e))) = grpc_res {

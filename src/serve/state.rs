@@ -194,6 +194,12 @@ impl State {
         v
     }
 
+    /// Tasks on the compute pool (steps, session set-ups) not yet finished,
+    /// what they hold dropped included ([`super::compute::Compute::running`]).
+    pub fn pool_running(&self) -> usize {
+        self.compute.running()
+    }
+
     /// Steps queued or running, and frames waiting behind them.
     pub fn queue_depth(&self) -> (usize, usize) {
         let waiting = lock(&self.sessions)
