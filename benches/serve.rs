@@ -11,6 +11,13 @@
 //! OMCL_BENCH_SECONDS (default 6) and then stops. Sizes: a 160 x 120
 //! camera, the map at 5 cm, 1024 particles and 2048 sampled pixels (the
 //! paper's), labels as frames.
+//!
+//! Then the flood line (skipped with OMCL_BENCH_FLOOD=0): one session's
+//! median step latency alone, and again while a second session floods a
+//! stream with frames as fast as the transport takes them (the server
+//! keeps only the flood's latest waiting frame and serves sessions in
+//! turn). The README's bound: beside the flood, at most 3 times the median
+//! alone plus 20 ms.
 
 #[path = "../tests/serve_common/mod.rs"]
 mod serve_common;
@@ -199,10 +206,68 @@ fn main() {
             );
         }
     }
+    if std::env::var("OMCL_BENCH_FLOOD").as_deref() != Ok("0") {
+        rt.block_on(flood_line(&server, &f, &frames));
+    }
     drop(server);
     let cli_after = cli_rate(&f);
     println!(
         "vs CLI: against the CLI's rate before the server ran ({cli_before:.1}); after it: \
          {cli_after:.1}"
+    );
+}
+
+/// Frames of the measured session in each phase of the flood line.
+const FLOOD_MEASURED: usize = 30;
+
+/// Session a's median latency alone and beside session b's flood.
+async fn flood_line(server: &Server, f: &Fixture, frames: &[proto::Frame]) {
+    let mut c = server.client(Auth::good()).await;
+    let mut ids = Vec::new();
+    for s in 0..2 {
+        let mut req = f.create(s);
+        req.particles = Some(BENCH_PARTICLES);
+        req.rays = Some(BENCH_RAYS);
+        ids.push(c.create_session(req).await.unwrap().into_inner().session_id);
+    }
+    let (a, b) = (ids[0].clone(), ids[1].clone());
+    let mut i = 0;
+    let mut measure = async |c: &mut Client, n: usize| {
+        let mut ms = Vec::new();
+        for _ in 0..n {
+            let mut fr = frames[ping_pong(i, frames.len())].clone();
+            fr.session_id = a.clone();
+            let t = Instant::now();
+            c.localize(fr).await.unwrap();
+            ms.push(t.elapsed().as_secs_f64() * 1e3);
+            i += 1;
+        }
+        ms.sort_by(|x, y| x.total_cmp(y));
+        ms[ms.len() / 2]
+    };
+    measure(&mut c, WARMUP).await;
+    let alone = measure(&mut c, FLOOD_MEASURED).await;
+    let flood_frames = (0..frames.len())
+        .map(|k| {
+            let mut fr = frames[k].clone();
+            fr.session_id = b.clone();
+            fr
+        })
+        .collect();
+    let flood = Flood::start(&c, flood_frames, usize::MAX);
+    let beside = measure(&mut c, FLOOD_MEASURED).await;
+    let (sent, read) = flood.stop().await;
+    let bound = 3.0 * alone + 20.0;
+    println!(
+        "flood: session a's median step latency {alone:.1} ms alone, {beside:.1} ms beside a \
+         flood of {sent} frames ({} answered; the rest dropped); bound 3 x alone + 20 ms = \
+         {bound:.1} ms: {}; load average {}",
+        read.map_or("?".into(), |n| n.to_string()),
+        if beside <= bound {
+            "within"
+        } else {
+            "NOT within"
+        },
+        load()
     );
 }

@@ -1,27 +1,15 @@
 //! `omcl map cloud|ground|query|export` end to end on real data recorded by
 //! others (SemanticKITTI scans, aerial LAS) and on bad input.
 
+mod common;
+
+use common::shared;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use omcl::io::{labels, npy, ply};
 use omcl::map;
-
-fn shared(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    assert!(
-        std::env::var_os("CI").is_none(),
-        "{} is missing: CI must have ../shared/data",
-        p.display()
-    );
-    eprintln!("skipping: {} not found (CI has it)", p.display());
-    None
-}
 
 fn omcl(args: &[&str]) -> (bool, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
@@ -52,9 +40,7 @@ fn one_hot_table(dir: &Path, ids: &[(u32, &str)]) -> (PathBuf, PathBuf) {
 
 #[test]
 fn semantickitti_scans_map_into_one_consistent_world_frame() {
-    let Some(seq) = shared("semantickitti/sequences/00") else {
-        return;
-    };
+    let seq = shared("semantickitti/sequences/00");
     let dir = tempfile::tempdir().unwrap();
     let ids: Vec<(u32, &str)> = labels::SEMANTIC_KITTI_CLASSES
         .iter()
@@ -109,9 +95,7 @@ fn semantickitti_scans_map_into_one_consistent_world_frame() {
 
 #[test]
 fn aerial_las_converts_and_grounds_queries_and_exports() {
-    let Some(las) = shared("las/autzen_trim.laz") else {
-        return;
-    };
+    let las = shared("las/autzen_trim.laz");
     let dir = tempfile::tempdir().unwrap();
     let (classes, emb) = one_hot_table(dir.path(), &[(1, "unclassified"), (2, "ground")]);
     let (c, e) = (classes.to_str().unwrap(), emb.to_str().unwrap());
@@ -212,9 +196,7 @@ fn aerial_las_converts_and_grounds_queries_and_exports() {
 #[test]
 fn las_noise_classes_are_dropped_unless_asked_to_keep() {
     // 32-1-472-150-76.laz holds classes 1, 2, 7 (noise) and 9.
-    let Some(las) = shared("las/32-1-472-150-76.laz") else {
-        return;
-    };
+    let las = shared("las/32-1-472-150-76.laz");
     let dir = tempfile::tempdir().unwrap();
     let (classes, emb) = one_hot_table(
         dir.path(),
@@ -256,9 +238,7 @@ fn las_noise_classes_are_dropped_unless_asked_to_keep() {
 
 #[test]
 fn scannet_scan_converts_through_a_point_encoder() {
-    let Some(bin) = shared("pointclouds/scannet_scene0000_00_xyzrgb.bin") else {
-        return;
-    };
+    let bin = shared("pointclouds/scannet_scene0000_00_xyzrgb.bin");
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("scannet.omcl");
     let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/encode/tiny_point.onnx");
@@ -302,9 +282,7 @@ fn scannet_scan_converts_through_a_point_encoder() {
 
 #[test]
 fn bad_input_fails_clearly_and_writes_nothing() {
-    let Some(las) = shared("las/simple.las") else {
-        return;
-    };
+    let las = shared("las/simple.las");
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("x.omcl");
     let o = out.to_str().unwrap();
@@ -395,9 +373,7 @@ fn bad_input_fails_clearly_and_writes_nothing() {
 /// another scan (another point count) is named.
 #[test]
 fn a_single_kitti_scan_reads_the_labels_beside_it() {
-    let Some(seq) = shared("semantickitti/sequences/00") else {
-        return;
-    };
+    let seq = shared("semantickitti/sequences/00");
     let dir = tempfile::tempdir().unwrap();
     let ids: Vec<(u32, &str)> = labels::SEMANTIC_KITTI_CLASSES
         .iter()
@@ -492,12 +468,8 @@ fn a_single_kitti_scan_reads_the_labels_beside_it() {
 /// its ASPRS codes, and words find their class in the built-in table.
 #[test]
 fn builtin_class_lists_convert_real_scans_and_las_without_a_table() {
-    let Some(seq) = shared("semantickitti/sequences/00") else {
-        return;
-    };
-    let Some(las) = shared("las/autzen_trim.laz") else {
-        return;
-    };
+    let seq = shared("semantickitti/sequences/00");
+    let las = shared("las/autzen_trim.laz");
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("kitti.omcl");
     let o = out.to_str().unwrap();
@@ -629,9 +601,7 @@ fn builtin_class_lists_convert_real_scans_and_las_without_a_table() {
 #[test]
 fn a_sequence_mapped_scan_by_scan_equals_the_merged_cloud() {
     use omcl::mapping::pipeline::{self, BuildParams, CloudInput, SequencePass};
-    let Some(seq) = shared("semantickitti/sequences/00") else {
-        return;
-    };
+    let seq = shared("semantickitti/sequences/00");
     let sim = omcl::sim::files::builtin_table().unwrap();
     let table = omcl::sim::embeddings::builtin_label_table(
         omcl::io::labels::BuiltinClasses::SemanticKitti,

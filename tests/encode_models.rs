@@ -2,6 +2,10 @@
 //! a trained model nobody here made, and tiny models from
 //! tools/make_encoder_testdata.py whose expected outputs numpy computed.
 
+mod common;
+
+use common::shared;
+
 use omcl::encode::Encoder as _;
 use std::path::{Path, PathBuf};
 
@@ -19,21 +23,6 @@ fn data(name: &str) -> PathBuf {
         .join(name)
 }
 
-fn shared(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data")).join(rel);
-    if p.exists() {
-        Some(p)
-    } else if std::env::var_os("CI").is_some() {
-        panic!(
-            "{} is missing (CI must have ../shared beside the crate)",
-            p.display()
-        );
-    } else {
-        eprintln!("skipping: {} not found", p.display());
-        None
-    }
-}
-
 fn rt() -> &'static Runtime {
     Runtime::init(None).unwrap_or_else(|e| panic!("{e}"))
 }
@@ -48,7 +37,7 @@ fn max_diff(a: &[f32], b: &[f32]) -> f32 {
 
 #[test]
 fn mnist_model_reproduces_onnxruntime_python_logits() {
-    let Some(dir) = shared("onnx") else { return };
+    let dir = shared("onnx");
     let mut model = OnnxModel::load(rt(), &dir.join("opt-mnist.onnx"), 1).unwrap();
     assert_eq!(model.input(None).unwrap().dims_text(), "[1, 1, 28, 28]");
     let reference = std::fs::read_to_string(dir.join("reference_outputs.txt")).unwrap();

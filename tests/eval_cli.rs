@@ -1,28 +1,15 @@
 //! `omcl eval` end to end on the real KITTI 00 files.
 
-use std::path::PathBuf;
+mod common;
+
+use common::shared;
+
 use std::process::Command;
 
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/trajectories");
 const REFERENCE: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/tests/data/eval/evo_reference.json"
 );
-
-fn data_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(DATA);
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    if std::env::var_os("CI").is_some() {
-        panic!(
-            "{} is missing (CI must have shared/ beside the repo)",
-            dir.display()
-        );
-    }
-    eprintln!("skipping: {} not found", dir.display());
-    None
-}
 
 fn reference_case(name: &str) -> serde_json::Value {
     let doc: serde_json::Value =
@@ -38,7 +25,7 @@ fn reference_case(name: &str) -> serde_json::Value {
 
 #[test]
 fn ape_sim3_json_matches_evo_and_bad_pairs_fail() {
-    let Some(dir) = data_dir() else { return };
+    let dir = shared("trajectories");
     let tmp = tempfile::tempdir().unwrap();
     let json = tmp.path().join("ape.json");
     let aligned = tmp.path().join("aligned.txt");

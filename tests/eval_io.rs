@@ -1,6 +1,8 @@
 //! Pose-file reading and writing on real files and generated ones.
 
-use std::path::PathBuf;
+mod common;
+
+use common::shared;
 
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use omcl::geometry::Pose;
@@ -8,26 +10,9 @@ use omcl::io::poses::{PoseFormat, PosesError, read_poses, read_times, write_pose
 use omcl::trajectory::Trajectory;
 use proptest::prelude::*;
 
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data");
-
-fn data_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(DATA).join("trajectories");
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    if std::env::var_os("CI").is_some() {
-        panic!(
-            "{} is missing (CI must have shared/ beside the repo)",
-            dir.display()
-        );
-    }
-    eprintln!("skipping: {} not found", dir.display());
-    None
-}
-
 #[test]
 fn reads_the_real_trajectories() {
-    let Some(dir) = data_dir() else { return };
+    let dir = shared("trajectories");
     for (name, format, count) in [
         ("KITTI_00_gt.txt", PoseFormat::Kitti, 4541),
         ("KITTI_00_ORB.txt", PoseFormat::Kitti, 4541),
@@ -60,7 +45,7 @@ fn reads_the_real_trajectories() {
 
 #[test]
 fn kitti_round_trip_on_real_file_is_exact_after_projection() {
-    let Some(dir) = data_dir() else { return };
+    let dir = shared("trajectories");
     let orig = read_poses(&dir.join("KITTI_00_ORB.txt"))
         .unwrap()
         .trajectory;

@@ -2,7 +2,11 @@
 //! real trajectories: tests/data/eval/evo_reference.json, written by
 //! tools/eval_reference.py from ../shared/data/trajectories.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use common::shared;
+
+use std::path::Path;
 
 use omcl::eval::align::{Alignment, align_trajectory};
 use omcl::eval::ape::{PoseRelation, ape};
@@ -12,30 +16,12 @@ use omcl::eval::rpe::{Delta, RpeOptions, rpe};
 use omcl::io::poses::read_poses;
 use serde_json::Value;
 
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data");
 const REFERENCE: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/tests/data/eval/evo_reference.json"
 );
 /// Relative tolerance (with a 1e-12 absolute floor for zero errors).
 const TOL: f64 = 1e-6;
-
-/// The shared data directory, or `None` (with a message) outside CI when it
-/// is missing; in CI a missing directory fails the test.
-fn data_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(DATA).join("trajectories");
-    if dir.is_dir() {
-        return Some(dir.parent()?.to_path_buf());
-    }
-    if std::env::var_os("CI").is_some() {
-        panic!(
-            "{} is missing (CI must have shared/ beside the repo)",
-            dir.display()
-        );
-    }
-    eprintln!("skipping: {} not found", dir.display());
-    None
-}
 
 fn reference() -> Value {
     let text = std::fs::read_to_string(REFERENCE).expect("reference JSON is committed");
@@ -70,7 +56,7 @@ fn load(data: &Path, rel: &Value) -> omcl::trajectory::Trajectory {
 
 #[test]
 fn ape_rpe_alignment_and_association_match_evo() {
-    let Some(data) = data_dir() else { return };
+    let data = shared("trajectories").parent().unwrap().to_path_buf();
     let doc = reference();
     let cases = doc["cases"].as_array().expect("cases");
     assert!(cases.len() >= 20);
@@ -178,7 +164,7 @@ fn ape_rpe_alignment_and_association_match_evo() {
 
 #[test]
 fn kitti_metric_matches_the_devkit_port() {
-    let Some(data) = data_dir() else { return };
+    let data = shared("trajectories").parent().unwrap().to_path_buf();
     let doc = reference();
     for k in doc["kitti_metric"].as_array().expect("kitti_metric") {
         let reference = load(&data, &k["reference"]);

@@ -1,11 +1,11 @@
 //! SemanticKITTI: the three real scans of sequence 00 with labels, calib and
 //! poses must line up in one world frame; bad input must be named.
-mod io_common;
+mod common;
 
 use std::collections::HashSet;
 use std::path::Path;
 
-use io_common::{assert_err_names, shared, truncated_copy};
+use common::{assert_err_names, shared, truncated_copy};
 use omcl::io::cloud::PointCloud;
 use omcl::io::kitti::{
     AggregateOptions, KITTI_IMAGE_SIZE, KittiSequence, read_calib, read_kitti_poses,
@@ -31,9 +31,7 @@ fn iou_sets(a: &HashSet<[i64; 3]>, b: &HashSet<[i64; 3]>) -> f64 {
 
 #[test]
 fn real_scans_line_up_with_lidar_poses() {
-    let Some(dir) = shared("semantickitti/sequences/00") else {
-        return;
-    };
+    let dir = shared("semantickitti/sequences/00");
     let seq = KittiSequence::open(&dir).unwrap();
     assert_eq!(seq.frames, vec![0, 1, 2]);
     assert_eq!(seq.camera_poses.len(), 4541);
@@ -67,9 +65,7 @@ fn real_scans_line_up_with_lidar_poses() {
 
 #[test]
 fn aggregation_filters_and_downsamples() {
-    let Some(dir) = shared("semantickitti/sequences/00") else {
-        return;
-    };
+    let dir = shared("semantickitti/sequences/00");
     let seq = KittiSequence::open(&dir).unwrap();
     let opts = AggregateOptions {
         voxel_size: Some(0.2),
@@ -126,9 +122,7 @@ const IDENTITY: &str = "1 0 0 0 0 1 0 0 0 0 1 0\n";
 
 #[test]
 fn bad_scans_and_labels_are_named() {
-    let Some(dir) = shared("semantickitti/sequences/00") else {
-        return;
-    };
+    let dir = shared("semantickitti/sequences/00");
     let d = tempfile::tempdir().unwrap();
     let p = truncated_copy(
         &dir.join("velodyne/000000.bin"),
@@ -177,9 +171,7 @@ fn bad_scans_and_labels_are_named() {
 
 #[test]
 fn bad_poses_and_calibration_are_named() {
-    let Some(dir) = shared("semantickitti/sequences/00") else {
-        return;
-    };
+    let dir = shared("semantickitti/sequences/00");
     let d = tempfile::tempdir().unwrap();
     let calib = std::fs::read_to_string(dir.join("calib.txt")).unwrap();
     let p = d.path().join("poses_nan.txt");
@@ -219,9 +211,7 @@ fn bad_poses_and_calibration_are_named() {
 
 #[test]
 fn everything_filtered_is_an_empty_error() {
-    let Some(dir) = shared("semantickitti/sequences/00") else {
-        return;
-    };
+    let dir = shared("semantickitti/sequences/00");
     let d = tempfile::tempdir().unwrap();
     let seq_dir = d.path().join("seq_unlabeled");
     let calib = std::fs::read_to_string(dir.join("calib.txt")).unwrap();
@@ -245,9 +235,7 @@ fn everything_filtered_is_an_empty_error() {
 #[test]
 fn real_labels_use_known_classes_and_instances() {
     use omcl::io::labels::{instance_id, semantic_id, semantic_kitti_name};
-    let Some(dir) = shared("semantickitti/sequences/00") else {
-        return;
-    };
+    let dir = shared("semantickitti/sequences/00");
     let n = read_velodyne_bin(&dir.join("velodyne/000000.bin"))
         .unwrap()
         .len();
@@ -277,9 +265,7 @@ fn real_labels_use_known_classes_and_instances() {
 
 #[test]
 fn per_scan_features_stay_with_their_points() {
-    let Some(dir) = shared("semantickitti/sequences/00") else {
-        return;
-    };
+    let dir = shared("semantickitti/sequences/00");
     let seq = KittiSequence::open(&dir).unwrap();
     let d = tempfile::tempdir().unwrap();
     // Feature row = (semantic label, frame): after filtering and down-sampling

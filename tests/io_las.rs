@@ -1,10 +1,10 @@
 //! LAS/LAZ reading against files written by laspy (tests/data/io) and real
 //! files from laspy's and las-rs's test data (../shared/data/las).
-mod io_common;
+mod common;
 
 use std::collections::BTreeSet;
 
-use io_common::{assert_err_names, expected_rows, local, shared, truncated_copy};
+use common::{assert_err_names, expected_rows, local, shared, truncated_copy};
 use omcl::io::las::read_las;
 
 fn check_against_laspy(file: &str, with_rgb: bool) {
@@ -50,7 +50,7 @@ fn classes(c: &omcl::io::cloud::PointCloud) -> BTreeSet<u32> {
 
 #[test]
 fn real_files_all_read() {
-    let Some(dir) = shared("las") else { return };
+    let dir = shared("las");
     let autzen = read_las(&dir.join("autzen_trim.laz")).unwrap();
     assert!(autzen.len() > 100_000, "{}", autzen.len());
     assert_eq!(classes(&autzen), BTreeSet::from([1, 2]));

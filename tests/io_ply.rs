@@ -1,8 +1,8 @@
 //! PLY reading against files written by plyfile (tests/data/io), writing,
 //! and bad input.
-mod io_common;
+mod common;
 
-use io_common::{assert_err_names, expected_rows, local, truncated_copy};
+use common::{assert_err_names, expected_rows, local, truncated_copy};
 use omcl::io::cloud::PointCloud;
 use omcl::io::ply::{read_ply, write_ply};
 

@@ -1,11 +1,11 @@
 //! The two real TUM fr1_xyz RGB-D pairs: depth back-projected from the
 //! previous view, moved by the ground-truth poses into the current view,
 //! must agree with the current depth within sensor noise.
-mod io_common;
+mod common;
 
 use std::path::Path;
 
-use io_common::{assert_err_names, shared, truncated_copy};
+use common::{assert_err_names, shared, truncated_copy};
 use nalgebra::Point3;
 use omcl::geometry::{Intrinsics, Pose};
 use omcl::io::rgbd::{
@@ -99,18 +99,14 @@ fn check_case(dir: &Path) {
 
 #[test]
 fn real_pairs_agree_between_views() {
-    let Some(root) = shared("rgbd_tum_fr1_xyz") else {
-        return;
-    };
+    let root = shared("rgbd_tum_fr1_xyz");
     check_case(&root.join("case_1"));
     check_case(&root.join("case_2"));
 }
 
 #[test]
 fn bad_images_and_intrinsics_are_named() {
-    let Some(root) = shared("rgbd_tum_fr1_xyz") else {
-        return;
-    };
+    let root = shared("rgbd_tum_fr1_xyz");
     let d = tempfile::tempdir().unwrap();
     let dep = root.join("case_1/dep_prev.png");
     let p = truncated_copy(&dep, d.path(), "cut_depth.png", 60_000);

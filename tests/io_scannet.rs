@@ -1,14 +1,12 @@
 //! The real ScanNet scan (mmdetection3d demo data) and bad input.
-mod io_common;
+mod common;
 
-use io_common::{assert_err_names, shared, truncated_copy};
+use common::{assert_err_names, shared, truncated_copy};
 use omcl::io::scannet::read_scannet_xyzrgb_bin;
 
 #[test]
 fn real_scan_reads() {
-    let Some(p) = shared("pointclouds/scannet_scene0000_00_xyzrgb.bin") else {
-        return;
-    };
+    let p = shared("pointclouds/scannet_scene0000_00_xyzrgb.bin");
     let c = read_scannet_xyzrgb_bin(&p).unwrap();
     assert_eq!(c.len(), 40_684);
     // An indoor room: a few metres across, floor to ceiling under 4 m.
@@ -32,9 +30,7 @@ fn real_scan_reads() {
 
 #[test]
 fn bad_files_are_named() {
-    let Some(src) = shared("pointclouds/scannet_scene0000_00_xyzrgb.bin") else {
-        return;
-    };
+    let src = shared("pointclouds/scannet_scene0000_00_xyzrgb.bin");
     let d = tempfile::tempdir().unwrap();
     let p = truncated_copy(&src, d.path(), "cut.bin", 24 * 100 + 10);
     assert_err_names(

@@ -3,24 +3,16 @@
 //! real sequences), checked against what a street seen from a car's camera
 //! must look like, and read back by `omcl localize`'s KITTI reader.
 
+mod common;
+
+use common::shared;
+
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use omcl::io::kitti_camera::{CameraInput, KittiCameraSequence};
 use omcl::io::rgbd::read_label_png;
-
-fn shared(rel: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(rel);
-    assert!(
-        p.exists(),
-        "{} is missing: the tests need ../shared/data",
-        p.display()
-    );
-    p
-}
 
 fn omcl(args: &[&str]) -> (bool, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_omcl"))

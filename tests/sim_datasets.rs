@@ -2,6 +2,10 @@
 //! project's loaders, and their depth, labels and LiDAR points agree with
 //! the ground-truth world written beside them.
 
+mod common;
+
+use common::shared;
+
 use std::path::Path;
 
 use nalgebra::{Point3, Vector3};
@@ -194,19 +198,7 @@ fn outdoor_sequence_reads_back_and_lidar_points_lie_on_labelled_surfaces() {
 
 #[test]
 fn real_drift_comes_from_kitti_orb_against_ground_truth() {
-    let dir = Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/data/trajectories"
-    ));
-    if !dir.join("KITTI_00_ORB.txt").exists() {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "shared data missing at {}",
-            dir.display()
-        );
-        eprintln!("skipping: {} not found", dir.display());
-        return;
-    }
+    let dir = &shared("trajectories");
     let (errs, source) = omcl::sim::dataset::load_drift(dir).unwrap();
     assert_eq!(errs.len(), 4540);
     assert!(source.contains("ORB"));

@@ -1,31 +1,16 @@
 //! The simulator's class embeddings against the real CLIP text embeddings
 //! in ../shared/data/clip_text (Detic, Apache-2.0).
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use common::shared;
 
 use omcl::sim::embeddings::{SIM_CLASSES, build_table, dot};
 use omcl::sim::files::{builtin_table, load_clip_bank, load_table, save_table};
 
-fn clip_dir() -> Option<PathBuf> {
-    let p = Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/data/clip_text"
-    ));
-    if p.join("lvis_v1_clip_a+cname.npy").exists() {
-        return Some(p.to_path_buf());
-    }
-    assert!(
-        std::env::var_os("CI").is_none(),
-        "shared data missing at {}",
-        p.display()
-    );
-    eprintln!("skipping: {} not found", p.display());
-    None
-}
-
 #[test]
 fn builtin_table_is_the_one_built_from_real_clip_rows() {
-    let Some(dir) = clip_dir() else { return };
+    let dir = shared("clip_text");
     let bank = load_clip_bank(&dir).unwrap();
     assert_eq!(bank.names.len(), 1203 + 80 + 365);
     for c in SIM_CLASSES {
@@ -55,7 +40,7 @@ fn builtin_table_is_the_one_built_from_real_clip_rows() {
 
 #[test]
 fn drawn_rows_look_like_real_rows_to_the_rest_of_the_space() {
-    let Some(dir) = clip_dir() else { return };
+    let dir = shared("clip_text");
     let bank = load_clip_bank(&dir).unwrap();
     let t = builtin_table().unwrap();
     let n = 1203; // LVIS rows

@@ -83,15 +83,27 @@ pub fn find_library(explicit: Option<&Path>) -> Result<PathBuf, EncodeError> {
         env.as_deref(),
         exe.as_deref(),
         Path::new(env!("CARGO_MANIFEST_DIR")),
+        &SYSTEM_DIRS.map(Path::new),
     )
 }
 
-/// [`find_library`] with every input given, so the search is testable.
+/// The usual system directories searched last for `libonnxruntime.so`.
+const SYSTEM_DIRS: [&str; 4] = [
+    "/usr/local/lib",
+    "/usr/lib",
+    "/usr/lib/x86_64-linux-gnu",
+    "/usr/lib/aarch64-linux-gnu",
+];
+
+/// [`find_library`] with every input given, so the search is testable;
+/// `system_dirs` are the directories searched last, for a bare
+/// `libonnxruntime.so`.
 pub fn resolve_library(
     explicit: Option<&Path>,
     env: Option<&Path>,
     exe: Option<&Path>,
     crate_root: &Path,
+    system_dirs: &[&Path],
 ) -> Result<PathBuf, EncodeError> {
     for (given, what) in [(explicit, "--ort-lib"), (env, ENV_VAR)] {
         if let Some(p) = given {
@@ -120,24 +132,15 @@ pub fn resolve_library(
     }
     tried.push(crate_root.join(DEPS_CAPI_DIR).display().to_string());
     tried.push("libonnxruntime.so on the system library path".into());
-    if system_library_present() {
+    if system_dirs
+        .iter()
+        .any(|d| d.join("libonnxruntime.so").is_file())
+    {
         return Ok(PathBuf::from("libonnxruntime.so"));
     }
     Err(EncodeError::RuntimeNotFound {
         tried: tried.join(", "),
     })
-}
-
-/// Whether `libonnxruntime.so` sits in one of the usual system directories.
-fn system_library_present() -> bool {
-    [
-        "/usr/local/lib",
-        "/usr/lib",
-        "/usr/lib/x86_64-linux-gnu",
-        "/usr/lib/aarch64-linux-gnu",
-    ]
-    .iter()
-    .any(|d| Path::new(d).join("libonnxruntime.so").is_file())
 }
 
 /// The process-wide ONNX Runtime: the loaded library and its environment.
@@ -470,12 +473,12 @@ mod tests {
         std::fs::write(&lib, b"x").unwrap();
         let other = dir.path().join("other.so");
         std::fs::write(&other, b"x").unwrap();
-        let got = resolve_library(Some(&lib), Some(&other), None, dir.path()).unwrap();
+        let got = resolve_library(Some(&lib), Some(&other), None, dir.path(), &[]).unwrap();
         assert_eq!(got, lib);
-        let got = resolve_library(None, Some(&other), None, dir.path()).unwrap();
+        let got = resolve_library(None, Some(&other), None, dir.path(), &[]).unwrap();
         assert_eq!(got, other);
         let missing = dir.path().join("nope.so");
-        let e = resolve_library(Some(&missing), None, None, dir.path())
+        let e = resolve_library(Some(&missing), None, None, dir.path(), &[])
             .unwrap_err()
             .to_string();
         assert!(e.contains("nope.so") && e.contains("make deps"), "{e}");
@@ -490,23 +493,26 @@ mod tests {
         std::fs::write(capi.join("libonnxruntime_providers_shared.so"), b"x").unwrap();
         let exe = dir.path().join("target/debug/deps/test-abc");
         let elsewhere = tempfile::tempdir().unwrap();
-        let got = resolve_library(None, None, Some(&exe), elsewhere.path()).unwrap();
+        let got = resolve_library(None, None, Some(&exe), elsewhere.path(), &[]).unwrap();
         assert_eq!(got, capi.join("libonnxruntime.so.1.31.1"));
     }
 
     #[test]
     fn nothing_found_says_how_to_install() {
-        if system_library_present() {
-            return; // the fallback would legitimately succeed on this machine
-        }
         let dir = tempfile::tempdir().unwrap();
-        let e = resolve_library(None, None, Some(&dir.path().join("bin/omcl")), dir.path())
+        let (exe, system) = (dir.path().join("bin/omcl"), dir.path().join("lib"));
+        std::fs::create_dir_all(&system).unwrap();
+        let e = resolve_library(None, None, Some(&exe), dir.path(), &[&system])
             .unwrap_err()
             .to_string();
         assert!(
             e.contains("make deps") && e.contains("ORT_DYLIB_PATH"),
             "{e}"
         );
+        // A library in a system directory is the last resort, by bare name.
+        std::fs::write(system.join("libonnxruntime.so"), b"x").unwrap();
+        let got = resolve_library(None, None, Some(&exe), dir.path(), &[&system]).unwrap();
+        assert_eq!(got, PathBuf::from("libonnxruntime.so"));
     }
 
     #[test]

@@ -191,7 +191,8 @@ mod tests {
         rx.recv().unwrap();
         let t0 = std::time::Instant::now();
         while c.running() > 0 {
-            assert!(t0.elapsed().as_secs() < 10, "tasks never finished");
+            // A hang guard, not a time bound.
+            assert!(t0.elapsed().as_secs() < 60, "tasks never finished");
             std::thread::sleep(std::time::Duration::from_millis(1));
         }
         // Both answered long before; counted until their captures went.

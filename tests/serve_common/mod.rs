@@ -370,3 +370,62 @@ pub fn read_tum(p: &Path) -> Vec<[f64; 7]> {
         })
         .collect()
 }
+
+/// A session flooding the server: one `Stream` call sending `frames` round
+/// and round as fast as the transport takes them, until stopped or `limit`
+/// frames are sent, its answers read and counted.
+pub struct Flood {
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    writer: tokio::task::JoinHandle<usize>,
+    reader: tokio::task::JoinHandle<usize>,
+}
+
+impl Flood {
+    pub fn start(c: &Client, frames: Vec<proto::Frame>, limit: usize) -> Flood {
+        use std::sync::atomic::{AtomicBool, Ordering};
+        let stop = std::sync::Arc::new(AtomicBool::new(false));
+        let (tx, rx) = tokio::sync::mpsc::channel(64);
+        let mut c = c.clone();
+        let reader = tokio::spawn(async move {
+            let mut answers = c
+                .stream(tokio_stream::wrappers::ReceiverStream::new(rx))
+                .await
+                .unwrap()
+                .into_inner();
+            let mut n = 0usize;
+            while let Ok(Some(_)) = answers.message().await {
+                n += 1;
+            }
+            n
+        });
+        let halt = stop.clone();
+        let writer = tokio::spawn(async move {
+            let mut sent = 0usize;
+            while sent < limit && !halt.load(Ordering::Relaxed) {
+                if tx.send(frames[sent % frames.len()].clone()).await.is_err() {
+                    break;
+                }
+                sent += 1;
+                tokio::task::yield_now().await;
+            }
+            sent
+        });
+        Flood {
+            stop,
+            writer,
+            reader,
+        }
+    }
+
+    /// Stops sending: the frames sent, and the answers read once the
+    /// stream has ended (`None` if it had not within 30 s).
+    pub async fn stop(self) -> (usize, Option<usize>) {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        let sent = self.writer.await.unwrap();
+        let read = tokio::time::timeout(Duration::from_secs(30), self.reader)
+            .await
+            .ok()
+            .and_then(|r| r.ok());
+        (sent, read)
+    }
+}

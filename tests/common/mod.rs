@@ -1,20 +1,20 @@
-//! Helpers shared by the `io_*` integration tests.
+//! Helpers shared by the integration tests: the shared real data and the
+//! `io_*` tests' committed files and checks.
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
 
-/// A path under `../shared/data`, or `None` (with a message) when the shared
-/// data is absent outside CI. Under CI (`CI` set) absence is a failure.
-pub fn shared(rel: &str) -> Option<PathBuf> {
+/// A path under `../shared/data`, the real data recorded by others that
+/// the tests read. Its absence is a failure, never a skip, wherever the
+/// tests run.
+pub fn shared(rel: &str) -> PathBuf {
     let p = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data")).join(rel);
-    if p.exists() {
-        return Some(p);
-    }
-    if std::env::var_os("CI").is_some() {
-        panic!("shared data {} missing (CI is set)", p.display());
-    }
-    eprintln!("skipping: shared data {} not found", p.display());
-    None
+    assert!(
+        p.exists(),
+        "{} is missing: the tests need ../shared/data beside the crate",
+        p.display()
+    );
+    p
 }
 
 /// A committed test file under `tests/data/io`.
