@@ -104,7 +104,7 @@ fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
             }
         }
     }
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    super::outputs::create_folder("--out", &dir)?;
     let manifest_path = dir.join("manifest.jsonl");
     let entries = sweep::plan(&bench)?;
     sweep::write_manifest(&manifest_path, &bench, &entries)?;
@@ -236,8 +236,7 @@ fn street_table4(a: &BenchArgs, table: &ClassEmbeddings) -> anyhow::Result<Strin
         out: a.out.clone(),
     };
     // After `--set` was checked: nothing is made for a refused filter.
-    std::fs::create_dir_all(&params.out)
-        .with_context(|| format!("creating {}", params.out.display()))?;
+    super::outputs::create_folder("--out", &params.out)?;
     let pb = super::progress::spinner("Table IV");
     let t = run_table4(
         &params,

@@ -113,11 +113,11 @@ pub struct PlanArgs {
           value_parser = clap::value_parser!(u64).range(..=1_000_000_000_000))]
     pub first_seed: u64,
     /// Frames per sequence.
-    #[arg(long, default_value_t = 150)]
+    #[arg(long, default_value_t = 150, value_parser = super::count_in::<1, { usize::MAX }>)]
     pub frames: usize,
     /// Frames of each map's second (mapping) path; every second frame of it
     /// and of the sequence is mapped.
-    #[arg(long, default_value_t = 300)]
+    #[arg(long, default_value_t = 300, value_parser = super::count_in::<1, { usize::MAX }>)]
     pub map_frames: usize,
     /// Particles (default 1024, the paper's indoor setting, table1-sixdof
     /// too; table4: 512, the paper's outdoor setting).
@@ -314,8 +314,8 @@ pub struct BenchArgs {
     #[command(flatten)]
     pub sixdof: SixDofArgs,
     /// Runs computed at once (each also uses every core for its rays; more
-    /// than one makes the measured steps/s smaller).
-    #[arg(long, default_value_t = 1)]
+    /// than one makes the measured steps/s smaller; 1 to 1024).
+    #[arg(long, default_value_t = 1, value_parser = super::count_in::<1, 1024>)]
     pub jobs: usize,
     /// Print the filter configuration as JSON and exit.
     #[arg(long)]

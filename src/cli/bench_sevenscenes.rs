@@ -32,7 +32,7 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     let s = &a.scenes;
     let dir = s.scenes.clone().unwrap_or_else(default_scenes);
     let seq = SevenScenes::open(&dir)?;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    super::outputs::create_folder("--out", &a.out)?;
     let seeds: Vec<u64> = s
         .scenes_seeds
         .split(',')

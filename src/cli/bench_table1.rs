@@ -57,7 +57,7 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     }
     // (A folder made here and left empty by a failure is removed by
     // `bench::run`.)
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    super::outputs::create_folder("--out", &a.out)?;
     let names = a.plan.variants.as_deref();
     let progress = |m: &str| eprintln!("{m}");
     if let Some(spec) = plan_spec {

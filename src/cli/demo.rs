@@ -26,7 +26,7 @@ pub struct DemoArgs {
     #[arg(long, default_value_t = omcl::experiment::seeds::FIRST_REPORTING + 7)]
     pub seed: u64,
     /// Frames of the synthetic sequence.
-    #[arg(long, default_value_t = 120)]
+    #[arg(long, default_value_t = 120, value_parser = super::count_in::<1, 100_000>)]
     pub frames: usize,
     /// Sequences of the closing Table I run (0 skips it).
     #[arg(long, default_value_t = 2)]
@@ -53,7 +53,7 @@ fn s(p: &Path) -> String {
 }
 
 pub fn run(a: DemoArgs) -> anyhow::Result<()> {
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    super::outputs::create_folder("--out", &a.out)?;
     let t = Instant::now();
     indoor(&a)?;
     if a.street_frames > 0 {

@@ -67,8 +67,8 @@ pub struct OrtArgs {
     /// ORT_DYLIB_PATH and the copy `make deps` installs in .deps/.
     #[arg(long, value_name = "PATH")]
     pub ort_lib: Option<PathBuf>,
-    /// Threads per model run (0 = one per physical core).
-    #[arg(long, default_value_t = 0)]
+    /// Threads per model run (0 = one per physical core; at most 1024).
+    #[arg(long, default_value_t = 0, value_parser = super::count_in::<0, 1024>)]
     pub threads: usize,
 }
 
@@ -159,6 +159,10 @@ pub fn run(cmd: EncodeCommand) -> anyhow::Result<()> {
 }
 
 fn text(a: &TextArgs) -> anyhow::Result<()> {
+    super::outputs::refuse_overlaps(
+        &[("--out", &a.out)],
+        &super::outputs::model_files("--model", Some(&a.model)),
+    )?;
     let rt = init_runtime(a.ort.ort_lib.as_deref())?;
     let mut enc = TextEncoder::load(rt, &a.model, a.ort.threads)?;
     let words: Vec<&str> = a.words.iter().map(String::as_str).collect();
@@ -184,6 +188,11 @@ fn image(a: &ImageArgs) -> anyhow::Result<()> {
             "--out takes one image; use --cache DIR for {} images",
             a.images.len()
         );
+    }
+    if let Some(out) = &a.out {
+        let mut inputs = super::outputs::model_files("--model", Some(&a.model));
+        inputs.push(("the image".to_string(), a.images[0].clone()));
+        super::outputs::refuse_overlaps(&[("--out", out)], &inputs)?;
     }
     let rt = init_runtime(a.ort.ort_lib.as_deref())?;
     let mut enc = ImageEncoder::load(rt, &a.model, a.ort.threads)?;
@@ -363,6 +372,10 @@ pub fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
 fn colour_model(a: &ColourModelArgs) -> anyhow::Result<()> {
     use omcl::experiment::sevenscenes::{TrackSpec, fit_colour_model, split};
     let size = parse_size(&a.size)?;
+    let card = omcl::encode::card::card_path_for(&a.out);
+    let outputs = [("--out", a.out.as_path()), ("--out's card", card.as_path())];
+    super::outputs::refuse_overlaps(&outputs, &[] as &[(&str, &Path)])?;
+    super::outputs::refuse_inside_sequence(&outputs, &a.frames)?;
     let seq = omcl::io::sevenscenes::SevenScenes::open(&a.frames)?;
     let n = seq.len().min(a.first.unwrap_or(usize::MAX));
     let (mapping, _) = split(n, 1);

@@ -26,6 +26,20 @@ pub struct EncoderArgs {
     pub ort_lib: Option<PathBuf>,
 }
 
+impl EncoderArgs {
+    /// The files these options read (the image encoder, its card, the
+    /// runtime library), as [`super::outputs::refuse_overlaps`] inputs.
+    pub fn inputs(&self) -> Vec<(String, PathBuf)> {
+        let mut v = super::outputs::model_files("--image-model", self.image_model.as_deref());
+        v.extend(
+            self.ort_lib
+                .clone()
+                .map(|p| ("the --ort-lib".to_string(), p)),
+        );
+        v
+    }
+}
+
 pub use omcl::encode::cache::ImageSource;
 
 /// The image encoder of `args` with its cache, if one was given.

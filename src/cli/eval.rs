@@ -97,10 +97,10 @@ pub struct PairArgs {
     #[arg(long, value_name = "FILE")]
     pub est_times: Option<PathBuf>,
     /// Largest stamp difference for association, seconds.
-    #[arg(long, default_value_t = DEFAULT_MAX_DIFF)]
+    #[arg(long, default_value_t = DEFAULT_MAX_DIFF, value_parser = super::seconds)]
     pub t_max_diff: f64,
     /// Added to the estimate's stamps before association, seconds.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = super::finite)]
     pub t_offset: f64,
 }
 

@@ -99,7 +99,7 @@ pub struct LocalizeArgs {
     /// 7-Scenes folders: localize every n-th frame (a handheld camera moves
     /// millimetres a frame; with a map from the even frames, `--frame-step
     /// 8 --frame-offset 1` takes every 4th odd frame).
-    #[arg(long, default_value_t = 1, value_name = "N")]
+    #[arg(long, default_value_t = 1, value_name = "N", value_parser = super::count_in::<1, { usize::MAX }>)]
     pub frame_step: usize,
     /// 7-Scenes folders: the first frame localized (position among the
     /// sorted frames).
@@ -169,7 +169,7 @@ pub struct LocalizeArgs {
     pub prompt_radius: f64,
     /// --init prompt: a voxel matches a word at this cosine similarity or
     /// more (paper: 0.9).
-    #[arg(long, default_value_t = PromptParams::default().rho)]
+    #[arg(long, default_value_t = PromptParams::default().rho, value_parser = super::cosine)]
     pub prompt_rho: f32,
     /// --init prompt: voxels each word needs within the radius, stated at
     /// 2 cm voxels and scaled to the map's resolution (paper: 500; 80 at
@@ -269,13 +269,13 @@ pub struct LocalizeArgs {
     /// where a third of the image is sky and misses at 0 pull the filter
     /// towards poses that turn the sky onto facades (docs/outdoor.md, "Misses on
     /// streets"); 0 elsewhere
-    #[arg(long, value_name = "SCORE")]
+    #[arg(long, value_name = "SCORE", value_parser = super::unit_score)]
     pub miss_score: Option<f32>,
     /// Seed of every random draw.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Use at most this many frames.
-    #[arg(long)]
+    #[arg(long, value_parser = super::count_in::<1, { usize::MAX }>)]
     pub frames: Option<usize>,
     /// Take pixel features from features/NNNNNN.npy (KITTI: features_2/)
     /// even if labels exist (e.g. the simulator's noisy "lseg-like"
@@ -360,6 +360,13 @@ fn init_advice(e: mcl::MclError) -> anyhow::Error {
 }
 
 fn parse_pose(s: &str) -> anyhow::Result<Pose> {
+    // Seven numbers, no stamp (a TUM line's eight would read its first as
+    // a stamp and hide a wrong count).
+    let n = s.split_whitespace().count();
+    ensure!(
+        n == 7,
+        "--init-pose {s:?}: expected 7 numbers 'tx ty tz qx qy qz qw', found {n}"
+    );
     rgbd::parse_tum_pose(s).map_err(|e| anyhow::anyhow!("--init-pose {s:?}: {e}"))
 }
 
@@ -1098,21 +1105,27 @@ fn refuse_replacing_inputs(a: &LocalizeArgs) -> anyhow::Result<()> {
         outputs.extend(p.as_deref().map(|p| (option, p)));
     }
     let files = super::outputs::sequence_files(&a.sequence);
-    let mut inputs = vec![("the map", a.map.as_path())];
+    let mut inputs = vec![("the map".to_string(), a.map.clone())];
     inputs.extend(
         a.floorplan
             .iter()
             .flatten()
-            .map(|p| ("the floor plan", p.as_path())),
+            .map(|p| ("the floor plan".to_string(), p.clone())),
     );
-    inputs.extend(a.odometry.as_deref().map(|p| ("the odometry", p)));
+    inputs.extend(a.odometry.clone().map(|p| ("the odometry".to_string(), p)));
     inputs.extend(
         files
-            .iter()
-            .map(|p| (super::outputs::SEQUENCE_FILE, p.as_path())),
+            .into_iter()
+            .map(|p| (super::outputs::SEQUENCE_FILE.to_string(), p)),
     );
+    inputs.extend(a.encoder.inputs());
+    inputs.extend(super::outputs::model_files(
+        "--text-model",
+        a.text_model.as_deref(),
+    ));
     super::outputs::refuse_overlaps(&outputs, &inputs)?;
-    super::outputs::refuse_inside_sequence(&outputs, &a.sequence)
+    super::outputs::refuse_inside_sequence(&outputs, &a.sequence)?;
+    super::outputs::refuse_unwritable(&outputs, &["--plot"])
 }
 
 /// `--floorplan`'s and `--ground`'s limits, by name: planar motion, and

@@ -58,6 +58,28 @@ pub struct BuildOptions {
 const DEFAULT_ENCODER: &str = "clip-vit-b32";
 
 impl BuildOptions {
+    /// The files these options read (the class list, its features, the
+    /// text encoder and its card), as [`super::outputs::refuse_overlaps`]
+    /// inputs.
+    pub fn inputs(&self) -> Vec<(String, PathBuf)> {
+        let mut v = Vec::new();
+        v.extend(
+            self.classes
+                .as_deref()
+                .map(|c| ("the --classes list".to_string(), PathBuf::from(c))),
+        );
+        v.extend(
+            self.embeddings
+                .clone()
+                .map(|p| ("the --embeddings".to_string(), p)),
+        );
+        v.extend(super::outputs::model_files(
+            "--text-model",
+            self.text_model.as_deref(),
+        ));
+        v
+    }
+
     /// The class table of --classes, if given (`ort_lib`: the command's
     /// ONNX Runtime library, for --text-model), with the text encoder's
     /// name when one made it.
@@ -105,7 +127,7 @@ impl BuildOptions {
             "--tau must be in [0, 2], got {}",
             self.tau
         );
-        Ok(())
+        super::outputs::refuse_unwritable(&[("--out", &self.out)], &[])
     }
 }
 
@@ -154,7 +176,7 @@ pub struct CloudArgs {
     #[arg(long)]
     pub labels: Option<PathBuf>,
     /// Sequence folders: use at most this many scans from the start.
-    #[arg(long)]
+    #[arg(long, value_parser = super::count_in::<1, { usize::MAX }>)]
     pub frames: Option<usize>,
     /// Sequence folders: per-scan feature files NNNNNN.npy in this folder.
     #[arg(long)]
@@ -176,9 +198,15 @@ pub struct CloudArgs {
 }
 
 pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
-    let mut inputs = vec![("the input", a.input.as_path())];
-    inputs.extend(a.labels.as_deref().map(|p| ("--labels", p)));
-    inputs.extend(a.features.as_deref().map(|p| ("--features", p)));
+    let mut inputs = vec![("the input".to_string(), a.input.clone())];
+    inputs.extend(a.labels.clone().map(|p| ("--labels".to_string(), p)));
+    inputs.extend(a.features.clone().map(|p| ("--features".to_string(), p)));
+    inputs.extend(a.build.inputs());
+    inputs.extend(super::outputs::model_files(
+        "--point-model",
+        a.point_model.as_deref(),
+    ));
+    inputs.extend(a.ort_lib.clone().map(|p| ("the --ort-lib".to_string(), p)));
     super::outputs::refuse_overlaps(&[("--out", &a.build.out)], &inputs)?;
     a.build.check()?;
     let input = CloudInput {
@@ -270,11 +298,11 @@ pub struct RgbdArgs {
     #[arg(long)]
     pub use_features: bool,
     /// Use at most this many frames (7-Scenes: picked frames).
-    #[arg(long)]
+    #[arg(long, value_parser = super::count_in::<1, { usize::MAX }>)]
     pub frames: Option<usize>,
     /// 7-Scenes folders: map every n-th frame (2: the even frames, leaving
     /// the odd ones to localize).
-    #[arg(long, default_value_t = 1, value_name = "N")]
+    #[arg(long, default_value_t = 1, value_name = "N", value_parser = super::count_in::<1, { usize::MAX }>)]
     pub frame_step: usize,
     /// 7-Scenes folders: the first frame mapped (position among the sorted
     /// frames).
@@ -329,10 +357,12 @@ fn sevenscenes(a: &RgbdArgs) -> anyhow::Result<()> {
 pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
     a.build.check()?;
     let files = super::outputs::sequence_files(&a.dir);
-    let inputs: Vec<_> = files
-        .iter()
-        .map(|p| (super::outputs::SEQUENCE_FILE, p.as_path()))
+    let mut inputs: Vec<_> = files
+        .into_iter()
+        .map(|p| (super::outputs::SEQUENCE_FILE.to_string(), p))
         .collect();
+    inputs.extend(a.build.inputs());
+    inputs.extend(a.encoder.inputs());
     super::outputs::refuse_overlaps(&[("--out", &a.build.out)], &inputs)?;
     super::outputs::refuse_inside_sequence(&[("--out", &a.build.out)], &a.dir)?;
     let d = &a.dir;
@@ -413,6 +443,32 @@ pub struct WordSource {
 }
 
 impl WordSource {
+    /// The files the words' features are read from, as
+    /// [`super::outputs::refuse_overlaps`] inputs.
+    fn inputs(&self) -> Vec<(String, PathBuf)> {
+        let mut v = Vec::new();
+        v.extend(
+            self.classes
+                .as_deref()
+                .map(|c| ("the --classes list".to_string(), PathBuf::from(c))),
+        );
+        v.extend(
+            self.embeddings
+                .clone()
+                .map(|p| ("the --embeddings".to_string(), p)),
+        );
+        v.extend(super::outputs::model_files(
+            "--text-model",
+            self.text_model.as_deref(),
+        ));
+        v.extend(
+            self.ort_lib
+                .clone()
+                .map(|p| ("the --ort-lib".to_string(), p)),
+        );
+        v
+    }
+
     /// Unit features of `words`, in order; an unknown word is an error that
     /// lists a few known names.
     fn features(&self, words: &[String], dim: usize) -> anyhow::Result<FeatureDb> {
@@ -501,7 +557,7 @@ pub struct GroundArgs {
     #[command(flatten)]
     pub source: WordSource,
     /// Drop voxels whose best similarity to any word is below this.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = super::cosine)]
     pub min_similarity: f32,
     /// Where to write the grounded map.
     #[arg(long, short)]
@@ -509,7 +565,14 @@ pub struct GroundArgs {
 }
 
 pub fn ground(a: &GroundArgs) -> anyhow::Result<()> {
-    super::outputs::refuse_overlaps(&[("--out", &a.out)], &[("the map", &a.map)])?;
+    let mut inputs = vec![("the map".to_string(), a.map.clone())];
+    inputs.extend(
+        a.prompt_file
+            .clone()
+            .map(|p| ("the --prompt-file".to_string(), p)),
+    );
+    inputs.extend(a.source.inputs());
+    super::outputs::refuse_overlaps(&[("--out", &a.out)], &inputs)?;
     let mut m = map::load(&a.map)?;
     let words = parse_words(&a.words, a.prompt_file.as_deref())?;
     let prompts = a.source.features(&words, m.db().dim())?;
@@ -554,7 +617,9 @@ fn voxel_cloud(m: &LanguageMap, colors: Vec<[u8; 3]>) -> PointCloud {
 }
 
 pub fn query(a: &QueryArgs) -> anyhow::Result<()> {
-    super::outputs::refuse_overlaps(&[("--out", &a.out)], &[("the map", &a.map)])?;
+    let mut inputs = vec![("the map".to_string(), a.map.clone())];
+    inputs.extend(a.source.inputs());
+    super::outputs::refuse_overlaps(&[("--out", &a.out)], &inputs)?;
     let m = map::load(&a.map)?;
     let words = parse_words(&a.words, None)?;
     let prompts = a.source.features(&words, m.db().dim())?;
@@ -640,7 +705,16 @@ pub fn classes(a: &ClassesArgs) -> anyhow::Result<()> {
 /// Writes `dir/classes.txt` and `dir/embeddings.npy` (refusing to replace
 /// them unless `force`).
 fn write_table(dir: &Path, t: &EmbeddingTable, force: bool) -> anyhow::Result<()> {
-    ensure!(dir.is_dir(), "{}: not a folder", dir.display());
+    ensure!(
+        dir.is_dir(),
+        "{}: {}; --out names the folder the table is written into",
+        dir.display(),
+        if dir.exists() {
+            "not a folder"
+        } else {
+            "no such folder (create it first)"
+        }
+    );
     let (txt, npy) = (dir.join("classes.txt"), dir.join("embeddings.npy"));
     for p in [&txt, &npy] {
         ensure!(
@@ -674,11 +748,14 @@ pub struct ProjectArgs {
     /// P2), poses.txt.
     pub sequence: PathBuf,
     /// Folder of the label images (default: SEQUENCE/labels_2, what
-    /// `omcl localize` reads).
+    /// `omcl localize` reads). A sequence with neither classes.txt nor
+    /// embeddings.npy also gets the built-in SemanticKITTI table there
+    /// (SEQUENCE/classes.txt, SEQUENCE/embeddings.npy), which `omcl
+    /// localize` reads beside the label images; existing ones are kept.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
     /// Use at most this many scans (and make that many images).
-    #[arg(long)]
+    #[arg(long, value_parser = super::count_in::<1, { usize::MAX }>)]
     pub frames: Option<usize>,
     /// Points farther than this from the camera are left out (m).
     #[arg(long, default_value_t = 80.0)]
@@ -729,7 +806,7 @@ pub fn project(a: &ProjectArgs) -> anyhow::Result<()> {
     };
     // Checked before anything is written: the folder opens as a sequence.
     omcl::io::kitti::KittiSequence::open(&a.sequence)?;
-    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    super::outputs::create_folder("--out", &out)?;
     let t0 = std::time::Instant::now();
     let pb = super::progress::bar(0, "projecting");
     let s = pipeline::project_sequence_labels(&input, &params, &out, &mut |done, total| {

@@ -34,6 +34,7 @@ pub fn run(a: &FloorplanArgs) -> anyhow::Result<()> {
     let mut outputs = vec![("--out", a.out.as_path())];
     outputs.extend(a.png.as_deref().map(|p| ("--png", p)));
     super::outputs::refuse_overlaps(&outputs, &[("the map", &a.map)])?;
+    super::outputs::refuse_unwritable(&outputs, &[])?;
     let map = omcl::map::load(&a.map)?;
     let params = FloorPlanParams {
         band_min: a.band_min,

@@ -96,6 +96,22 @@ pub fn positive_seconds(s: &str) -> Result<f64, String> {
     }
 }
 
+/// A finite score in `0..=1` (`--miss-score 5` was taken).
+pub fn unit_score(s: &str) -> Result<f32, String> {
+    finite_in(s, 0.0, 1.0).map(|v| v as f32)
+}
+
+/// A finite cosine similarity in `-1..=1` (`--min-similarity nan` was
+/// taken).
+pub fn cosine(s: &str) -> Result<f32, String> {
+    finite_in(s, -1.0, 1.0).map(|v| v as f32)
+}
+
+/// A finite number of seconds, 0 or more.
+pub fn seconds(s: &str) -> Result<f64, String> {
+    finite_in(s, 0.0, 1e12)
+}
+
 fn finite_in(s: &str, lo: f64, hi: f64) -> Result<f64, String> {
     let v: f64 = s.trim().parse().map_err(|e| format!("{e}"))?;
     if v.is_finite() && (lo..=hi).contains(&v) {

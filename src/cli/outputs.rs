@@ -100,10 +100,81 @@ pub fn refuse_inside_sequence(outputs: &[(&str, &Path)], seq: &Path) -> anyhow::
     Ok(())
 }
 
+/// Refuses, before any work, outputs that could not be written at the
+/// end: a folder that does not exist or is not a folder, and a figure
+/// (`figures`: options drawn as PNG or SVG by extension) of another kind.
+pub fn refuse_unwritable(outputs: &[(&str, &Path)], figures: &[&str]) -> anyhow::Result<()> {
+    for &(option, p) in outputs {
+        let dir = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        anyhow::ensure!(
+            dir.is_dir(),
+            "{}: {option}'s folder {} {}",
+            p.display(),
+            dir.display(),
+            if dir.exists() {
+                "is not a folder"
+            } else {
+                "does not exist (create it first)"
+            }
+        );
+        anyhow::ensure!(
+            !p.is_dir(),
+            "{}: {option} is a folder; give a file name",
+            p.display()
+        );
+        if figures.contains(&option) {
+            let ext = p
+                .extension()
+                .and_then(|e| e.to_str())
+                .map(str::to_ascii_lowercase);
+            anyhow::ensure!(
+                matches!(ext.as_deref(), Some("png" | "svg")),
+                "{}: {option} is drawn as PNG or SVG by its extension; end the name in .png or \
+                 .svg",
+                p.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Creates the folder `dir` that `option` names (and its parents), or
+/// says by name that a file is in the way.
+pub fn create_folder(option: &str, dir: &Path) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !dir.exists() || dir.is_dir(),
+        "{}: {option} names a folder, and this is a file (choose another path)",
+        dir.display()
+    );
+    std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))
+}
+
+/// The files an ONNX model option (`--text-model` ...) reads, if given:
+/// the model and its card, as [`refuse_overlaps`] inputs.
+pub fn model_files(option: &str, model: Option<&Path>) -> Vec<(String, PathBuf)> {
+    model
+        .map(|m| {
+            vec![
+                (format!("the {option}"), m.to_path_buf()),
+                (
+                    format!("the {option}'s card"),
+                    omcl::encode::card::card_path_for(m),
+                ),
+            ]
+        })
+        .unwrap_or_default()
+}
+
 /// Refuses when an output (`(option, path)`) is one of the `inputs`
 /// (`(what, path)`, files the command reads; those that do not exist are
 /// skipped, their readers say so) or another output, naming both.
-pub fn refuse_overlaps(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> anyhow::Result<()> {
+pub fn refuse_overlaps<S: AsRef<str>, P: AsRef<Path>>(
+    outputs: &[(&str, &Path)],
+    inputs: &[(S, P)],
+) -> anyhow::Result<()> {
     // A character device or a pipe (`/dev/null`) is written into, not
     // replaced: several outputs may go there.
     let special = |p: &Path| {
@@ -118,8 +189,8 @@ pub fn refuse_overlaps(outputs: &[(&str, &Path)], inputs: &[(&str, &Path)]) -> a
     // Only inputs that exist: a missing one has no inode to share.
     let ins: Vec<_> = inputs
         .iter()
-        .filter_map(|&(what, p)| match identity(p) {
-            Some(id @ Identity::Inode(..)) => Some((what, p, id)),
+        .filter_map(|(what, p)| match identity(p.as_ref()) {
+            Some(id @ Identity::Inode(..)) => Some((what.as_ref(), p.as_ref(), id)),
             _ => None,
         })
         .collect();
@@ -296,7 +367,8 @@ mod tests {
         refuse_overlaps(&[("--out", &input)], &[("the plan", &d.join("none"))]).unwrap();
         // Two outputs naming one new file, through different paths.
         let (a, b) = (d.join("plan.png"), d.join("sub/../plan.png"));
-        let e = refuse_overlaps(&[("--out", &a), ("--png", &b)], &[]).unwrap_err();
+        let e =
+            refuse_overlaps(&[("--out", &a), ("--png", &b)], &[] as &[(&str, &Path)]).unwrap_err();
         assert!(e.to_string().contains("--png and --out"), "{e}");
         // Nothing was written or removed.
         assert_eq!(std::fs::read(&input).unwrap(), b"map");

@@ -67,8 +67,8 @@ pub struct ServeArgs {
     #[arg(long, value_name = "FILE")]
     pub token_file: Option<PathBuf>,
     /// Threads of the compute pool that runs the filter steps (default: the
-    /// machine's cores).
-    #[arg(long)]
+    /// machine's cores; 1 to 1024).
+    #[arg(long, value_parser = super::count_in::<1, 1024>)]
     pub threads: Option<usize>,
     /// Open sessions at most, in total.
     #[arg(long, default_value_t = Limits::default().max_sessions, value_parser = super::count_in::<1, { usize::MAX }>)]

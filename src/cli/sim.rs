@@ -70,8 +70,9 @@ pub struct IndoorArgs {
     /// at stride 8, 600 MB at stride 1).
     #[arg(long)]
     pub features: bool,
-    /// Pixel stride of the written features.
-    #[arg(long, default_value_t = 8)]
+    /// Pixel stride of the written features (at most the image's height
+    /// and width).
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=8192))]
     pub feature_stride: u32,
     /// Odometry noise per frame: translation (m) and rotation (degrees).
     #[arg(long, default_value_t = 0.10, value_parser = super::metres)]
@@ -133,8 +134,9 @@ pub struct OutdoorArgs {
     /// Feature preset of --features: exact, gt or lseg-like.
     #[arg(long, default_value = "gt")]
     pub preset: Preset,
-    /// Pixel stride of the written features.
-    #[arg(long, default_value_t = 8)]
+    /// Pixel stride of the written features (at most the image's height
+    /// and width).
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=8192))]
     pub feature_stride: u32,
     /// Embedding table folder (classes.txt + embeddings.npy); default built in.
     #[arg(long)]
@@ -224,7 +226,12 @@ fn indoor(a: IndoorArgs) -> anyhow::Result<()> {
     cfg.hfov_deg = hfov;
     cfg.preset = preset;
     cfg.features = features;
-    cfg.feature_stride = feature_stride.max(1);
+    anyhow::ensure!(
+        feature_stride <= width.min(height),
+        "--feature-stride {feature_stride} is larger than the {width} x {height} image: no pixel \
+         would get a feature"
+    );
+    cfg.feature_stride = feature_stride;
     cfg.odometry.sigma_t = odom_sigma_t;
     cfg.odometry.sigma_r_deg = odom_sigma_r;
     let traj = match trajectories.as_deref() {
@@ -294,21 +301,37 @@ fn outdoor(a: OutdoorArgs) -> anyhow::Result<()> {
         .with_context(|| format!("reading the driving path {}", path.display()))?;
     anyhow::ensure!(
         start < gt.len(),
-        "--start {start} is past the path's {} poses",
+        "{}: --start {start} is past the path's {} poses",
+        path.display(),
         gt.len()
+    );
+    anyhow::ensure!(
+        frames <= gt.len() - start,
+        "{}: --frames {frames} from --start {start} needs {} poses; the path has {} (at most \
+         --frames {})",
+        path.display(),
+        start + frames,
+        gt.len(),
+        gt.len() - start
     );
     let mut cfg = dataset::OutdoorDatasetConfig::new(seed);
     cfg.world.start = start;
     cfg.world.frames = frames;
     cfg.world.resolution = resolution;
-    cfg.lidar.azimuth_steps = azimuth_steps.max(1);
+    cfg.lidar.azimuth_steps = azimuth_steps;
     cfg.images = !no_images;
     cfg.features = features;
     cfg.preset = preset;
-    cfg.feature_stride = feature_stride.max(1);
+    let (w, h) = omcl::io::kitti::KITTI_IMAGE_SIZE;
+    anyhow::ensure!(
+        feature_stride <= w.min(h),
+        "--feature-stride {feature_stride} is larger than the {w} x {h} image: no pixel would \
+         get a feature"
+    );
+    cfg.feature_stride = feature_stride;
     let table = load_table(table.as_deref())?;
     let staging = super::outputs::stage_sim_folder(&out, &dataset::OUTDOOR_ENTRIES, force)?;
-    let pb = progress_bar(frames.min(gt.len() - start));
+    let pb = progress_bar(frames);
     pb.set_message("scanning");
     let mut summary = dataset::write_outdoor(staging.path(), &cfg, &gt, &table, &|n| {
         pb.set_position(n as u64)

@@ -73,6 +73,7 @@ fn beside(manifest: &Path, name: &str) -> PathBuf {
 
 #[derive(Debug, Args)]
 pub struct RunCmd {
+    /// The manifest `omcl sweep plan` wrote (`.jsonl`: one run a line).
     pub manifest: PathBuf,
     /// Run this entry (0-based; line INDEX + 2 of the manifest); with
     /// --stride, the entries INDEX, INDEX + STRIDE, ... [default: all].
@@ -83,8 +84,8 @@ pub struct RunCmd {
     pub stride: Option<usize>,
     #[command(flatten)]
     pub dirs: Dirs,
-    /// Runs computed at once.
-    #[arg(long, default_value_t = 1)]
+    /// Runs computed at once (1 to 1024).
+    #[arg(long, default_value_t = 1, value_parser = super::count_in::<1, 1024>)]
     pub jobs: usize,
     /// Fail a run whose map is not in the cache instead of building it.
     #[arg(long)]
@@ -93,6 +94,7 @@ pub struct RunCmd {
 
 #[derive(Debug, Args)]
 pub struct StatusCmd {
+    /// The manifest `omcl sweep plan` wrote (`.jsonl`: one run a line).
     pub manifest: PathBuf,
     /// Result folder [default: MANIFEST's folder/results].
     #[arg(long)]
@@ -101,6 +103,7 @@ pub struct StatusCmd {
 
 #[derive(Debug, Args)]
 pub struct CollectCmd {
+    /// The manifest `omcl sweep plan` wrote; its runs' results are collected.
     pub manifest: PathBuf,
     #[command(flatten)]
     pub dirs: Dirs,
@@ -111,6 +114,8 @@ pub struct CollectCmd {
 
 #[derive(Debug, Args)]
 pub struct SlurmCmd {
+    /// The manifest `omcl sweep plan` wrote; its runs without a result are
+    /// submitted.
     pub manifest: PathBuf,
     #[command(flatten)]
     pub dirs: Dirs,
@@ -167,6 +172,9 @@ pub fn run(cmd: SweepCommand) -> anyhow::Result<()> {
 
 fn plan(c: PlanCmd) -> anyhow::Result<()> {
     let bench = c.plan.bench_plan()?;
+    if let Some(dir) = c.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        super::outputs::create_folder("--out's folder", dir)?;
+    }
     let entries = sweep::plan(&bench)?;
     sweep::write_manifest(&c.out, &bench, &entries)?;
     println!("planned {} runs into {}", entries.len(), c.out.display());
@@ -242,9 +250,14 @@ fn slurm_cmd(c: SlurmCmd) -> anyhow::Result<()> {
         .script
         .clone()
         .unwrap_or_else(|| beside(&c.manifest, "sweep.sbatch"));
-    for d in [&results, &logs] {
-        std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
-    }
+    let submit_sh = beside(&script, "submit.sh");
+    super::outputs::refuse_overlaps(
+        &[
+            ("--script", &script),
+            ("submit.sh beside --script", &submit_sh),
+        ],
+        &[("the manifest", &c.manifest)],
+    )?;
     let omcl = match &c.omcl {
         Some(p) => p.clone(),
         None => std::env::current_exe().context("locating this omcl binary")?,
@@ -269,6 +282,10 @@ fn slurm_cmd(c: SlurmCmd) -> anyhow::Result<()> {
         max_array_size,
         retries: c.retries,
     };
+    o.check()?;
+    for (option, d) in [("--results", &results), ("--logs", &logs)] {
+        super::outputs::create_folder(option, d)?;
+    }
     let s = sweep::status(&manifest, &ResultDir::new(&results));
     let to_do = s.to_do();
     let chunks = slurm::chunks(&to_do, max_array_size);

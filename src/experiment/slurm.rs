@@ -37,6 +37,68 @@ pub struct SlurmOptions {
     pub retries: u32,
 }
 
+impl SlurmOptions {
+    /// Refuses what `sbatch` would reject or the script could not hold,
+    /// by option name: a `--time` Slurm does not read, no memory, an array
+    /// limit below 1, a concurrency of 0, and a job name or partition
+    /// with whitespace or control characters (a newline would end the
+    /// `#SBATCH` line and start a shell line).
+    pub fn check(&self) -> Result<(), SweepError> {
+        let bad = |s: &str| s.is_empty() || s.chars().any(|c| c.is_whitespace() || c.is_control());
+        if bad(&self.job_name) {
+            return Err(SweepError::Plan(format!(
+                "--job-name {:?}: empty, or with whitespace or control characters",
+                self.job_name
+            )));
+        }
+        if let Some(p) = self.partition.as_deref().filter(|p| bad(p)) {
+            return Err(SweepError::Plan(format!(
+                "--partition {p:?}: empty, or with whitespace or control characters"
+            )));
+        }
+        if !is_slurm_time(&self.time) {
+            return Err(SweepError::Plan(format!(
+                "--time {:?}: not a Slurm time limit (MINUTES, MINUTES:SECONDS, \
+                 HOURS:MINUTES:SECONDS, DAYS-HOURS, DAYS-HOURS:MINUTES, \
+                 DAYS-HOURS:MINUTES:SECONDS or UNLIMITED)",
+                self.time
+            )));
+        }
+        if self.mem_mb == 0 {
+            return Err(SweepError::Plan(
+                "--mem-mb 0: a task needs memory (Slurm reads 0 as all of a node's)".into(),
+            ));
+        }
+        if self.max_array_size == 0 {
+            return Err(SweepError::Plan(
+                "--max-array-size 0: array ids must stay below it, so it is at least 1".into(),
+            ));
+        }
+        if self.concurrency == Some(0) {
+            return Err(SweepError::Plan(
+                "--concurrency 0: no task would ever run".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Whether `t` is a time limit `sbatch --time` reads: `M`, `M:S`,
+/// `H:M:S`, `D-H`, `D-H:M`, `D-H:M:S` (decimal numbers), or `UNLIMITED` /
+/// `INFINITE`.
+fn is_slurm_time(t: &str) -> bool {
+    if t.eq_ignore_ascii_case("unlimited") || t.eq_ignore_ascii_case("infinite") {
+        return true;
+    }
+    let num = |s: &str| !s.is_empty() && s.len() <= 9 && s.bytes().all(|b| b.is_ascii_digit());
+    let (days, rest) = match t.split_once('-') {
+        Some((d, r)) => (Some(d), r),
+        None => (None, t),
+    };
+    let parts: Vec<&str> = rest.split(':').collect();
+    days.is_none_or(num) && parts.len() <= 3 && parts.iter().all(|p| num(p))
+}
+
 /// One `sbatch` submission: runs `offset + t` for every `t` in `array`.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Chunk {
@@ -220,6 +282,98 @@ mod tests {
 
     /// 2,500 runs with MaxArraySize 1001: ids 0..=1000 per chunk, three
     /// chunks at offsets 0, 1001, 2002; missing runs only where asked.
+    #[test]
+    fn options_sbatch_would_reject_are_refused_by_name() {
+        let good = SlurmOptions {
+            omcl: "/bin/omcl".into(),
+            manifest: "/m.jsonl".into(),
+            results: "/r".into(),
+            cache: "/c".into(),
+            logs: "/l".into(),
+            job_name: "omcl-sweep".into(),
+            cpus_per_task: 2,
+            mem_mb: 2000,
+            time: "01:00:00".into(),
+            partition: Some("debug".into()),
+            concurrency: Some(4),
+            max_array_size: 1001,
+            retries: 2,
+        };
+        good.check().unwrap();
+        for t in [
+            "30",
+            "30:00",
+            "1:00:00",
+            "2-0",
+            "2-12:30",
+            "2-12:30:00",
+            "UNLIMITED",
+        ] {
+            SlurmOptions {
+                time: t.into(),
+                ..good.clone()
+            }
+            .check()
+            .unwrap_or_else(|e| panic!("{t}: {e}"));
+        }
+        let refused = |o: SlurmOptions, option: &str| {
+            let e = o.check().unwrap_err().to_string();
+            assert!(e.contains(option), "{e}");
+        };
+        for t in [
+            "bogus",
+            "",
+            "1:2:3:4",
+            "-5",
+            "1h",
+            "1-2-3",
+            "01:00:00\necho x",
+        ] {
+            refused(
+                SlurmOptions {
+                    time: t.into(),
+                    ..good.clone()
+                },
+                "--time",
+            );
+        }
+        refused(
+            SlurmOptions {
+                job_name: "x\necho INJECTED".into(),
+                ..good.clone()
+            },
+            "--job-name",
+        );
+        refused(
+            SlurmOptions {
+                partition: Some("a b".into()),
+                ..good.clone()
+            },
+            "--partition",
+        );
+        refused(
+            SlurmOptions {
+                mem_mb: 0,
+                ..good.clone()
+            },
+            "--mem-mb",
+        );
+        refused(
+            SlurmOptions {
+                max_array_size: 0,
+                ..good.clone()
+            },
+            "--max-array-size",
+        );
+        refused(
+            SlurmOptions {
+                concurrency: Some(0),
+                ..good.clone()
+            },
+            "--concurrency",
+        );
+    }
+
     #[test]
     fn chunks_stay_below_the_array_limit() {
         let all: Vec<usize> = (0..2500).collect();

@@ -308,6 +308,19 @@ impl EmbeddingTable {
         if arr.data.iter().any(|v| !v.is_finite()) {
             return Err(CloudError::format(npy_path, "non-finite embedding value"));
         }
+        if let Some(row) = arr
+            .data
+            .chunks(arr.shape[1].max(1))
+            .position(|r| r.iter().all(|&v| v == 0.0))
+        {
+            return Err(CloudError::format(
+                npy_path,
+                format!(
+                    "row {row} (class '{}') is all zeros: a feature needs a direction",
+                    names[row]
+                ),
+            ));
+        }
         EmbeddingTable::new(ids, names, arr.shape[1], arr.data)
             .map_err(|r| CloudError::format(classes_path, r))
     }
@@ -364,6 +377,19 @@ pub fn read_class_list(classes_path: &Path) -> Result<(Vec<u32>, Vec<String>), C
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
+        if let Some((id, _)) = line.split_once(char::is_whitespace)
+            && id.bytes().all(|b| b.is_ascii_digit())
+            && id.parse::<u32>().is_err()
+        {
+            return Err(CloudError::format(
+                classes_path,
+                format!(
+                    "line {}: class id {id} is out of range (0 to {})",
+                    lineno + 1,
+                    u32::MAX
+                ),
+            ));
+        }
         let split = line
             .split_once(char::is_whitespace)
             .and_then(|(id, name)| Some((id.parse::<u32>().ok()?, name.trim())));
@@ -385,6 +411,17 @@ pub fn read_class_list(classes_path: &Path) -> Result<(Vec<u32>, Vec<String>), C
         }
         match split {
             Some((id, name)) => {
+                if let Some(k) = ids.iter().position(|&i| i == id) {
+                    return Err(CloudError::format(
+                        classes_path,
+                        format!(
+                            "line {}: class id {id} is given twice ('{}' and '{name}'); each \
+                             id names one class",
+                            lineno + 1,
+                            names[k]
+                        ),
+                    ));
+                }
                 ids.push(id);
                 names.push(name.to_string());
             }
@@ -433,6 +470,30 @@ mod tests {
         let t = EmbeddingTable::read(&txt, &npy).unwrap();
         assert_eq!(t.ids, codes);
         assert_eq!(t.names[16], "wire-structure connector");
+    }
+
+    #[test]
+    fn class_lists_with_a_repeated_or_oversized_id_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let list = |text: &str| {
+            let p = dir.path().join("classes.txt");
+            std::fs::write(&p, text).unwrap();
+            read_class_list(&p).map_err(|e| e.to_string())
+        };
+        assert_eq!(
+            list("0 wall\n1 floor\n").unwrap(),
+            (vec![0, 1], vec!["wall".to_string(), "floor".to_string()])
+        );
+        let e = list("0 wall\n0 floor\n").unwrap_err();
+        assert!(
+            e.contains("classes.txt") && e.contains("line 2") && e.contains("given twice"),
+            "{e}"
+        );
+        let e = list("99999999999999999999 wall\n").unwrap_err();
+        assert!(
+            e.contains("classes.txt") && e.contains("line 1") && e.contains("out of range"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -202,7 +202,21 @@ impl CameraSequence {
 
     /// An RGB-D folder.
     pub fn rgbd(d: &Path) -> Result<Self, SequenceError> {
-        let intrinsics = rgbd::read_intrinsics(&d.join("intrinsics.txt"))?;
+        let intrinsics_path = d.join("intrinsics.txt");
+        // A KITTI folder without its calib.txt is not an RGB-D folder
+        // without intrinsics.txt: say which file is missing.
+        if !intrinsics_path.exists()
+            && ["image_2", "labels_2", "features_2", "velodyne", "times.txt"]
+                .iter()
+                .any(|k| d.join(k).exists())
+        {
+            return Err(SequenceError::Input(format!(
+                "{}: a KITTI sequence folder (it has image_2/, labels_2/, velodyne/ or \
+                 times.txt) needs calib.txt (with P2) for camera 2; it is missing",
+                d.display()
+            )));
+        }
+        let intrinsics = rgbd::read_intrinsics(&intrinsics_path)?;
         let gt_path = d.join("poses.txt");
         let ground_truth = gt_path
             .exists()
@@ -278,7 +292,28 @@ impl CameraSequence {
     /// Frames that can be localized: the odometry's, capped by `limit`
     /// and the KITTI folder's frame count; ground truth, when present, must
     /// cover them (checked before any work, not after the output).
+    /// An odometry shorter than the frames asked for (all of them without
+    /// `limit`) is refused, not a shorter run.
     pub fn frames(&self, odometry: usize, limit: Option<usize>) -> Result<usize, SequenceError> {
+        // The frames the sequence holds, where it says.
+        let mut held = usize::MAX;
+        if let Some(seq) = &self.kitti {
+            held = held.min(seq.len());
+        }
+        if let Some(s) = &self.sevenscenes {
+            held = held.min(s.picked.len());
+        }
+        if let Some(g) = &self.ground_truth {
+            held = held.min(g.len());
+        }
+        let wanted = held.min(limit.unwrap_or(usize::MAX));
+        if odometry < wanted && wanted != usize::MAX {
+            return Err(SequenceError::Input(format!(
+                "{}: the odometry gives {odometry} poses for {wanted} frames; pass --frames \
+                 {odometry} to localize only those, or a complete odometry",
+                self.dir.display()
+            )));
+        }
         let mut n = odometry.min(limit.unwrap_or(usize::MAX));
         if let Some(seq) = &self.kitti {
             n = n.min(seq.len());

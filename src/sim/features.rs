@@ -622,6 +622,10 @@ impl FeatureModel {
         let dim = self.dim();
         let edges = LabelEdges::new(frame);
         let mut out = vec![0.0f32; w as usize * h as usize * dim];
+        if out.is_empty() {
+            // A stride larger than the frame: no pixel, no feature.
+            return (out, w, h);
+        }
         out.par_chunks_mut(w as usize * dim)
             .enumerate()
             .for_each(|(row, buf)| {

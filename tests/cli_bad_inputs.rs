@@ -1,0 +1,556 @@
+//! Bad input across the command line, as a probe of every subcommand found
+//! it on 2026-11-27: outputs over the files a command reads (class lists,
+//! embeddings, models, images, manifests) are refused and the file is left
+//! as it was; values that cannot mean anything (a stride larger than the
+//! image, zero frames, a step of 0, a score of 5, a Slurm time limit of
+//! `bogus`, a newline in a job name) are refused by option name before
+//! any work; an odometry shorter than the sequence is refused, not a
+//! shorter run; outputs that could not be written at the end are refused
+//! at the start.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use common::shared;
+
+struct Run {
+    code: Option<i32>,
+    stderr: String,
+}
+
+fn omcl(args: &[&str]) -> Run {
+    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(args)
+        .output()
+        .expect("run omcl");
+    Run {
+        code: out.status.code(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// The run was refused: a non-zero exit (1 for the command's own checks,
+/// 2 for clap's), no panic, and every needle in its message.
+fn refused(r: &Run, code: i32, needles: &[&str]) {
+    assert_eq!(r.code, Some(code), "exit status:\n{}", r.stderr);
+    assert!(!r.stderr.contains("panicked"), "{}", r.stderr);
+    for n in needles {
+        assert!(r.stderr.contains(n), "no {n:?} in:\n{}", r.stderr);
+    }
+}
+
+/// A tiny synthetic sequence with its class table and map.
+struct Fixture {
+    dir: tempfile::TempDir,
+}
+
+impl Fixture {
+    fn new() -> Fixture {
+        let dir = tempfile::tempdir().unwrap();
+        let f = Fixture { dir };
+        let seq = f.path("seq");
+        let r = omcl(&[
+            "sim",
+            "indoor",
+            "--out",
+            s(&seq),
+            "--frames",
+            "6",
+            "--width",
+            "64",
+            "--height",
+            "64",
+            "--rooms",
+            "2",
+            "--resolution",
+            "0.1",
+        ]);
+        assert_eq!(r.code, Some(0), "{}", r.stderr);
+        let r = omcl(&[
+            "map",
+            "rgbd",
+            s(&seq),
+            "--out",
+            s(&f.path("map.omcl")),
+            "--resolution",
+            "0.1",
+        ]);
+        assert_eq!(r.code, Some(0), "{}", r.stderr);
+        for name in ["classes.txt", "embeddings.npy"] {
+            std::fs::copy(seq.join(name), f.path(name)).unwrap();
+        }
+        f
+    }
+
+    fn path(&self, name: &str) -> PathBuf {
+        self.dir.path().join(name)
+    }
+}
+
+/// Runs `args` and checks it was refused naming `option` and that `input`
+/// kept its bytes.
+fn refused_keeping(args: &[&str], input: &Path, needles: &[&str]) {
+    let before = std::fs::read(input).unwrap();
+    let r = omcl(args);
+    refused(&r, 1, needles);
+    assert!(
+        std::fs::read(input).unwrap() == before,
+        "{} was changed by {args:?}",
+        input.display()
+    );
+}
+
+#[test]
+fn outputs_over_what_a_command_reads_are_refused_and_the_input_kept() {
+    let f = Fixture::new();
+    let (seq, map) = (f.path("seq"), f.path("map.omcl"));
+    let (classes, emb) = (f.path("classes.txt"), f.path("embeddings.npy"));
+    let table = ["--classes", s(&classes), "--embeddings", s(&emb)];
+    // Map building with a class table: --out over the table's features.
+    let mut args = vec!["map", "rgbd", s(&seq), "--out", s(&emb)];
+    args.extend(table);
+    refused_keeping(&args, &emb, &["--out is the --embeddings", "replace"]);
+    let mut args = vec!["map", "rgbd", s(&seq), "--out", s(&classes)];
+    args.extend(table);
+    refused_keeping(&args, &classes, &["--out is the --classes list"]);
+    // Grounding and querying: --out over the words' table or prompt file.
+    let mut args = vec!["map", "ground", s(&map), "wall", "--out", s(&emb)];
+    args.extend(table);
+    refused_keeping(&args, &emb, &["--out is the --embeddings"]);
+    let prompts = f.path("prompts.txt");
+    std::fs::write(&prompts, "wall\n").unwrap();
+    let mut args = vec![
+        "map",
+        "ground",
+        s(&map),
+        "--prompt-file",
+        s(&prompts),
+        "--out",
+        s(&prompts),
+    ];
+    args.extend(table);
+    refused_keeping(&args, &prompts, &["--out is the --prompt-file"]);
+    let mut args = vec!["map", "query", s(&map), "wall", "--out", s(&classes)];
+    args.extend(table);
+    refused_keeping(&args, &classes, &["--out is the --classes list"]);
+
+    // Encoders: the model, its card and the image are inputs.
+    let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/encode");
+    let work = f.path("models");
+    std::fs::create_dir(&work).unwrap();
+    for name in ["tiny_text.onnx", "tiny_text.card.json"] {
+        std::fs::copy(models.join(name), work.join(name)).unwrap();
+    }
+    let text = work.join("tiny_text.onnx");
+    let card = work.join("tiny_text.card.json");
+    refused_keeping(
+        &[
+            "encode",
+            "text",
+            "--model",
+            s(&text),
+            "wall",
+            "--out",
+            s(&text),
+        ],
+        &text,
+        &["--out is the --model"],
+    );
+    refused_keeping(
+        &[
+            "encode",
+            "text",
+            "--model",
+            s(&text),
+            "wall",
+            "--out",
+            s(&card),
+        ],
+        &card,
+        &["--out is the --model's card"],
+    );
+    let image = seq.join("rgb/000000.png");
+    refused_keeping(
+        &[
+            "encode",
+            "image",
+            "--model",
+            s(&text),
+            s(&image),
+            "--out",
+            s(&image),
+        ],
+        &image,
+        &["--out is the image"],
+    );
+    let est = f.path("est.txt");
+    refused_keeping(
+        &[
+            "localize",
+            "--map",
+            s(&map),
+            "--sequence",
+            s(&seq),
+            "--text-model",
+            s(&text),
+            "--out",
+            s(&card),
+        ],
+        &card,
+        &["--out is the --text-model's card"],
+    );
+    assert!(!est.exists());
+
+    // A colour model over a 7-Scenes frame it is fitted on.
+    let scenes = f.path("s7");
+    std::fs::create_dir(&scenes).unwrap();
+    let real = shared("rgbd_7scenes");
+    for name in ["camera-intrinsics.txt", "frame-000000.color.jpg"] {
+        std::fs::copy(real.join(name), scenes.join(name)).unwrap();
+    }
+    let frame = scenes.join("frame-000000.color.jpg");
+    refused_keeping(
+        &[
+            "encode",
+            "colour-model",
+            "--frames",
+            s(&scenes),
+            "--out",
+            s(&frame),
+        ],
+        &frame,
+        &["--out would be read as part of the sequence"],
+    );
+
+    // A sweep's batch script over its manifest.
+    let plan = f.path("plan");
+    let manifest = plan.join("m.jsonl");
+    let r = omcl(&[
+        "sweep",
+        "plan",
+        "table1",
+        "--out",
+        s(&manifest),
+        "--sequences",
+        "1",
+        "--frames",
+        "5",
+        "--map-frames",
+        "5",
+        "--variants",
+        "OMCL_GT",
+    ]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    refused_keeping(
+        &["sweep", "slurm", s(&manifest), "--script", s(&manifest)],
+        &manifest,
+        &["--script is the manifest"],
+    );
+}
+
+#[test]
+fn values_that_cannot_mean_anything_are_refused_by_name() {
+    let f = Fixture::new();
+    let (seq, map) = (f.path("seq"), f.path("map.omcl"));
+    let est = f.path("est.txt");
+    let localize = |extra: &[&str]| {
+        let mut args = vec![
+            "localize",
+            "--map",
+            s(&map),
+            "--sequence",
+            s(&seq),
+            "--out",
+            s(&est),
+            "--particles",
+            "16",
+            "--rays",
+            "16",
+        ];
+        args.extend(extra);
+        omcl(&args)
+    };
+    // A feature stride larger than the image panicked in the simulator.
+    let r = omcl(&[
+        "sim",
+        "indoor",
+        "--out",
+        s(&f.path("big-stride")),
+        "--frames",
+        "2",
+        "--width",
+        "16",
+        "--height",
+        "16",
+        "--features",
+        "--feature-stride",
+        "1000",
+    ]);
+    refused(&r, 1, &["--feature-stride 1000", "16 x 16"]);
+    assert!(!f.path("big-stride").exists());
+    for (extra, needle) in [
+        (&["--frame-step", "0"][..], "--frame-step"),
+        (&["--frames", "0"], "--frames"),
+        (&["--miss-score", "5"], "--miss-score"),
+        (&["--prompt-rho", "nan"], "--prompt-rho"),
+        (&["--init-pose", "1 2 3 0 0 0 1 5"], "expected 7 numbers"),
+    ] {
+        let r = localize(extra);
+        let code = if needle.starts_with("--") { 2 } else { 1 };
+        refused(&r, code, &[needle]);
+        assert!(!est.exists(), "{extra:?} wrote {}", est.display());
+    }
+    let r = omcl(&[
+        "map",
+        "rgbd",
+        s(&seq),
+        "--out",
+        s(&f.path("x.omcl")),
+        "--frame-step",
+        "0",
+    ]);
+    refused(&r, 2, &["--frame-step"]);
+    let poses = seq.join("poses.txt");
+    let r = omcl(&["eval", "ape", s(&poses), s(&poses), "--t-max-diff", "inf"]);
+    refused(&r, 2, &["--t-max-diff"]);
+    let r = omcl(&[
+        "encode",
+        "text",
+        "--model",
+        "x.onnx",
+        "wall",
+        "--out",
+        "x.npy",
+        "--threads",
+        "999999",
+    ]);
+    refused(&r, 2, &["--threads"]);
+    let r = omcl(&[
+        "sweep",
+        "plan",
+        "table1",
+        "--out",
+        s(&f.path("m.jsonl")),
+        "--frames",
+        "0",
+    ]);
+    refused(&r, 2, &["--frames"]);
+
+    // A driving path shorter than the frames asked for.
+    let path = f.path("path3.txt");
+    let gt = std::fs::read_to_string(shared("trajectories/KITTI_00_gt.txt")).unwrap();
+    let three: String = gt.lines().take(3).map(|l| format!("{l}\n")).collect();
+    std::fs::write(&path, three).unwrap();
+    let r = omcl(&[
+        "sim",
+        "outdoor",
+        "--out",
+        s(&f.path("street")),
+        "--path",
+        s(&path),
+        "--frames",
+        "5",
+        "--azimuth-steps",
+        "64",
+        "--resolution",
+        "0.5",
+    ]);
+    refused(&r, 1, &[s(&path), "--frames 5", "at most --frames 3"]);
+    assert!(!f.path("street").exists());
+
+    // A class list naming one id twice, an id past u32.
+    let list = f.path("dup.txt");
+    std::fs::write(&list, "0 wall\n0 floor\n").unwrap();
+    let r = omcl(&["map", "classes", s(&list)]);
+    refused(&r, 1, &[s(&list), "line 2", "given twice"]);
+    // An all-zero embedding row has no direction: the file and row named.
+    let zero = f.path("zero.npy");
+    let header = "{'descr': '<f4', 'fortran_order': False, 'shape': (2, 2), }";
+    let mut npy = b"\x93NUMPY\x01\x00".to_vec();
+    let pad = 64 - (10 + header.len() + 1) % 64;
+    npy.extend_from_slice(&((header.len() + pad + 1) as u16).to_le_bytes());
+    npy.extend_from_slice(header.as_bytes());
+    npy.extend(std::iter::repeat_n(b' ', pad));
+    npy.push(b'\n');
+    for v in [1.0f32, 0.0, 0.0, 0.0] {
+        npy.extend_from_slice(&v.to_le_bytes());
+    }
+    std::fs::write(&zero, npy).unwrap();
+    let two = f.path("two.txt");
+    std::fs::write(&two, "0 wall\n1 floor\n").unwrap();
+    let r = omcl(&[
+        "map",
+        "rgbd",
+        s(&seq),
+        "--out",
+        s(&f.path("z.omcl")),
+        "--classes",
+        s(&two),
+        "--embeddings",
+        s(&zero),
+    ]);
+    refused(&r, 1, &[s(&zero), "row 1", "floor", "all zeros"]);
+    // A model that is not there is named, not its card.
+    let r = omcl(&[
+        "encode",
+        "text",
+        "--model",
+        s(&f.path("nope.onnx")),
+        "wall",
+        "--out",
+        s(&f.path("w.npy")),
+    ]);
+    refused(&r, 1, &[s(&f.path("nope.onnx"))]);
+    assert!(!r.stderr.contains("card"), "{}", r.stderr);
+}
+
+#[test]
+fn an_odometry_shorter_than_the_sequence_is_refused_not_a_shorter_run() {
+    let f = Fixture::new();
+    let (seq, map) = (f.path("seq"), f.path("map.omcl"));
+    let odom = seq.join("odometry.txt");
+    let text = std::fs::read_to_string(&odom).unwrap();
+    let two: String = text.lines().take(2).map(|l| format!("{l}\n")).collect();
+    std::fs::write(&odom, two).unwrap();
+    let est = f.path("est.txt");
+    let args = [
+        "localize",
+        "--map",
+        s(&map),
+        "--sequence",
+        s(&seq),
+        "--out",
+        s(&est),
+        "--particles",
+        "16",
+        "--rays",
+        "16",
+    ];
+    let r = omcl(&args);
+    refused(
+        &r,
+        1,
+        &["the odometry gives 2 poses for 6 frames", "--frames 2"],
+    );
+    assert!(!est.exists());
+    // Asking for those two is fine.
+    let mut with = args.to_vec();
+    with.extend(["--frames", "2"]);
+    let r = omcl(&with);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    assert_eq!(std::fs::read_to_string(&est).unwrap().lines().count(), 2);
+}
+
+#[test]
+fn outputs_that_could_not_be_written_are_refused_before_the_work() {
+    let f = Fixture::new();
+    let (seq, map) = (f.path("seq"), f.path("map.omcl"));
+    let est = f.path("est.txt");
+    for (option, value, needle) in [
+        ("--plot", f.path("p.xyz"), ".png or .svg"),
+        ("--metrics", f.path("nodir/m.json"), "does not exist"),
+        ("--diagnostics", f.path("seq"), "is a folder"),
+    ] {
+        let r = omcl(&[
+            "localize",
+            "--map",
+            s(&map),
+            "--sequence",
+            s(&seq),
+            "--out",
+            s(&est),
+            option,
+            s(&value),
+        ]);
+        refused(&r, 1, &[option, needle]);
+        assert!(!est.exists(), "{option}: --out written before the refusal");
+    }
+    let r = omcl(&[
+        "map",
+        "rgbd",
+        s(&seq),
+        "--out",
+        s(&f.path("nodir/map.omcl")),
+    ]);
+    refused(&r, 1, &["--out's folder", "does not exist"]);
+    let file = f.path("a-file");
+    std::fs::write(&file, "x").unwrap();
+    let r = omcl(&[
+        "map",
+        "classes",
+        "semantickitti",
+        "--out",
+        s(&f.path("newdir")),
+    ]);
+    refused(&r, 1, &["newdir", "no such folder"]);
+    let r = omcl(&["demo", "--out", s(&file)]);
+    refused(&r, 1, &["a-file", "--out names a folder"]);
+}
+
+#[test]
+fn slurm_options_sbatch_would_reject_are_refused_and_nothing_written() {
+    let f = Fixture::new();
+    let manifest = f.path("plan/m.jsonl");
+    let r = omcl(&[
+        "sweep",
+        "plan",
+        "table1",
+        "--out",
+        s(&manifest),
+        "--sequences",
+        "1",
+        "--frames",
+        "5",
+        "--map-frames",
+        "5",
+        "--variants",
+        "OMCL_GT",
+    ]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    let script = f.path("plan/sweep.sbatch");
+    for (extra, needle) in [
+        (&["--time", "bogus"][..], "--time \"bogus\""),
+        (&["--mem-mb", "0"], "--mem-mb 0"),
+        (&["--max-array-size", "0"], "--max-array-size 0"),
+        (&["--job-name", "x\necho INJECTED"], "--job-name"),
+    ] {
+        let mut args = vec!["sweep", "slurm", s(&manifest)];
+        args.extend(extra);
+        let r = omcl(&args);
+        refused(&r, 1, &[needle]);
+        assert!(!script.exists(), "{extra:?}: a script was written");
+        assert!(!f.path("plan/logs").exists(), "{extra:?}: logs/ was made");
+    }
+    let r = omcl(&["sweep", "slurm", s(&manifest), "--time", "2-12:00"]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    let text = std::fs::read_to_string(&script).unwrap();
+    assert!(text.contains("#SBATCH --time=2-12:00\n"), "{text}");
+}
+
+#[test]
+fn a_kitti_folder_without_calib_says_so() {
+    let f = Fixture::new();
+    let seq = f.path("00");
+    std::fs::create_dir(&seq).unwrap();
+    let real = shared("semantickitti/sequences/00");
+    for name in ["poses.txt", "times.txt"] {
+        std::fs::copy(real.join(name), seq.join(name)).unwrap();
+    }
+    std::fs::create_dir(seq.join("labels_2")).unwrap();
+    let r = omcl(&[
+        "localize",
+        "--map",
+        s(&f.path("map.omcl")),
+        "--sequence",
+        s(&seq),
+        "--out",
+        s(&f.path("est.txt")),
+    ]);
+    refused(&r, 1, &[s(&seq), "calib.txt", "KITTI"]);
+}
