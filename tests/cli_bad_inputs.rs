@@ -554,3 +554,22 @@ fn a_kitti_folder_without_calib_says_so() {
     ]);
     refused(&r, 1, &[s(&seq), "calib.txt", "KITTI"]);
 }
+
+#[test]
+fn serve_names_unreadable_tls_files_and_one_port_for_both_planes() {
+    let f = Fixture::new();
+    let token = f.path("token.txt");
+    std::fs::write(&token, "token-0123456789abcdefgh\n").unwrap();
+    let map = format!("room={}", s(&f.path("map.omcl")));
+    let pem = f.path("garbage.pem");
+    std::fs::write(&pem, "not a PEM file\n").unwrap();
+    let serve = |extra: &[&str]| {
+        let mut args = vec!["serve", "--map", &map, "--token-file", s(&token)];
+        args.extend(extra);
+        omcl(&args)
+    };
+    let r = serve(&["--tls-cert", s(&pem), "--tls-key", s(&pem)]);
+    refused(&r, 1, &["--tls-cert", "--tls-key", s(&pem)]);
+    let r = serve(&["--grpc", "127.0.0.1:50999", "--http", "127.0.0.1:50999"]);
+    refused(&r, 1, &["--grpc and --http", "two ports"]);
+}

@@ -7,7 +7,7 @@ use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use anyhow::{Context, bail};
+use anyhow::{Context, bail, ensure};
 use clap::Args;
 
 use omcl::io::labels::EmbeddingTable;
@@ -135,6 +135,11 @@ pub fn run(a: ServeArgs) -> anyhow::Result<()> {
         }),
         _ => None,
     };
+    if let (Some(t), Some(c), Some(k)) = (&tls, &a.tls_cert, &a.tls_key) {
+        omcl::serve::http::tls_config(t).with_context(|| {
+            format!("--tls-cert {} with --tls-key {}", c.display(), k.display())
+        })?;
+    }
     let mut limits = Limits {
         max_sessions: a.max_sessions,
         max_sessions_per_map: a.max_sessions_per_map,
@@ -148,6 +153,11 @@ pub fn run(a: ServeArgs) -> anyhow::Result<()> {
         limits.threads = t.max(1);
     }
     let threads = limits.threads;
+    ensure!(
+        a.grpc != a.http || a.grpc.port() == 0,
+        "--grpc and --http are both {}: the two planes need two ports",
+        a.grpc
+    );
     for addr in [a.grpc, a.http] {
         if !addr.ip().is_loopback() && tls.is_none() {
             eprintln!(

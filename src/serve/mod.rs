@@ -207,6 +207,8 @@ fn grpc_server(
     );
     let mut builder = tonic::transport::Server::builder();
     if let Some(tls) = &config.tls {
+        // rustls says which file is wrong; tonic only "transport error".
+        http::tls_config(tls)?;
         let id = tonic::transport::Identity::from_pem(&tls.cert_pem, &tls.key_pem);
         builder = builder
             .tls_config(tonic::transport::ServerTlsConfig::new().identity(id))
