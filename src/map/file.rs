@@ -249,10 +249,19 @@ fn parse_map(bytes: &[u8], path: &Path, accept_v1: bool) -> Result<LanguageMap, 
         }
     };
     let resolution = c.positive("resolution").map_err(header)?;
+    // Any place on Earth in any projection is within 1e9 m; beyond it
+    // voxel centres lose every digit (an origin of 1e308 made them inf).
+    let origin_in = |key: &'static str| {
+        c.parse(
+            key,
+            "a finite number of metres within 1e9 of 0",
+            |v: &f64| v.is_finite() && v.abs() <= 1e9,
+        )
+    };
     let origin = Vector3::new(
-        c.finite("origin_x").map_err(header)?,
-        c.finite("origin_y").map_err(header)?,
-        c.finite("origin_z").map_err(header)?,
+        origin_in("origin_x").map_err(header)?,
+        origin_in("origin_y").map_err(header)?,
+        origin_in("origin_z").map_err(header)?,
     );
     let dim: usize = c
         .parse("feature_dim", "a positive integer", |d| *d > 0)
@@ -323,6 +332,28 @@ mod tests {
             assert_eq!(to_bytes(&m), a);
         }
         assert_eq!(from_bytes(&a, Path::new("m.omcl")).unwrap(), m);
+    }
+
+    #[test]
+    fn an_origin_beyond_any_place_on_earth_is_refused_by_name() {
+        use crate::map::{FeatureDb, GridSpec};
+        let db = FeatureDb::from_rows(2, 0.0, vec![1.0, 0.0, 0.0, 1.0]).unwrap();
+        let map = |x: f64| {
+            let grid = GridSpec {
+                resolution: 0.05,
+                origin: Vector3::new(x, 0.0, 0.0),
+            };
+            LanguageMap::from_cells(grid, db.clone(), "enc", [([0, 0, 0], 0)]).unwrap()
+        };
+        let utm = map(5.2e6);
+        assert_eq!(
+            from_bytes(&to_bytes(&utm), Path::new("m.omcl")).unwrap(),
+            utm
+        );
+        let e = from_bytes(&to_bytes(&map(1e308)), Path::new("far.omcl"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("far.omcl") && e.contains("origin_x"), "{e}");
     }
 
     fn sample() -> LanguageMap {

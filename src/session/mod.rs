@@ -59,6 +59,8 @@ pub enum SessionError {
     },
     #[error("building the ray-casting scene: {0}")]
     Scene(String),
+    #[error("map {0:?} has no voxels: there is nothing to localize against")]
+    EmptyMap(String),
     #[error("malformed frame: {0}")]
     BadFrame(String),
     #[error("class table: {0}")]
@@ -115,10 +117,14 @@ pub struct SharedMap {
 impl SharedMap {
     /// Builds the ray-casting scene of `map` once.
     pub fn new(name: impl Into<String>, map: LanguageMap) -> Result<Self, SessionError> {
+        let name = name.into();
+        if map.is_empty() {
+            return Err(SessionError::EmptyMap(name));
+        }
         let caster = SensorModel::embree_caster(map.grid().resolution as f32, &map.cells())
             .map_err(|e| SessionError::Scene(e.to_string()))?;
         Ok(SharedMap {
-            name: name.into(),
+            name,
             map,
             caster: Arc::new(caster),
             level: false,
@@ -601,6 +607,21 @@ pub fn covariance(particles: &[Particle], center: &Pose) -> [f64; 36] {
 mod tests {
     use super::*;
     use nalgebra::{Translation3, UnitQuaternion, Vector3};
+
+    #[test]
+    fn a_map_without_voxels_is_refused_by_name() {
+        use crate::map::{FeatureDb, GridSpec};
+        let db = FeatureDb::from_rows(2, 0.0, vec![1.0, 0.0]).unwrap();
+        let grid = GridSpec {
+            resolution: 0.05,
+            origin: Vector3::zeros(),
+        };
+        let empty = LanguageMap::from_cells(grid, db.clone(), "enc", []).unwrap();
+        let e = SharedMap::new("hall", empty).err().unwrap().to_string();
+        assert!(e.contains("\"hall\"") && e.contains("no voxels"), "{e}");
+        let one = LanguageMap::from_cells(grid, db, "enc", [([0, 0, 0], 0)]).unwrap();
+        SharedMap::new("hall", one).unwrap();
+    }
 
     #[test]
     fn covariance_of_known_particles() {
