@@ -232,21 +232,26 @@ async fn flood_line(server: &Server, f: &Fixture, frames: &[proto::Frame]) {
     }
     let (a, b) = (ids[0].clone(), ids[1].clone());
     let mut i = 0;
+    // Medians of the latency (client side) and of the step itself (the
+    // server's `step_ms`): their difference is waiting for a turn.
     let mut measure = async |c: &mut Client, n: usize| {
-        let mut ms = Vec::new();
+        let (mut ms, mut step) = (Vec::new(), Vec::new());
         for _ in 0..n {
             let mut fr = frames[ping_pong(i, frames.len())].clone();
             fr.session_id = a.clone();
             let t = Instant::now();
-            c.localize(fr).await.unwrap();
+            let u = c.localize(fr).await.unwrap().into_inner();
             ms.push(t.elapsed().as_secs_f64() * 1e3);
+            step.push(u.step_ms);
             i += 1;
         }
-        ms.sort_by(|x, y| x.total_cmp(y));
-        ms[ms.len() / 2]
+        for v in [&mut ms, &mut step] {
+            v.sort_by(|x, y| x.total_cmp(y));
+        }
+        (ms[ms.len() / 2], step[step.len() / 2])
     };
     measure(&mut c, WARMUP).await;
-    let alone = measure(&mut c, FLOOD_MEASURED).await;
+    let (alone, alone_step) = measure(&mut c, FLOOD_MEASURED).await;
     let flood_frames = (0..frames.len())
         .map(|k| {
             let mut fr = frames[k].clone();
@@ -255,13 +260,14 @@ async fn flood_line(server: &Server, f: &Fixture, frames: &[proto::Frame]) {
         })
         .collect();
     let flood = Flood::start(&c, flood_frames, usize::MAX);
-    let beside = measure(&mut c, FLOOD_MEASURED).await;
+    let (beside, beside_step) = measure(&mut c, FLOOD_MEASURED).await;
     let (sent, read) = flood.stop().await;
     let bound = 3.0 * alone + 20.0;
     println!(
         "flood: session a's median step latency {alone:.1} ms alone, {beside:.1} ms beside a \
-         flood of {sent} frames ({} answered; the rest dropped); bound 3 x alone + 20 ms = \
-         {bound:.1} ms: {}; load average {}",
+         flood of {sent} frames ({} answered; the rest dropped); the step itself \
+         {alone_step:.1} and {beside_step:.1} ms; bound 3 x alone + 20 ms = {bound:.1} ms: \
+         {}; load average {}",
         read.map_or("?".into(), |n| n.to_string()),
         if beside <= bound {
             "within"
