@@ -91,6 +91,27 @@ impl Fixture {
     fn path(&self, name: &str) -> PathBuf {
         self.dir.path().join(name)
     }
+
+    /// `omcl localize` on the sequence and map into `est`, 16 particles x
+    /// 16 rays, and `extra`.
+    fn localize(&self, est: &Path, extra: &[&str]) -> Run {
+        let (seq, map) = (self.path("seq"), self.path("map.omcl"));
+        let mut args = vec![
+            "localize",
+            "--map",
+            s(&map),
+            "--sequence",
+            s(&seq),
+            "--out",
+            s(est),
+            "--particles",
+            "16",
+            "--rays",
+            "16",
+        ];
+        args.extend(extra);
+        omcl(&args)
+    }
 }
 
 /// Runs `args` and checks it was refused naming `option` and that `input`
@@ -104,6 +125,26 @@ fn refused_keeping(args: &[&str], input: &Path, needles: &[&str]) {
         "{} was changed by {args:?}",
         input.display()
     );
+}
+
+/// A one-run sweep manifest at `manifest` (its folder made if missing).
+fn plan_sweep(manifest: &Path) {
+    let r = omcl(&[
+        "sweep",
+        "plan",
+        "table1",
+        "--out",
+        s(manifest),
+        "--sequences",
+        "1",
+        "--frames",
+        "5",
+        "--map-frames",
+        "5",
+        "--variants",
+        "OMCL_GT",
+    ]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
 }
 
 #[test]
@@ -229,24 +270,8 @@ fn outputs_over_what_a_command_reads_are_refused_and_the_input_kept() {
     );
 
     // A sweep's batch script over its manifest.
-    let plan = f.path("plan");
-    let manifest = plan.join("m.jsonl");
-    let r = omcl(&[
-        "sweep",
-        "plan",
-        "table1",
-        "--out",
-        s(&manifest),
-        "--sequences",
-        "1",
-        "--frames",
-        "5",
-        "--map-frames",
-        "5",
-        "--variants",
-        "OMCL_GT",
-    ]);
-    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    let manifest = f.path("plan/m.jsonl");
+    plan_sweep(&manifest);
     refused_keeping(
         &["sweep", "slurm", s(&manifest), "--script", s(&manifest)],
         &manifest,
@@ -257,25 +282,9 @@ fn outputs_over_what_a_command_reads_are_refused_and_the_input_kept() {
 #[test]
 fn values_that_cannot_mean_anything_are_refused_by_name() {
     let f = Fixture::new();
-    let (seq, map) = (f.path("seq"), f.path("map.omcl"));
+    let seq = f.path("seq");
     let est = f.path("est.txt");
-    let localize = |extra: &[&str]| {
-        let mut args = vec![
-            "localize",
-            "--map",
-            s(&map),
-            "--sequence",
-            s(&seq),
-            "--out",
-            s(&est),
-            "--particles",
-            "16",
-            "--rays",
-            "16",
-        ];
-        args.extend(extra);
-        omcl(&args)
-    };
+    let localize = |extra: &[&str]| f.localize(&est, extra);
     // A feature stride larger than the image panicked in the simulator.
     let r = omcl(&[
         "sim",
@@ -413,26 +422,12 @@ fn values_that_cannot_mean_anything_are_refused_by_name() {
 #[test]
 fn an_odometry_shorter_than_the_sequence_is_refused_not_a_shorter_run() {
     let f = Fixture::new();
-    let (seq, map) = (f.path("seq"), f.path("map.omcl"));
-    let odom = seq.join("odometry.txt");
+    let odom = f.path("seq/odometry.txt");
     let text = std::fs::read_to_string(&odom).unwrap();
     let two: String = text.lines().take(2).map(|l| format!("{l}\n")).collect();
     std::fs::write(&odom, two).unwrap();
     let est = f.path("est.txt");
-    let args = [
-        "localize",
-        "--map",
-        s(&map),
-        "--sequence",
-        s(&seq),
-        "--out",
-        s(&est),
-        "--particles",
-        "16",
-        "--rays",
-        "16",
-    ];
-    let r = omcl(&args);
+    let r = f.localize(&est, &[]);
     refused(
         &r,
         1,
@@ -440,9 +435,7 @@ fn an_odometry_shorter_than_the_sequence_is_refused_not_a_shorter_run() {
     );
     assert!(!est.exists());
     // Asking for those two is fine.
-    let mut with = args.to_vec();
-    with.extend(["--frames", "2"]);
-    let r = omcl(&with);
+    let r = f.localize(&est, &["--frames", "2"]);
     assert_eq!(r.code, Some(0), "{}", r.stderr);
     assert_eq!(std::fs::read_to_string(&est).unwrap().lines().count(), 2);
 }
@@ -497,22 +490,7 @@ fn outputs_that_could_not_be_written_are_refused_before_the_work() {
 fn slurm_options_sbatch_would_reject_are_refused_and_nothing_written() {
     let f = Fixture::new();
     let manifest = f.path("plan/m.jsonl");
-    let r = omcl(&[
-        "sweep",
-        "plan",
-        "table1",
-        "--out",
-        s(&manifest),
-        "--sequences",
-        "1",
-        "--frames",
-        "5",
-        "--map-frames",
-        "5",
-        "--variants",
-        "OMCL_GT",
-    ]);
-    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    plan_sweep(&manifest);
     let script = f.path("plan/sweep.sbatch");
     for (extra, needle) in [
         (&["--time", "bogus"][..], "--time \"bogus\""),

@@ -57,27 +57,31 @@ pub struct BuildOptions {
 
 const DEFAULT_ENCODER: &str = "clip-vit-b32";
 
+/// The files a class table is read from (the `--classes` list, its
+/// `--embeddings`, a `--text-model` and its card), as
+/// [`super::outputs::refuse_overlaps`] inputs.
+fn table_inputs(
+    classes: Option<&str>,
+    embeddings: Option<&Path>,
+    text_model: Option<&Path>,
+) -> Vec<(String, PathBuf)> {
+    let mut v = Vec::new();
+    v.extend(classes.map(|c| ("the --classes list".to_string(), PathBuf::from(c))));
+    v.extend(embeddings.map(|p| ("the --embeddings".to_string(), p.to_path_buf())));
+    v.extend(super::outputs::model_files("--text-model", text_model));
+    v
+}
+
 impl BuildOptions {
     /// The files these options read (the class list, its features, the
     /// text encoder and its card), as [`super::outputs::refuse_overlaps`]
     /// inputs.
     pub fn inputs(&self) -> Vec<(String, PathBuf)> {
-        let mut v = Vec::new();
-        v.extend(
-            self.classes
-                .as_deref()
-                .map(|c| ("the --classes list".to_string(), PathBuf::from(c))),
-        );
-        v.extend(
-            self.embeddings
-                .clone()
-                .map(|p| ("the --embeddings".to_string(), p)),
-        );
-        v.extend(super::outputs::model_files(
-            "--text-model",
+        table_inputs(
+            self.classes.as_deref(),
+            self.embeddings.as_deref(),
             self.text_model.as_deref(),
-        ));
-        v
+        )
     }
 
     /// The class table of --classes, if given (`ort_lib`: the command's
@@ -446,21 +450,11 @@ impl WordSource {
     /// The files the words' features are read from, as
     /// [`super::outputs::refuse_overlaps`] inputs.
     fn inputs(&self) -> Vec<(String, PathBuf)> {
-        let mut v = Vec::new();
-        v.extend(
-            self.classes
-                .as_deref()
-                .map(|c| ("the --classes list".to_string(), PathBuf::from(c))),
-        );
-        v.extend(
-            self.embeddings
-                .clone()
-                .map(|p| ("the --embeddings".to_string(), p)),
-        );
-        v.extend(super::outputs::model_files(
-            "--text-model",
+        let mut v = table_inputs(
+            self.classes.as_deref(),
+            self.embeddings.as_deref(),
             self.text_model.as_deref(),
-        ));
+        );
         v.extend(
             self.ort_lib
                 .clone()
