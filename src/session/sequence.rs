@@ -295,18 +295,18 @@ impl CameraSequence {
     /// An odometry shorter than the frames asked for (all of them without
     /// `limit`) is refused, not a shorter run.
     pub fn frames(&self, odometry: usize, limit: Option<usize>) -> Result<usize, SequenceError> {
-        // The frames the sequence holds, where it says.
-        let mut held = usize::MAX;
-        if let Some(seq) = &self.kitti {
-            held = held.min(seq.len());
-        }
-        if let Some(s) = &self.sevenscenes {
-            held = held.min(s.picked.len());
-        }
-        if let Some(g) = &self.ground_truth {
-            held = held.min(g.len());
-        }
-        let wanted = held.min(limit.unwrap_or(usize::MAX));
+        // The frames the folder holds, where its layout says.
+        let stored = [
+            self.kitti.as_ref().map(|s| s.len()),
+            self.sevenscenes.as_ref().map(|s| s.picked.len()),
+        ]
+        .into_iter()
+        .flatten()
+        .min()
+        .unwrap_or(usize::MAX);
+        let limit = limit.unwrap_or(usize::MAX);
+        let held = stored.min(self.ground_truth.as_ref().map_or(usize::MAX, |g| g.len()));
+        let wanted = held.min(limit);
         if odometry < wanted && wanted != usize::MAX {
             return Err(SequenceError::Input(format!(
                 "{}: the odometry gives {odometry} poses for {wanted} frames; pass --frames \
@@ -314,13 +314,7 @@ impl CameraSequence {
                 self.dir.display()
             )));
         }
-        let mut n = odometry.min(limit.unwrap_or(usize::MAX));
-        if let Some(seq) = &self.kitti {
-            n = n.min(seq.len());
-        }
-        if let Some(s) = &self.sevenscenes {
-            n = n.min(s.picked.len());
-        }
+        let n = odometry.min(limit).min(stored);
         if n == 0 {
             return Err(SequenceError::Input(format!(
                 "{}: the sequence has no frames",
