@@ -15,9 +15,11 @@
 //! Then the flood line (skipped with OMCL_BENCH_FLOOD=0): one session's
 //! median step latency alone, and again while a second session floods a
 //! stream with frames as fast as the transport takes them (the server
-//! keeps only the flood's latest waiting frame and serves sessions in
-//! turn). The README's bound: beside the flood, at most 3 times the median
-//! alone plus 20 ms.
+//! reads the stream only when its waiting frame has been taken, keeps the
+//! latest, and serves sessions in turn), on a connection of its own or,
+//! with OMCL_BENCH_FLOOD=shared, on the measured session's; and the cores
+//! the server and this process (the clients) used meanwhile. The README's
+//! bound: beside the flood, at most 3 times the median alone plus 20 ms.
 
 #[path = "../tests/serve_common/mod.rs"]
 mod serve_common;
@@ -46,6 +48,14 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
 fn ping_pong(i: usize, n: usize) -> usize {
     let k = i % (2 * n - 2);
     if k < n { k } else { 2 * n - 2 - k }
+}
+
+/// CPU time this process has used (user + system), seconds.
+fn own_cpu_seconds() -> f64 {
+    let s = std::fs::read_to_string("/proc/self/stat").unwrap();
+    let rest = &s[s.rfind(')').unwrap() + 2..];
+    let v: Vec<&str> = rest.split_whitespace().collect();
+    (v[11].parse::<f64>().unwrap() + v[12].parse::<f64>().unwrap()) / clock_ticks()
 }
 
 fn load() -> String {
@@ -259,15 +269,31 @@ async fn flood_line(server: &Server, f: &Fixture, frames: &[proto::Frame]) {
             fr
         })
         .collect();
-    let flood = Flood::start(&c, flood_frames, usize::MAX);
+    // Where the cores go beside the flood: the server's and this
+    // process's (the flooding client's) CPU time over the wall time.
+    let (cpu0, own0, t0) = (server.cpu_seconds(), own_cpu_seconds(), Instant::now());
+    // The flood on a connection of its own (another camera), unless
+    // OMCL_BENCH_FLOOD=shared puts it on a's.
+    let flooder = if std::env::var("OMCL_BENCH_FLOOD").as_deref() == Ok("shared") {
+        c.clone()
+    } else {
+        server.client(Auth::good()).await
+    };
+    let flood = Flood::start(&flooder, flood_frames, usize::MAX);
     let (beside, beside_step) = measure(&mut c, FLOOD_MEASURED).await;
+    let wall = t0.elapsed().as_secs_f64();
+    let (server_cores, client_cores) = (
+        (server.cpu_seconds() - cpu0) / wall,
+        (own_cpu_seconds() - own0) / wall,
+    );
     let (sent, read) = flood.stop().await;
     let bound = 3.0 * alone + 20.0;
     println!(
         "flood: session a's median step latency {alone:.1} ms alone, {beside:.1} ms beside a \
          flood of {sent} frames ({} answered; the rest dropped); the step itself \
-         {alone_step:.1} and {beside_step:.1} ms; bound 3 x alone + 20 ms = {bound:.1} ms: \
-         {}; load average {}",
+         {alone_step:.1} and {beside_step:.1} ms; cores used beside the flood: server \
+         {server_cores:.2}, this process (the clients) {client_cores:.2}; bound 3 x alone + \
+         20 ms = {bound:.1} ms: {}; load average {}",
         read.map_or("?".into(), |n| n.to_string()),
         if beside <= bound {
             "within"

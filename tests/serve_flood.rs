@@ -2,8 +2,10 @@
 //! memory stays bounded: a session keeps only its latest waiting frame (the
 //! others are counted as dropped), the compute pool serves sessions in
 //! turn, and a session beside the flood gets the very poses it gets
-//! without it. How much the flood slows the others is measured by the load
-//! benchmark (`cargo bench --bench serve`, its flood line), not here.
+//! without it; and the server reads a stream no further while its frame
+//! waits (backpressure), so a flood is held back by flow control. How much
+//! the flood slows the others is measured by the load benchmark (`cargo
+//! bench --bench serve`, its flood line), not here.
 
 mod serve_common;
 
@@ -85,5 +87,71 @@ async fn a_flooding_session_does_not_starve_the_others() {
         sb.frames_dropped,
         rss_before as f64 / (1 << 20) as f64,
         rss_during as f64 / (1 << 20) as f64
+    );
+}
+
+/// Backpressure: while a stream's frame waits behind a running step, the
+/// server reads no more of that stream, so a flooding client is held back by
+/// HTTP/2 flow control instead of having its frames read, decoded and
+/// dropped by the thousand on the cores the steps need. Frames of 393 KB
+/// (a 16 x 12 grid of 512 features) and steps of about a second (50,000
+/// particles x 2048 pixels): each time a step takes the waiting frame the
+/// server reads what the stream's 1 MiB window holds (two such frames)
+/// and keeps the latest, so it drops at most a few frames a step; reading
+/// everything, it dropped hundreds.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stream_is_not_read_while_its_frame_waits() {
+    let f = Fixture::new();
+    let server = Server::start(&f, &["--threads", "2"]);
+    let mut c = server.client(Auth::good()).await;
+    let mut req = f.create(0);
+    req.particles = Some(50_000);
+    req.rays = Some(2048);
+    let b = c.create_session(req).await.unwrap().into_inner().session_id;
+    let frames = (0..4)
+        .map(|i| {
+            let mut fr = f.frame(&b, i);
+            fr.features = Some(proto::frame::Features::Grid(proto::FeatureGrid {
+                height: 12,
+                width: 16,
+                dim: 512,
+                data: vec![0.1 + i as f32 * 0.01; 12 * 16 * 512],
+            }));
+            fr
+        })
+        .collect();
+    let flood = Flood::start(&c, frames, usize::MAX);
+    // Until three steps of b have ended (a hang guard of two minutes).
+    let t0 = std::time::Instant::now();
+    let sb = loop {
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        let list = c
+            .list_sessions(proto::ListSessionsRequest {})
+            .await
+            .unwrap()
+            .into_inner();
+        let sb = list
+            .sessions
+            .into_iter()
+            .find(|s| s.session_id == b)
+            .unwrap();
+        if sb.frames >= 3 {
+            break sb;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(120),
+            "3 steps not done in 2 minutes: {sb:?}"
+        );
+    };
+    let (sent, _) = flood.stop().await;
+    eprintln!(
+        "backpressure: {sent} frames sent, {} stepped, {} dropped",
+        sb.frames, sb.frames_dropped
+    );
+    assert!(
+        sb.frames_dropped <= 4 * (sb.frames + 2),
+        "the server read {} frames of the stream while {} steps ran: not held back",
+        sb.frames + sb.frames_dropped,
+        sb.frames
     );
 }

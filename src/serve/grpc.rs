@@ -267,8 +267,23 @@ impl Localization for Service {
         let (tx, rx) = mpsc::channel(self.state.limits.stream_buffer.max(1));
         let state = self.state.clone();
         tokio::spawn(async move {
+            // The session whose frame from this stream waits for a step.
+            let mut waiting: Option<Arc<Slot>> = None;
             loop {
-                let f = match inbound.message().await {
+                // Backpressure (see `state`): nothing more is read while
+                // this stream's last frame waits; then first whatever has
+                // arrived since, without waiting, so that the latest wins.
+                let next = match ready_now(inbound.message()) {
+                    Some(m) => m,
+                    None => {
+                        if let Some(slot) = waiting.take() {
+                            slot.frame_taken().await;
+                            continue;
+                        }
+                        inbound.message().await
+                    }
+                };
+                let f = match next {
                     Ok(Some(f)) => f,
                     // End of the client's stream, or a transport error
                     // (the client is gone).
@@ -285,7 +300,10 @@ impl Localization for Service {
                     convert::frame_input(f, &slot.camera(), &slot.map).map(|i| (slot, i))
                 });
                 match checked {
-                    Ok((slot, input)) => state.submit(slot, input, Reply::Stream(tx.clone())),
+                    Ok((slot, input)) => {
+                        state.submit(slot.clone(), input, Reply::Stream(tx.clone()));
+                        waiting = Some(slot);
+                    }
                     Err(s) => {
                         state.metrics.reject("invalid_frame");
                         let msg = proto::StreamResponse {
@@ -299,5 +317,17 @@ impl Localization for Service {
             }
         });
         Ok(Response::new(ReceiverStream::new(rx)))
+    }
+}
+
+/// `f`'s output if it is ready at the first poll (for a future that keeps
+/// its state outside itself, such as `Streaming::message`, dropping it
+/// unfinished loses nothing).
+fn ready_now<F: std::future::Future>(f: F) -> Option<F::Output> {
+    let mut f = std::pin::pin!(f);
+    let mut cx = std::task::Context::from_waker(std::task::Waker::noop());
+    match f.as_mut().poll(&mut cx) {
+        std::task::Poll::Ready(v) => Some(v),
+        std::task::Poll::Pending => None,
     }
 }

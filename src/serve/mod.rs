@@ -186,8 +186,13 @@ fn spawn_expiry(state: Arc<State>, idle_timeout: Duration) {
     });
 }
 
+/// HTTP/2 flow-control window of a gRPC stream, bytes (hyper's default).
+const STREAM_WINDOW: u32 = 1 << 20;
+/// Stream windows in a connection's window (see `grpc_server`).
+const STREAM_WINDOWS_PER_CONNECTION: u32 = 16;
+
 /// The gRPC server on `listener` (message caps, bearer tokens, TLS,
-/// TCP_NODELAY, the unary deadline), until `stop`.
+/// TCP_NODELAY, flow-control windows, the unary deadline), until `stop`.
 fn grpc_server(
     config: &ServeConfig,
     state: &Arc<State>,
@@ -221,7 +226,16 @@ fn grpc_server(
         s.set_nodelay(true)?;
         Ok::<_, std::io::Error>(s)
     });
+    // Flow control: a stream whose session has a frame waiting is not read
+    // (`state`), so what its client sends next stays in the stream's
+    // window, unread, and counts against the connection's window too. A
+    // connection window of STREAM_WINDOWS_PER_CONNECTION stream windows
+    // keeps that many flooding streams from stalling the other calls of
+    // their connection (with hyper's default, one stream's window and the
+    // connection's were the same 1 MiB).
     Ok(builder
+        .initial_stream_window_size(STREAM_WINDOW)
+        .initial_connection_window_size(STREAM_WINDOW * STREAM_WINDOWS_PER_CONNECTION)
         .timeout(config.limits.deadline)
         .add_service(svc)
         .serve_with_incoming_shutdown(incoming, stop))

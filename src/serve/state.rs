@@ -9,6 +9,14 @@
 //! sessions: a flooding session gets its share, no more). The pool's queue
 //! therefore holds at most one task per session, and sessions are capped;
 //! past `max_queued` tasks a new frame is refused (RESOURCE_EXHAUSTED).
+//!
+//! Streams are read with backpressure (`grpc`): once a stream's frame
+//! waits, the stream is read no further until a step takes that frame
+//! ([`Slot::frame_taken`]); then everything that has arrived in the
+//! meantime is read and the latest kept. HTTP/2 flow control holds a
+//! flooding client to what its window holds instead of the server reading,
+//! decoding and dropping thousands of frames a second on the cores the
+//! steps need.
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
@@ -94,6 +102,8 @@ pub struct Slot {
     pub frames_dropped: AtomicU64,
     last_used: Mutex<Instant>,
     closed: AtomicBool,
+    /// Told each time a step takes the frame waiting behind it.
+    taken: tokio::sync::Notify,
 }
 
 impl Slot {
@@ -109,6 +119,15 @@ impl Slot {
     }
     pub fn frames(&self) -> u64 {
         lock(&self.session).frames()
+    }
+    /// Returns once no frame of this session waits for a step (at once
+    /// if none does).
+    pub async fn frame_taken(&self) {
+        while lock(&self.queue).pending.is_some() {
+            // A take between the check and the wait leaves a permit:
+            // `notify_one` never loses it.
+            self.taken.notified().await;
+        }
     }
     fn busy(&self) -> bool {
         lock(&self.queue).busy
@@ -246,6 +265,7 @@ impl State {
                 frames_dropped: AtomicU64::new(0),
                 last_used: Mutex::new(Instant::now()),
                 closed: AtomicBool::new(false),
+                taken: tokio::sync::Notify::new(),
             }),
         );
         self.metrics
@@ -354,6 +374,9 @@ impl State {
             let (reply, answer, frame) = state.run_step(&slot, job);
             let mut q = lock(&slot.queue);
             let next = q.pending.take();
+            if next.is_some() {
+                slot.taken.notify_one();
+            }
             if state.shutting_down.load(Ordering::Relaxed) || next.is_none() {
                 q.busy = false;
                 drop(q);
