@@ -11,25 +11,8 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-use common::shared;
-
-struct Run {
-    code: Option<i32>,
-    stderr: String,
-}
-
-fn omcl(args: &[&str]) -> Run {
-    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
-        .args(args)
-        .output()
-        .expect("run omcl");
-    Run {
-        code: out.status.code(),
-        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-    }
-}
+use common::{Run, omcl, shared};
 
 fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")

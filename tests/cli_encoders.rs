@@ -1,9 +1,10 @@
 //! The map commands with ONNX encoders as feature sources (real inference
 //! through ONNX Runtime on the committed tiny models).
 
+mod common;
+
 use omcl::encode::Encoder as _;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use nalgebra::Vector3;
 use omcl::encode::{ImageEncoder, Runtime, TextEncoder};
@@ -16,16 +17,8 @@ fn data(name: &str) -> PathBuf {
 }
 
 fn omcl(args: &[&str]) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
-        .args(args)
-        .output()
-        .unwrap();
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.success(), text)
+    let r = common::omcl(args);
+    (r.ok(), r.output())
 }
 
 #[test]

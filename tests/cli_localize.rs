@@ -3,8 +3,11 @@
 //! and on bad input: each must exit non-zero with a message that names the
 //! problem, never panic, and leave an existing `--out` file untouched.
 
+mod common;
+
+use common::{Run, omcl};
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use omcl::io::npy;
 
@@ -21,36 +24,6 @@ const WIDTH: usize = 64;
 const HEIGHT: usize = 48;
 /// Feature dimension of the built-in embedding table (CLIP ViT-B/32).
 const MAP_DIM: usize = 512;
-
-struct Run {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-}
-
-impl Run {
-    fn ok(&self) -> bool {
-        self.code == Some(0)
-    }
-    fn text(&self) -> String {
-        format!(
-            "exit {:?}\n--- stdout\n{}--- stderr\n{}",
-            self.code, self.stdout, self.stderr
-        )
-    }
-}
-
-fn omcl(args: &[&str]) -> Run {
-    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
-        .args(args)
-        .output()
-        .unwrap();
-    Run {
-        code: out.status.code(),
-        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-    }
-}
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()

@@ -9,38 +9,11 @@
 //! (`../shared/data/trajectories/KITTI_00_gt.txt`): without it the
 //! simulator fails and so do these tests.
 
+mod common;
+
+use common::{Run, omcl};
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
-
-struct Run {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-}
-
-impl Run {
-    fn ok(&self) -> bool {
-        self.code == Some(0)
-    }
-    fn text(&self) -> String {
-        format!(
-            "exit {:?}\n--- stdout\n{}--- stderr\n{}",
-            self.code, self.stdout, self.stderr
-        )
-    }
-}
-
-fn omcl(args: &[&str]) -> Run {
-    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
-        .args(args)
-        .output()
-        .unwrap();
-    Run {
-        code: out.status.code(),
-        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-    }
-}
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()

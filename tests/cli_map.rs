@@ -1,22 +1,16 @@
 //! The `omcl` binary on map files: info on a good map, clear errors and a
 //! non-zero exit on bad ones.
 
+mod common;
+
 use std::path::Path;
-use std::process::Command;
 
 use nalgebra::Vector3;
 use omcl::map::{self, FeatureDb, GridSpec, LanguageMap};
 
 fn omcl(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
-        .args(args)
-        .output()
-        .expect("the omcl binary runs");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    let r = common::omcl(args);
+    (r.ok(), r.stdout, r.stderr)
 }
 
 fn write_map(path: &Path) -> LanguageMap {

@@ -6,22 +6,13 @@ mod common;
 use common::shared;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use omcl::io::{labels, npy, ply};
 use omcl::map;
 
 fn omcl(args: &[&str]) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
-        .args(args)
-        .output()
-        .unwrap();
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.success(), text)
+    let r = common::omcl(args);
+    (r.ok(), r.output())
 }
 
 /// A class table of `ids` with orthogonal one-hot features (dimension = count).

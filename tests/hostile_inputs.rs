@@ -4,28 +4,13 @@
 //! together) a peak resident memory under 100 MB. Before the bounds, the
 //! PLY, LAS and LAZ cases aborted on allocations of 26 to 69 GB.
 
+mod common;
+
+use common::{Run, omcl};
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/io");
-
-struct Run {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-}
-
-fn omcl(args: &[&str]) -> Run {
-    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
-        .args(args)
-        .output()
-        .expect("run omcl");
-    Run {
-        code: out.status.code(),
-        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
-    }
-}
 
 fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")

@@ -9,22 +9,13 @@ use common::shared;
 
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::process::Command;
 
 use omcl::io::kitti_camera::{CameraInput, KittiCameraSequence};
 use omcl::io::rgbd::read_label_png;
 
 fn omcl(args: &[&str]) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
-        .args(args)
-        .output()
-        .unwrap();
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.success(), text)
+    let r = common::omcl(args);
+    (r.ok(), r.output())
 }
 
 fn copy_dir(from: &Path, to: &Path) {

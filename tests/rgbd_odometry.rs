@@ -8,6 +8,8 @@
 //! script's numbers). Needs Open3D in .deps/open3d (`make deps`); fails,
 //! never skips, when it is missing.
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
@@ -25,13 +27,8 @@ const BLOCK_FRAMES: usize = 6;
 const KNOWN_FRAMES: usize = 24;
 
 fn omcl(args: &[&str]) -> (bool, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_omcl"))
-        .args(args)
-        .output()
-        .unwrap();
-    let text =
-        String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
-    (o.status.success(), text)
+    let r = common::omcl(args);
+    (r.ok(), r.output())
 }
 
 fn json(path: &Path) -> serde_json::Value {

@@ -4,6 +4,8 @@
 //! step) localized in 6-DoF from the paper's local start (0.3 m / 17
 //! degrees) with odometry noise in the paper's proportion to the motion.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use omcl::experiment::sevenscenes::{TrackSpec, fit_colour_model, run_track, split};
@@ -71,16 +73,9 @@ fn a_real_stretch_is_tracked_within_ten_centimetres() {
 
 /// Runs the binary; prints and returns its exit code, stdout and stderr.
 fn omcl(args: &[&str]) -> (Option<i32>, String, String) {
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_omcl"))
-        .args(args)
-        .output()
-        .unwrap();
-    let (out, err) = (
-        String::from_utf8_lossy(&o.stdout).to_string(),
-        String::from_utf8_lossy(&o.stderr).to_string(),
-    );
-    eprintln!("{out}{err}");
-    (o.status.code(), out, err)
+    let r = common::omcl(args);
+    eprintln!("{}", r.output());
+    (r.code, r.stdout, r.stderr)
 }
 
 /// The same stretch as a user runs it, through the command line: `omcl

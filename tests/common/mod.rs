@@ -1,8 +1,47 @@
-//! Helpers shared by the integration tests: the shared real data and the
-//! `io_*` tests' committed files and checks.
+//! Helpers shared by the integration tests: running the `omcl` binary, the
+//! shared real data and the `io_*` tests' committed files and checks.
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// What a run of the `omcl` binary gave.
+pub struct Run {
+    pub code: Option<i32>,
+    pub stdout: String,
+    pub stderr: String,
+}
+
+impl Run {
+    /// Exit status 0.
+    pub fn ok(&self) -> bool {
+        self.code == Some(0)
+    }
+    /// Exit code, standard output and standard error, for failure messages.
+    pub fn text(&self) -> String {
+        format!(
+            "exit {:?}\n--- stdout\n{}--- stderr\n{}",
+            self.code, self.stdout, self.stderr
+        )
+    }
+    /// Standard output, then standard error: what a user sees.
+    pub fn output(&self) -> String {
+        format!("{}{}", self.stdout, self.stderr)
+    }
+}
+
+/// Runs the crate's `omcl` binary with `args` and waits for it.
+pub fn omcl(args: &[&str]) -> Run {
+    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(args)
+        .output()
+        .expect("run omcl");
+    Run {
+        code: out.status.code(),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
 
 /// A path under `../shared/data`, the real data recorded by others that
 /// the tests read. Its absence is a failure, never a skip, wherever the
