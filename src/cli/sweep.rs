@@ -246,10 +246,11 @@ fn slurm_cmd(c: SlurmCmd) -> anyhow::Result<()> {
         .logs
         .clone()
         .unwrap_or_else(|| beside(&c.manifest, "logs"));
-    let script = c
-        .script
-        .clone()
-        .unwrap_or_else(|| beside(&c.manifest, "sweep.sbatch"));
+    let script = absolute(
+        &c.script
+            .clone()
+            .unwrap_or_else(|| beside(&c.manifest, "sweep.sbatch")),
+    )?;
     let submit_sh = beside(&script, "submit.sh");
     super::outputs::refuse_overlaps(
         &[
@@ -289,10 +290,8 @@ fn slurm_cmd(c: SlurmCmd) -> anyhow::Result<()> {
     let s = sweep::status(&manifest, &ResultDir::new(&results));
     let to_do = s.to_do();
     let chunks = slurm::chunks(&to_do, max_array_size);
-    let script = absolute(&script)?;
     omcl::io::atomic::write(&script, slurm::script(&o).as_bytes())
         .with_context(|| format!("writing {}", script.display()))?;
-    let submit_sh = beside(&script, "submit.sh");
     omcl::io::atomic::write(
         &submit_sh,
         slurm::submit_script(&chunks, &o, &script).as_bytes(),
