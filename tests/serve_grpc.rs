@@ -515,66 +515,12 @@ fn unsafe_free_sigterm(pid: u32) {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn raw_rgb_frames_are_encoded_on_the_server_as_localize_encodes_them() {
     let f = Fixture::new();
-    let model =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/encode/tiny_image.onnx");
-    // The sequence without its labels and class table (which localize
-    // would read, in another feature space than the encoder's).
-    let seq = f.dir.path().join("seq_rgb");
-    std::fs::create_dir(&seq).unwrap();
-    for e in std::fs::read_dir(&f.seq).unwrap() {
-        let e = e.unwrap();
-        let name = e.file_name();
-        let keep = [
-            "rgb",
-            "depth",
-            "intrinsics.txt",
-            "poses.txt",
-            "odometry.txt",
-        ];
-        if keep.iter().any(|k| name == *k) {
-            std::os::unix::fs::symlink(e.path(), seq.join(&name)).unwrap();
-        }
-    }
-    let img_map = f.dir.path().join("img.omcl");
-    let r = omcl(&[
-        "map",
-        "rgbd",
-        s(&seq),
-        "--image-model",
-        s(&model),
-        "--stride",
-        "1",
-        "--resolution",
-        "0.1",
-        "--tau",
-        "0.0005",
-        "-o",
-        s(&img_map),
-    ]);
-    assert!(r.status.success(), "{r:?}");
-    let out = f.dir.path().join("est_img.txt");
-    let r = omcl(&[
-        "localize",
-        "--map",
-        s(&img_map),
-        "--sequence",
-        s(&seq),
-        "--image-model",
-        s(&model),
-        "-o",
-        s(&out),
-        "--particles",
-        &PARTICLES.to_string(),
-        "--rays",
-        &RAYS.to_string(),
-        "--seed",
-        "3",
-        "--frames",
-        &FRAMES.to_string(),
-    ]);
-    assert!(r.status.success(), "{r:?}");
-    let cli = read_tum(&out);
-
+    let Images {
+        map: img_map,
+        model,
+        cli,
+        ..
+    } = f.images(3, FRAMES);
     let img_arg = format!("img={}", s(&img_map));
     let model_arg = format!("img={}", s(&model));
     let server = Server::start(&f, &["--map", &img_arg, "--image-model", &model_arg]);

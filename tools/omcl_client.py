@@ -19,6 +19,10 @@ and prints one line per pose:
 
     OMCL_TOKEN=... python3 tools/omcl_client.py --map room --sequence seq
 
+With --images it sends the sequence's camera images instead (rgb/NNNNNN.png,
+as raw RGB), which the server encodes with the map's image encoder
+(`omcl serve --image-model NAME=MODEL`): the client needs no model.
+
 The token is read from --token-file or the OMCL_TOKEN environment variable,
 never from the command line.
 """
@@ -28,7 +32,9 @@ import array
 import ast
 import os
 import queue
+import struct
 import sys
+import zlib
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PROTO_DIR = os.path.join(ROOT, "proto")
@@ -151,9 +157,11 @@ class OmclClient:
         return self.stub.Stream(iter(frames), metadata=self.metadata)
 
 
-def frame(session_id, stamp, odom_t, odom_q, grid=None, labels=None, want_particles=False):
-    """A Frame: grid = (height, width, dim, floats) or labels = (width,
-    height, ints)."""
+def frame(session_id, stamp, odom_t, odom_q, grid=None, labels=None, rgb=None,
+          want_particles=False):
+    """A Frame: grid = (height, width, dim, floats), labels = (width,
+    height, ints) or rgb = (width, height, bytes: row-major RGB, 3 a pixel;
+    encoded on the server)."""
     f = pb.Frame(session_id=session_id, header=header(stamp),
                  odometry=pose_msg(odom_t, odom_q), want_particles=want_particles)
     if grid is not None:
@@ -164,6 +172,9 @@ def frame(session_id, stamp, odom_t, odom_q, grid=None, labels=None, want_partic
         w, h, ids = labels
         f.labels.width, f.labels.height = w, h
         f.labels.labels.extend(ids)
+    elif rgb is not None:
+        w, h, data = rgb
+        f.image.width, f.image.height, f.image.rgb = w, h, bytes(data)
     return f
 
 
@@ -199,6 +210,78 @@ def read_npy_f32(path):
     return tuple(head["shape"]), data
 
 
+def read_png_rgb(path):
+    """(width, height, bytes) of an 8-bit PNG as row-major RGB (grey is
+    repeated in the three channels, alpha dropped); interlaced, palette and
+    16-bit images are refused by name."""
+    with open(path, "rb") as f:
+        blob = f.read()
+    if blob[:8] != b"\x89PNG\r\n\x1a\n":
+        raise ValueError(f"{path}: not a PNG file")
+    pos, idat, ihdr = 8, [], None
+    while pos + 8 <= len(blob):
+        n, kind = struct.unpack(">I4s", blob[pos:pos + 8])
+        body = blob[pos + 8:pos + 8 + n]
+        if len(body) != n:
+            raise ValueError(f"{path}: truncated {kind.decode('latin1')} chunk")
+        if kind == b"IHDR":
+            ihdr = struct.unpack(">IIBBBBB", body)
+        elif kind == b"IDAT":
+            idat.append(body)
+        elif kind == b"IEND":
+            break
+        pos += 12 + n
+    if ihdr is None or not idat:
+        raise ValueError(f"{path}: no IHDR or IDAT chunk")
+    w, h, depth, colour, _, _, interlace = ihdr
+    channels = {0: 1, 2: 3, 4: 2, 6: 4}.get(colour)
+    if depth != 8 or channels is None or interlace:
+        raise ValueError(f"{path}: only 8-bit grey, RGB and RGBA PNGs without interlacing "
+                         f"are read here (bit depth {depth}, colour type {colour}, "
+                         f"interlace {interlace})")
+    try:
+        raw = zlib.decompress(b"".join(idat))
+    except zlib.error as e:
+        raise ValueError(f"{path}: corrupt image data ({e})") from None
+    stride = w * channels
+    if len(raw) != h * (stride + 1):
+        raise ValueError(f"{path}: {len(raw)} bytes of image data for {w} x {h}")
+    out = bytearray(w * h * 3)
+    prev = bytearray(stride)
+    for y in range(h):
+        kind = raw[y * (stride + 1)]
+        line = bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
+        if kind == 1:
+            for i in range(channels, stride):
+                line[i] = (line[i] + line[i - channels]) & 255
+        elif kind == 2:
+            for i in range(stride):
+                line[i] = (line[i] + prev[i]) & 255
+        elif kind == 3:
+            for i in range(stride):
+                left = line[i - channels] if i >= channels else 0
+                line[i] = (line[i] + ((left + prev[i]) >> 1)) & 255
+        elif kind == 4:
+            for i in range(stride):
+                a = line[i - channels] if i >= channels else 0
+                b, c = prev[i], prev[i - channels] if i >= channels else 0
+                pa, pb_, pc = abs(b - c), abs(a - c), abs(a + b - 2 * c)
+                pred = a if pa <= pb_ and pa <= pc else (b if pb_ <= pc else c)
+                line[i] = (line[i] + pred) & 255
+        elif kind != 0:
+            raise ValueError(f"{path}: unknown PNG filter {kind} in row {y}")
+        row = out[y * w * 3:(y + 1) * w * 3]
+        if channels >= 3:
+            for c in range(3):
+                row[c::3] = line[c::channels]
+        else:
+            for c in range(3):
+                row[c::3] = line[0::channels]
+        out[y * w * 3:(y + 1) * w * 3] = row
+        prev = line
+    return w, h, bytes(out)
+
+
 def read_camera(seq):
     with open(os.path.join(seq, "intrinsics.txt")) as f:
         v = f.read().split()
@@ -213,7 +296,12 @@ def main():
     ap.add_argument("--tls-ca", help="PEM root certificate, for a server with --tls-cert")
     ap.add_argument("--map", required=True, help="map name on the server")
     ap.add_argument("--sequence", required=True,
-                    help="folder with intrinsics.txt, poses.txt, odometry.txt, features/")
+                    help="folder with intrinsics.txt, poses.txt, odometry.txt, and features/ "
+                         "(or rgb/ with --images)")
+    ap.add_argument("--images", action="store_true",
+                    help="send the camera images rgb/NNNNNN.png as raw RGB, encoded on the "
+                         "server with the map's image encoder (omcl serve --image-model), "
+                         "instead of features/NNNNNN.npy")
     ap.add_argument("--frames", type=int, help="stream at most this many frames")
     ap.add_argument("--particles", type=int)
     ap.add_argument("--rays", type=int)
@@ -258,12 +346,25 @@ def main():
     # the previous one is answered, so none is dropped (a camera sending at
     # its own rate would rather let the server keep the latest).
     answered = queue.Queue()
+    # A file that cannot be read ends the stream; grpc runs this generator
+    # on its own thread, so the reason is handed back here.
+    unreadable = []
 
     def frames():
         for i in range(n):
-            shape, data = read_npy_f32(os.path.join(a.sequence, "features", f"{i:06}.npy"))
-            h, w, d = shape
-            yield frame(sid, gt[i][0], odom[i][1], odom[i][2], grid=(h, w, d, data))
+            try:
+                if a.images:
+                    rgb = read_png_rgb(os.path.join(a.sequence, "rgb", f"{i:06}.png"))
+                    f = frame(sid, gt[i][0], odom[i][1], odom[i][2], rgb=rgb)
+                else:
+                    path = os.path.join(a.sequence, "features", f"{i:06}.npy")
+                    shape, data = read_npy_f32(path)
+                    h, w, d = shape
+                    f = frame(sid, gt[i][0], odom[i][1], odom[i][2], grid=(h, w, d, data))
+            except (OSError, ValueError) as e:
+                unreadable.append(str(e))
+                return
+            yield f
             answered.get()
 
     count = 0
@@ -283,6 +384,8 @@ def main():
         sys.exit(f"omcl_client: {e.code().name}: {e.details()}")
     finally:
         client.close_session(sid)
+    if unreadable:
+        sys.exit(f"omcl_client: {unreadable[0]} (after {count} poses)")
     print(f"{count} poses from session {sid}", file=sys.stderr)
 
 

@@ -39,6 +39,14 @@ pub struct Fixture {
     pub map: PathBuf,
 }
 
+/// See [`Fixture::images`].
+pub struct Images {
+    pub seq: PathBuf,
+    pub map: PathBuf,
+    pub model: PathBuf,
+    pub cli: Vec<[f64; 7]>,
+}
+
 impl Fixture {
     pub fn new() -> Fixture {
         Fixture::make(&[])
@@ -103,6 +111,76 @@ impl Fixture {
         ]);
         assert!(r.status.success(), "{r:?}");
         Fixture { dir, seq, map }
+    }
+
+    /// The sequence as camera images only (`seq_rgb`: rgb/, depth/,
+    /// intrinsics, poses and odometry, without the labels and class table
+    /// `localize` would read in another feature space), its map built with
+    /// the committed tiny image model (`img.omcl`), the model, and the
+    /// trajectory `omcl localize --image-model` gives with `seed` over
+    /// `frames` frames.
+    pub fn images(&self, seed: u64, frames: usize) -> Images {
+        let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/encode/tiny_image.onnx");
+        let seq = self.dir.path().join("seq_rgb");
+        std::fs::create_dir(&seq).unwrap();
+        let keep = [
+            "rgb",
+            "depth",
+            "intrinsics.txt",
+            "poses.txt",
+            "odometry.txt",
+        ];
+        for e in std::fs::read_dir(&self.seq).unwrap() {
+            let e = e.unwrap();
+            let name = e.file_name();
+            if keep.iter().any(|k| name == *k) {
+                std::os::unix::fs::symlink(e.path(), seq.join(&name)).unwrap();
+            }
+        }
+        let map = self.dir.path().join("img.omcl");
+        let r = omcl(&[
+            "map",
+            "rgbd",
+            s(&seq),
+            "--image-model",
+            s(&model),
+            "--stride",
+            "1",
+            "--resolution",
+            "0.1",
+            "--tau",
+            "0.0005",
+            "-o",
+            s(&map),
+        ]);
+        assert!(r.status.success(), "{r:?}");
+        let out = self.dir.path().join("est_img.txt");
+        let r = omcl(&[
+            "localize",
+            "--map",
+            s(&map),
+            "--sequence",
+            s(&seq),
+            "--image-model",
+            s(&model),
+            "-o",
+            s(&out),
+            "--particles",
+            &PARTICLES.to_string(),
+            "--rays",
+            &RAYS.to_string(),
+            "--seed",
+            &seed.to_string(),
+            "--frames",
+            &frames.to_string(),
+        ]);
+        assert!(r.status.success(), "{r:?}");
+        Images {
+            seq,
+            map,
+            model,
+            cli: read_tum(&out),
+        }
     }
 
     pub fn intrinsics(&self) -> Intrinsics {
