@@ -96,9 +96,9 @@ async fn a_flooding_session_does_not_starve_the_others() {
 /// dropped by the thousand on the cores the steps need. Frames of 393 KB
 /// (a 16 x 12 grid of 512 features) and steps of about a second (50,000
 /// particles x 2048 pixels): each time a step takes the waiting frame the
-/// server reads what the stream's 1 MiB window holds (two such frames)
-/// and keeps the latest, so it drops at most a few frames a step; reading
-/// everything, it dropped hundreds.
+/// server reads at most a stream window (1 MiB) of what has arrived, three
+/// such frames, and keeps the latest, so it drops at most 3 frames a step;
+/// reading everything, it dropped hundreds.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_stream_is_not_read_while_its_frame_waits() {
     let f = Fixture::new();
@@ -154,4 +154,76 @@ async fn a_stream_is_not_read_while_its_frame_waits() {
         sb.frames + sb.frames_dropped,
         sb.frames
     );
+}
+
+/// The next answer of a stream, a pose, within two minutes (a hang guard).
+async fn pose_answer(stream: &mut tonic::Streaming<proto::StreamResponse>, what: &str) {
+    match tokio::time::timeout(Duration::from_secs(120), stream.message()).await {
+        Ok(Ok(Some(r))) => assert!(
+            matches!(r.result, Some(proto::stream_response::Result::Pose(_))),
+            "{what}: {r:?}"
+        ),
+        other => panic!("{what}: no answer within 2 minutes: {other:?}"),
+    }
+}
+
+/// Two streams of one session (a client that reconnected, say): each
+/// waits while a frame of the session waits, and each is read again once a
+/// step takes it. Until 2026-11-27 only the first waiter was woken, and
+/// the second stream was never read again.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn two_streams_of_one_session_are_both_read_again() {
+    let f = Fixture::new();
+    let server = Server::start(&f, &["--threads", "2"]);
+    let mut c = server.client(Auth::good()).await;
+    let mut req = f.create(0);
+    // Steps of a second or more, so that the frames below meet a running
+    // step.
+    req.particles = Some(50_000);
+    req.rays = Some(2048);
+    let s = c.create_session(req).await.unwrap().into_inner().session_id;
+    let open = |c: &Client| {
+        let (tx, rx) = tokio::sync::mpsc::channel(4);
+        let mut c = c.clone();
+        let answers = tokio::spawn(async move {
+            c.stream(tokio_stream::wrappers::ReceiverStream::new(rx))
+                .await
+                .unwrap()
+                .into_inner()
+        });
+        (tx, answers)
+    };
+    let bearer = format!("Bearer {TOKEN}");
+    let frames_waiting = || {
+        let (_, m) = server.get("/metrics", &[("Authorization", &bearer)]);
+        m.lines()
+            .find_map(|l| l.strip_prefix("omcl_frames_waiting "))
+            .map(|v| v.trim().to_string())
+            .unwrap_or_default()
+    };
+
+    // Stream 1: frame 0 steps, frame 1 waits behind it.
+    let (tx1, answers1) = open(&c);
+    tx1.send(f.frame(&s, 0)).await.unwrap();
+    tx1.send(f.frame(&s, 1)).await.unwrap();
+    let mut answers1 = answers1.await.unwrap();
+    let t0 = std::time::Instant::now();
+    while frames_waiting() != "1" {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "frame 1 never waited"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    // Stream 2: its frame replaces frame 1 while frame 0 still steps.
+    let (tx2, answers2) = open(&c);
+    tx2.send(f.frame(&s, 2)).await.unwrap();
+    let mut answers2 = answers2.await.unwrap();
+    pose_answer(&mut answers1, "frame 0 on stream 1").await;
+    pose_answer(&mut answers2, "frame 2 on stream 2").await;
+    // Both streams are read again.
+    tx2.send(f.frame(&s, 3)).await.unwrap();
+    pose_answer(&mut answers2, "frame 3 on stream 2").await;
+    tx1.send(f.frame(&s, 4)).await.unwrap();
+    pose_answer(&mut answers1, "frame 4 on stream 1").await;
 }

@@ -267,19 +267,39 @@ impl Localization for Service {
         let (tx, rx) = mpsc::channel(self.state.limits.stream_buffer.max(1));
         let state = self.state.clone();
         tokio::spawn(async move {
-            // The session whose frame from this stream waits for a step.
-            let mut waiting: Option<Arc<Slot>> = None;
+            // The session this stream last sent a frame for, and its count
+            // of takes from just before that frame was submitted.
+            let mut waiting: Option<(Arc<Slot>, tokio::sync::watch::Receiver<u64>)> = None;
+            // Bytes still to be read before waiting again, while a frame
+            // waits (a stream window's worth after each take: what the
+            // client could send meanwhile, no more however fast it refills
+            // the window).
+            let mut budget = super::STREAM_WINDOW as usize;
             loop {
-                // Backpressure (see `state`): nothing more is read while
-                // this stream's last frame waits; then first whatever has
-                // arrived since, without waiting, so that the latest wins.
-                let next = match ready_now(inbound.message()) {
+                // Backpressure (see `state`): while the frame waits, what
+                // has already arrived is read, up to the budget, so that the
+                // latest wins; then nothing until a step takes a frame.
+                let ready = if budget > 0 {
+                    ready_now(inbound.message())
+                } else {
+                    None
+                };
+                let next = match ready {
                     Some(m) => m,
                     None => {
-                        if let Some(slot) = waiting.take() {
-                            slot.frame_taken().await;
+                        if let Some((slot, mut takes)) = waiting.take() {
+                            if slot.frame_waiting() {
+                                tokio::select! {
+                                    _ = takes.changed() => {}
+                                    // The client is gone: no answer can
+                                    // reach it.
+                                    _ = tx.closed() => break,
+                                }
+                            }
+                            budget = super::STREAM_WINDOW as usize;
                             continue;
                         }
+                        budget = super::STREAM_WINDOW as usize;
                         inbound.message().await
                     }
                 };
@@ -289,6 +309,7 @@ impl Localization for Service {
                     // (the client is gone).
                     Ok(None) | Err(_) => break,
                 };
+                budget = budget.saturating_sub(prost::Message::encoded_len(&f));
                 if state.shutting_down.load(Ordering::Relaxed) {
                     let _ = tx
                         .send(Err(Status::unavailable("the server is shutting down")))
@@ -301,8 +322,9 @@ impl Localization for Service {
                 });
                 match checked {
                     Ok((slot, input)) => {
+                        let takes = slot.takes();
                         state.submit(slot.clone(), input, Reply::Stream(tx.clone()));
-                        waiting = Some(slot);
+                        waiting = Some((slot, takes));
                     }
                     Err(s) => {
                         state.metrics.reject("invalid_frame");

@@ -186,10 +186,12 @@ fn spawn_expiry(state: Arc<State>, idle_timeout: Duration) {
     });
 }
 
-/// HTTP/2 flow-control window of a gRPC stream, bytes (hyper's default).
+/// HTTP/2 flow-control window of a gRPC stream, bytes (hyper's default);
+/// also what a stream reader reads at most after each take (`grpc`).
 const STREAM_WINDOW: u32 = 1 << 20;
-/// Stream windows in a connection's window (see `grpc_server`).
-const STREAM_WINDOWS_PER_CONNECTION: u32 = 16;
+/// Stream windows in a connection's window (see `grpc_server`): 16 held
+/// back, and one for the connection's other calls.
+const STREAM_WINDOWS_PER_CONNECTION: u32 = 17;
 
 /// The gRPC server on `listener` (message caps, bearer tokens, TLS,
 /// TCP_NODELAY, flow-control windows, the unary deadline), until `stop`.
@@ -230,9 +232,10 @@ fn grpc_server(
     // (`state`), so what its client sends next stays in the stream's
     // window, unread, and counts against the connection's window too. A
     // connection window of STREAM_WINDOWS_PER_CONNECTION stream windows
-    // keeps that many flooding streams from stalling the other calls of
-    // their connection (with hyper's default, one stream's window and the
-    // connection's were the same 1 MiB).
+    // keeps 16 held-back streams from stalling the other calls of their
+    // connection (with hyper's default, one stream's window and the
+    // connection's were the same 1 MiB); unread data of a connection stays
+    // below 17 MiB.
     Ok(builder
         .initial_stream_window_size(STREAM_WINDOW)
         .initial_connection_window_size(STREAM_WINDOW * STREAM_WINDOWS_PER_CONNECTION)

@@ -10,10 +10,11 @@
 //! therefore holds at most one task per session, and sessions are capped;
 //! past `max_queued` tasks a new frame is refused (RESOURCE_EXHAUSTED).
 //!
-//! Streams are read with backpressure (`grpc`): once a stream's frame
-//! waits, the stream is read no further until a step takes that frame
-//! ([`Slot::frame_taken`]); then everything that has arrived in the
-//! meantime is read and the latest kept. HTTP/2 flow control holds a
+//! Streams are read with backpressure (`grpc`): once a frame of the
+//! session a stream last sent for waits, the stream is read no further
+//! until a step of that session takes a waiting frame ([`Slot::takes`]);
+//! then what has arrived in the meantime is read, at most a stream window's
+//! worth of messages, and the latest kept. HTTP/2 flow control holds a
 //! flooding client to what its window holds instead of the server reading,
 //! decoding and dropping thousands of frames a second on the cores the
 //! steps need.
@@ -102,8 +103,9 @@ pub struct Slot {
     pub frames_dropped: AtomicU64,
     last_used: Mutex<Instant>,
     closed: AtomicBool,
-    /// Told each time a step takes the frame waiting behind it.
-    taken: tokio::sync::Notify,
+    /// How many times a step has taken the frame waiting behind it (stream
+    /// readers wait for it to move, `grpc`).
+    taken: tokio::sync::watch::Sender<u64>,
 }
 
 impl Slot {
@@ -120,14 +122,15 @@ impl Slot {
     pub fn frames(&self) -> u64 {
         lock(&self.session).frames()
     }
-    /// Returns once no frame of this session waits for a step (at once
-    /// if none does).
-    pub async fn frame_taken(&self) {
-        while lock(&self.queue).pending.is_some() {
-            // A take between the check and the wait leaves a permit:
-            // `notify_one` never loses it.
-            self.taken.notified().await;
-        }
+    /// The count of takes, seen as it is now: `changed()` returns at the
+    /// next take (every receiver is told, so any number of streams may
+    /// wait on one session).
+    pub fn takes(&self) -> tokio::sync::watch::Receiver<u64> {
+        self.taken.subscribe()
+    }
+    /// A frame of this session waits behind its step.
+    pub fn frame_waiting(&self) -> bool {
+        lock(&self.queue).pending.is_some()
     }
     fn busy(&self) -> bool {
         lock(&self.queue).busy
@@ -265,7 +268,7 @@ impl State {
                 frames_dropped: AtomicU64::new(0),
                 last_used: Mutex::new(Instant::now()),
                 closed: AtomicBool::new(false),
-                taken: tokio::sync::Notify::new(),
+                taken: tokio::sync::watch::Sender::new(0),
             }),
         );
         self.metrics
@@ -375,7 +378,7 @@ impl State {
             let mut q = lock(&slot.queue);
             let next = q.pending.take();
             if next.is_some() {
-                slot.taken.notify_one();
+                slot.taken.send_modify(|n| *n += 1);
             }
             if state.shutting_down.load(Ordering::Relaxed) || next.is_none() {
                 q.busy = false;
