@@ -2,8 +2,10 @@
 //! memory stays bounded: a session keeps only its latest waiting frame (the
 //! others are counted as dropped), the compute pool serves sessions in
 //! turn, and a session beside the flood gets the very poses it gets
-//! without it; and the server reads a stream no further while its frame
-//! waits (backpressure), so a flood is held back by flow control. How much
+//! without it; the server reads a stream no further while its frame
+//! waits (backpressure), so a flood is held back by flow control; and a
+//! frame whose turn comes past the deadline, or after its caller has gone,
+//! is not stepped. How much
 //! the flood slows the others is measured by the load benchmark (`cargo
 //! bench --bench serve`, its flood line), not here.
 
@@ -226,4 +228,90 @@ async fn two_streams_of_one_session_are_both_read_again() {
     pose_answer(&mut answers2, "frame 3 on stream 2").await;
     tx1.send(f.frame(&s, 4)).await.unwrap();
     pose_answer(&mut answers1, "frame 4 on stream 1").await;
+}
+
+/// An overloaded server spends no step on a frame nobody can use: with
+/// `--deadline-s 0.3` and steps of a second or more (50,000 particles), a
+/// streamed frame that waited behind a step is answered DEADLINE_EXCEEDED
+/// in the stream and not stepped; a `Localize` call whose client gave up
+/// (its own 100 ms timeout) before its turn is not stepped either. The
+/// server's counters say which was which.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn frames_past_the_deadline_or_without_a_caller_are_not_stepped() {
+    let f = Fixture::new();
+    let server = Server::start(&f, &["--threads", "2", "--deadline-s", "0.3"]);
+    let mut c = server.client(Auth::good()).await;
+    let mut req = f.create(0);
+    req.particles = Some(50_000);
+    req.rays = Some(2048);
+    let s = c.create_session(req).await.unwrap().into_inner().session_id;
+    let (tx, rx) = tokio::sync::mpsc::channel(4);
+    let mut answers = c
+        .stream(tokio_stream::wrappers::ReceiverStream::new(rx))
+        .await
+        .unwrap()
+        .into_inner();
+    // Frame 0 steps; frame 1 waits behind it, past the deadline.
+    tx.send(f.frame(&s, 0)).await.unwrap();
+    tx.send(f.frame(&s, 1)).await.unwrap();
+    pose_answer(&mut answers, "frame 0").await;
+    let r = tokio::time::timeout(Duration::from_secs(120), answers.message())
+        .await
+        .expect("frame 1 answered within 2 minutes")
+        .unwrap()
+        .unwrap();
+    match r.result {
+        Some(proto::stream_response::Result::Error(e)) => {
+            assert_eq!(e.code, "DEADLINE_EXCEEDED", "{e:?}");
+            assert!(e.message.contains("deadline-s"), "{e:?}");
+        }
+        other => panic!("frame 1 was stepped: {other:?}"),
+    }
+    // Frame 2 steps; frame 3, a call whose client waits 100 ms only, waits
+    // behind it and is abandoned.
+    tx.send(f.frame(&s, 2)).await.unwrap();
+    let bearer = format!("Bearer {TOKEN}");
+    let metric = |name: &str| {
+        let (_, m) = server.get("/metrics", &[("Authorization", &bearer)]);
+        m.lines()
+            .find_map(|l| l.strip_prefix(name))
+            .map(|v| v.trim().to_string())
+            .unwrap_or_default()
+    };
+    let t0 = std::time::Instant::now();
+    while metric("omcl_queue_depth ") != "1" {
+        assert!(t0.elapsed() < Duration::from_secs(60), "frame 2 never ran");
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    let mut call = tonic::Request::new(f.frame(&s, 3));
+    call.set_timeout(Duration::from_millis(100));
+    let e = c.localize(call).await.unwrap_err();
+    // tonic's client reports its own timeout as CANCELLED ("Timeout
+    // expired"); the server may have answered DEADLINE_EXCEEDED first.
+    assert!(
+        matches!(
+            e.code(),
+            tonic::Code::Cancelled | tonic::Code::DeadlineExceeded
+        ),
+        "{e:?}"
+    );
+    pose_answer(&mut answers, "frame 2").await;
+    // Frame 3's turn has come and gone once the pool is idle.
+    let t0 = std::time::Instant::now();
+    while metric("omcl_queue_depth ") != "0" {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "the pool never emptied"
+        );
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    let list = c
+        .list_sessions(proto::ListSessionsRequest {})
+        .await
+        .unwrap()
+        .into_inner();
+    let st = list.sessions.iter().find(|x| x.session_id == s).unwrap();
+    assert_eq!(st.frames, 2, "only frames 0 and 2 were stepped: {st:?}");
+    assert_eq!(metric("omcl_rejected_total{reason=\"expired\"} "), "1");
+    assert_eq!(metric("omcl_rejected_total{reason=\"abandoned\"} "), "1");
 }

@@ -83,7 +83,12 @@ pub struct ServeArgs {
     /// Sessions idle this long (seconds) are closed.
     #[arg(long, default_value_t = 300.0, value_parser = super::positive_seconds)]
     pub idle_timeout_s: f64,
-    /// Deadline of a unary call, seconds.
+    /// Deadline of a frame, seconds: a `Localize` call without its pose by
+    /// then is answered DEADLINE_EXCEEDED (a client's shorter grpc-timeout
+    /// wins), and a frame, called or streamed, whose turn on the compute
+    /// pool comes later than this after its arrival is not stepped and is
+    /// answered DEADLINE_EXCEEDED (in the stream, for a stream). A frame
+    /// whose caller has gone by its turn is not stepped either.
     #[arg(long, default_value_t = 10.0, value_parser = super::positive_seconds)]
     pub deadline_s: f64,
     /// Largest gRPC message, MiB.

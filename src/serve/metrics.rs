@@ -11,12 +11,17 @@ pub const BUCKETS: [f64; 14] = [
 ];
 
 /// Rejection reasons counted (label `reason`).
-pub const REASONS: [&str; 5] = [
+pub const REASONS: [&str; 7] = [
     "overload",
     "session_cap",
     "invalid_frame",
     "unauthenticated",
     "shutting_down",
+    // A frame whose turn came after the server's deadline, not stepped.
+    "expired",
+    // A frame whose caller had gone (call cancelled or timed out, stream
+    // closed) when its turn came, not stepped.
+    "abandoned",
 ];
 
 #[derive(Default)]

@@ -46,7 +46,9 @@ pub struct Limits {
     pub max_queued: usize,
     /// Sessions without a frame or call for this long are closed.
     pub idle_timeout: Duration,
-    /// Deadline of a unary call (a client's shorter grpc-timeout wins).
+    /// Deadline of a unary call (a client's shorter grpc-timeout wins),
+    /// and of any frame's turn on the pool (a frame whose turn comes later
+    /// is not stepped).
     pub deadline: Duration,
     /// Largest message accepted, bytes.
     pub max_message_bytes: usize,
@@ -420,6 +422,30 @@ impl State {
         let Job { frame, reply } = job;
         if slot.closed.load(Ordering::Relaxed) {
             let st = Status::not_found(format!("session {:?} was closed", slot.id));
+            return (reply, Err(st), frame);
+        }
+        // A frame nobody waits for, or one that waited past the deadline, is
+        // not stepped (as if dropped: the next frame's odometry covers its
+        // motion); on an overloaded server this keeps the pool on frames
+        // whose poses are still wanted.
+        let gone = match &reply {
+            Reply::Unary(tx) => tx.is_closed(),
+            Reply::Stream(tx) => tx.is_closed(),
+        };
+        if gone {
+            self.metrics.reject("abandoned");
+            let st = Status::cancelled("the caller had gone before the frame's turn");
+            return (reply, Err(st), frame);
+        }
+        let waited = frame.received.elapsed();
+        if waited > self.limits.deadline {
+            self.metrics.reject("expired");
+            let st = Status::deadline_exceeded(format!(
+                "the frame waited {:.2} s for its turn, past the server's deadline of {:.2} s \
+                 (--deadline-s); not stepped",
+                waited.as_secs_f64(),
+                self.limits.deadline.as_secs_f64()
+            ));
             return (reply, Err(st), frame);
         }
         let mut session = lock(&slot.session);
