@@ -534,3 +534,76 @@ fn serve_names_unreadable_tls_files_and_one_port_for_both_planes() {
     let r = serve(&["--grpc", "127.0.0.1:50999", "--http", "127.0.0.1:50999"]);
     refused(&r, 1, &["--grpc and --http", "two ports"]);
 }
+
+/// A point's feature is a direction: an all-zero row of `--features` for
+/// a point kept for the map is refused naming the file, nothing written;
+/// rows of points the map drops anyway (SemanticKITTI's unlabeled points)
+/// may be zero.
+#[test]
+fn all_zero_point_features_are_named_with_their_file() {
+    let d = tempfile::tempdir().unwrap();
+    let ply = common::local("plyfile_ascii_rgb_label.ply");
+    let n = omcl::io::ply::read_ply(&ply).unwrap().len();
+    let feats = d.path().join("zero_row.npy");
+    let mut v: Vec<f32> = (0..n * 3).map(|i| 1.0 + i as f32).collect();
+    v[3..6].fill(0.0);
+    omcl::io::npy::write_npy(&feats, &[n, 3], &v).unwrap();
+    let out = d.path().join("m.omcl");
+    let r = omcl(&[
+        "map",
+        "cloud",
+        s(&ply),
+        "--features",
+        s(&feats),
+        "-o",
+        s(&out),
+    ]);
+    refused(
+        &r,
+        1,
+        &[
+            "zero_row.npy",
+            &format!("1 of the {n} points kept"),
+            "all-zero feature",
+            "point 1",
+        ],
+    );
+    assert!(!out.exists());
+
+    // A KITTI scan whose unlabeled points have zero rows: they are dropped
+    // before the map, which is built.
+    let seq = shared("semantickitti/sequences/00");
+    let scan = seq.join("velodyne/000000.bin");
+    let labels = seq.join("labels/000000.label");
+    let cloud = omcl::io::kitti::read_labelled_scan(&scan, Some(&labels)).unwrap();
+    let kept: Vec<bool> = cloud
+        .labels
+        .as_ref()
+        .unwrap()
+        .iter()
+        .map(|&l| !omcl::io::labels::is_dropped_semantic_kitti(l))
+        .collect();
+    assert!(kept.iter().any(|k| !k), "no dropped point in the scan");
+    let v: Vec<f32> = kept
+        .iter()
+        .flat_map(|&k| if k { [1.0, 0.5] } else { [0.0, 0.0] })
+        .collect();
+    omcl::io::npy::write_npy(&feats, &[kept.len(), 2], &v).unwrap();
+    let r = omcl(&[
+        "map",
+        "cloud",
+        s(&scan),
+        "--format",
+        "kitti",
+        "--labels",
+        s(&labels),
+        "--features",
+        s(&feats),
+        "--resolution",
+        "0.5",
+        "-o",
+        s(&out),
+    ]);
+    assert!(r.ok(), "{}", r.text());
+    assert!(out.exists());
+}

@@ -193,15 +193,6 @@ fn features_attach_from_npy_with_dimension_checks() {
     v[7] = f32::NAN;
     omcl::io::npy::write_npy(&nan, &[n, 3], &v).unwrap();
     assert_err_names(c.attach_features_npy(&nan).unwrap_err(), &nan, "point 2");
-    // A point whose feature is all zeros has no direction: named by file
-    // and point, with how many such points there are.
-    let zero = d.path().join("zero_row.npy");
-    let mut v: Vec<f32> = (0..n * 3).map(|i| 1.0 + i as f32).collect();
-    v[3..6].fill(0.0);
-    omcl::io::npy::write_npy(&zero, &[n, 3], &v).unwrap();
-    let e = c.attach_features_npy(&zero).unwrap_err();
-    assert!(e.to_string().contains(&format!("(1 of {n} points)")), "{e}");
-    assert_err_names(e, &zero, "point 1 is all zeros");
 }
 
 #[test]

@@ -256,19 +256,6 @@ impl PointCloud {
                 format!("feature value of point {} is not finite", i / dim),
             ));
         }
-        // A point's feature is a direction: an all-zero row has none (the
-        // map would refuse it later without naming this file).
-        let zero = |r: &[f32]| r.iter().all(|&v| v == 0.0);
-        if let Some(i) = arr.data.chunks_exact(dim).position(zero) {
-            let n = arr.data.chunks_exact(dim).filter(|r| zero(r)).count();
-            return Err(CloudError::format(
-                path,
-                format!(
-                    "the feature of point {i} is all zeros ({n} of {rows} points): a feature \
-                     needs a direction; leave such points out of the cloud and the file"
-                ),
-            ));
-        }
         self.features = Some((dim, arr.data));
         Ok(())
     }

@@ -9,7 +9,7 @@
 //!
 //! The command line only parses options, shows progress and saves.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use nalgebra::Vector3;
 
@@ -110,8 +110,31 @@ pub fn load_cloud(input: &CloudInput) -> Result<PointCloud, PipelineError> {
             c.retain_indices(|i| !matches!(labels[i], 7 | 18));
         }
     }
+    if let (Some(f), Some((dim, values))) = (&input.features, &c.features) {
+        refuse_zero_features(f, *dim, values)?;
+    }
     c.validate(&path.display().to_string())?;
     Ok(c)
+}
+
+/// A feature is a direction: a point kept for the map whose feature row (from
+/// `file`) is all zeros has none, and the map would refuse it without naming
+/// the file. Points dropped before (unlabeled, noise) may have such rows.
+fn refuse_zero_features(file: &Path, dim: usize, values: &[f32]) -> Result<(), CloudError> {
+    let zero = |r: &[f32]| r.iter().all(|&v| v == 0.0);
+    let Some(i) = values.chunks_exact(dim).position(zero) else {
+        return Ok(());
+    };
+    let n = values.chunks_exact(dim).filter(|r| zero(r)).count();
+    Err(CloudError::format(
+        file,
+        format!(
+            "{n} of the {} points kept for the map have an all-zero feature, the first \
+             point {i} of those kept: a feature needs a direction; leave such points out of \
+             the cloud and the file",
+            values.len() / dim
+        ),
+    ))
 }
 
 /// The sequence folder of `input`, the scans to use and how to filter them.
