@@ -195,14 +195,6 @@ async fn two_streams_of_one_session_are_both_read_again() {
         });
         (tx, answers)
     };
-    let bearer = format!("Bearer {TOKEN}");
-    let frames_waiting = || {
-        let (_, m) = server.get("/metrics", &[("Authorization", &bearer)]);
-        m.lines()
-            .find_map(|l| l.strip_prefix("omcl_frames_waiting "))
-            .map(|v| v.trim().to_string())
-            .unwrap_or_default()
-    };
 
     // Stream 1: frame 0 steps, frame 1 waits behind it.
     let (tx1, answers1) = open(&c);
@@ -210,7 +202,7 @@ async fn two_streams_of_one_session_are_both_read_again() {
     tx1.send(f.frame(&s, 1)).await.unwrap();
     let mut answers1 = answers1.await.unwrap();
     let t0 = std::time::Instant::now();
-    while frames_waiting() != "1" {
+    while server.metric("omcl_frames_waiting") != "1" {
         assert!(
             t0.elapsed() < Duration::from_secs(60),
             "frame 1 never waited"
@@ -270,16 +262,8 @@ async fn frames_past_the_deadline_or_without_a_caller_are_not_stepped() {
     // Frame 2 steps; frame 3, a call whose client waits 100 ms only, waits
     // behind it and is abandoned.
     tx.send(f.frame(&s, 2)).await.unwrap();
-    let bearer = format!("Bearer {TOKEN}");
-    let metric = |name: &str| {
-        let (_, m) = server.get("/metrics", &[("Authorization", &bearer)]);
-        m.lines()
-            .find_map(|l| l.strip_prefix(name))
-            .map(|v| v.trim().to_string())
-            .unwrap_or_default()
-    };
     let t0 = std::time::Instant::now();
-    while metric("omcl_queue_depth ") != "1" {
+    while server.metric("omcl_queue_depth") != "1" {
         assert!(t0.elapsed() < Duration::from_secs(60), "frame 2 never ran");
         tokio::time::sleep(Duration::from_millis(10)).await;
     }
@@ -298,7 +282,7 @@ async fn frames_past_the_deadline_or_without_a_caller_are_not_stepped() {
     pose_answer(&mut answers, "frame 2").await;
     // Frame 3's turn has come and gone once the pool is idle.
     let t0 = std::time::Instant::now();
-    while metric("omcl_queue_depth ") != "0" {
+    while server.metric("omcl_queue_depth") != "0" {
         assert!(
             t0.elapsed() < Duration::from_secs(60),
             "the pool never emptied"
@@ -312,6 +296,12 @@ async fn frames_past_the_deadline_or_without_a_caller_are_not_stepped() {
         .into_inner();
     let st = list.sessions.iter().find(|x| x.session_id == s).unwrap();
     assert_eq!(st.frames, 2, "only frames 0 and 2 were stepped: {st:?}");
-    assert_eq!(metric("omcl_rejected_total{reason=\"expired\"} "), "1");
-    assert_eq!(metric("omcl_rejected_total{reason=\"abandoned\"} "), "1");
+    assert_eq!(
+        server.metric("omcl_rejected_total{reason=\"expired\"}"),
+        "1"
+    );
+    assert_eq!(
+        server.metric("omcl_rejected_total{reason=\"abandoned\"}"),
+        "1"
+    );
 }

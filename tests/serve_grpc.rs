@@ -791,3 +791,43 @@ async fn long_names_are_refused_with_short_messages() {
         1
     );
 }
+
+/// `--max-connections 2`: a third gRPC connection is closed at once and
+/// counted; once one of the two has gone, a new one is served. The HTTP
+/// plane is not counted.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn connections_past_the_cap_are_closed_and_counted() {
+    let f = Fixture::new();
+    let server = Server::start(&f, &["--max-connections", "2"]);
+    let mut a = server.client(Auth::good()).await;
+    let mut b = server.client(Auth::good()).await;
+    a.list_maps(proto::ListMapsRequest {}).await.unwrap();
+    b.list_maps(proto::ListMapsRequest {}).await.unwrap();
+    assert_eq!(server.metric("omcl_connections"), "2");
+    let third = async {
+        let mut c = server
+            .try_client(Auth::good())
+            .await
+            .map_err(|e| e.to_string())?;
+        c.list_maps(proto::ListMapsRequest {})
+            .await
+            .map_err(|e| e.to_string())
+    }
+    .await;
+    eprintln!("third connection: {third:?}");
+    assert!(third.is_err(), "a third connection was served: {third:?}");
+    let rejected = server.metric("omcl_rejected_total{reason=\"connection_cap\"}");
+    assert!(rejected.parse::<u64>().unwrap() >= 1, "{rejected}");
+    drop(a);
+    let t0 = Instant::now();
+    while server.metric("omcl_connections") != "1" {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "a's connection never closed"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let mut c = server.client(Auth::good()).await;
+    c.list_maps(proto::ListMapsRequest {}).await.unwrap();
+    b.list_maps(proto::ListMapsRequest {}).await.unwrap();
+}

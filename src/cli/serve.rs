@@ -73,6 +73,11 @@ pub struct ServeArgs {
     /// Open sessions at most, in total.
     #[arg(long, default_value_t = Limits::default().max_sessions, value_parser = super::count_in::<1, { usize::MAX }>)]
     pub max_sessions: usize,
+    /// Open gRPC connections at most; a connection past it is closed at
+    /// once (the client's call fails with a transport error). Each may hold
+    /// up to 17 MiB of unread stream data.
+    #[arg(long, default_value_t = Limits::default().max_connections, value_parser = super::count_in::<1, { usize::MAX }>)]
+    pub max_connections: usize,
     /// Open sessions at most on one map.
     #[arg(long, default_value_t = Limits::default().max_sessions_per_map, value_parser = super::count_in::<1, { usize::MAX }>)]
     pub max_sessions_per_map: usize,
@@ -148,6 +153,7 @@ pub fn run(a: ServeArgs) -> anyhow::Result<()> {
     let mut limits = Limits {
         max_sessions: a.max_sessions,
         max_sessions_per_map: a.max_sessions_per_map,
+        max_connections: a.max_connections,
         max_queued: a.max_queued.max(1),
         idle_timeout: seconds(a.idle_timeout_s, "idle-timeout-s")?,
         deadline: seconds(a.deadline_s, "deadline-s")?,

@@ -89,6 +89,11 @@ async fn metrics(AxState(ctx): AxState<Ctx>) -> Response {
     let text = s.metrics.render(&[
         ("omcl_sessions", "Open sessions.", s.sessions().len() as f64),
         (
+            "omcl_connections",
+            "Open gRPC connections.",
+            s.connections.open() as f64,
+        ),
+        (
             "omcl_queue_depth",
             "Steps queued or running on the compute pool.",
             queued as f64,

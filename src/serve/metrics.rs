@@ -11,7 +11,7 @@ pub const BUCKETS: [f64; 14] = [
 ];
 
 /// Rejection reasons counted (label `reason`).
-pub const REASONS: [&str; 7] = [
+pub const REASONS: [&str; 8] = [
     "overload",
     "session_cap",
     "invalid_frame",
@@ -22,6 +22,8 @@ pub const REASONS: [&str; 7] = [
     // A frame whose caller had gone (call cancelled or timed out, stream
     // closed) when its turn came, not stepped.
     "abandoned",
+    // A gRPC connection past --max-connections, closed at once.
+    "connection_cap",
 ];
 
 #[derive(Default)]

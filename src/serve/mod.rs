@@ -14,6 +14,7 @@
 
 pub mod auth;
 pub mod compute;
+pub mod connections;
 pub mod convert;
 pub mod grpc;
 pub mod http;
@@ -223,10 +224,20 @@ fn grpc_server(
     }
     // Small answers go out at once: without TCP_NODELAY, Nagle's algorithm
     // and the client's delayed ACK add about 40 ms to every pose.
-    let incoming = TcpListenerStream::new(listener).map(|s| {
-        let s = s?;
-        s.set_nodelay(true)?;
-        Ok::<_, std::io::Error>(s)
+    // Past --max-connections a connection is closed at once (dropped).
+    let st = state.clone();
+    let incoming = TcpListenerStream::new(listener).filter_map(move |s| {
+        let s = match s.and_then(|s| s.set_nodelay(true).map(|()| s)) {
+            Ok(s) => s,
+            Err(e) => return Some(Err(e)),
+        };
+        match st.connections.admit(s) {
+            Some(c) => Some(Ok::<_, std::io::Error>(c)),
+            None => {
+                st.metrics.reject("connection_cap");
+                None
+            }
+        }
     });
     // Flow control: a stream whose session has a frame waiting is not read
     // (`state`), so what its client sends next stays in the stream's

@@ -41,6 +41,8 @@ pub struct Limits {
     pub threads: usize,
     pub max_sessions: usize,
     pub max_sessions_per_map: usize,
+    /// Open gRPC connections at most; more are closed at once.
+    pub max_connections: usize,
     /// Steps queued or running on the pool, in total, before new frames
     /// are refused.
     pub max_queued: usize,
@@ -64,6 +66,7 @@ impl Default for Limits {
             threads: std::thread::available_parallelism().map_or(2, |n| n.get()),
             max_sessions: 256,
             max_sessions_per_map: 128,
+            max_connections: 512,
             max_queued: 256,
             idle_timeout: Duration::from_secs(300),
             deadline: Duration::from_secs(10),
@@ -150,6 +153,8 @@ pub struct State {
     pub maps: Vec<Arc<SharedMap>>,
     pub limits: Limits,
     pub metrics: Metrics,
+    /// Open gRPC connections, capped.
+    pub connections: super::connections::Connections,
     sessions: Mutex<HashMap<String, Arc<Slot>>>,
     compute: super::compute::Compute,
     /// Steps queued or running on the pool.
@@ -187,10 +192,12 @@ pub fn status_of(e: &SessionError) -> Status {
 impl State {
     pub fn new(maps: Vec<Arc<SharedMap>>, limits: Limits) -> Result<Arc<State>, String> {
         let compute = super::compute::Compute::new(limits.threads)?;
+        let connections = super::connections::Connections::new(limits.max_connections);
         Ok(Arc::new(State {
             maps,
             limits,
             metrics: Metrics::default(),
+            connections,
             sessions: Mutex::new(HashMap::new()),
             compute,
             queued: AtomicUsize::new(0),

@@ -358,12 +358,28 @@ impl Server {
     }
 
     pub async fn client(&self, auth: Auth) -> Client {
+        self.try_client(auth).await.unwrap()
+    }
+
+    /// A client on a connection of its own, or why it could not connect.
+    pub async fn try_client(&self, auth: Auth) -> Result<Client, tonic::transport::Error> {
         let ch = Channel::from_shared(format!("http://{}", self.grpc))
             .unwrap()
             .connect()
-            .await
-            .unwrap();
-        LocalizationClient::with_interceptor(ch, auth).max_decoding_message_size(64 << 20)
+            .await?;
+        Ok(LocalizationClient::with_interceptor(ch, auth).max_decoding_message_size(64 << 20))
+    }
+
+    /// The value of the `/metrics` line that starts with `name` and a
+    /// space (`""` when there is none).
+    pub fn metric(&self, name: &str) -> String {
+        let bearer = format!("Bearer {TOKEN}");
+        let (_, m) = self.get("/metrics", &[("Authorization", &bearer)]);
+        let prefix = format!("{name} ");
+        m.lines()
+            .find_map(|l| l.strip_prefix(&prefix))
+            .map(|v| v.trim().to_string())
+            .unwrap_or_default()
     }
 
     /// A GET on the HTTP port: (status, body).
