@@ -563,9 +563,8 @@ fn all_zero_point_features_are_named_with_their_file() {
         1,
         &[
             "zero_row.npy",
-            &format!("1 of the {n} points kept"),
-            "all-zero feature",
-            "point 1",
+            &format!("all-zero feature rows for 1 of the {n} points kept"),
+            "point 1 of those kept",
         ],
     );
     assert!(!out.exists());

@@ -129,8 +129,8 @@ fn refuse_zero_features(file: &Path, dim: usize, values: &[f32]) -> Result<(), C
     Err(CloudError::format(
         file,
         format!(
-            "{n} of the {} points kept for the map have an all-zero feature, the first \
-             point {i} of those kept: a feature needs a direction; leave such points out of \
+            "all-zero feature rows for {n} of the {} points kept for the map (the first: \
+             point {i} of those kept): a feature needs a direction; leave such points out of \
              the cloud and the file",
             values.len() / dim
         ),
