@@ -106,10 +106,7 @@ async fn a_stream_is_not_read_while_its_frame_waits() {
     let f = Fixture::new();
     let server = Server::start(&f, &["--threads", "2"]);
     let mut c = server.client(Auth::good()).await;
-    let mut req = f.create(0);
-    req.particles = Some(50_000);
-    req.rays = Some(2048);
-    let b = c.create_session(req).await.unwrap().into_inner().session_id;
+    let b = slow_session(&mut c, &f).await;
     let frames = (0..4)
         .map(|i| {
             let mut fr = f.frame(&b, i);
@@ -178,29 +175,12 @@ async fn two_streams_of_one_session_are_both_read_again() {
     let f = Fixture::new();
     let server = Server::start(&f, &["--threads", "2"]);
     let mut c = server.client(Auth::good()).await;
-    let mut req = f.create(0);
-    // Steps of a second or more, so that the frames below meet a running
-    // step.
-    req.particles = Some(50_000);
-    req.rays = Some(2048);
-    let s = c.create_session(req).await.unwrap().into_inner().session_id;
-    let open = |c: &Client| {
-        let (tx, rx) = tokio::sync::mpsc::channel(4);
-        let mut c = c.clone();
-        let answers = tokio::spawn(async move {
-            c.stream(tokio_stream::wrappers::ReceiverStream::new(rx))
-                .await
-                .unwrap()
-                .into_inner()
-        });
-        (tx, answers)
-    };
+    let s = slow_session(&mut c, &f).await;
 
     // Stream 1: frame 0 steps, frame 1 waits behind it.
-    let (tx1, answers1) = open(&c);
+    let (tx1, mut answers1) = open_stream(&c).await;
     tx1.send(f.frame(&s, 0)).await.unwrap();
     tx1.send(f.frame(&s, 1)).await.unwrap();
-    let mut answers1 = answers1.await.unwrap();
     let t0 = std::time::Instant::now();
     while server.metric("omcl_frames_waiting") != "1" {
         assert!(
@@ -210,9 +190,8 @@ async fn two_streams_of_one_session_are_both_read_again() {
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
     // Stream 2: its frame replaces frame 1 while frame 0 still steps.
-    let (tx2, answers2) = open(&c);
+    let (tx2, mut answers2) = open_stream(&c).await;
     tx2.send(f.frame(&s, 2)).await.unwrap();
-    let mut answers2 = answers2.await.unwrap();
     pose_answer(&mut answers1, "frame 0 on stream 1").await;
     pose_answer(&mut answers2, "frame 2 on stream 2").await;
     // Both streams are read again.
@@ -233,16 +212,8 @@ async fn frames_past_the_deadline_or_without_a_caller_are_not_stepped() {
     let f = Fixture::new();
     let server = Server::start(&f, &["--threads", "2", "--deadline-s", "0.3"]);
     let mut c = server.client(Auth::good()).await;
-    let mut req = f.create(0);
-    req.particles = Some(50_000);
-    req.rays = Some(2048);
-    let s = c.create_session(req).await.unwrap().into_inner().session_id;
-    let (tx, rx) = tokio::sync::mpsc::channel(4);
-    let mut answers = c
-        .stream(tokio_stream::wrappers::ReceiverStream::new(rx))
-        .await
-        .unwrap()
-        .into_inner();
+    let s = slow_session(&mut c, &f).await;
+    let (tx, mut answers) = open_stream(&c).await;
     // Frame 0 steps; frame 1 waits behind it, past the deadline.
     tx.send(f.frame(&s, 0)).await.unwrap();
     tx.send(f.frame(&s, 1)).await.unwrap();

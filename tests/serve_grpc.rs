@@ -93,12 +93,7 @@ async fn two_sessions_give_the_trajectories_of_two_cli_runs() {
         .into_inner();
     // Session a through unary calls, session b through a stream, frame by
     // frame side by side.
-    let (tx, rx) = tokio::sync::mpsc::channel(4);
-    let mut answers = c
-        .stream(tokio_stream::wrappers::ReceiverStream::new(rx))
-        .await
-        .unwrap()
-        .into_inner();
+    let (tx, mut answers) = open_stream(&c).await;
     let (mut got_a, mut got_b) = (Vec::new(), Vec::new());
     for i in 0..FRAMES {
         tx.send(f.frame(&b.session_id, i)).await.unwrap();
@@ -296,12 +291,7 @@ async fn malformed_input_is_named_and_the_session_lives_on() {
         assert_eq!(u.frame, i as u64 + 1);
     }
     // In a stream the errors come in the stream, which goes on.
-    let (tx, rx) = tokio::sync::mpsc::channel(4);
-    let mut answers = c
-        .stream(tokio_stream::wrappers::ReceiverStream::new(rx))
-        .await
-        .unwrap()
-        .into_inner();
+    let (tx, mut answers) = open_stream(&c).await;
     for (fr, code, needle) in cases {
         tx.send(fr).await.unwrap();
         match answers.message().await.unwrap().unwrap().result.unwrap() {

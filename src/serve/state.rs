@@ -235,7 +235,7 @@ impl State {
     pub fn queue_depth(&self) -> (usize, usize) {
         let waiting = lock(&self.sessions)
             .values()
-            .filter(|s| lock(&s.queue).pending.is_some())
+            .filter(|s| s.frame_waiting())
             .count();
         (self.queued.load(Ordering::Relaxed), waiting)
     }

@@ -417,6 +417,32 @@ impl Drop for Server {
     }
 }
 
+/// A session of `f` whose steps take a second or more (50,000 particles
+/// x 2048 pixels), so that frames sent behind one meet it running.
+pub async fn slow_session(c: &mut Client, f: &Fixture) -> String {
+    let mut req = f.create(0);
+    req.particles = Some(50_000);
+    req.rays = Some(2048);
+    c.create_session(req).await.unwrap().into_inner().session_id
+}
+
+/// A `Stream` call: where its frames go in, and its answers.
+pub async fn open_stream(
+    c: &Client,
+) -> (
+    tokio::sync::mpsc::Sender<proto::Frame>,
+    tonic::Streaming<proto::StreamResponse>,
+) {
+    let (tx, rx) = tokio::sync::mpsc::channel(4);
+    let answers = c
+        .clone()
+        .stream(tokio_stream::wrappers::ReceiverStream::new(rx))
+        .await
+        .unwrap()
+        .into_inner();
+    (tx, answers)
+}
+
 /// Puts `key: value` into every request's metadata (or nothing).
 #[derive(Clone)]
 pub struct Auth(pub Option<(&'static str, String)>);
