@@ -269,6 +269,42 @@ fn python_png_reader_gives_omcls_pixels() {
         assert!(got == want.as_raw().as_slice(), "{name}: other pixels");
     }
 
+    // Hostile headers: an IHDR chunk of 4 bytes, and a 0 x 0 image; each
+    // refused by name (the reader checks no CRC, so none is right here).
+    let chunk = |kind: &[u8], body: &[u8]| {
+        let mut c = (body.len() as u32).to_be_bytes().to_vec();
+        c.extend_from_slice(kind);
+        c.extend_from_slice(body);
+        c.extend_from_slice(&[0; 4]);
+        c
+    };
+    let signature = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut zero_size = [0u8; 13];
+    zero_size[8] = 8;
+    zero_size[9] = 2;
+    for (name, ihdr, why) in [
+        (
+            "short_ihdr.png",
+            &[0u8, 0, 0, 1][..],
+            "IHDR chunk of 4 bytes",
+        ),
+        ("zero_size.png", &zero_size[..], "0 x 0 pixels"),
+    ] {
+        let png = dir.path().join(name);
+        let bytes = [
+            signature.clone(),
+            chunk(b"IHDR", ihdr),
+            chunk(b"IDAT", b"x"),
+            chunk(b"IEND", b""),
+        ]
+        .concat();
+        std::fs::write(&png, bytes).unwrap();
+        let r = python_read_pngs(&[png]);
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert!(!r.status.success(), "{name} was read");
+        assert!(stderr.contains(name) && stderr.contains(why), "{stderr}");
+    }
+
     let r = python_read_pngs(&[common::shared("rgbd_tum_fr1_xyz/case_1/dep_curr.png")]);
     let stderr = String::from_utf8_lossy(&r.stderr);
     assert!(!r.status.success());

@@ -225,6 +225,8 @@ def read_png_rgb(path):
         if len(body) != n:
             raise ValueError(f"{path}: truncated {kind.decode('latin1')} chunk")
         if kind == b"IHDR":
+            if n != 13:
+                raise ValueError(f"{path}: IHDR chunk of {n} bytes, not 13")
             ihdr = struct.unpack(">IIBBBBB", body)
         elif kind == b"IDAT":
             idat.append(body)
@@ -234,6 +236,8 @@ def read_png_rgb(path):
     if ihdr is None or not idat:
         raise ValueError(f"{path}: no IHDR or IDAT chunk")
     w, h, depth, colour, _, _, interlace = ihdr
+    if w == 0 or h == 0:
+        raise ValueError(f"{path}: the image is {w} x {h} pixels")
     channels = {0: 1, 2: 3, 4: 2, 6: 4}.get(colour)
     if depth != 8 or channels is None or interlace:
         raise ValueError(f"{path}: only 8-bit grey, RGB and RGBA PNGs without interlacing "
