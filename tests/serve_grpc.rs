@@ -499,11 +499,12 @@ fn unsafe_free_sigterm(pid: u32) {
 }
 
 /// Raw RGB frames go through the map's image encoder on the server: the
-/// same poses as `omcl localize --image-model` on the same images; a
-/// wrong-size image is INVALID_ARGUMENT and the session lives on; a map
-/// served without an encoder refuses raw frames.
+/// same poses as `omcl localize --image-model` on the same images, sent
+/// as pixels or as the PNG files' bytes; a wrong-size, truncated or
+/// foreign image is INVALID_ARGUMENT and the session lives on; a map
+/// served without an encoder refuses camera images.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn raw_rgb_frames_are_encoded_on_the_server_as_localize_encodes_them() {
+async fn camera_images_are_encoded_on_the_server_as_localize_encodes_them() {
     let f = Fixture::new();
     let Images {
         map: img_map,
@@ -538,6 +539,71 @@ async fn raw_rgb_frames_are_encoded_on_the_server_as_localize_encodes_them() {
     assert!(e.message().contains("bytes"), "{e:?}");
     for (i, want) in cli.iter().enumerate() {
         let u = c.localize(rgb_frame(i)).await.unwrap().into_inner();
+        assert_eq!(u.frame, i as u64 + 1);
+        assert_close(&pose_of(&u), want, 7, i);
+    }
+    // The same frames as the PNG files' bytes (a camera driver's
+    // CompressedImage): the same poses, in a second session.
+    let mut req = f.create(3);
+    req.map = "img".into();
+    let sid2 = c.create_session(req).await.unwrap().into_inner().session_id;
+    let file_frame = |i: usize, data: Vec<u8>| {
+        let mut fr = f.frame(&sid2, i);
+        fr.features = Some(proto::frame::Features::Compressed(proto::CompressedImage {
+            format: "png".into(),
+            data,
+        }));
+        fr
+    };
+    let png = |i: usize| std::fs::read(f.seq.join(format!("rgb/{i:06}.png"))).unwrap();
+    // Hostile files first, each named, the session unchanged: not an
+    // image, a truncated JPEG (caught by its header's reader), a JPEG of
+    // another size, and a PNG whose pixels are cut (caught when stepped).
+    let jpeg = |w: u32, h: u32| {
+        let mut out = std::io::Cursor::new(Vec::new());
+        image::RgbImage::from_pixel(w, h, image::Rgb([90, 120, 30]))
+            .write_to(&mut out, image::ImageFormat::Jpeg)
+            .unwrap();
+        out.into_inner()
+    };
+    let (cw, ch) = {
+        let first = omcl::io::rgb::read_rgb(&f.seq.join("rgb/000000.png")).unwrap();
+        first.dimensions()
+    };
+    let mut cut_jpeg = jpeg(cw, ch);
+    cut_jpeg.truncate(cut_jpeg.len() - 40);
+    let mut cut_png = png(0);
+    cut_png.truncate(cut_png.len() * 3 / 4);
+    let cases = [
+        (b"GIF89a".to_vec(), "starts as neither"),
+        (cut_jpeg, "truncated JPEG"),
+        (
+            jpeg(cw + 1, ch),
+            &format!("{}x{ch} pixels, the session's camera", cw + 1),
+        ),
+        (cut_png, "PNG"),
+    ];
+    for (data, want) in cases {
+        let e = c.localize(file_frame(0, data)).await.unwrap_err();
+        assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+        assert!(
+            e.message().contains("compressed image") && e.message().contains(want),
+            "{e:?}"
+        );
+    }
+    // A JPEG of the camera's size is stepped, on a session of its own.
+    let mut req = f.create(3);
+    req.map = "img".into();
+    let sid3 = c.create_session(req).await.unwrap().into_inner().session_id;
+    let mut fr = file_frame(0, jpeg(cw, ch));
+    fr.session_id = sid3;
+    assert_eq!(c.localize(fr).await.unwrap().into_inner().frame, 1);
+    for (i, want) in cli.iter().enumerate() {
+        let u = c
+            .localize(file_frame(i, png(i)))
+            .await
+            .unwrap()
+            .into_inner();
         assert_eq!(u.frame, i as u64 + 1);
         assert_close(&pose_of(&u), want, 7, i);
     }

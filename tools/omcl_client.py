@@ -19,9 +19,10 @@ and prints one line per pose:
 
     OMCL_TOKEN=... python3 tools/omcl_client.py --map room --sequence seq
 
-With --images it sends the sequence's camera images instead (rgb/NNNNNN.png,
-as raw RGB), which the server encodes with the map's image encoder
-(`omcl serve --image-model NAME=MODEL`): the client needs no model.
+With --images it sends the sequence's camera images instead (the files
+rgb/NNNNNN.png or .jpg as they are), which the server decodes and encodes
+with the map's image encoder (`omcl serve --image-model NAME=MODEL`): the
+client needs no model and no imaging library.
 
 The token is read from --token-file or the OMCL_TOKEN environment variable,
 never from the command line.
@@ -32,9 +33,7 @@ import array
 import ast
 import os
 import queue
-import struct
 import sys
-import zlib
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PROTO_DIR = os.path.join(ROOT, "proto")
@@ -158,10 +157,11 @@ class OmclClient:
 
 
 def frame(session_id, stamp, odom_t, odom_q, grid=None, labels=None, rgb=None,
-          want_particles=False):
+          compressed=None, want_particles=False):
     """A Frame: grid = (height, width, dim, floats), labels = (width,
-    height, ints) or rgb = (width, height, bytes: row-major RGB, 3 a pixel;
-    encoded on the server)."""
+    height, ints), rgb = (width, height, bytes: row-major RGB, 3 a pixel)
+    or compressed = (format, bytes of a PNG or JPEG file); images are
+    encoded on the server."""
     f = pb.Frame(session_id=session_id, header=header(stamp),
                  odometry=pose_msg(odom_t, odom_q), want_particles=want_particles)
     if grid is not None:
@@ -175,6 +175,8 @@ def frame(session_id, stamp, odom_t, odom_q, grid=None, labels=None, rgb=None,
     elif rgb is not None:
         w, h, data = rgb
         f.image.width, f.image.height, f.image.rgb = w, h, bytes(data)
+    elif compressed is not None:
+        f.compressed.format, f.compressed.data = compressed
     return f
 
 
@@ -210,80 +212,13 @@ def read_npy_f32(path):
     return tuple(head["shape"]), data
 
 
-def read_png_rgb(path):
-    """(width, height, bytes) of an 8-bit PNG as row-major RGB (grey is
-    repeated in the three channels, alpha dropped); interlaced, palette and
-    16-bit images are refused by name."""
-    with open(path, "rb") as f:
-        blob = f.read()
-    if blob[:8] != b"\x89PNG\r\n\x1a\n":
-        raise ValueError(f"{path}: not a PNG file")
-    pos, idat, ihdr = 8, [], None
-    while pos + 8 <= len(blob):
-        n, kind = struct.unpack(">I4s", blob[pos:pos + 8])
-        body = blob[pos + 8:pos + 8 + n]
-        if len(body) != n:
-            raise ValueError(f"{path}: truncated {kind.decode('latin1')} chunk")
-        if kind == b"IHDR":
-            if n != 13:
-                raise ValueError(f"{path}: IHDR chunk of {n} bytes, not 13")
-            ihdr = struct.unpack(">IIBBBBB", body)
-        elif kind == b"IDAT":
-            idat.append(body)
-        elif kind == b"IEND":
-            break
-        pos += 12 + n
-    if ihdr is None or not idat:
-        raise ValueError(f"{path}: no IHDR or IDAT chunk")
-    w, h, depth, colour, _, _, interlace = ihdr
-    if w == 0 or h == 0:
-        raise ValueError(f"{path}: the image is {w} x {h} pixels")
-    channels = {0: 1, 2: 3, 4: 2, 6: 4}.get(colour)
-    if depth != 8 or channels is None or interlace:
-        raise ValueError(f"{path}: only 8-bit grey, RGB and RGBA PNGs without interlacing "
-                         f"are read here (bit depth {depth}, colour type {colour}, "
-                         f"interlace {interlace})")
-    try:
-        raw = zlib.decompress(b"".join(idat))
-    except zlib.error as e:
-        raise ValueError(f"{path}: corrupt image data ({e})") from None
-    stride = w * channels
-    if len(raw) != h * (stride + 1):
-        raise ValueError(f"{path}: {len(raw)} bytes of image data for {w} x {h}")
-    out = bytearray(w * h * 3)
-    prev = bytearray(stride)
-    for y in range(h):
-        kind = raw[y * (stride + 1)]
-        line = bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
-        if kind == 1:
-            for i in range(channels, stride):
-                line[i] = (line[i] + line[i - channels]) & 255
-        elif kind == 2:
-            for i in range(stride):
-                line[i] = (line[i] + prev[i]) & 255
-        elif kind == 3:
-            for i in range(stride):
-                left = line[i - channels] if i >= channels else 0
-                line[i] = (line[i] + ((left + prev[i]) >> 1)) & 255
-        elif kind == 4:
-            for i in range(stride):
-                a = line[i - channels] if i >= channels else 0
-                b, c = prev[i], prev[i - channels] if i >= channels else 0
-                pa, pb_, pc = abs(b - c), abs(a - c), abs(a + b - 2 * c)
-                pred = a if pa <= pb_ and pa <= pc else (b if pb_ <= pc else c)
-                line[i] = (line[i] + pred) & 255
-        elif kind != 0:
-            raise ValueError(f"{path}: unknown PNG filter {kind} in row {y}")
-        row = out[y * w * 3:(y + 1) * w * 3]
-        if channels >= 3:
-            for c in range(3):
-                row[c::3] = line[c::channels]
-        else:
-            for c in range(3):
-                row[c::3] = line[0::channels]
-        out[y * w * 3:(y + 1) * w * 3] = row
-        prev = line
-    return w, h, bytes(out)
+def image_file(seq, i):
+    """(path, format) of frame i's camera image: rgb/NNNNNN.png, else .jpg."""
+    for ext, fmt in ((".png", "png"), (".jpg", "jpeg"), (".jpeg", "jpeg")):
+        path = os.path.join(seq, "rgb", f"{i:06}{ext}")
+        if os.path.exists(path):
+            return path, fmt
+    raise OSError(f"{os.path.join(seq, 'rgb', f'{i:06}.png')}: no such file (nor .jpg)")
 
 
 def read_camera(seq):
@@ -303,9 +238,9 @@ def main():
                     help="folder with intrinsics.txt, poses.txt, odometry.txt, and features/ "
                          "(or rgb/ with --images)")
     ap.add_argument("--images", action="store_true",
-                    help="send the camera images rgb/NNNNNN.png as raw RGB, encoded on the "
-                         "server with the map's image encoder (omcl serve --image-model), "
-                         "instead of features/NNNNNN.npy")
+                    help="send the camera images rgb/NNNNNN.png (or .jpg) as they are, "
+                         "decoded and encoded on the server with the map's image encoder "
+                         "(omcl serve --image-model), instead of features/NNNNNN.npy")
     ap.add_argument("--frames", type=int, help="stream at most this many frames")
     ap.add_argument("--particles", type=int)
     ap.add_argument("--rays", type=int)
@@ -351,15 +286,19 @@ def main():
     # its own rate would rather let the server keep the latest).
     answered = queue.Queue()
     # A file that cannot be read ends the stream; grpc runs this generator
-    # on its own thread, so the reason is handed back here.
+    # on its own thread, so the reason is handed back here. `sent` says
+    # which frame (index, file) each answer is for: one is in flight.
     unreadable = []
+    sent = queue.Queue()
 
     def frames():
         for i in range(n):
             try:
                 if a.images:
-                    rgb = read_png_rgb(os.path.join(a.sequence, "rgb", f"{i:06}.png"))
-                    f = frame(sid, gt[i][0], odom[i][1], odom[i][2], rgb=rgb)
+                    path, fmt = image_file(a.sequence, i)
+                    with open(path, "rb") as fh:
+                        data = fh.read()
+                    f = frame(sid, gt[i][0], odom[i][1], odom[i][2], compressed=(fmt, data))
                 else:
                     path = os.path.join(a.sequence, "features", f"{i:06}.npy")
                     shape, data = read_npy_f32(path)
@@ -368,19 +307,23 @@ def main():
             except (OSError, ValueError) as e:
                 unreadable.append(str(e))
                 return
+            sent.put((i, path))
             yield f
             answered.get()
 
-    count = 0
+    count, refused = 0, 0
     try:
         for r in client.stream(frames()):
+            i, path = sent.get()
             answered.put(True)
             if r.HasField("error"):
-                print(f"error {r.error.code}: {r.error.message}", file=sys.stderr)
+                print(f"error {r.error.code}: {r.error.message} (frame {i:06}, {path})",
+                      file=sys.stderr)
+                refused += 1
                 continue
             p = r.pose.pose.pose.pose
             t, q = p.position, p.orientation
-            print(f"frame {r.pose.frame} stamp {gt[r.pose.frame - 1][0]!r} pose "
+            print(f"frame {i:06} stamp {gt[i][0]!r} pose "
                   f"{t.x!r} {t.y!r} {t.z!r} {q.x!r} {q.y!r} {q.z!r} {q.w!r} "
                   f"confidence {r.pose.confidence:.3f} step_ms {r.pose.step_ms:.1f}", flush=True)
             count += 1
@@ -391,6 +334,9 @@ def main():
     if unreadable:
         sys.exit(f"omcl_client: {unreadable[0]} (after {count} poses)")
     print(f"{count} poses from session {sid}", file=sys.stderr)
+    if refused:
+        sys.exit(f"omcl_client: the server refused {refused} of {count + refused} frames "
+                 f"(named above)")
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 //! one place every PNG reader (depth, labels, colour) opens its file.
 
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{BufRead, BufReader, Seek};
 use std::path::Path;
 
 use png::Transformations;
@@ -24,7 +24,18 @@ pub(crate) fn open_png(
 ) -> Result<(png::OutputInfo, Vec<u8>), CloudError> {
     let file = File::open(path).map_err(|e| CloudError::io(path, e))?;
     let file_len = file.metadata().map_err(|e| CloudError::io(path, e))?.len();
-    let mut decoder = png::Decoder::new(BufReader::new(file));
+    decode_png(BufReader::new(file), file_len, path, transform)
+}
+
+/// [`open_png`] of a PNG of `file_len` bytes read from `source`; `path`
+/// names it in errors.
+pub(crate) fn decode_png(
+    source: impl BufRead + Seek,
+    file_len: u64,
+    path: &Path,
+    transform: Transformations,
+) -> Result<(png::OutputInfo, Vec<u8>), CloudError> {
+    let mut decoder = png::Decoder::new(source);
     decoder.set_transformations(transform);
     let mut reader = decoder
         .read_info()

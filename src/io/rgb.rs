@@ -9,24 +9,31 @@ use std::path::Path;
 use image::{DynamicImage, ImageBuffer, RgbImage};
 use png::{ColorType, Transformations};
 
-use super::bounded_png::open_png;
+use super::bounded_png::decode_png;
 use super::cloud::CloudError;
 
 /// Most bytes a JPEG decode may allocate (a 16k x 16k RGB image).
 const MAX_JPEG_ALLOC: u64 = 16_384 * 16_384 * 3;
 
+/// A PNG file's first eight bytes.
+const PNG_SIGNATURE: &[u8] = b"\x89PNG\r\n\x1a\n";
+
 fn decode(path: &Path) -> Result<DynamicImage, CloudError> {
-    let mut head = [0u8; 8];
-    let is_png = {
-        use std::io::Read;
-        let mut f = std::fs::File::open(path).map_err(|e| CloudError::io(path, e))?;
-        f.read(&mut head).map_err(|e| CloudError::io(path, e))? == 8
-            && head == *b"\x89PNG\r\n\x1a\n"
-    };
-    if is_png {
-        let (info, buf) = open_png(path, Transformations::normalize_to_color8())?;
+    let bytes = crate::io::bounded_read::read_regular(path).map_err(|e| CloudError::io(path, e))?;
+    decode_bytes(&bytes, path)
+}
+
+/// A PNG or JPEG file's bytes decoded; `name` names them in errors.
+fn decode_bytes(bytes: &[u8], name: &Path) -> Result<DynamicImage, CloudError> {
+    if bytes.starts_with(PNG_SIGNATURE) {
+        let (info, buf) = decode_png(
+            Cursor::new(bytes),
+            bytes.len() as u64,
+            name,
+            Transformations::normalize_to_color8(),
+        )?;
         let (w, h) = (info.width, info.height);
-        let bad = || CloudError::format(path, "PNG pixel data does not match its header");
+        let bad = || CloudError::format(name, "PNG pixel data does not match its header");
         return Ok(match info.color_type {
             ColorType::Grayscale => {
                 DynamicImage::ImageLuma8(ImageBuffer::from_raw(w, h, buf).ok_or_else(bad)?)
@@ -41,20 +48,67 @@ fn decode(path: &Path) -> Result<DynamicImage, CloudError> {
                 DynamicImage::ImageRgba8(ImageBuffer::from_raw(w, h, buf).ok_or_else(bad)?)
             }
             ColorType::Indexed => {
-                return Err(CloudError::format(path, "palette PNG was not expanded"));
+                return Err(CloudError::format(name, "palette PNG was not expanded"));
             }
         });
     }
-    let bytes = crate::io::bounded_read::read_regular(path).map_err(|e| CloudError::io(path, e))?;
-    let mut reader = image::ImageReader::new(Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| CloudError::io(path, e))?;
+    let mut reader = jpeg_reader(bytes, name)?;
     let mut limits = image::Limits::default();
     limits.max_alloc = Some(MAX_JPEG_ALLOC);
     reader.limits(limits);
     reader
         .decode()
-        .map_err(|e| CloudError::format(path, format!("not a readable PNG or JPEG image: {e}")))
+        .map_err(|e| CloudError::format(name, format!("not a readable PNG or JPEG image: {e}")))
+}
+
+/// A reader of `bytes` if they start as a JPEG file does and end with its
+/// end-of-image marker (`FF D9`, perhaps with a little padding after it):
+/// the decoder fills a truncated file's missing rows silently, so
+/// truncation is caught here.
+fn jpeg_reader<'a>(
+    bytes: &'a [u8],
+    name: &Path,
+) -> Result<image::ImageReader<Cursor<&'a [u8]>>, CloudError> {
+    if !bytes.starts_with(&[0xff, 0xd8, 0xff]) {
+        return Err(CloudError::format(
+            name,
+            "not a readable PNG or JPEG image: it starts as neither",
+        ));
+    }
+    let tail = &bytes[bytes.len().saturating_sub(32)..];
+    if !tail.windows(2).any(|w| w == [0xff, 0xd9]) {
+        return Err(CloudError::format(
+            name,
+            format!(
+                "truncated JPEG: no end-of-image marker (FF D9) in its last bytes ({} bytes in all)",
+                bytes.len()
+            ),
+        ));
+    }
+    Ok(image::ImageReader::with_format(
+        Cursor::new(bytes),
+        image::ImageFormat::Jpeg,
+    ))
+}
+
+/// The width and height a PNG or JPEG file's header declares, from its
+/// bytes (nothing is decoded); `name` names them in errors.
+pub fn image_size(bytes: &[u8], name: &Path) -> Result<(u32, u32), CloudError> {
+    let bad = |e: image::ImageError| {
+        CloudError::format(name, format!("not a readable PNG or JPEG image: {e}"))
+    };
+    if bytes.starts_with(PNG_SIGNATURE) {
+        return image::ImageReader::with_format(Cursor::new(bytes), image::ImageFormat::Png)
+            .into_dimensions()
+            .map_err(bad);
+    }
+    jpeg_reader(bytes, name)?.into_dimensions().map_err(bad)
+}
+
+/// A PNG or JPEG file's bytes (as read from disk) as 8-bit RGB, as
+/// [`read_rgb`] reads the file; `name` names them in errors.
+pub fn rgb_from_bytes(bytes: &[u8], name: &Path) -> Result<RgbImage, CloudError> {
+    Ok(decode_bytes(bytes, name)?.to_rgb8())
 }
 
 /// Reads a PNG (palette, grey, RGB, with or without alpha, 8 or 16 bits)
@@ -107,5 +161,38 @@ mod tests {
         std::fs::write(&bad, b"not an image").unwrap();
         let e = read_rgb(&bad).unwrap_err().to_string();
         assert!(e.contains("bad.png"), "{e}");
+    }
+
+    #[test]
+    fn bytes_decode_as_the_file_does_and_the_header_gives_the_size() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = RgbImage::from_fn(7, 4, |x, y| image::Rgb([x as u8 * 30, y as u8 * 60, 9]));
+        for name in ["a.png", "a.jpg"] {
+            let p = dir.path().join(name);
+            img.save(&p).unwrap();
+            let bytes = std::fs::read(&p).unwrap();
+            let label = Path::new("frame 3");
+            assert_eq!(image_size(&bytes, label).unwrap(), (7, 4), "{name}");
+            assert_eq!(
+                rgb_from_bytes(&bytes, label).unwrap(),
+                read_rgb(&p).unwrap()
+            );
+            // Cut short: refused by name, also by the header's reader
+            // where the cut is seen without decoding (a JPEG's missing end).
+            let cut = &bytes[..bytes.len() - 20];
+            let e = rgb_from_bytes(cut, label).unwrap_err().to_string();
+            assert!(e.starts_with("frame 3"), "{e}");
+            if name.ends_with("jpg") {
+                let e = image_size(cut, label).unwrap_err().to_string();
+                assert!(e.contains("truncated JPEG"), "{e}");
+            }
+        }
+        for junk in [&b"GIF89a...."[..], b"", b"\xff\xd8"] {
+            let e = image_size(junk, Path::new("frame 4"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.starts_with("frame 4") && e.contains("PNG or JPEG"), "{e}");
+            assert!(rgb_from_bytes(junk, Path::new("frame 4")).is_err());
+        }
     }
 }

@@ -150,7 +150,6 @@ impl SevenScenes {
     /// The colour image of frame `i` (8-bit sRGB).
     pub fn read_color(&self, i: usize) -> Result<RgbImage, CloudError> {
         let f = self.frame(i)?;
-        check_jpeg_ends(&f.color)?;
         let c = super::rgb::read_rgb(&f.color)?;
         check_size(&f.color, "colour image", c.dimensions())?;
         Ok(c)
@@ -179,9 +178,9 @@ impl SevenScenes {
     /// such as an image encoder's).
     pub fn check_color(&self, i: usize) -> Result<(), CloudError> {
         let f = self.frame(i)?;
-        check_jpeg_ends(&f.color)?;
-        let size = image::image_dimensions(&f.color)
-            .map_err(|e| CloudError::format(&f.color, e.to_string()))?;
+        let bytes = crate::io::bounded_read::read_regular(&f.color)
+            .map_err(|e| CloudError::io(&f.color, e))?;
+        let size = super::rgb::image_size(&bytes, &f.color)?;
         check_size(&f.color, "colour image", size)
     }
 
@@ -246,25 +245,6 @@ impl FramePick {
             .take(self.limit.unwrap_or(usize::MAX))
             .collect()
     }
-}
-
-/// A JPEG must end with its end-of-image marker (`FF D9`, perhaps with a
-/// little padding after it): the decoder fills a truncated file's missing
-/// rows silently, so truncation is caught here.
-fn check_jpeg_ends(path: &Path) -> Result<(), CloudError> {
-    let bytes = crate::io::bounded_read::read_regular(path).map_err(|e| CloudError::io(path, e))?;
-    let is_jpeg = bytes.starts_with(&[0xff, 0xd8]);
-    let tail = &bytes[bytes.len().saturating_sub(32)..];
-    if is_jpeg && !tail.windows(2).any(|w| w == [0xff, 0xd9]) {
-        return Err(CloudError::format(
-            path,
-            format!(
-                "truncated JPEG: no end-of-image marker (FF D9) in its last bytes ({} bytes in all)",
-                bytes.len()
-            ),
-        ));
-    }
-    Ok(())
 }
 
 fn check_size(path: &Path, what: &str, got: (u32, u32)) -> Result<(), CloudError> {

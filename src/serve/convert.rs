@@ -8,7 +8,7 @@ use tonic::{Code, Status};
 
 use crate::geometry::{Intrinsics, Pose};
 use crate::mcl::{Particle, PromptParams};
-use crate::session::{PoseReport, SharedMap, Start};
+use crate::session::{PoseReport, SessionError, SharedMap, Start};
 
 use super::proto;
 
@@ -258,6 +258,28 @@ pub enum Features {
     },
     /// A raw RGB image for the map's encoder.
     Image(image::RgbImage),
+    /// A PNG or JPEG file for the map's encoder, its header checked,
+    /// decoded when the frame is stepped ([`Features::rgb`]).
+    Compressed(Vec<u8>),
+}
+
+/// How errors name a [`Features::Compressed`] frame's bytes.
+const COMPRESSED: &str = "compressed image";
+
+impl Features {
+    /// The frame's RGB image ([`Features::Image`] as it is, a
+    /// [`Features::Compressed`] one decoded); `None` for other features.
+    pub fn rgb(&self) -> Option<Result<std::borrow::Cow<'_, image::RgbImage>, SessionError>> {
+        match self {
+            Features::Image(rgb) => Some(Ok(std::borrow::Cow::Borrowed(rgb))),
+            Features::Compressed(bytes) => Some(
+                crate::io::rgb::rgb_from_bytes(bytes, std::path::Path::new(COMPRESSED))
+                    .map(std::borrow::Cow::Owned)
+                    .map_err(|e| SessionError::BadFrame(e.to_string())),
+            ),
+            _ => None,
+        }
+    }
 }
 
 /// A frame checked against its session: sizes, dimensions, odometry.
@@ -269,6 +291,7 @@ pub fn frame_input(f: proto::Frame, k: &Intrinsics, map: &SharedMap) -> Result<F
         Some(proto::frame::Features::Grid(g)) => grid_features(g, map)?,
         Some(proto::frame::Features::Labels(l)) => label_features(l, k, map)?,
         Some(proto::frame::Features::Image(img)) => image_features(img, k, map)?,
+        Some(proto::frame::Features::Compressed(c)) => compressed_features(c, k, map)?,
         None => return Err(Status::invalid_argument("frame without features")),
     };
     Ok(FrameInput {
@@ -353,24 +376,48 @@ fn label_features(
     })
 }
 
+/// An image of `size` pixels, for a map with an image encoder, or why not.
+fn check_image(
+    what: &str,
+    size: (u32, u32),
+    k: &Intrinsics,
+    map: &SharedMap,
+) -> Result<(), Status> {
+    if size != (k.width, k.height) {
+        return Err(Status::invalid_argument(format!(
+            "{what} is {}x{} pixels, the session's camera {}x{}",
+            size.0, size.1, k.width, k.height
+        )));
+    }
+    if !map.has_encoder() {
+        return Err(Status::failed_precondition(format!(
+            "map {:?} has no image encoder for camera images (serve it with --image-model)",
+            map.name()
+        )));
+    }
+    Ok(())
+}
+
+/// A PNG or JPEG file of the camera's size (by its header), for a map
+/// with an image encoder; decoded when stepped.
+fn compressed_features(
+    c: proto::CompressedImage,
+    k: &Intrinsics,
+    map: &SharedMap,
+) -> Result<Features, Status> {
+    let size = crate::io::rgb::image_size(&c.data, std::path::Path::new(COMPRESSED))
+        .map_err(|e| Status::invalid_argument(e.to_string()))?;
+    check_image(COMPRESSED, size, k, map)?;
+    Ok(Features::Compressed(c.data))
+}
+
 /// An RGB image of the camera's size, for a map with an image encoder.
 fn image_features(
     img: proto::RgbImage,
     k: &Intrinsics,
     map: &SharedMap,
 ) -> Result<Features, Status> {
-    if (img.width, img.height) != (k.width, k.height) {
-        return Err(Status::invalid_argument(format!(
-            "RGB image is {}x{} pixels, the session's camera {}x{}",
-            img.width, img.height, k.width, k.height
-        )));
-    }
-    if !map.has_encoder() {
-        return Err(Status::failed_precondition(format!(
-            "map {:?} has no image encoder for raw frames (serve it with --image-model)",
-            map.name()
-        )));
-    }
+    check_image("RGB image", (img.width, img.height), k, map)?;
     let want = img.width as usize * img.height as usize * 3;
     let got = img.rgb.len();
     let rgb = image::RgbImage::from_raw(img.width, img.height, img.rgb)

@@ -475,9 +475,10 @@ impl State {
                     slot.map.name()
                 ))),
             },
-            Features::Image(rgb) => {
+            Features::Image(_) | Features::Compressed(_) => {
                 let k = session.config().intrinsics;
-                slot.map.encode(rgb).and_then(|m| {
+                let rgb = frame.features.rgb().expect("an image frame");
+                rgb.and_then(|rgb| slot.map.encode(&rgb)).and_then(|m| {
                     let f = crate::encode::image::EncodedFrame {
                         map: &m,
                         width: k.width,
