@@ -203,16 +203,33 @@ fn bad_kitti_input_is_named_and_leaves_no_output() {
     let out = f.existing_out("out_no_p2.txt");
     let r = f.localize(&f.map, &seq, &out, &[]);
     assert_clean_failure(&r, &out, &["calib.txt", "no 'P2:' line"]);
-    // One image fewer than poses.
+    // One pose fewer than images.
     let seq = f.copy_seq("short");
-    std::fs::remove_file(seq.join("labels_2/000011.png")).unwrap();
+    for name in ["poses.txt", "times.txt"] {
+        let text = std::fs::read_to_string(seq.join(name)).unwrap();
+        let kept: String = text.lines().take(11).map(|l| format!("{l}\n")).collect();
+        std::fs::write(seq.join(name), kept).unwrap();
+    }
     let out = f.existing_out("out_short.txt");
     let r = f.localize(&f.map, &seq, &out, &[]);
     assert_clean_failure(
         &r,
         &out,
-        &["labels_2", "11 frames", "12 poses", "poses.txt"],
+        &["labels_2", "12 frames", "only 11 poses", "poses.txt"],
     );
+    // One image fewer than poses: the sequence's first 11 frames are
+    // localized (a copy of a drive's first scans), and the run says so.
+    let seq = f.copy_seq("first");
+    std::fs::remove_file(seq.join("labels_2/000011.png")).unwrap();
+    let out = f.dir.path().join("out_first.txt");
+    let r = f.localize(&f.map, &seq, &out, &[]);
+    assert_eq!(r.code, Some(0), "{}", r.text());
+    assert!(
+        r.stderr.contains("first 11 frames, of 12 poses"),
+        "{}",
+        r.text()
+    );
+    assert_eq!(std::fs::read_to_string(&out).unwrap().lines().count(), 11);
     // A label image of another size than frame 0's (and the camera's).
     let seq = f.copy_seq("small");
     std::fs::copy(

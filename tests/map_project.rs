@@ -45,14 +45,9 @@ fn real_scans_project_into_camera_2_as_a_street() {
     let real = shared("semantickitti/sequences/00");
     let dir = tempfile::tempdir().unwrap();
     let seq = dir.path().join("00");
+    // The shared folder as it is: the poses of the whole drive (4541) and
+    // its first three scans, whose poses are the first three.
     copy_dir(&real, &seq);
-    // The shared folder has the poses of the whole drive and three scans:
-    // keep the poses and times of the three, as a localizer needs.
-    for f in ["poses.txt", "times.txt"] {
-        let text = std::fs::read_to_string(seq.join(f)).unwrap();
-        let first: String = text.lines().take(3).map(|l| format!("{l}\n")).collect();
-        std::fs::write(seq.join(f), first).unwrap();
-    }
     let (ok, text) = omcl(&["map", "project", seq.to_str().unwrap()]);
     assert!(ok, "{text}");
     assert!(text.contains("wrote 3 label images"), "{text}");
@@ -164,6 +159,23 @@ fn real_scans_project_into_camera_2_as_a_street() {
     // A second run refuses to overwrite; --force replaces.
     let (ok, text) = omcl(&["map", "project", seq.to_str().unwrap()]);
     assert!(!ok && text.contains("--force"), "{text}");
+    // Never into a folder the sequence is read from, --force or not (the
+    // scans' labels here; camera images alike).
+    let labels = seq.join("labels");
+    let before = std::fs::read(labels.join("000000.label")).unwrap();
+    for out in [labels.clone(), seq.clone()] {
+        let (ok, text) = omcl(&[
+            "map",
+            "project",
+            seq.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--force",
+        ]);
+        assert!(!ok && text.contains("is read from"), "{text}");
+    }
+    assert_eq!(std::fs::read(labels.join("000000.label")).unwrap(), before);
+    assert!(!labels.join("000000.png").exists());
     let (ok, text) = omcl(&["map", "project", seq.to_str().unwrap(), "--force"]);
     assert!(ok, "{text}");
 }
@@ -186,6 +198,21 @@ fn bad_sequences_are_refused_by_name_with_nothing_written() {
     assert!(
         !ok && text.contains("calib.txt") && text.contains("P2"),
         "{text}"
+    );
+    // More scans' label images than poses: named with both counts.
+    let short = dir.path().join("short");
+    copy_dir(&real, &short);
+    let (ok, text) = omcl(&["map", "project", short.to_str().unwrap()]);
+    assert!(ok, "{text}");
+    let poses = std::fs::read_to_string(short.join("poses.txt")).unwrap();
+    let two: String = poses.lines().take(2).map(|l| format!("{l}\n")).collect();
+    std::fs::write(short.join("poses.txt"), two).unwrap();
+    std::fs::remove_file(short.join("times.txt")).unwrap();
+    let e = KittiCameraSequence::open(&short, CameraInput::Labels).unwrap_err();
+    let e = e.to_string();
+    assert!(
+        e.contains("labels_2") && e.contains("3 frames") && e.contains("only 2 poses"),
+        "{e}"
     );
     // Not a sequence at all.
     let empty = dir.path().join("empty");

@@ -908,6 +908,15 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         d.display()
     );
     let inputs = CameraSequence::open(d, camera_input(&a, image.is_some()), pick)?;
+    if let Some(k) = inputs.kitti.as_ref().filter(|k| k.len() < k.poses_in_file) {
+        eprintln!(
+            "note: {} holds the sequence's first {} frames, of {} poses in poses.txt: those \
+             frames are localized",
+            d.join(k.input.folder()).display(),
+            k.len(),
+            k.poses_in_file
+        );
+    }
     let gt = inputs.ground_truth.clone();
     check_truth_given(&a, &inputs)?;
     let classes = &inputs.classes;

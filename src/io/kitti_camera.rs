@@ -70,13 +70,18 @@ pub struct KittiCameraSequence {
     /// `times.txt` (seconds), or `0.1 s` a frame when it is missing.
     pub times: Vec<f64>,
     pub input: CameraInput,
+    /// Poses in `poses.txt`: more than the frames when the folder holds
+    /// only the sequence's first frames (whose poses are kept).
+    pub poses_in_file: usize,
 }
 
 impl KittiCameraSequence {
     /// Opens `dir` for `input`: reads the calibration (a missing `P2` is
     /// an error naming `calib.txt`), the poses and times, and checks that
-    /// the input folder holds exactly frames `000000` to the last pose
-    /// (a different count is an error naming both).
+    /// the input folder holds frames `000000`, `000001`, ... without a
+    /// gap: all of the sequence's or its first ones (a copy of the first
+    /// scans), whose poses and times are kept; more frames than poses, or
+    /// none, is an error naming both files.
     pub fn open(dir: &Path, input: CameraInput) -> Result<Self, CloudError> {
         let calib_path = dir.join("calib.txt");
         let calib = read_calib(&calib_path)?;
@@ -102,16 +107,21 @@ impl KittiCameraSequence {
         };
         let folder = dir.join(input.folder());
         let count = count_frames(&folder, input.extension())?;
-        if count != n {
-            return Err(CloudError::mismatch(
-                &folder,
+        if count == 0 || count > n {
+            let problem = if count == 0 {
+                format!("no frames (NNNNNN.{}) in it", input.extension())
+            } else {
                 format!(
-                    "{count} frames (NNNNNN.{}) for {n} poses in {}: a pose for every frame needed",
+                    "{count} frames (NNNNNN.{}) but only {n} poses in {}: every frame needs its pose",
                     input.extension(),
                     poses_path.display()
-                ),
-            ));
+                )
+            };
+            return Err(CloudError::mismatch(&folder, problem));
         }
+        let (mut camera0_poses, mut times) = (camera0_poses, times);
+        camera0_poses.truncate(count);
+        times.truncate(count);
         let first = folder.join(format!("000000.{}", input.extension()));
         let (w, h) = match input {
             CameraInput::Labels => {
@@ -132,6 +142,7 @@ impl KittiCameraSequence {
             camera0_poses,
             times,
             input,
+            poses_in_file: n,
         })
     }
 
@@ -229,6 +240,7 @@ mod tests {
             camera0_poses: vec![Pose::identity()],
             times: vec![0.0],
             input: CameraInput::Labels,
+            poses_in_file: 1,
         };
         // Frame 0: camera 0 at the KITTI origin; the map origin is the first
         // LiDAR frame, so camera 2 sits at Tr^-1 applied to (-0.063, 0, 0).
