@@ -333,6 +333,55 @@ fn values_that_cannot_mean_anything_are_refused_by_name() {
         "0",
     ]);
     refused(&r, 2, &["--frames"]);
+    // Counts that size allocations or loops, on the command line and in
+    // --set (each aborted or ran for ever: `--frames 1000000000` asked for
+    // 56 GB, `--set sampling.rays=100000000000` for 800 GB, `--starts
+    // 1000000000` looped; `--set sensor.miss_score=5` ran).
+    let bench = |extra: &[&str]| {
+        let mut args = vec![
+            "bench",
+            "table1",
+            "--sequences",
+            "1",
+            "-o",
+            "/nonexistent/out",
+        ];
+        args.extend_from_slice(extra);
+        omcl(&args)
+    };
+    refused(&bench(&["--frames", "1000000000"]), 2, &["--frames"]);
+    refused(
+        &bench(&["--map-frames", "1000000000"]),
+        2,
+        &["--map-frames"],
+    );
+    refused(&bench(&["--starts", "1000000000"]), 2, &["--starts"]);
+    refused(&bench(&["--starts", "0"]), 2, &["--starts"]);
+    refused(&bench(&["--localize-every", "0"]), 2, &["--localize-every"]);
+    for (set, field) in [
+        ("sampling.rays=100000000000", "sampling.rays"),
+        (
+            "anneal={\"layers\":4000000000,\"first\":0.5,\"jitter\":0.3,\"expand\":1}",
+            "anneal.layers",
+        ),
+        ("sensor.miss_score=5", "sensor.miss_score"),
+        ("motion.sigma_translation=1e300", "motion.sigma_translation"),
+        ("sampling.stride=0", "sampling.stride"),
+    ] {
+        refused(&bench(&["--set", set]), 1, &["--set", field]);
+    }
+    let r = omcl(&[
+        "encode",
+        "colour-model",
+        "--frames",
+        s(&shared("rgbd_7scenes")),
+        "--dim",
+        "10000000000",
+        "--out",
+        s(&f.path("c.onnx")),
+    ]);
+    refused(&r, 1, &["embedding dimension must be 2 to 4096"]);
+    assert!(!f.path("c.onnx").exists());
 
     // A driving path shorter than the frames asked for.
     let path = f.path("path3.txt");

@@ -20,27 +20,8 @@ fn omcl(args: &[&str]) -> (Output, String) {
 fn plan(dir: &Path) -> String {
     let m = dir.join("m.jsonl");
     let m = m.to_str().unwrap();
-    let (o, text) = omcl(&[
-        "sweep",
-        "plan",
-        "table1",
-        "--variants",
-        "OMCL_GT_exact",
-        "--sequences",
-        "3",
-        "--first-seed",
-        "1000",
-        "--frames",
-        "6",
-        "--map-frames",
-        "20",
-        "--particles",
-        "64",
-        "--rays",
-        "128",
-        "-o",
-        m,
-    ]);
+    let args = plan_args(m, "3");
+    let (o, text) = omcl(&args.iter().map(String::as_str).collect::<Vec<_>>());
     assert!(o.status.success(), "{text}");
     assert!(text.contains("planned 3 runs"), "{text}");
     m.to_string()
@@ -123,10 +104,11 @@ fn runs_are_idempotent_and_bad_input_names_the_run_and_file() {
     lines[3] = lines[3].replace(&format!("\"omcl\":\"{version}\""), "\"omcl\":\"0.0.1-old\"");
     std::fs::write(&m, lines.join("\n") + "\n").unwrap();
 
+    // Failed runs: listed, and the exit code says so (for scripts).
     let (o, text) = omcl(&["sweep", "status", &m]);
-    assert!(o.status.success(), "{text}");
+    assert_eq!(o.status.code(), Some(1), "{text}");
     assert!(
-        text.contains("3 runs: 1 done, 2 failed, 0 missing"),
+        text.contains("3 runs: 1 done, 2 failed, 0 missing") && text.contains("2 of 3 runs failed"),
         "{text}"
     );
 
@@ -182,6 +164,86 @@ fn runs_are_idempotent_and_bad_input_names_the_run_and_file() {
         text.contains(".failed") && text.contains("is missing"),
         "{text}"
     );
+}
+
+/// `sweep plan` never replaces a file holding anything but the very plan
+/// it makes (a pose file was replaced by a manifest, exit 0) unless
+/// `--force`, says so when the plan is already there, and names the
+/// experiments only `omcl bench` runs (they planned 0 runs, exit 0).
+#[test]
+fn plans_replace_nothing_unasked_and_name_in_process_experiments() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = plan(dir.path());
+    let before = std::fs::read(&m).unwrap();
+    // The same plan again: left as it is.
+    let again = plan_args(&m, "3");
+    let (o, text) = omcl(&again.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(
+        o.status.success() && text.contains("already holds this plan"),
+        "{text}"
+    );
+    assert_eq!(std::fs::read(&m).unwrap(), before);
+    // Another plan over it: refused, then replaced with --force.
+    let other = plan_args(&m, "2");
+    let (o, text) = omcl(&other.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(!o.status.success(), "{text}");
+    assert!(
+        text.contains("another plan (3 runs)") && text.contains("--force"),
+        "{text}"
+    );
+    assert_eq!(std::fs::read(&m).unwrap(), before);
+    let mut forced = other.clone();
+    forced.push("--force".into());
+    let (o, text) = omcl(&forced.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(
+        o.status.success() && text.contains("planned 2 runs"),
+        "{text}"
+    );
+    // A file that is not a manifest: refused, untouched.
+    let poses = dir.path().join("poses.txt");
+    std::fs::write(&poses, "0 0 0 0 0 0 0 1\n").unwrap();
+    let over = plan_args(poses.to_str().unwrap(), "1");
+    let (o, text) = omcl(&over.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(!o.status.success(), "{text}");
+    assert!(text.contains("something other than a manifest"), "{text}");
+    assert_eq!(
+        std::fs::read_to_string(&poses).unwrap(),
+        "0 0 0 0 0 0 0 1\n"
+    );
+    // Experiments that run in one process are named, nothing written.
+    let fresh = dir.path().join("fresh.jsonl");
+    for e in ["table4", "sevenscenes", "table1-floorplan"] {
+        let (o, text) = omcl(&["sweep", "plan", e, "-o", fresh.to_str().unwrap()]);
+        assert!(!o.status.success(), "{text}");
+        assert!(text.contains(&format!("omcl bench {e}")), "{text}");
+        assert!(!fresh.exists());
+    }
+}
+
+fn plan_args(out: &str, sequences: &str) -> Vec<String> {
+    [
+        "sweep",
+        "plan",
+        "table1",
+        "--variants",
+        "OMCL_GT_exact",
+        "--sequences",
+        sequences,
+        "--first-seed",
+        "1000",
+        "--frames",
+        "6",
+        "--map-frames",
+        "20",
+        "--particles",
+        "64",
+        "--rays",
+        "128",
+        "-o",
+        out,
+    ]
+    .map(String::from)
+    .to_vec()
 }
 
 /// `omcl bench` starts afresh unless `--resume`, which reuses the runs

@@ -113,11 +113,11 @@ pub struct PlanArgs {
           value_parser = clap::value_parser!(u64).range(..=1_000_000_000_000))]
     pub first_seed: u64,
     /// Frames per sequence.
-    #[arg(long, default_value_t = 150, value_parser = super::count_in::<1, { usize::MAX }>)]
+    #[arg(long, default_value_t = 150, value_parser = super::count_in::<1, { super::MAX_FRAMES }>)]
     pub frames: usize,
     /// Frames of each map's second (mapping) path; every second frame of it
     /// and of the sequence is mapped.
-    #[arg(long, default_value_t = 300, value_parser = super::count_in::<1, { usize::MAX }>)]
+    #[arg(long, default_value_t = 300, value_parser = super::count_in::<1, { super::MAX_FRAMES }>)]
     pub map_frames: usize,
     /// Particles (default 1024, the paper's indoor setting, table1-sixdof
     /// too; table4: 512, the paper's outdoor setting).
@@ -139,13 +139,13 @@ pub struct PlanArgs {
     #[arg(long, default_value = "OMCL_LSeg")]
     pub ablation_variant: String,
     /// Sequences used by the ablations (their sweeps are long).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=1000))]
     pub ablation_sequences: u64,
     /// Start frames per sequence for Table V.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = super::count_in::<1, 1000>)]
     pub starts: usize,
     /// Steps of each global-localization run.
-    #[arg(long, default_value_t = 60)]
+    #[arg(long, default_value_t = 60, value_parser = super::count_in::<1, { super::MAX_FRAMES }>)]
     pub max_steps: usize,
     /// The kind of world of every sequence: corridor (the apartment of
     /// every table so far), open-plan (one large living, dining and
@@ -266,17 +266,26 @@ pub struct SevenScenesArgs {
     #[arg(long)]
     pub scenes_frames: Option<usize>,
     /// sevenscenes: localize every n-th odd frame (a step spans 2n frames).
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = super::count_in::<1, 1000>)]
     pub localize_every: usize,
     /// sevenscenes: colour classes of the encoder.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10,
+          value_parser = super::count_in::<1, { omcl::encode::colour::MAX_CLASSES }>)]
     pub colour_classes: usize,
-    /// sevenscenes: radius (pixels) of the depth-edge filter's row.
-    #[arg(long, default_value_t = 4)]
+    /// sevenscenes: depth pixels within this many pixels (Chebyshev) of a
+    /// depth edge are dropped before mapping (`omcl map rgbd
+    /// --drop-depth-edges`).
+    #[arg(long, default_value_t = 4, value_parser = super::count_in::<0, 64>)]
     pub edge_radius: usize,
     /// sevenscenes: shift DX,DY (pixels) from a depth pixel to the colour
     /// pixel it takes its feature from while mapping.
-    #[arg(long, value_name = "DX,DY", value_delimiter = ',', default_values_t = [0, 0], allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "DX,DY",
+        value_delimiter = ',',
+        default_value = "0,0",
+        allow_negative_numbers = true
+    )]
     pub colour_shift: Vec<i32>,
     /// sevenscenes: seeds of the runs (odometry noise, start, filter). The
     /// default is held out (seeds 1 to 3, in the tuning range, are where

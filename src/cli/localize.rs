@@ -235,7 +235,8 @@ pub struct LocalizeArgs {
     /// model (Table I's 6-DoF block: 0.246 -> 0.197 m on tuning
     /// sequences with 2), at the cost of casting every ray once a layer.
     /// [default: 1; 2 with --filter six-dof and six-dof-point-cloud]
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8))]
+    #[arg(long,
+          value_parser = clap::value_parser!(u32).range(1..=omcl::mcl::anneal::MAX_LAYERS as i64))]
     pub layers: Option<u32>,
     /// With --layers 2 or more: the first layer weighs this many copies of
     /// each particle (each with its own motion noise) on every N-th

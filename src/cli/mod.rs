@@ -121,6 +121,10 @@ fn finite_in(s: &str, lo: f64, hi: f64) -> Result<f64, String> {
     }
 }
 
+/// Most frames a simulated sequence or path may have (`omcl sim`, `omcl
+/// bench`): `bench --frames 1000000000` asked for 56 GB and aborted.
+pub const MAX_FRAMES: usize = 100_000;
+
 /// Most particles and most rays a filter takes from the command line, as
 /// from `omcl serve`'s clients.
 pub use omcl::mcl::MAX_COUNT;

@@ -52,7 +52,7 @@ pub struct IndoorArgs {
     #[arg(long, default_value_t = 0.05)]
     pub resolution: f64,
     /// Number of frames.
-    #[arg(long, default_value_t = 300, value_parser = super::count_in::<1, 100_000>)]
+    #[arg(long, default_value_t = 300, value_parser = super::count_in::<1, { super::MAX_FRAMES }>)]
     pub frames: usize,
     /// Image width, pixels.
     #[arg(long, default_value_t = 540, value_parser = clap::value_parser!(u32).range(1..=8192))]
@@ -116,7 +116,7 @@ pub struct OutdoorArgs {
     #[arg(long, default_value_t = 0)]
     pub start: usize,
     /// Number of frames from --start.
-    #[arg(long, default_value_t = 200, value_parser = super::count_in::<1, 100_000>)]
+    #[arg(long, default_value_t = 200, value_parser = super::count_in::<1, { super::MAX_FRAMES }>)]
     pub frames: usize,
     /// Voxel edge, metres.
     #[arg(long, default_value_t = 0.2)]

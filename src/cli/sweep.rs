@@ -34,9 +34,14 @@ pub enum SweepCommand {
 pub struct PlanCmd {
     #[command(flatten)]
     pub plan: PlanArgs,
-    /// The manifest to write.
+    /// The manifest to write. An existing file is left alone unless it
+    /// already holds this very plan or --force is given (its results name
+    /// runs by id, so replacing a manifest orphans them).
     #[arg(long, short)]
     pub out: PathBuf,
+    /// Replace an existing manifest that holds another plan.
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Where results and maps are (default: beside the manifest).
@@ -171,11 +176,48 @@ pub fn run(cmd: SweepCommand) -> anyhow::Result<()> {
 }
 
 fn plan(c: PlanCmd) -> anyhow::Result<()> {
+    let in_process: Vec<String> = c
+        .plan
+        .experiments
+        .iter()
+        .filter(|e| e.to_library().is_none())
+        .filter_map(|e| clap::ValueEnum::to_possible_value(e).map(|v| v.get_name().to_string()))
+        .collect();
+    anyhow::ensure!(
+        in_process.is_empty(),
+        "{} {} in one process only, with `omcl bench {}`; a sweep plans table1, table2, \
+         table5, particles-rays, sampling and all",
+        in_process.join(", "),
+        if in_process.len() == 1 { "runs" } else { "run" },
+        in_process[0]
+    );
     let bench = c.plan.bench_plan()?;
     if let Some(dir) = c.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         super::outputs::create_folder("--out's folder", dir)?;
     }
     let entries = sweep::plan(&bench)?;
+    if c.out.exists() && !c.force {
+        let same = Manifest::read(&c.out).is_ok_and(|m| {
+            m.header.bench == bench
+                && m.len() == entries.len()
+                && (0..m.len()).all(|i| m.entry(i).is_ok_and(|e| e.id == entries[i].id))
+        });
+        anyhow::ensure!(
+            same,
+            "{}: exists and holds {}; pass --force to replace it, or choose another --out",
+            c.out.display(),
+            match Manifest::read(&c.out) {
+                Ok(m) => format!("another plan ({} runs)", m.len()),
+                Err(_) => "something other than a manifest".to_string(),
+            }
+        );
+        println!(
+            "{} already holds this plan ({} runs); left as it is",
+            c.out.display(),
+            entries.len()
+        );
+        return Ok(());
+    }
     sweep::write_manifest(&c.out, &bench, &entries)?;
     println!("planned {} runs into {}", entries.len(), c.out.display());
     Ok(())
@@ -221,6 +263,13 @@ fn status(c: StatusCmd) -> anyhow::Result<()> {
     if !s.missing.is_empty() {
         println!("missing runs: {}", slurm::ranges(&s.missing));
     }
+    // A script waiting on the sweep learns of failures from the exit code.
+    anyhow::ensure!(
+        s.failed.is_empty(),
+        "{} of {} runs failed (listed above); `omcl sweep run` again reruns them",
+        s.failed.len(),
+        manifest.len()
+    );
     Ok(())
 }
 

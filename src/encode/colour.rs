@@ -70,12 +70,16 @@ pub enum ColourError {
     TooFewColours { n: usize, k: usize },
     #[error("the number of colour classes must be 1 to {max}, got {k}")]
     BadK { k: usize, max: usize },
-    #[error("the embedding dimension must be at least 2, got {0}")]
-    BadDim(usize),
+    #[error("the embedding dimension must be 2 to {max}, got {dim}")]
+    BadDim { dim: usize, max: usize },
 }
 
 /// Most colour classes: embeddings and scores stay small.
 pub const MAX_CLASSES: usize = 256;
+
+/// Longest class embedding (CLIP's is 512, LSeg's 512; `--dim 10000000000`
+/// asked for 400 GB and aborted).
+pub const MAX_DIM: usize = 4096;
 
 /// K colour classes: Lab centroids and one unit embedding each.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -107,8 +111,8 @@ impl ColourClasses {
                 max: MAX_CLASSES,
             });
         }
-        if dim < 2 {
-            return Err(ColourError::BadDim(dim));
+        if !(2..=MAX_DIM).contains(&dim) {
+            return Err(ColourError::BadDim { dim, max: MAX_DIM });
         }
         if lab.len() < k {
             return Err(ColourError::TooFewColours { n: lab.len(), k });

@@ -66,6 +66,9 @@ fn one() -> u32 {
 /// many times the filter's).
 pub const MAX_EXPAND: u32 = 64;
 
+/// Most layers a frame: each casts the pixels again (`--layers`).
+pub const MAX_LAYERS: u32 = 8;
+
 impl Default for Anneal {
     /// Two layers, half the exponent each, jitter a third of the motion
     /// noise (chosen on the 6-DoF block's tuning sequences 0-2; README).
@@ -82,9 +85,9 @@ impl Default for Anneal {
 impl Anneal {
     /// Checks the parameters.
     pub fn validate(&self) -> Result<(), String> {
-        if self.layers < 1 {
+        if !(1..=MAX_LAYERS).contains(&self.layers) {
             return Err(format!(
-                "anneal.layers must be at least 1, got {}",
+                "anneal.layers must be 1 to {MAX_LAYERS}, got {}",
                 self.layers
             ));
         }

@@ -170,6 +170,115 @@ impl FilterConfig {
                 why: format!("must be finite and >= 0, got {width}"),
             });
         }
+        self.validate_ranges()
+    }
+
+    /// The rest of [`FilterConfig::validate`]: every count and number
+    /// within the bounds the command lines give them (a configuration also
+    /// comes as JSON, from `--set` and sweep manifests, where
+    /// `sampling.rays=100000000000` asked for 800 GB and aborted).
+    fn validate_ranges(&self) -> Result<(), MclError> {
+        fn check(ok: bool, name: &'static str, why: String) -> Result<(), MclError> {
+            if ok {
+                Ok(())
+            } else {
+                Err(MclError::BadParam { name, why })
+            }
+        }
+        let finite_in = |v: f64, lo: f64, hi: f64| v.is_finite() && (lo..=hi).contains(&v);
+        let rays = self.sampling.rays;
+        check(
+            (1..=MAX_COUNT).contains(&rays),
+            "sampling.rays",
+            format!("must be 1 to {MAX_COUNT}, got {rays}"),
+        )?;
+        let stride = self.sampling.stride;
+        check(
+            (1..=1024).contains(&stride),
+            "sampling.stride",
+            format!("must be 1 to 1024 pixels, got {stride}"),
+        )?;
+        let miss = self.sensor.miss_score as f64;
+        check(
+            finite_in(miss, 0.0, 1.0),
+            "sensor.miss_score",
+            format!("must be in [0, 1], got {miss}"),
+        )?;
+        let range = self.sensor.max_range;
+        check(
+            range > 0.0 && !range.is_nan(),
+            "sensor.max_range",
+            format!("must be above 0 metres (null: unlimited), got {range}"),
+        )?;
+        for (name, v, hi) in [
+            (
+                "motion.sigma_translation",
+                self.motion.sigma_translation,
+                1e4,
+            ),
+            (
+                "motion.sigma_rotation",
+                self.motion.sigma_rotation,
+                std::f64::consts::TAU,
+            ),
+            ("resample.ess_fraction", self.resample.ess_fraction, 1e3),
+            ("estimate.radius", self.estimate.radius, 1e4),
+        ] {
+            check(
+                finite_in(v, 0.0, hi),
+                name,
+                format!("must be finite, in [0, {hi}], got {v}"),
+            )?;
+        }
+        check(
+            self.estimate.radius > 0.0,
+            "estimate.radius",
+            "must be above 0 metres".into(),
+        )?;
+        if let Some(k) = &self.kld {
+            for (name, v) in [
+                ("kld.epsilon", k.epsilon),
+                ("kld.z", k.z),
+                ("kld.bin_xy", k.bin_xy),
+                ("kld.bin_yaw", k.bin_yaw),
+            ] {
+                check(
+                    v.is_finite() && v > 0.0,
+                    name,
+                    format!("must be finite and above 0, got {v}"),
+                )?;
+            }
+            check(
+                1 <= k.min_particles
+                    && k.min_particles <= k.max_particles
+                    && k.max_particles <= MAX_COUNT,
+                "kld.min_particles",
+                format!(
+                    "must have 1 <= min_particles <= max_particles <= {MAX_COUNT}, got {} and {}",
+                    k.min_particles, k.max_particles
+                ),
+            )?;
+        }
+        if let Some(r) = &self.recovery {
+            check(
+                0.0 < r.alpha_slow && r.alpha_slow < r.alpha_fast && r.alpha_fast <= 1.0,
+                "recovery.alpha_slow",
+                format!(
+                    "must have 0 < alpha_slow < alpha_fast <= 1, got {} and {}",
+                    r.alpha_slow, r.alpha_fast
+                ),
+            )?;
+            check(
+                finite_in(r.max_fraction, 0.0, 1.0),
+                "recovery.max_fraction",
+                format!("must be in [0, 1], got {}", r.max_fraction),
+            )?;
+            check(
+                (1..=1024).contains(&r.candidates),
+                "recovery.candidates",
+                format!("must be 1 to 1024, got {}", r.candidates),
+            )?;
+        }
         Ok(())
     }
 

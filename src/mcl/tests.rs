@@ -1571,3 +1571,74 @@ fn tables_from_the_samplers_products_equal_direct_tables() {
         SimilarityTable::new(&frame, &s.pixels, db, false).unwrap()
     );
 }
+
+/// Every tuned filter passes [`FilterConfig::validate`], and each value a
+/// JSON configuration could carry past the command lines' bounds is
+/// refused naming its field (`--set sampling.rays=100000000000` aborted on
+/// an 800 GB allocation; `sensor.miss_score=5` ran).
+#[test]
+fn configurations_out_of_bounds_are_refused_by_field() {
+    use crate::mcl::kld::KldParams;
+    use crate::mcl::preset::FilterPreset;
+    use crate::mcl::recovery::RecoveryParams;
+    for p in FilterPreset::ALL {
+        p.config().validate().unwrap();
+    }
+    let with_all = FilterConfig {
+        kld: Some(KldParams::default()),
+        recovery: Some(RecoveryParams::default()),
+        ..FilterConfig::default()
+    };
+    with_all.validate().unwrap();
+    type Edit = fn(&mut FilterConfig);
+    let cases: [(&str, Edit); 14] = [
+        ("sampling.rays", |c| c.sampling.rays = 100_000_000_000),
+        ("sampling.rays", |c| c.sampling.rays = 0),
+        ("sampling.stride", |c| c.sampling.stride = 0),
+        ("sensor.miss_score", |c| c.sensor.miss_score = 5.0),
+        ("sensor.max_range", |c| c.sensor.max_range = -1.0),
+        ("motion.sigma_translation", |c| {
+            c.motion.sigma_translation = 1e300
+        }),
+        ("motion.sigma_rotation", |c| c.motion.sigma_rotation = 7.0),
+        ("resample.ess_fraction", |c| c.resample.ess_fraction = -0.5),
+        ("estimate.radius", |c| c.estimate.radius = -1.0),
+        ("estimate.radius", |c| c.estimate.radius = 0.0),
+        ("anneal", |c| {
+            c.anneal = Some(crate::mcl::Anneal {
+                layers: 4_000_000_000,
+                ..crate::mcl::Anneal::default()
+            })
+        }),
+        ("kld.min_particles", |c| {
+            c.kld = Some(KldParams {
+                max_particles: 100_000_000_000,
+                ..KldParams::default()
+            })
+        }),
+        ("recovery.alpha_slow", |c| {
+            c.recovery = Some(RecoveryParams {
+                alpha_slow: 0.5,
+                alpha_fast: 0.1,
+                ..RecoveryParams::default()
+            })
+        }),
+        ("recovery.candidates", |c| {
+            c.recovery = Some(RecoveryParams {
+                candidates: 0,
+                ..RecoveryParams::default()
+            })
+        }),
+    ];
+    for (field, edit) in cases {
+        let mut c = FilterConfig::default();
+        edit(&mut c);
+        let e = c.validate().unwrap_err().to_string();
+        assert!(e.contains(field), "{field}: {e}");
+    }
+    // Unlimited range and resampling every step stay allowed.
+    let mut c = FilterConfig::default();
+    c.sensor.max_range = f32::INFINITY;
+    c.resample.ess_fraction = 7.0;
+    c.validate().unwrap();
+}
