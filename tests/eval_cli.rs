@@ -171,3 +171,132 @@ fn outputs_over_the_pose_files_are_refused() {
         12
     );
 }
+
+/// A trajectory too short for the completion rule to fail (it judges
+/// after pose 10 and fails a run of more than 5 above 1 m: 16 poses or
+/// more) is not judged, not called completed, whatever its errors; one of
+/// 16 poses, 5 m off everywhere, is failed.
+#[test]
+fn too_short_a_trajectory_is_not_judged_complete() {
+    let tmp = tempfile::tempdir().unwrap();
+    let gt = std::fs::read_to_string(shared("trajectories/KITTI_00_gt.txt")).unwrap();
+    for (n, want, json) in [
+        (15, "not judged", serde_json::Value::Null),
+        (16, "no", serde_json::Value::Bool(false)),
+    ] {
+        let (r, e) = (tmp.path().join("r.txt"), tmp.path().join("e.txt"));
+        let lines: Vec<&str> = gt.lines().take(n).collect();
+        std::fs::write(&r, lines.join("\n") + "\n").unwrap();
+        // 5 m along x in every pose (the fourth number of a KITTI row).
+        let off: Vec<String> = lines
+            .iter()
+            .map(|l| {
+                let mut v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+                v[3] += 5.0;
+                v.iter()
+                    .map(|x| x.to_string())
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            })
+            .collect();
+        std::fs::write(&e, off.join("\n") + "\n").unwrap();
+        let json_path = tmp.path().join("ape.json");
+        let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
+            .args(["eval", "ape"])
+            .args([&r, &e])
+            .arg("--json")
+            .arg(&json_path)
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{stdout}");
+        let line = stdout.lines().find(|l| l.contains("completed")).unwrap();
+        assert!(line.contains(want), "{n} poses: {stdout}");
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json_path).unwrap()).unwrap();
+        assert_eq!(v["completed"], json, "{n} poses");
+    }
+}
+
+/// `--ref-times` / `--est-times` give KITTI files stamps to pair by (the
+/// ORB estimate against the ground truth: every pose paired, as by index);
+/// a TUM file's own stamps are never replaced by them; poses sharing a
+/// stamp (a TUM file written with one decimal) cannot be paired by time and
+/// are refused naming the file and the poses (each paired with the first
+/// of its stamp before: a file against itself gave 0.013 m).
+#[test]
+fn times_files_pair_kitti_poses_and_shared_stamps_are_refused() {
+    let d = shared("trajectories");
+    let run = |args: &[&std::ffi::OsStr]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
+            .args(["eval", "ape"])
+            .args(args)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout).into_owned()
+            + &String::from_utf8_lossy(&out.stderr);
+        (out.status.code(), text)
+    };
+    let (gt, orb, times) = (
+        d.join("KITTI_00_gt.txt"),
+        d.join("KITTI_00_ORB.txt"),
+        d.join("KITTI_00_gt_times.txt"),
+    );
+    let (code, by_time) = run(&[
+        gt.as_os_str(),
+        orb.as_os_str(),
+        "--ref-times".as_ref(),
+        times.as_os_str(),
+        "--est-times".as_ref(),
+        times.as_os_str(),
+        "--align".as_ref(),
+        "sim3".as_ref(),
+    ]);
+    assert_eq!(code, Some(0), "{by_time}");
+    let (_, by_index) = run(&[
+        gt.as_os_str(),
+        orb.as_os_str(),
+        "--align".as_ref(),
+        "sim3".as_ref(),
+    ]);
+    let rmse = |t: &str| {
+        t.lines()
+            .find(|l| l.trim_start().starts_with("rmse"))
+            .map(|l| l.split_whitespace().nth(1).unwrap().to_string())
+            .unwrap_or_else(|| panic!("{t}"))
+    };
+    assert_eq!(rmse(&by_time), rmse(&by_index), "{by_time}\n{by_index}");
+    assert!(by_time.contains("4541"), "{by_time}");
+
+    let tum = d.join("fr2_desk_groundtruth.txt");
+    let (code, text) = run(&[
+        tum.as_os_str(),
+        tum.as_os_str(),
+        "--ref-times".as_ref(),
+        times.as_os_str(),
+    ]);
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains("fr2_desk_groundtruth.txt") && text.contains("own time stamps"),
+        "{text}"
+    );
+
+    let tmp = tempfile::tempdir().unwrap();
+    let coarse = tmp.path().join("coarse.txt");
+    let rounded: String = std::fs::read_to_string(&tum)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| {
+            let (stamp, rest) = l.split_once(' ').unwrap();
+            format!("{:.1} {rest}\n", stamp.parse::<f64>().unwrap())
+        })
+        .collect();
+    std::fs::write(&coarse, rounded).unwrap();
+    let (code, text) = run(&[coarse.as_os_str(), coarse.as_os_str()]);
+    assert_eq!(code, Some(1), "{text}");
+    assert!(
+        text.contains("coarse.txt") && text.contains("share the time stamp"),
+        "{text}"
+    );
+}

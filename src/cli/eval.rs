@@ -4,7 +4,7 @@
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
+use anyhow::{Context, bail, ensure};
 use clap::{Args, Subcommand, ValueEnum};
 use omcl::eval::align::{Alignment, AlignmentResult, align_trajectory};
 use omcl::eval::ape::{PoseErrors, PoseRelation, ape};
@@ -205,18 +205,24 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
             let errors = ape(&paired.reference, &aligned, relation.into())?;
             // The repo's completion rule (as `omcl localize` and the bench
             // apply it) on translation errors in pose order.
-            let completed = (errors.relation == PoseRelation::Translation)
-                .then(|| CompletionRule::default().is_completed(&errors.errors));
+            // `None` for another relation, `Some(None)` for too few poses
+            // (not judged; `null` in JSON).
+            let rule = CompletionRule::default();
+            let completed =
+                (errors.relation == PoseRelation::Translation).then(|| rule.judge(&errors.errors));
             print_errors("APE", &pair, &paired, &alignment, &errors, None);
             if let Some(c) = completed {
-                let r = CompletionRule::default();
+                let verdict = match c {
+                    Some(true) => "yes".to_string(),
+                    Some(false) => "no".to_string(),
+                    None => format!(
+                        "not judged ({} poses or more needed)",
+                        rule.frames_to_judge()
+                    ),
+                };
                 emit(&format!(
                     "  {:>8}  {:>14}  (after the first {} poses, never above {} m for more than {} in a row)\n",
-                    "completed",
-                    if c { "yes" } else { "no" },
-                    r.skip_frames,
-                    r.max_error_m,
-                    r.max_consecutive
+                    "completed", verdict, rule.skip_frames, rule.max_error_m, rule.max_consecutive
                 ));
             }
             if let Some(path) = save_aligned {
@@ -225,7 +231,7 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
             }
             write_json(out.json.as_deref(), || {
                 let mut v = errors_json("ape", &pair, &paired, &alignment, &errors, None);
-                v["completed"] = serde_json::json!(completed);
+                v["completed"] = serde_json::json!(completed.flatten());
                 v["completion_rule"] = serde_json::json!(CompletionRule::default());
                 v
             })
@@ -302,6 +308,14 @@ fn load_one(path: &Path, times: Option<&Path>) -> anyhow::Result<(PoseFile, bool
     let mut file = read_poses(path)?;
     let mut stamped = file.format.has_stamps();
     if let Some(times) = times {
+        ensure!(
+            !stamped,
+            "{}: a {} file carries its own time stamps; --ref-times / --est-times are for \
+             KITTI files (which have none), {} would replace them",
+            path.display(),
+            file.format,
+            times.display()
+        );
         let stamps = read_times(times)?;
         file.trajectory = file
             .trajectory
@@ -320,6 +334,21 @@ fn load_pair(args: &PairArgs) -> anyhow::Result<Paired> {
     let (reference_poses, estimate_poses) = (reference.trajectory.len(), estimate.trajectory.len());
     let estimate_format = estimate.format;
     if ref_stamped && est_stamped {
+        // Poses sharing a stamp cannot be told apart by time: each would
+        // pair with the first of them (a file written with too few digits).
+        for (file, path) in [(&reference, &args.reference), (&estimate, &args.estimate)] {
+            let stamps = file.trajectory.stamps();
+            if let Some(i) = stamps.windows(2).position(|w| w[0] == w[1]) {
+                bail!(
+                    "{}: poses {} and {} share the time stamp {} s; pairing by time needs \
+                     distinct stamps (written with too few digits?)",
+                    path.display(),
+                    i + 1,
+                    i + 2,
+                    stamps[i]
+                );
+            }
+        }
         let (r, e) = associate(
             &reference.trajectory,
             &estimate.trajectory,

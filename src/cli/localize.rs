@@ -675,7 +675,8 @@ fn write_metrics(
                    the error never exceeds 1 m for more than 5 frames",
         "translation_m": mt.translation,
         "rotation_deg": mt.rotation,
-        "completed": mt.completed,
+        // null: too few frames for the rule to fail (not judged).
+        "completed": (n >= CompletionRule::default().frames_to_judge()).then_some(mt.completed),
         "filter_steps_per_s": steps_per_s,
         "per_frame": {
             "translation_m": mt.translation_m,
@@ -718,17 +719,15 @@ fn report_against_truth(
         ape(&reference, est, PoseRelation::Translation)?
     };
     let rule = CompletionRule::default();
-    // The rule judges frames after its first `skip_frames`: a shorter
-    // run is not judged rather than called completed.
-    let done = if n <= rule.skip_frames {
-        format!(
-            "not judged (the rule starts after frame {})",
-            rule.skip_frames
-        )
-    } else if rule.is_completed(&e.errors) {
-        "yes".into()
-    } else {
-        "no".into()
+    // A run too short for the rule to fail is not judged rather than
+    // called completed.
+    let done = match rule.judge(&e.errors) {
+        None => format!(
+            "not judged (the rule needs {} frames or more)",
+            rule.frames_to_judge()
+        ),
+        Some(true) => "yes".into(),
+        Some(false) => "no".into(),
     };
     if let Some(p) = &a.plot {
         let plan = omcl::plot::FloorPlan::from_map(m, floor, 0.9);

@@ -70,6 +70,19 @@ impl Default for CompletionRule {
 }
 
 impl CompletionRule {
+    /// The fewest frames a sequence needs for the rule to be able to fail
+    /// it: more than `skip_frames + max_consecutive` (16 by default).
+    pub fn frames_to_judge(&self) -> usize {
+        self.skip_frames + self.max_consecutive + 1
+    }
+
+    /// [`CompletionRule::is_completed`], or `None` for a sequence too short
+    /// for the rule to fail ([`CompletionRule::frames_to_judge`]): such a
+    /// run is not judged rather than called completed.
+    pub fn judge(&self, errors_m: &[f64]) -> Option<bool> {
+        (errors_m.len() >= self.frames_to_judge()).then(|| self.is_completed(errors_m))
+    }
+
     /// Whether the per-frame translation errors (metres, in frame order)
     /// complete the sequence. A non-finite error counts as above the bound.
     pub fn is_completed(&self, errors_m: &[f64]) -> bool {
@@ -132,6 +145,11 @@ mod tests {
         assert!(!rule.is_completed(&e));
         // Exactly 1 m is not above the bound; NaN is.
         assert!(rule.is_completed(&[1.0; 30]));
+        // Too short to fail: not judged; one frame more and it can be.
+        assert_eq!(rule.frames_to_judge(), 16);
+        assert_eq!(rule.judge(&[5.0; 15]), None);
+        assert_eq!(rule.judge(&[5.0; 16]), Some(false));
+        assert_eq!(rule.judge(&[0.1; 16]), Some(true));
         let mut nan = vec![0.0; 10];
         nan.extend([f64::NAN; 6]);
         assert!(!rule.is_completed(&nan));
