@@ -71,7 +71,44 @@ pub struct Intrinsics {
     pub height: u32,
 }
 
+/// Largest image side a camera may have, pixels.
+pub const MAX_IMAGE_SIDE: u32 = 16_384;
+
 impl Intrinsics {
+    /// Whether the numbers make a camera rays can be cast through: focal
+    /// lengths finite in `[0.01, 1e7]` pixels (`1e300` and `1e-300` were
+    /// taken and localized to nonsense), the principal point within an
+    /// image's size of the image (`cx = 1e9` was taken), sides in `1..=`
+    /// [`MAX_IMAGE_SIDE`]; the reason otherwise, for the caller to name its
+    /// source.
+    pub fn check(&self) -> Result<(), String> {
+        for (name, f) in [("fx", self.fx), ("fy", self.fy)] {
+            if !(f.is_finite() && (0.01..=1e7).contains(&f)) {
+                return Err(format!(
+                    "focal length {name} = {f:?} is not a finite number of pixels in 0.01..=1e7"
+                ));
+            }
+        }
+        for (name, side) in [("width", self.width), ("height", self.height)] {
+            if !(1..=MAX_IMAGE_SIDE).contains(&side) {
+                return Err(format!(
+                    "image {name} {side} is not in 1..={MAX_IMAGE_SIDE} pixels"
+                ));
+            }
+        }
+        for (name, c, side) in [("cx", self.cx, self.width), ("cy", self.cy, self.height)] {
+            let side = side as f64;
+            if !(c.is_finite() && (-side..=2.0 * side).contains(&c)) {
+                return Err(format!(
+                    "principal point {name} = {c:?} is not within an image's size of the \
+                     {side}-pixel image (-{side}..={})",
+                    2.0 * side
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Intrinsics of a square-pixel camera with horizontal field of view
     /// `hfov_deg` and the principal point at the image centre.
     pub fn from_hfov(width: u32, height: u32, hfov_deg: f64) -> Self {
@@ -162,6 +199,46 @@ pub fn camera_ray(
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn cameras_rays_cannot_be_cast_through_are_refused() {
+        let k = Intrinsics::from_hfov(640, 480, 60.0);
+        k.check().unwrap();
+        // An off-centre crop's principal point may lie outside the image.
+        Intrinsics {
+            cx: -300.0,
+            cy: 900.0,
+            ..k
+        }
+        .check()
+        .unwrap();
+        let bad = [
+            (Intrinsics { fx: 1e300, ..k }, "fx"),
+            (Intrinsics { fy: 1e-300, ..k }, "fy"),
+            (Intrinsics { fx: f64::NAN, ..k }, "fx"),
+            (Intrinsics { cx: 1e9, ..k }, "cx"),
+            (Intrinsics { cy: -481.0, ..k }, "cy"),
+            (
+                Intrinsics {
+                    cx: f64::INFINITY,
+                    ..k
+                },
+                "cx",
+            ),
+            (Intrinsics { width: 0, ..k }, "width"),
+            (
+                Intrinsics {
+                    height: 16_385,
+                    ..k
+                },
+                "height",
+            ),
+        ];
+        for (k, name) in bad {
+            let e = k.check().unwrap_err();
+            assert!(e.contains(name), "{e}");
+        }
+    }
 
     #[test]
     fn back_project_inverts_project_at_pixel_centres() {

@@ -123,6 +123,17 @@ fn bad_images_and_intrinsics_are_named() {
     let k = d.path().join("k.txt");
     std::fs::write(&k, "525 525 319.5 239.5 640\n").unwrap();
     assert_err_names(read_intrinsics(&k).unwrap_err(), &k, "expected 6 values");
+    // Numbers no camera has (each was taken, and localized to nonsense).
+    for (text, why) in [
+        ("1e300 1e300 48 36 96 72", "focal length fx = 1e300"),
+        ("1e-300 48 48 36 96 72", "focal length fx = 1e-300"),
+        ("48 48 1e9 36 96 72", "principal point cx = 1000000000"),
+        ("48 48 -1e30 36 96 72", "principal point cx"),
+        ("48 48 48 36 96 100000", "image height 100000"),
+    ] {
+        std::fs::write(&k, format!("{text}\n")).unwrap();
+        assert_err_names(read_intrinsics(&k).unwrap_err(), &k, why);
+    }
     std::fs::write(&k, "# fx fy cx cy w h\n525 525 319.5 239.5 640 480\n").unwrap();
     let small = Intrinsics {
         width: 320,

@@ -274,15 +274,19 @@ impl KittiCalib {
                 format!("{key}: image size {width}x{height} must be positive"),
             ));
         }
+        let intrinsics = Intrinsics {
+            fx,
+            fy,
+            cx: p[(0, 2)] + 0.5,
+            cy: p[(1, 2)] + 0.5,
+            width,
+            height,
+        };
+        intrinsics
+            .check()
+            .map_err(|why| CloudError::format(path, format!("{key}: {why}")))?;
         Ok(KittiCamera {
-            intrinsics: Intrinsics {
-                fx,
-                fy,
-                cx: p[(0, 2)] + 0.5,
-                cy: p[(1, 2)] + 0.5,
-                width,
-                height,
-            },
+            intrinsics,
             camera0_from_camera: Pose::translation(-p[(0, 3)] / fx, 0.0, 0.0),
         })
     }

@@ -136,14 +136,16 @@ pub fn read_intrinsics(path: &Path) -> Result<Intrinsics, CloudError> {
     if f[0] <= 0.0 || f[1] <= 0.0 {
         return Err(CloudError::format(path, "focal lengths must be positive"));
     }
-    Ok(Intrinsics {
+    let k = Intrinsics {
         fx: f[0],
         fy: f[1],
         cx: f[2],
         cy: f[3],
         width,
         height,
-    })
+    };
+    k.check().map_err(|why| CloudError::format(path, why))?;
+    Ok(k)
 }
 
 /// Parses one TUM pose `tx ty tz qx qy qz qw` (an optional leading

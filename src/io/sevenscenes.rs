@@ -314,14 +314,16 @@ pub fn parse_intrinsics(text: &str) -> Result<Intrinsics, String> {
     if v[0] <= 0.0 || v[4] <= 0.0 {
         return Err("focal lengths must be positive".into());
     }
-    Ok(Intrinsics {
+    let k = Intrinsics {
         fx: v[0],
         fy: v[4],
         cx: v[2] + 0.5,
         cy: v[5] + 0.5,
         width: IMAGE_SIZE.0,
         height: IMAGE_SIZE.1,
-    })
+    };
+    k.check()?;
+    Ok(k)
 }
 
 /// Parses `gravity-direction.txt`: three numbers, a non-zero vector,

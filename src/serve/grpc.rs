@@ -50,26 +50,17 @@ pub fn interceptor(
 
 fn camera(c: Option<&proto::CameraInfo>) -> Result<Intrinsics, Status> {
     let c = c.ok_or_else(|| Status::invalid_argument("camera: missing"))?;
-    let ok = [c.fx, c.fy, c.cx, c.cy].iter().all(|v| v.is_finite())
-        && c.fx > 0.0
-        && c.fy > 0.0
-        && c.width > 0
-        && c.height > 0
-        && c.width <= 16384
-        && c.height <= 16384;
-    if !ok {
-        return Err(Status::invalid_argument(format!(
-            "camera: fx, fy must be finite and > 0, width and height in 1..=16384; got {c:?}"
-        )));
-    }
-    Ok(Intrinsics {
+    let k = Intrinsics {
         fx: c.fx,
         fy: c.fy,
         cx: c.cx,
         cy: c.cy,
         width: c.width,
         height: c.height,
-    })
+    };
+    k.check()
+        .map_err(|why| Status::invalid_argument(format!("camera: {why}")))?;
+    Ok(k)
 }
 
 impl Service {
