@@ -71,6 +71,12 @@ pub struct Intrinsics {
     pub height: u32,
 }
 
+/// Farthest a map's origin, or a point mapped into it, may lie from 0 in
+/// any coordinate, metres: any place on Earth in any projection is within
+/// it; beyond it voxel centres lose every digit (an origin of 1e308 made
+/// them inf).
+pub const MAX_COORDINATE_M: f64 = 1e9;
+
 /// Largest image side a camera may have, pixels.
 pub const MAX_IMAGE_SIDE: u32 = 16_384;
 

@@ -437,6 +437,25 @@ fn values_that_cannot_mean_anything_are_refused_by_name() {
         s(&zero),
     ]);
     refused(&r, 1, &[s(&zero), "row 1", "floor", "all zeros"]);
+    // A row whose length f32 cannot hold (it localized to nonsense, and
+    // mapping said "feature 1 is zero or not finite" naming neither).
+    let mut huge = std::fs::read(&zero).unwrap();
+    let at = huge.len() - 8;
+    huge[at..at + 4].copy_from_slice(&1e38f32.to_le_bytes());
+    huge[at + 4..].copy_from_slice(&1e38f32.to_le_bytes());
+    std::fs::write(&zero, huge).unwrap();
+    let r = omcl(&[
+        "map",
+        "rgbd",
+        s(&seq),
+        "--out",
+        s(&f.path("z.omcl")),
+        "--classes",
+        s(&two),
+        "--embeddings",
+        s(&zero),
+    ]);
+    refused(&r, 1, &[s(&zero), "row 1", "floor", "f32 cannot hold"]);
     // A model that is not there is named, not its card.
     let r = omcl(&[
         "encode",

@@ -100,6 +100,22 @@ fn truncated_and_corrupt_files_name_the_file() {
     let p = d.path().join("bad_offset.las");
     std::fs::write(&p, bytes).unwrap();
     assert_err_names(read_las(&p).unwrap_err(), &p, "beyond the end");
+    // Scale factors (f64 at bytes 131, 139, 147) and offsets (155, 163,
+    // 171) no survey has: each named (a zero x scale mapped every x to
+    // the offset, a 1e300 one put points beyond any map).
+    for (at, value, why) in [
+        (131, 0.0, "x scale factor 0.0"),
+        (139, 1e300, "y scale factor 1e300"),
+        (147, f64::NAN, "z scale factor NaN"),
+        (155, 1e300, "x offset 1e300"),
+        (171, f64::INFINITY, "z offset inf"),
+    ] {
+        let mut bytes = std::fs::read(&src).unwrap();
+        bytes[at..at + 8].copy_from_slice(&f64::to_le_bytes(value));
+        let p = d.path().join(format!("header_{at}.las"));
+        std::fs::write(&p, bytes).unwrap();
+        assert_err_names(read_las(&p).unwrap_err(), &p, why);
+    }
     let missing = d.path().join("missing.las");
     assert_err_names(read_las(&missing).unwrap_err(), &missing, "");
 }

@@ -145,6 +145,19 @@ impl PointCloud {
                 p[0], p[1], p[2]
             )));
         }
+        let far = crate::geometry::MAX_COORDINATE_M;
+        if let Some(i) = self
+            .points
+            .iter()
+            .position(|p| p.iter().any(|&v| v.abs() > far))
+        {
+            let p = self.points[i];
+            return Err(invalid(format!(
+                "point {i} lies at ({}, {}, {}), farther than {far:e} m from 0 in a coordinate, \
+                 beyond what a map can hold (a LAS file's scale or offset wrong?)",
+                p[0], p[1], p[2]
+            )));
+        }
         Ok(())
     }
 
@@ -324,6 +337,17 @@ mod tests {
         let mut c = cloud3();
         c.features.as_mut().unwrap().1.pop();
         assert!(c.validate("f").is_err());
+        // Beyond any map (a PLY at x = 1e12 was mapped, and the map file
+        // then refused by every reader); at the bound it is a point.
+        let mut c = cloud3();
+        c.points[2][0] = -1e9;
+        assert!(c.validate("x").is_ok());
+        c.points[2][0] = 1e12;
+        let e = c.validate("far.ply").unwrap_err().to_string();
+        assert!(
+            e.contains("far.ply") && e.contains("point 2") && e.contains("1e9"),
+            "{e}"
+        );
     }
 
     #[test]

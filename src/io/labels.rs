@@ -311,13 +311,23 @@ impl EmbeddingTable {
         if let Some(row) = arr
             .data
             .chunks(arr.shape[1].max(1))
-            .position(|r| r.iter().all(|&v| v == 0.0))
+            .position(|r| !has_direction(r))
         {
+            let r = &arr.data[row * arr.shape[1]..(row + 1) * arr.shape[1]];
+            let largest = r.iter().fold(0.0f32, |m, v| m.max(v.abs()));
             return Err(CloudError::format(
                 npy_path,
                 format!(
-                    "row {row} (class '{}') is all zeros: a feature needs a direction",
-                    names[row]
+                    "row {row} (class '{}') {}: a feature needs a direction",
+                    names[row],
+                    if largest == 0.0 {
+                        "is all zeros".to_string()
+                    } else {
+                        format!(
+                            "has a length f32 cannot hold (largest value {largest:e}); scale \
+                             the table"
+                        )
+                    }
                 ),
             ));
         }
@@ -366,6 +376,14 @@ impl EmbeddingTable {
 /// Reads a class list: `<id> <name>` lines, or one name a line with the
 /// id its line index (counting only non-empty, non-comment lines); the
 /// first line decides, and mixing the two is an error.
+/// Whether a feature row has a direction in f32: its squared length is
+/// finite and above 0 (all zeros has none; values near 1e38 overflow, near
+/// 1e-30 underflow), the condition [`crate::map::normalize`] needs.
+pub fn has_direction(row: &[f32]) -> bool {
+    let n2: f32 = row.iter().map(|x| x * x).sum();
+    n2.is_finite() && n2 > 0.0
+}
+
 pub fn read_class_list(classes_path: &Path) -> Result<(Vec<u32>, Vec<String>), CloudError> {
     let text = crate::io::bounded_read::read_text(classes_path)
         .map_err(|e| CloudError::io(classes_path, e))?;

@@ -61,6 +61,31 @@ fn check_raw_header(path: &Path, file: &mut std::fs::File) -> Result<(u64, bool)
         .map(|l| l.number_of_point_records)
         .filter(|&n| n > 0)
         .unwrap_or(raw.number_of_point_records as u64);
+    // Coordinates are integers times the scale plus the offset: a zero
+    // scale put every x at the offset, a huge one every point far away.
+    for (axis, scale, offset) in [
+        ("x", raw.x_scale_factor, raw.x_offset),
+        ("y", raw.y_scale_factor, raw.y_offset),
+        ("z", raw.z_scale_factor, raw.z_offset),
+    ] {
+        if !(scale.is_finite() && scale > 0.0 && scale <= 1e3) {
+            return Err(CloudError::format(
+                path,
+                format!(
+                    "corrupt header: {axis} scale factor {scale:?} is not a number in (0, 1000]"
+                ),
+            ));
+        }
+        let far = crate::geometry::MAX_COORDINATE_M;
+        if !(offset.is_finite() && offset.abs() <= far) {
+            return Err(CloudError::format(
+                path,
+                format!(
+                    "corrupt header: {axis} offset {offset:?} is not a finite number of metres within {far:e} of 0"
+                ),
+            ));
+        }
+    }
     // Bits 6 and 7 of the format byte mark LAZ compression.
     let compressed = raw.point_data_record_format & 0xC0 != 0;
     let start = raw.offset_to_point_data as u64;

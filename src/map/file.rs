@@ -249,13 +249,11 @@ fn parse_map(bytes: &[u8], path: &Path, accept_v1: bool) -> Result<LanguageMap, 
         }
     };
     let resolution = c.positive("resolution").map_err(header)?;
-    // Any place on Earth in any projection is within 1e9 m; beyond it
-    // voxel centres lose every digit (an origin of 1e308 made them inf).
     let origin_in = |key: &'static str| {
         c.parse(
             key,
             "a finite number of metres within 1e9 of 0",
-            |v: &f64| v.is_finite() && v.abs() <= 1e9,
+            |v: &f64| v.is_finite() && v.abs() <= crate::geometry::MAX_COORDINATE_M,
         )
     };
     let origin = Vector3::new(

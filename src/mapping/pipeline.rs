@@ -118,20 +118,32 @@ pub fn load_cloud(input: &CloudInput) -> Result<PointCloud, PipelineError> {
 }
 
 /// A feature is a direction: a point kept for the map whose feature row (from
-/// `file`) is all zeros has none, and the map would refuse it without naming
-/// the file. Points dropped before (unlabeled, noise) may have such rows.
+/// `file`) is all zeros has none (nor one whose length f32 cannot hold), and
+/// the map would refuse it without naming the file. Points dropped before
+/// (unlabeled, noise) may have such rows.
 fn refuse_zero_features(file: &Path, dim: usize, values: &[f32]) -> Result<(), CloudError> {
-    let zero = |r: &[f32]| r.iter().all(|&v| v == 0.0);
-    let Some(i) = values.chunks_exact(dim).position(zero) else {
+    let none = |r: &[f32]| !crate::io::labels::has_direction(r);
+    let Some(i) = values.chunks_exact(dim).position(none) else {
         return Ok(());
     };
-    let n = values.chunks_exact(dim).filter(|r| zero(r)).count();
+    let n = values.chunks_exact(dim).filter(|r| none(r)).count();
+    let zeros = values
+        .chunks_exact(dim)
+        .filter(|r| r.iter().all(|&v| v == 0.0))
+        .count();
+    let what = if zeros == n {
+        "all-zero feature rows".to_string()
+    } else {
+        format!(
+            "feature rows without a direction in f32 (all zeros: {zeros}; the rest with a \
+             length f32 cannot hold)"
+        )
+    };
     Err(CloudError::format(
         file,
         format!(
-            "all-zero feature rows for {n} of the {} points kept for the map (the first: \
-             point {i} of those kept): a feature needs a direction; leave such points out of \
-             the cloud and the file",
+            "{what} for {n} of the {} points kept for the map (the first: point {i} of those \
+             kept): a feature needs a direction; leave such points out of the cloud and the file",
             values.len() / dim
         ),
     ))
