@@ -615,7 +615,7 @@ fn ground_truth_shorter_than_the_odometry_does_not_panic() {
         &out,
         &[
             "poses.txt",
-            "3 ground-truth poses for 6 frames",
+            "3 ground-truth poses, but the odometry gives 6 frames",
             "--frames 3",
         ],
     );

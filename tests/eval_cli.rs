@@ -300,3 +300,49 @@ fn times_files_pair_kitti_poses_and_shared_stamps_are_refused() {
         "{text}"
     );
 }
+
+/// Options checked before any work: `--n-to-align` without `--align`
+/// (ignored before), and a `--json` whose folder does not exist (it
+/// failed after the results were printed and `--save-aligned` written).
+#[test]
+fn options_that_cannot_work_are_refused_before_any_output() {
+    let d = shared("trajectories");
+    let tmp = tempfile::tempdir().unwrap();
+    let saved = tmp.path().join("aligned.txt");
+    let run = |extra: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
+            .args(["eval", "ape"])
+            .arg(d.join("KITTI_00_gt.txt"))
+            .arg(d.join("KITTI_00_ORB.txt"))
+            .args(extra)
+            .output()
+            .unwrap();
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let (code, stdout, stderr) = run(&["--n-to-align", "5"]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("--n-to-align") && stderr.contains("--align"),
+        "{stderr}"
+    );
+    assert!(!stdout.contains("rmse"), "{stdout}");
+    let json = tmp.path().join("nodir/ape.json");
+    let (code, stdout, stderr) = run(&[
+        "--align",
+        "se3",
+        "--json",
+        json.to_str().unwrap(),
+        "--save-aligned",
+        saved.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("--json") && stderr.contains("does not exist"),
+        "{stderr}"
+    );
+    assert!(!stdout.contains("rmse") && !saved.exists(), "{stdout}");
+}

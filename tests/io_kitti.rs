@@ -197,6 +197,19 @@ fn bad_poses_and_calibration_are_named() {
     let p = d.path().join("calib_shear.txt");
     std::fs::write(&p, "Tr: 1 0.5 0 0 0 1 0 0 0 0 1 0\n").unwrap();
     assert_err_names(read_calib(&p).unwrap_err(), &p, "not a rigid pose");
+    // P2 twice (the second one won): which is right cannot be told.
+    let p = d.path().join("calib_two_p2.txt");
+    let p2 = calib.lines().find(|l| l.starts_with("P2")).unwrap();
+    std::fs::write(&p, format!("{calib}{p2}\n")).unwrap();
+    assert_err_names(read_calib(&p).unwrap_err(), &p, "'P2:' again");
+    // Time stamps that go back (named with the file, not as 'pose 1').
+    let p = d.path().join("times_back.txt");
+    std::fs::write(&p, "0.0\n0.9\n0.8\n").unwrap();
+    assert_err_names(
+        omcl::io::poses::read_times(&p).unwrap_err(),
+        &p,
+        ":3: time stamp 0.8 s is before the previous one",
+    );
     // Poses shorter than the scans.
     let seq_dir = d.path().join("seq_short");
     fake_sequence(&seq_dir, &dir, &calib, IDENTITY);

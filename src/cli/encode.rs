@@ -81,7 +81,7 @@ pub struct TextArgs {
     #[arg(long)]
     pub model: PathBuf,
     /// Output .npy, [N, F] float32.
-    #[arg(long)]
+    #[arg(short, long)]
     pub out: PathBuf,
     #[command(flatten)]
     pub ort: OrtArgs,
@@ -96,7 +96,7 @@ pub struct ImageArgs {
     #[arg(long)]
     pub model: PathBuf,
     /// Output .npy for a single image.
-    #[arg(long, conflicts_with = "cache")]
+    #[arg(short, long, conflicts_with = "cache")]
     pub out: Option<PathBuf>,
     /// Feature cache directory: `<image stem>.npy` + `.json` per image;
     /// images already cached are skipped.
@@ -115,7 +115,7 @@ pub struct PointArgs {
     #[arg(long)]
     pub model: PathBuf,
     /// Output .npy, [N, F] float32.
-    #[arg(long)]
+    #[arg(short, long)]
     pub out: PathBuf,
     /// Value of full colour intensity in the file (255 for 8-bit colours,
     /// 1 for [0, 1]); by default 255 if any colour exceeds 1, else 1.

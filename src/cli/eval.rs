@@ -33,8 +33,9 @@ pub enum EvalCommand {
         /// How the estimate is aligned to the reference first.
         #[arg(long, value_enum, default_value_t = AlignArg::None)]
         align: AlignArg,
-        /// Fit the alignment to the first N pose pairs only (evo --n_to_align).
-        #[arg(long, value_name = "N")]
+        /// Fit the alignment to the first N pose pairs only (evo
+        /// --n_to_align); with --align.
+        #[arg(long, value_name = "N", value_parser = super::count_in::<1, { usize::MAX }>)]
         n_to_align: Option<usize>,
         /// Error measured: translation (m) or rotation angle (deg).
         #[arg(long, value_enum, default_value_t = RelationArg::Trans)]
@@ -124,8 +125,11 @@ impl OutArgs {
 }
 
 impl PairArgs {
-    /// Refuses `outputs` over the pose and time files read, or over each
-    /// other ([`super::outputs::refuse_overlaps`]).
+    /// Refuses, before any work, `outputs` over the pose and time files
+    /// read or over each other ([`super::outputs::refuse_overlaps`]), and
+    /// outputs that could not be written at the end
+    /// ([`super::outputs::refuse_unwritable`]: a missing folder failed
+    /// after the results were printed and another output written).
     fn refuse_overlaps(&self, outputs: &[(&str, &Path)]) -> anyhow::Result<()> {
         let mut inputs = vec![
             ("the reference", self.reference.as_path()),
@@ -133,7 +137,8 @@ impl PairArgs {
         ];
         inputs.extend(self.ref_times.as_deref().map(|p| ("--ref-times", p)));
         inputs.extend(self.est_times.as_deref().map(|p| ("--est-times", p)));
-        super::outputs::refuse_overlaps(outputs, &inputs)
+        super::outputs::refuse_overlaps(outputs, &inputs)?;
+        super::outputs::refuse_unwritable(outputs, &[])
     }
 }
 
@@ -192,6 +197,11 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
             save_aligned,
             out,
         } => {
+            ensure!(
+                n_to_align.is_none() || align != AlignArg::None,
+                "--n-to-align fits the alignment to the first poses: give --align too (se3, \
+                 sim3 or origin); without it nothing is aligned"
+            );
             let mut outputs = out.outputs();
             outputs.extend(save_aligned.as_deref().map(|p| ("--save-aligned", p)));
             pair.refuse_overlaps(&outputs)?;

@@ -152,8 +152,9 @@ pub struct LocalizeArgs {
     /// `tx ty tz qx qy qz qw` for --init local (default: first ground truth).
     #[arg(long)]
     pub init_pose: Option<String>,
-    /// Spread of --init local: metres and degrees (paper: 0.3, 17; for a
-    /// KITTI sequence the authors' 0.3 m and 0.1 rad, 5.73 degrees).
+    /// Position spread of --init local, metres (paper: 0.3, with 17 degrees
+    /// of --init-sigma-deg; on a KITTI sequence the authors' 0.3 m and 0.1
+    /// rad).
     #[arg(long, default_value_t = 0.3, value_parser = super::metres)]
     pub init_sigma_m: f64,
     /// Rotation spread of --init local, degrees [default: 17; 5.73 on a

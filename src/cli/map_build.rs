@@ -659,9 +659,9 @@ pub struct ClassesArgs {
     /// A built-in class list (`semantickitti`, `asprs`) or a class-list file.
     #[arg(value_name = "semantickitti|asprs|FILE")]
     pub list: String,
-    /// Write `classes.txt` and `embeddings.npy` into this folder (e.g. a
-    /// KITTI sequence whose labels_2/ label images `omcl localize` reads);
-    /// without it the list is printed.
+    /// Write `classes.txt` and `embeddings.npy` into this folder, made if
+    /// missing (e.g. a KITTI sequence whose labels_2/ label images `omcl
+    /// localize` reads); without it the list is printed.
     #[arg(long, short, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// The features of the list (`.npy`, one row a class); default for a
@@ -699,16 +699,6 @@ pub fn classes(a: &ClassesArgs) -> anyhow::Result<()> {
 /// Writes `dir/classes.txt` and `dir/embeddings.npy` (refusing to replace
 /// them unless `force`).
 fn write_table(dir: &Path, t: &EmbeddingTable, force: bool) -> anyhow::Result<()> {
-    ensure!(
-        dir.is_dir(),
-        "{}: {}; --out names the folder the table is written into",
-        dir.display(),
-        if dir.exists() {
-            "not a folder"
-        } else {
-            "no such folder (create it first)"
-        }
-    );
     let (txt, npy) = (dir.join("classes.txt"), dir.join("embeddings.npy"));
     for p in [&txt, &npy] {
         ensure!(
@@ -717,6 +707,8 @@ fn write_table(dir: &Path, t: &EmbeddingTable, force: bool) -> anyhow::Result<()
             p.display()
         );
     }
+    // Made where missing, as `omcl sim --out` makes its folder.
+    super::outputs::create_folder("--out", dir)?;
     let text: String = t
         .ids
         .iter()

@@ -20,8 +20,8 @@ pub struct FloorplanArgs {
     /// the map's lowest occupied layer (leaves the floor out).
     #[arg(long, default_value_t = FloorPlanParams::default().band_min)]
     pub band_min: f64,
-    /// Upper edge of the band, metres above the floor (leaves the ceiling
-    /// out).
+    /// Upper edge of the band, metres above the same bottom as --band-min
+    /// (leaves the ceiling out).
     #[arg(long, default_value_t = FloorPlanParams::default().band_max)]
     pub band_max: f64,
     /// Also write the plan as a PNG, one pixel a cell, +y up, free cells

@@ -74,10 +74,13 @@ pub struct IndoorArgs {
     /// and width).
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=8192))]
     pub feature_stride: u32,
-    /// Odometry noise per frame: translation (m) and rotation (degrees).
+    /// Odometry translation noise per frame, metres (--odom-sigma-r is the
+    /// rotation's); where KITTI drift is replayed (--trajectories) this
+    /// noise is added to it.
     #[arg(long, default_value_t = 0.10, value_parser = super::metres)]
     pub odom_sigma_t: f64,
-    /// Odometry rotation noise per frame, degrees (with --odom-sigma-t).
+    /// Odometry rotation noise per frame, degrees (as --odom-sigma-t, added
+    /// to replayed drift).
     #[arg(long, default_value_t = 6.0, value_parser = super::degrees)]
     pub odom_sigma_r: f64,
     /// Folder with KITTI_00_gt.txt and KITTI_00_ORB.txt whose relative
@@ -228,8 +231,13 @@ fn indoor(a: IndoorArgs) -> anyhow::Result<()> {
     cfg.features = features;
     anyhow::ensure!(
         feature_stride <= width.min(height),
-        "--feature-stride {feature_stride} is larger than the {width} x {height} image: no pixel \
-         would get a feature"
+        "the {width} x {height} image is smaller than --feature-stride {feature_stride}{}: no \
+         pixel would get a feature (a larger image, or a smaller --feature-stride)",
+        if feature_stride == 8 {
+            " (its default)"
+        } else {
+            ""
+        }
     );
     cfg.feature_stride = feature_stride;
     cfg.odometry.sigma_t = odom_sigma_t;

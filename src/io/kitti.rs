@@ -170,6 +170,7 @@ pub fn read_calib(path: &Path) -> Result<KittiCalib, CloudError> {
 pub fn parse_calib(text: &str, path: &Path) -> Result<KittiCalib, CloudError> {
     let mut projections = BTreeMap::new();
     let mut tr = None;
+    let mut seen: BTreeMap<&str, usize> = BTreeMap::new();
     for (i, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() {
@@ -181,6 +182,13 @@ pub fn parse_calib(text: &str, path: &Path) -> Result<KittiCalib, CloudError> {
                 format!("line {}: expected 'KEY: 12 numbers'", i + 1),
             ));
         };
+        // Which of two differing lines is right cannot be told.
+        if let Some(first) = seen.insert(key, i + 1) {
+            return Err(CloudError::format(
+                path,
+                format!("line {}: '{key}:' again (first on line {first})", i + 1),
+            ));
+        }
         let fields: Vec<&str> = rest.split_whitespace().collect();
         let m = parse_12(path, i + 1, &fields)?;
         if key == "Tr" || key == "Tr_velo_to_cam" {

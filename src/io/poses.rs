@@ -282,6 +282,17 @@ pub fn read_times(path: &Path) -> Result<Vec<f64>, PosesError> {
                 line: i + 1,
                 reason: format!("'{line}' is not a finite time stamp (one number a line)"),
             })?;
+        if let Some(&prev) = out.last()
+            && v < prev
+        {
+            return Err(PosesError::Parse {
+                path: path.to_path_buf(),
+                line: i + 1,
+                reason: format!(
+                    "time stamp {v} s is before the previous one, {prev} s (stamps must not decrease)"
+                ),
+            });
+        }
         out.push(v);
     }
     Ok(out)

@@ -325,8 +325,8 @@ impl CameraSequence {
             && g.len() < n
         {
             return Err(SequenceError::Input(format!(
-                "{}: {} ground-truth poses for {n} frames of odometry; pass --frames {} or a \
-                 complete poses.txt",
+                "{}: {} ground-truth poses, but the odometry gives {n} frames; pass --frames \
+                 {}, or an odometry and a poses.txt of the same length",
                 self.ground_truth_path.display(),
                 g.len(),
                 g.len()
