@@ -57,6 +57,15 @@ fn chain_message(e: &anyhow::Error) -> String {
 mod tests {
     use super::chain_message;
 
+    /// clap's own checks of every command's arguments (two options with
+    /// one short name, a default its parser refuses, ...), which otherwise
+    /// run only when that command is parsed in a debug build.
+    #[test]
+    fn every_command_line_is_well_formed() {
+        use clap::CommandFactory;
+        super::cli::Cli::command().debug_assert();
+    }
+
     #[test]
     fn a_cause_already_in_the_message_is_printed_once() {
         #[derive(Debug, thiserror::Error)]
