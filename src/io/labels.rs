@@ -378,7 +378,7 @@ impl EmbeddingTable {
 /// first line decides, and mixing the two is an error.
 /// Whether a feature row has a direction in f32: its squared length is
 /// finite and above 0 (all zeros has none; values near 1e38 overflow, near
-/// 1e-30 underflow), the condition [`crate::map::normalize`] needs.
+/// 1e-30 underflow), the condition [`crate::map::features::normalize`] needs.
 pub fn has_direction(row: &[f32]) -> bool {
     let n2: f32 = row.iter().map(|x| x * x).sum();
     n2.is_finite() && n2 > 0.0
