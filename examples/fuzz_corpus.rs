@@ -195,6 +195,33 @@ fn main() -> Result<()> {
         "tiny_image_input.png",
         &std::fs::read("tests/data/encode/tiny_image_input.png")?,
     )?;
+    // image_bytes (a frame's PNG or JPEG bytes, as `omcl serve` takes
+    // them): the PNG seeds, and the first real 7-Scenes colour frame cut
+    // to 16 x 12 as a colour and a grey JPEG.
+    out(
+        "image_bytes",
+        "rgb8_8x6.png",
+        &png(8, 6, png::ColorType::Rgb, png::BitDepth::Eight, &rgb),
+    )?;
+    out(
+        "image_bytes",
+        "tiny_image_input.png",
+        &std::fs::read("tests/data/encode/tiny_image_input.png")?,
+    )?;
+    let kitchen = omcl::io::rgb::read_rgb(&shared.join("rgbd_7scenes/frame-000000.color.jpg"))?;
+    let small = image::imageops::resize(&kitchen, 16, 12, image::imageops::FilterType::Triangle);
+    let jpeg = |img: image::DynamicImage| -> Result<Vec<u8>> {
+        let mut buf = std::io::Cursor::new(Vec::new());
+        img.write_to(&mut buf, image::ImageFormat::Jpeg)?;
+        Ok(buf.into_inner())
+    };
+    let colour = image::DynamicImage::ImageRgb8(small);
+    out("image_bytes", "kitchen_16x12.jpg", &jpeg(colour.clone())?)?;
+    out(
+        "image_bytes",
+        "kitchen_16x12_grey.jpg",
+        &jpeg(image::DynamicImage::ImageLuma8(colour.to_luma8()))?,
+    )?;
 
     // png_header: 8 x 6 grey 8-bit, not interlaced, then 6 rows of a filter
     // byte and 8 pixels; and a 4 x 2 RGB 8-bit.

@@ -266,6 +266,7 @@ fuzz_tests! {
     fuzz_png_depth => Target::PngDepth,
     fuzz_png_label => Target::PngLabel,
     fuzz_png_rgb => Target::PngRgb,
+    fuzz_image_bytes => Target::ImageBytes,
     fuzz_png_header => Target::PngHeader,
     fuzz_intrinsics => Target::Intrinsics,
     fuzz_model_card => Target::ModelCard,

@@ -37,6 +37,7 @@ pub enum Target {
     PngDepth,
     PngLabel,
     PngRgb,
+    ImageBytes,
     PngHeader,
     Intrinsics,
     ModelCard,
@@ -48,7 +49,7 @@ pub enum Target {
 
 impl Target {
     /// All targets, in the order the in-suite run takes them.
-    pub const ALL: [Target; 24] = [
+    pub const ALL: [Target; 25] = [
         Target::Ply,
         Target::PlyHeader,
         Target::Las,
@@ -66,6 +67,7 @@ impl Target {
         Target::PngDepth,
         Target::PngLabel,
         Target::PngRgb,
+        Target::ImageBytes,
         Target::PngHeader,
         Target::Intrinsics,
         Target::ModelCard,
@@ -95,6 +97,7 @@ impl Target {
             Target::PngDepth => "png_depth",
             Target::PngLabel => "png_label",
             Target::PngRgb => "png_rgb",
+            Target::ImageBytes => "image_bytes",
             Target::PngHeader => "png_header",
             Target::Intrinsics => "intrinsics",
             Target::ModelCard => "model_card",
@@ -175,6 +178,12 @@ pub fn run(target: Target, data: &[u8]) -> bool {
         Target::PngDepth => io::rgbd::read_depth_png(&put("d.png", data), 1000.0).is_ok(),
         Target::PngLabel => io::rgbd::read_label_png(&put("l.png", data)).is_ok(),
         Target::PngRgb => io::rgb::read_rgb(&put("c.png", data)).is_ok(),
+        Target::ImageBytes => {
+            // `omcl serve`'s path for a frame's PNG or JPEG bytes: the
+            // header's size first, then the pixels.
+            let name = Path::new("frame");
+            io::rgb::image_size(data, name).is_ok() && io::rgb::rgb_from_bytes(data, name).is_ok()
+        }
         Target::PngHeader => {
             // Every reader of PNGs on one well-formed file.
             let p = put("h.png", &png_from(data));
