@@ -59,7 +59,9 @@ mod tests {
 
     /// clap's own checks of every command's arguments (two options with
     /// one short name, a default its parser refuses, ...), which otherwise
-    /// run only when that command is parsed in a debug build.
+    /// run only when that command is parsed in a debug build. They need
+    /// debug assertions, which the test profile keeps (`cargo test
+    /// --release` would pass this vacuously).
     #[test]
     fn every_command_line_is_well_formed() {
         use clap::CommandFactory;

@@ -581,7 +581,8 @@ async fn camera_images_are_encoded_on_the_server_as_localize_encodes_them() {
             jpeg(cw + 1, ch),
             &format!("{}x{ch} pixels, the session's camera", cw + 1),
         ),
-        (cut_png, "PNG"),
+        // Its header reads: caught when the frame is stepped.
+        (cut_png, "corrupt or truncated PNG"),
     ];
     for (data, want) in cases {
         let e = c.localize(file_frame(0, data)).await.unwrap_err();

@@ -40,10 +40,12 @@ pub struct ColourModelArgs {
     #[arg(long)]
     pub frames: PathBuf,
     /// Number of colour classes.
-    #[arg(short, long, default_value_t = 10)]
+    #[arg(short, long, default_value_t = 10,
+          value_parser = super::count_in::<1, { omcl::encode::colour::MAX_CLASSES }>)]
     pub k: usize,
     /// Length of each class's embedding (seeded Gaussian draws, unit length).
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = 32,
+          value_parser = super::count_in::<2, { omcl::encode::colour::MAX_DIM }>)]
     pub dim: usize,
     /// Seed of k-means and the embeddings.
     #[arg(long, default_value_t = 7)]

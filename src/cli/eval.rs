@@ -344,27 +344,23 @@ fn load_pair(args: &PairArgs) -> anyhow::Result<Paired> {
     let (reference_poses, estimate_poses) = (reference.trajectory.len(), estimate.trajectory.len());
     let estimate_format = estimate.format;
     if ref_stamped && est_stamped {
-        // Poses sharing a stamp cannot be told apart by time: each would
-        // pair with the first of them (a file written with too few digits).
-        for (file, path) in [(&reference, &args.reference), (&estimate, &args.estimate)] {
-            let stamps = file.trajectory.stamps();
-            if let Some(i) = stamps.windows(2).position(|w| w[0] == w[1]) {
-                bail!(
-                    "{}: poses {} and {} share the time stamp {} s; pairing by time needs \
-                     distinct stamps (written with too few digits?)",
-                    path.display(),
-                    i + 1,
-                    i + 2,
-                    stamps[i]
-                );
-            }
-        }
         let (r, e) = associate(
             &reference.trajectory,
             &estimate.trajectory,
             args.t_max_diff,
             args.t_offset,
-        )?;
+        )
+        .map_err(|e| match &e {
+            omcl::eval::EvalError::SharedStamp { which, .. } => {
+                let file = if *which == "reference" {
+                    &args.reference
+                } else {
+                    &args.estimate
+                };
+                anyhow::anyhow!("{}: {e}", file.display())
+            }
+            _ => e.into(),
+        })?;
         return Ok(Paired {
             reference: r,
             estimate: e,

@@ -677,7 +677,7 @@ fn write_metrics(
         "translation_m": mt.translation,
         "rotation_deg": mt.rotation,
         // null: too few frames for the rule to fail (not judged).
-        "completed": (n >= CompletionRule::default().frames_to_judge()).then_some(mt.completed),
+        "completed": mt.completed,
         "filter_steps_per_s": steps_per_s,
         "per_frame": {
             "translation_m": mt.translation_m,

@@ -758,32 +758,6 @@ pub struct ProjectArgs {
     pub force: bool,
 }
 
-/// `out` may not be the sequence's folder or one it is read from (scans,
-/// their labels, camera images or features): label images written there
-/// would replace what they are made from, `--force` or not.
-fn refuse_sequence_input(out: &Path, seq: &Path) -> anyhow::Result<()> {
-    let (Ok(out_abs), Ok(seq_abs)) = (std::fs::canonicalize(out), std::fs::canonicalize(seq))
-    else {
-        // A folder still to be made holds nothing; a missing sequence is
-        // its reader's to report.
-        return Ok(());
-    };
-    let inputs = ["velodyne", "labels", "image_2", "image_3", "features_2"];
-    let read_from = out_abs == seq_abs
-        || inputs
-            .iter()
-            .any(|f| std::fs::canonicalize(seq_abs.join(f)).is_ok_and(|p| p == out_abs));
-    ensure!(
-        !read_from,
-        "{}: --out is a folder the sequence {} is read from; label images written there \
-         would replace its own files (choose another folder; the default is {})",
-        out.display(),
-        seq.display(),
-        seq.join("labels_2").display()
-    );
-    Ok(())
-}
-
 pub fn project(a: &ProjectArgs) -> anyhow::Result<()> {
     use omcl::mapping::projection::ProjectionParams;
     ensure!(
@@ -797,7 +771,7 @@ pub fn project(a: &ProjectArgs) -> anyhow::Result<()> {
         a.spacing
     );
     let out = a.out.clone().unwrap_or_else(|| a.sequence.join("labels_2"));
-    refuse_sequence_input(&out, &a.sequence)?;
+    omcl::mapping::pipeline::refuse_sequence_input(&out, &a.sequence)?;
     let has_images = std::fs::read_dir(&out)
         .map(|mut d| d.any(|e| e.is_ok_and(|e| e.path().extension().is_some_and(|x| x == "png"))))
         .unwrap_or(false);

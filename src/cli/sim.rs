@@ -231,13 +231,9 @@ fn indoor(a: IndoorArgs) -> anyhow::Result<()> {
     cfg.features = features;
     anyhow::ensure!(
         feature_stride <= width.min(height),
-        "the {width} x {height} image is smaller than --feature-stride {feature_stride}{}: no \
-         pixel would get a feature (a larger image, or a smaller --feature-stride)",
-        if feature_stride == 8 {
-            " (its default)"
-        } else {
-            ""
-        }
+        "the {width} x {height} image is smaller than --feature-stride {feature_stride} (the \
+         default is 8): no pixel would get a feature (a larger image, or a smaller \
+         --feature-stride)"
     );
     cfg.feature_stride = feature_stride;
     cfg.odometry.sigma_t = odom_sigma_t;

@@ -54,13 +54,26 @@ pub fn matching_time_indices(
 /// indices (each keeps its own stamps).
 ///
 /// As in evo, the shorter trajectory is the one walked through, so that none
-/// of its poses is lost to a neighbour's better match.
+/// of its poses is lost to a neighbour's better match. Poses of one
+/// trajectory sharing a stamp are refused ([`EvalError::SharedStamp`]):
+/// each would pair with the first of them (stamps never decrease, so
+/// neighbours are enough to look at).
 pub fn associate(
     first: &Trajectory,
     second: &Trajectory,
     max_diff: f64,
     offset_2: f64,
 ) -> Result<(Trajectory, Trajectory), EvalError> {
+    for (t, which) in [(first, "reference"), (second, "estimate")] {
+        let stamps = t.stamps();
+        if let Some(i) = stamps.windows(2).position(|w| w[0] == w[1]) {
+            return Err(EvalError::SharedStamp {
+                which,
+                first: i + 1,
+                stamp: stamps[i],
+            });
+        }
+    }
     let second_longer = second.len() > first.len();
     let (short, long) = if second_longer {
         (first, second)
@@ -104,6 +117,41 @@ mod tests {
             .map(|&s| Pose::from_parts(Translation3::new(s, 0.0, 0.0), UnitQuaternion::identity()))
             .collect();
         Trajectory::new(stamps.to_vec(), poses).unwrap()
+    }
+
+    #[test]
+    fn poses_sharing_a_stamp_are_refused() {
+        let a = traj(&[0.0, 0.1, 0.2]);
+        let b = traj(&[0.0, 0.1, 0.1, 0.2]);
+        let e = associate(&a, &b, 0.01, 0.0).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                EvalError::SharedStamp {
+                    which: "estimate",
+                    first: 2,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(
+            e.to_string()
+                .contains("estimate poses 2 and 3 share the time stamp 0.1 s"),
+            "{e}"
+        );
+        let e = associate(&b, &a, 0.01, 0.0).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                EvalError::SharedStamp {
+                    which: "reference",
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        associate(&a, &a, 0.01, 0.0).unwrap();
     }
 
     #[test]

@@ -20,8 +20,9 @@ pub struct OutdoorMetric {
     pub rotation: ErrorStats,
     /// Whether the run completes under [`CompletionRule::default`] (after
     /// the first 10 frames the translation error never exceeds 1 m for
-    /// more than 5 consecutive frames).
-    pub completed: bool,
+    /// more than 5 consecutive frames); `None` for a run too short for the
+    /// rule to fail ([`CompletionRule::judge`]).
+    pub completed: Option<bool>,
 }
 
 /// Per-frame errors of `estimate` against `reference` (both
@@ -47,7 +48,7 @@ pub fn outdoor_metric(reference: &[Pose], estimate: &[Pose]) -> Result<OutdoorMe
     Ok(OutdoorMetric {
         translation: stats(&translation_m)?,
         rotation: stats(&rotation_deg)?,
-        completed: CompletionRule::default().is_completed(&translation_m),
+        completed: CompletionRule::default().judge(&translation_m),
         translation_m,
         rotation_deg,
     })
@@ -92,7 +93,8 @@ mod tests {
         assert!((m.rotation_deg[1] - 10.0).abs() < 1e-9);
         assert!((m.rotation_deg[2] - 20.0).abs() < 1e-6);
         assert!((m.rotation.mean - 10.0).abs() < 1e-6);
-        assert!(m.completed);
+        // Three frames: too few for the rule to fail, not judged.
+        assert_eq!(m.completed, None);
         assert!(outdoor_metric(&gt, &est[..2]).is_err());
         assert!(outdoor_metric(&[], &[]).is_err());
     }

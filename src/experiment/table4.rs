@@ -497,7 +497,11 @@ impl Street<'_> {
             m.translation_m.iter().copied().fold(0.0, f64::max),
             m.rotation.mean,
             m.rotation.std,
-            m.completed,
+            match m.completed {
+                Some(true) => "yes",
+                Some(false) => "no",
+                None => "not judged",
+            },
             r.run.fps(),
             odo.translation.mean,
             odo.rotation.mean
@@ -520,7 +524,9 @@ impl Street<'_> {
             translation_max_m: m.translation_m.iter().copied().fold(0.0, f64::max),
             rotation_mean_deg: m.rotation.mean,
             rotation_std_deg: m.rotation.std,
-            completed: m.completed,
+            // A street too short to judge (fewer than 16 frames) counts
+            // as not completed.
+            completed: m.completed == Some(true),
             odometry_translation_mean_m: odo.translation.mean,
             odometry_rotation_mean_deg: odo.rotation.mean,
             filter_steps_per_s: r.run.fps(),

@@ -134,29 +134,24 @@ impl PointCloud {
                 )));
             }
         }
-        if let Some(i) = self
-            .points
-            .iter()
-            .position(|p| !(p[0].is_finite() && p[1].is_finite() && p[2].is_finite()))
-        {
-            let p = self.points[i];
-            return Err(invalid(format!(
-                "point {i} is not finite: ({}, {}, {})",
-                p[0], p[1], p[2]
-            )));
-        }
+        // One pass: a NaN or an infinity is not within the bound either.
         let far = crate::geometry::MAX_COORDINATE_M;
         if let Some(i) = self
             .points
             .iter()
-            .position(|p| p.iter().any(|&v| v.abs() > far))
+            .position(|p| p.iter().any(|&v| !(v.is_finite() && v.abs() <= far)))
         {
             let p = self.points[i];
-            return Err(invalid(format!(
-                "point {i} lies at ({}, {}, {}), farther than {far:e} m from 0 in a coordinate, \
-                 beyond what a map can hold (a LAS file's scale or offset wrong?)",
-                p[0], p[1], p[2]
-            )));
+            let why = if p.iter().all(|v| v.is_finite()) {
+                format!(
+                    "lies at ({}, {}, {}), farther than {far:e} m from 0 in a coordinate, \
+                     beyond what a map can hold (a LAS file's scale or offset wrong?)",
+                    p[0], p[1], p[2]
+                )
+            } else {
+                format!("is not finite: ({}, {}, {})", p[0], p[1], p[2])
+            };
+            return Err(invalid(format!("point {i} {why}")));
         }
         Ok(())
     }

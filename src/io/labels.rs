@@ -373,9 +373,6 @@ impl EmbeddingTable {
     }
 }
 
-/// Reads a class list: `<id> <name>` lines, or one name a line with the
-/// id its line index (counting only non-empty, non-comment lines); the
-/// first line decides, and mixing the two is an error.
 /// Whether a feature row has a direction in f32: its squared length is
 /// finite and above 0 (all zeros has none; values near 1e38 overflow, near
 /// 1e-30 underflow), the condition [`crate::map::features::normalize`] needs.
@@ -384,6 +381,9 @@ pub fn has_direction(row: &[f32]) -> bool {
     n2.is_finite() && n2 > 0.0
 }
 
+/// Reads a class list: `<id> <name>` lines, or one name a line with the
+/// id its line index (counting only non-empty, non-comment lines); the
+/// first line decides, and mixing the two is an error.
 pub fn read_class_list(classes_path: &Path) -> Result<(Vec<u32>, Vec<String>), CloudError> {
     let text = crate::io::bounded_read::read_text(classes_path)
         .map_err(|e| CloudError::io(classes_path, e))?;

@@ -150,16 +150,8 @@ pub fn parse_poses(
         }
         let pose = match fmt {
             PoseFormat::Tum => {
-                if let Some(&prev) = stamps.last()
-                    && values[0] < prev
-                {
-                    return Err(parse_err(
-                        line_no,
-                        format!(
-                            "time stamp {} s is before the previous one, {prev} s (stamps must not decrease)",
-                            values[0]
-                        ),
-                    ));
+                if let Some(why) = goes_back(&stamps, values[0]) {
+                    return Err(parse_err(line_no, why));
                 }
                 stamps.push(values[0]);
                 tum_pose(&values[1..]).map_err(|r| parse_err(line_no, r))?
@@ -282,20 +274,27 @@ pub fn read_times(path: &Path) -> Result<Vec<f64>, PosesError> {
                 line: i + 1,
                 reason: format!("'{line}' is not a finite time stamp (one number a line)"),
             })?;
-        if let Some(&prev) = out.last()
-            && v < prev
-        {
+        if let Some(reason) = goes_back(&out, v) {
             return Err(PosesError::Parse {
                 path: path.to_path_buf(),
                 line: i + 1,
-                reason: format!(
-                    "time stamp {v} s is before the previous one, {prev} s (stamps must not decrease)"
-                ),
+                reason,
             });
         }
         out.push(v);
     }
     Ok(out)
+}
+
+/// Why `stamp` cannot follow `stamps` (it is before the last), if it
+/// cannot.
+fn goes_back(stamps: &[f64], stamp: f64) -> Option<String> {
+    let &prev = stamps.last()?;
+    (stamp < prev).then(|| {
+        format!(
+            "time stamp {stamp} s is before the previous one, {prev} s (stamps must not decrease)"
+        )
+    })
 }
 
 /// Formats a trajectory as pose-file text (no comment header, so that every

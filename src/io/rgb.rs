@@ -61,10 +61,9 @@ fn decode_bytes(bytes: &[u8], name: &Path) -> Result<DynamicImage, CloudError> {
         .map_err(|e| CloudError::format(name, format!("not a readable PNG or JPEG image: {e}")))
 }
 
-/// A reader of `bytes` if they start as a JPEG file does and end with its
-/// end-of-image marker (`FF D9`, perhaps with a little padding after it):
-/// the decoder fills a truncated file's missing rows silently, so
-/// truncation is caught here.
+/// A reader of `bytes` if they start as a JPEG file does and reach its
+/// end-of-image marker ([`jpeg_end`]): the decoder fills a truncated
+/// file's missing rows silently, so truncation is caught here.
 fn jpeg_reader<'a>(
     bytes: &'a [u8],
     name: &Path,
@@ -75,12 +74,12 @@ fn jpeg_reader<'a>(
             "not a readable PNG or JPEG image: it starts as neither",
         ));
     }
-    let tail = &bytes[bytes.len().saturating_sub(32)..];
-    if !tail.windows(2).any(|w| w == [0xff, 0xd9]) {
+    if jpeg_end(bytes).is_none() {
         return Err(CloudError::format(
             name,
             format!(
-                "truncated JPEG: no end-of-image marker (FF D9) in its last bytes ({} bytes in all)",
+                "truncated JPEG: its segments end without the end-of-image marker (FF D9) \
+                 ({} bytes in all)",
                 bytes.len()
             ),
         ));
@@ -89,6 +88,52 @@ fn jpeg_reader<'a>(
         Cursor::new(bytes),
         image::ImageFormat::Jpeg,
     ))
+}
+
+/// Where a JPEG's own end-of-image marker (`FF D9`) ends, found by walking
+/// its segments from the start: a marker segment's length skips its
+/// contents (an EXIF thumbnail's own markers inside APP1 among them),
+/// entropy-coded data ends at the first marker that is neither a stuffed
+/// `FF 00` nor a restart (`FF D0`-`D7`). Bytes after the marker (a
+/// phone's appended video, a driver's padding) are the file's business;
+/// `None` when the data ends first (a truncated file).
+fn jpeg_end(bytes: &[u8]) -> Option<usize> {
+    let mut i = 2; // after SOI
+    loop {
+        // Fill bytes (FF FF ...) may precede a marker.
+        while bytes.get(i) == Some(&0xff) && bytes.get(i + 1) == Some(&0xff) {
+            i += 1;
+        }
+        if bytes.get(i) != Some(&0xff) {
+            return None;
+        }
+        let marker = *bytes.get(i + 1)?;
+        match marker {
+            0xd9 => return Some(i + 2),
+            // Markers without a length: TEM and stray restarts.
+            0x01 | 0xd0..=0xd7 => i += 2,
+            _ => {
+                let len = u16::from_be_bytes([*bytes.get(i + 2)?, *bytes.get(i + 3)?]) as usize;
+                if len < 2 {
+                    return None;
+                }
+                i += 2 + len;
+                if marker == 0xda {
+                    // Entropy-coded data up to the next real marker.
+                    loop {
+                        let at = i + bytes.get(i..)?.iter().position(|&b| b == 0xff)?;
+                        match *bytes.get(at + 1)? {
+                            0x00 | 0xd0..=0xd7 | 0xff => i = at + 1,
+                            _ => {
+                                i = at;
+                                break;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// The width and height a PNG or JPEG file's header declares, from its
@@ -187,6 +232,37 @@ mod tests {
                 assert!(e.contains("truncated JPEG"), "{e}");
             }
         }
+        // A valid JPEG with bytes after its end (a phone's appended video,
+        // a driver's zero padding) reads; one cut before its end does not,
+        // even with an end marker earlier in the file (an EXIF thumbnail's,
+        // inside APP1).
+        let p = dir.path().join("b.jpg");
+        img.save(&p).unwrap();
+        let jpeg = std::fs::read(&p).unwrap();
+        let end = jpeg_end(&jpeg).unwrap();
+        assert_eq!(end, jpeg.len());
+        let mut trailer = jpeg.clone();
+        trailer.extend((0..1000u32).map(|i| (i * 7) as u8));
+        trailer.extend([0u8; 64]);
+        assert_eq!(
+            rgb_from_bytes(&trailer, Path::new("t")).unwrap(),
+            read_rgb(&p).unwrap()
+        );
+        let mut thumb = jpeg[..2].to_vec();
+        let inner = [&[0xff, 0xd8][..], &[0xff, 0xd9]].concat();
+        thumb.extend([0xff, 0xe1]);
+        thumb.extend(((inner.len() + 2) as u16).to_be_bytes());
+        thumb.extend(&inner);
+        thumb.extend(&jpeg[2..jpeg.len() - 30]);
+        let e = rgb_from_bytes(&thumb, Path::new("t"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("truncated JPEG"), "{e}");
+        thumb.extend(&jpeg[jpeg.len() - 30..]);
+        assert_eq!(
+            rgb_from_bytes(&thumb, Path::new("t")).unwrap(),
+            read_rgb(&p).unwrap()
+        );
         for junk in [&b"GIF89a...."[..], b"", b"\xff\xd8"] {
             let e = image_size(junk, Path::new("frame 4"))
                 .unwrap_err()

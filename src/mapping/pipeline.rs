@@ -713,6 +713,39 @@ pub struct ProjectionSummary {
     pub coverage: f64,
 }
 
+/// The folders a KITTI sequence is read from (scans, their labels, camera
+/// images, camera features).
+const SEQUENCE_INPUTS: [&str; 5] = ["velodyne", "labels", "image_2", "image_3", "features_2"];
+
+/// `out` may not be the sequence's folder or one it is read from: label
+/// images written there would replace what they are made from (camera
+/// images were replaced with `--force`).
+pub fn refuse_sequence_input(
+    out: &std::path::Path,
+    seq: &std::path::Path,
+) -> Result<(), PipelineError> {
+    let (Ok(out_abs), Ok(seq_abs)) = (std::fs::canonicalize(out), std::fs::canonicalize(seq))
+    else {
+        // A folder still to be made holds nothing; a missing sequence is
+        // its reader's to report.
+        return Ok(());
+    };
+    let read_from = out_abs == seq_abs
+        || SEQUENCE_INPUTS
+            .iter()
+            .any(|f| std::fs::canonicalize(seq_abs.join(f)).is_ok_and(|p| p == out_abs));
+    if read_from {
+        return Err(PipelineError::Input(format!(
+            "{}: the output is a folder the sequence {} is read from; label images written \
+             there would replace its own files (choose another folder; the default is {})",
+            out.display(),
+            seq.display(),
+            seq.join("labels_2").display()
+        )));
+    }
+    Ok(())
+}
+
 /// Ground-truth label images of camera 2 from a SemanticKITTI sequence
 /// folder (`input.path`: `velodyne/`, `labels/`, `calib.txt` with `P2`,
 /// `poses.txt`): the labelled scans aggregated in the map frame
@@ -730,6 +763,7 @@ pub fn project_sequence_labels(
     use super::projection::{PointIndex, project_labels};
     use crate::io::kitti::{KITTI_IMAGE_SIZE, read_calib, read_kitti_poses};
     let dir = &input.path;
+    refuse_sequence_input(out, dir)?;
     let (seq, frames, mut opts) = open_sequence(input)?;
     let calib_path = dir.join("calib.txt");
     let calib = read_calib(&calib_path)?;

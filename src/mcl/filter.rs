@@ -8,7 +8,6 @@ use std::time::{Duration, Instant};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::MclError;
 use super::anneal::Anneal;
 use super::estimate::{EstimateParams, estimate};
 use super::init::FloorSampler;
@@ -19,6 +18,7 @@ use super::recovery::{Recovery, RecoveryParams};
 use super::resample::{ResamplePolicy, resample};
 use super::sampling::{SamplingParams, sample_in_strata};
 use super::sensor::{RayOrder, SensorModel, SensorParams, SimilarityTable};
+use super::{MAX_COUNT, MclError};
 use crate::frame::FrameFeatures;
 use crate::geometry::{Intrinsics, Pose};
 use crate::map::{FeatureDb, LanguageMap};
@@ -74,11 +74,6 @@ impl Default for FilterConfig {
 /// [`FilterConfig::default`]'s 2048 rays): `omcl localize`, `omcl serve`'s
 /// sessions and the indoor benchmarks default to it.
 pub const INDOOR_PARTICLES: usize = 1024;
-
-/// Most particles, and most sampled pixels a frame, a filter takes from a
-/// caller (`omcl localize`, `omcl bench`, `omcl serve`'s sessions): the
-/// bound keeps a mistyped count from sizing terabytes.
-pub const MAX_COUNT: usize = 1_000_000;
 
 /// Particles of the filter on streets (the paper's outdoor setting, with
 /// [`FilterConfig::street`]'s 4096 rays): `omcl localize` on a KITTI
@@ -157,12 +152,6 @@ impl FilterConfig {
                 why,
             })?;
         }
-        if !self.sensor.miss_score.is_finite() {
-            return Err(MclError::BadParam {
-                name: "sensor.miss_score",
-                why: format!("must be finite, got {}", self.sensor.miss_score),
-            });
-        }
         let width = self.sampling.boundary_margin_width;
         if !(width.is_finite() && width >= 0.0) {
             return Err(MclError::BadParam {
@@ -178,14 +167,13 @@ impl FilterConfig {
     /// comes as JSON, from `--set` and sweep manifests, where
     /// `sampling.rays=100000000000` asked for 800 GB and aborted).
     fn validate_ranges(&self) -> Result<(), MclError> {
-        fn check(ok: bool, name: &'static str, why: String) -> Result<(), MclError> {
+        let check = |ok: bool, name: &'static str, why: String| {
             if ok {
                 Ok(())
             } else {
                 Err(MclError::BadParam { name, why })
             }
-        }
-        let finite_in = |v: f64, lo: f64, hi: f64| v.is_finite() && (lo..=hi).contains(&v);
+        };
         let rays = self.sampling.rays;
         check(
             (1..=MAX_COUNT).contains(&rays),
@@ -198,86 +186,35 @@ impl FilterConfig {
             "sampling.stride",
             format!("must be 1 to 1024 pixels, got {stride}"),
         )?;
-        let miss = self.sensor.miss_score as f64;
+        let miss = self.sensor.miss_score;
         check(
-            finite_in(miss, 0.0, 1.0),
+            (0.0..=1.0).contains(&miss),
             "sensor.miss_score",
             format!("must be in [0, 1], got {miss}"),
         )?;
         let range = self.sensor.max_range;
         check(
-            range > 0.0 && !range.is_nan(),
+            range > 0.0,
             "sensor.max_range",
             format!("must be above 0 metres (null: unlimited), got {range}"),
         )?;
-        for (name, v, hi) in [
-            (
-                "motion.sigma_translation",
-                self.motion.sigma_translation,
-                1e4,
-            ),
-            (
-                "motion.sigma_rotation",
-                self.motion.sigma_rotation,
-                std::f64::consts::TAU,
-            ),
-            ("resample.ess_fraction", self.resample.ess_fraction, 1e3),
-            ("estimate.radius", self.estimate.radius, 1e4),
-        ] {
-            check(
-                finite_in(v, 0.0, hi),
-                name,
-                format!("must be finite, in [0, {hi}], got {v}"),
-            )?;
-        }
+        let ess = self.resample.ess_fraction;
         check(
-            self.estimate.radius > 0.0,
+            ess.is_finite() && ess >= 0.0,
+            "resample.ess_fraction",
+            format!("must be finite and at least 0 (1 or more: every step), got {ess}"),
+        )?;
+        let radius = self.estimate.radius;
+        check(
+            radius > 0.0,
             "estimate.radius",
-            "must be above 0 metres".into(),
+            format!("must be above 0 metres (inf: all particles), got {radius}"),
         )?;
         if let Some(k) = &self.kld {
-            for (name, v) in [
-                ("kld.epsilon", k.epsilon),
-                ("kld.z", k.z),
-                ("kld.bin_xy", k.bin_xy),
-                ("kld.bin_yaw", k.bin_yaw),
-            ] {
-                check(
-                    v.is_finite() && v > 0.0,
-                    name,
-                    format!("must be finite and above 0, got {v}"),
-                )?;
-            }
-            check(
-                1 <= k.min_particles
-                    && k.min_particles <= k.max_particles
-                    && k.max_particles <= MAX_COUNT,
-                "kld.min_particles",
-                format!(
-                    "must have 1 <= min_particles <= max_particles <= {MAX_COUNT}, got {} and {}",
-                    k.min_particles, k.max_particles
-                ),
-            )?;
+            k.validate()?;
         }
         if let Some(r) = &self.recovery {
-            check(
-                0.0 < r.alpha_slow && r.alpha_slow < r.alpha_fast && r.alpha_fast <= 1.0,
-                "recovery.alpha_slow",
-                format!(
-                    "must have 0 < alpha_slow < alpha_fast <= 1, got {} and {}",
-                    r.alpha_slow, r.alpha_fast
-                ),
-            )?;
-            check(
-                finite_in(r.max_fraction, 0.0, 1.0),
-                "recovery.max_fraction",
-                format!("must be in [0, 1], got {}", r.max_fraction),
-            )?;
-            check(
-                (1..=1024).contains(&r.candidates),
-                "recovery.candidates",
-                format!("must be 1 to 1024, got {}", r.candidates),
-            )?;
+            r.validate()?;
         }
         Ok(())
     }

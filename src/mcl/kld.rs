@@ -23,6 +23,37 @@ pub struct KldParams {
     pub max_particles: usize,
 }
 
+impl KldParams {
+    /// Checks the parameters: bounds and bins finite and above 0,
+    /// `1 <= min_particles <= max_particles <=` [`super::MAX_COUNT`].
+    pub fn validate(&self) -> Result<(), super::MclError> {
+        for (name, v) in [
+            ("kld.epsilon", self.epsilon),
+            ("kld.z", self.z),
+            ("kld.bin_xy", self.bin_xy),
+            ("kld.bin_yaw", self.bin_yaw),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(super::MclError::BadParam {
+                    name,
+                    why: format!("must be finite and above 0, got {v}"),
+                });
+            }
+        }
+        let (lo, hi) = (self.min_particles, self.max_particles);
+        if !(1 <= lo && lo <= hi && hi <= super::MAX_COUNT) {
+            return Err(super::MclError::BadParam {
+                name: "kld.min_particles",
+                why: format!(
+                    "must have 1 <= min_particles <= max_particles <= {}, got {lo} and {hi}",
+                    super::MAX_COUNT
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
 impl Default for KldParams {
     fn default() -> Self {
         KldParams {

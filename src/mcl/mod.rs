@@ -59,13 +59,18 @@ pub mod sampling;
 pub mod sensor;
 
 pub use crate::frame::{DenseFeatures, FrameFeatures};
+
+/// Most particles, and most sampled pixels a frame, a filter takes from a
+/// caller (`omcl localize`, `omcl bench`, `omcl serve`'s sessions, a
+/// configuration's JSON): the bound keeps a mistyped count from sizing
+/// terabytes.
+pub const MAX_COUNT: usize = 1_000_000;
 pub use anneal::Anneal;
 pub use estimate::{Estimate, EstimateParams, average_rotations, estimate};
 pub use filter::{
     FLOOR_PLAN_ESTIMATE_RADIUS, FLOOR_PLAN_RAYS, FLOOR_PLAN_SHARPEN, Filter, FilterConfig,
-    INDOOR_PARTICLES, MAX_COUNT, SIX_DOF_PARTICLES, SIX_DOF_POINT_CLOUD_RAYS,
-    SIX_DOF_POINT_CLOUD_SHARPEN, SIX_DOF_RAYS, SIX_DOF_SHARPEN, STREET_PARTICLES, StepReport,
-    StepTimings,
+    INDOOR_PARTICLES, SIX_DOF_PARTICLES, SIX_DOF_POINT_CLOUD_RAYS, SIX_DOF_POINT_CLOUD_SHARPEN,
+    SIX_DOF_RAYS, SIX_DOF_SHARPEN, STREET_PARTICLES, StepReport, StepTimings,
 };
 pub use init::{FloorParams, FloorSampler, PromptParams, global_init, local_init, prompt_init};
 pub use motion::{MotionMode, MotionModel};

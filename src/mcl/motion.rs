@@ -80,16 +80,21 @@ pub fn check_pose(p: &Pose) -> Result<(), MclError> {
 }
 
 impl MotionModel {
-    /// Checks the sigmas.
+    /// Checks the sigmas: finite, at least 0, at most 10 km and a full
+    /// turn (`1e300` ran and wrote poses of null).
     pub fn validate(&self) -> Result<(), MclError> {
-        for (name, v) in [
-            ("sigma_translation", self.sigma_translation),
-            ("sigma_rotation", self.sigma_rotation),
+        for (name, v, most) in [
+            ("motion.sigma_translation", self.sigma_translation, 1e4),
+            (
+                "motion.sigma_rotation",
+                self.sigma_rotation,
+                std::f64::consts::TAU,
+            ),
         ] {
-            if !(v.is_finite() && v >= 0.0) {
+            if !(v.is_finite() && (0.0..=most).contains(&v)) {
                 return Err(MclError::BadParam {
                     name,
-                    why: format!("must be finite and >= 0, got {v}"),
+                    why: format!("must be finite, in [0, {most}], got {v}"),
                 });
             }
         }

@@ -21,6 +21,34 @@ pub struct RecoveryParams {
     pub candidates: usize,
 }
 
+impl RecoveryParams {
+    /// Checks the parameters: `0 < alpha_slow < alpha_fast <= 1` (as AMCL
+    /// needs), `max_fraction` in `[0, 1]`, 1 to 1024 candidates.
+    pub fn validate(&self) -> Result<(), super::MclError> {
+        let bad = |name, why| Err(super::MclError::BadParam { name, why });
+        let (slow, fast) = (self.alpha_slow, self.alpha_fast);
+        if !(0.0 < slow && slow < fast && fast <= 1.0) {
+            return bad(
+                "recovery.alpha_slow",
+                format!("must have 0 < alpha_slow < alpha_fast <= 1, got {slow} and {fast}"),
+            );
+        }
+        if !(0.0..=1.0).contains(&self.max_fraction) {
+            return bad(
+                "recovery.max_fraction",
+                format!("must be in [0, 1], got {}", self.max_fraction),
+            );
+        }
+        if !(1..=1024).contains(&self.candidates) {
+            return bad(
+                "recovery.candidates",
+                format!("must be 1 to 1024, got {}", self.candidates),
+            );
+        }
+        Ok(())
+    }
+}
+
 fn default_candidates() -> usize {
     8
 }

@@ -1636,9 +1636,11 @@ fn configurations_out_of_bounds_are_refused_by_field() {
         let e = c.validate().unwrap_err().to_string();
         assert!(e.contains(field), "{field}: {e}");
     }
-    // Unlimited range and resampling every step stay allowed.
+    // Unlimited range, resampling every step and an estimate over all
+    // particles stay allowed.
     let mut c = FilterConfig::default();
     c.sensor.max_range = f32::INFINITY;
     c.resample.ess_fraction = 7.0;
+    c.estimate.radius = f64::INFINITY;
     c.validate().unwrap();
 }

@@ -259,7 +259,7 @@ pub enum Features {
     /// A raw RGB image for the map's encoder.
     Image(image::RgbImage),
     /// A PNG or JPEG file for the map's encoder, its header checked,
-    /// decoded when the frame is stepped ([`Features::rgb`]).
+    /// decoded when the frame is stepped ([`Features::decode`]).
     Compressed(Vec<u8>),
 }
 
@@ -267,18 +267,15 @@ pub enum Features {
 const COMPRESSED: &str = "compressed image";
 
 impl Features {
-    /// The frame's RGB image ([`Features::Image`] as it is, a
-    /// [`Features::Compressed`] one decoded); `None` for other features.
-    pub fn rgb(&self) -> Option<Result<std::borrow::Cow<'_, image::RgbImage>, SessionError>> {
-        match self {
-            Features::Image(rgb) => Some(Ok(std::borrow::Cow::Borrowed(rgb))),
-            Features::Compressed(bytes) => Some(
-                crate::io::rgb::rgb_from_bytes(bytes, std::path::Path::new(COMPRESSED))
-                    .map(std::borrow::Cow::Owned)
-                    .map_err(|e| SessionError::BadFrame(e.to_string())),
-            ),
-            _ => None,
+    /// Turns a [`Features::Compressed`] frame into the [`Features::Image`]
+    /// its bytes decode to (others stay as they are), or says why not.
+    pub fn decode(&mut self) -> Result<(), SessionError> {
+        if let Features::Compressed(bytes) = self {
+            let rgb = crate::io::rgb::rgb_from_bytes(bytes, std::path::Path::new(COMPRESSED))
+                .map_err(|e| SessionError::BadFrame(e.to_string()))?;
+            *self = Features::Image(rgb);
         }
+        Ok(())
     }
 }
 

@@ -426,7 +426,7 @@ impl State {
         slot: &Slot,
         job: Job,
     ) -> (Reply, Result<proto::PoseUpdate, Status>, FrameInput) {
-        let Job { frame, reply } = job;
+        let Job { mut frame, reply } = job;
         if slot.closed.load(Ordering::Relaxed) {
             let st = Status::not_found(format!("session {:?} was closed", slot.id));
             return (reply, Err(st), frame);
@@ -455,6 +455,12 @@ impl State {
             ));
             return (reply, Err(st), frame);
         }
+        // A file's pixels are the frame's own work: decoded before the
+        // session is locked.
+        if let Err(e) = frame.features.decode() {
+            self.metrics.reject("invalid_frame");
+            return (reply, Err(status_of(&e)), frame);
+        }
         let mut session = lock(&slot.session);
         let classes = slot.map.classes();
         let result = match &frame.features {
@@ -475,10 +481,12 @@ impl State {
                     slot.map.name()
                 ))),
             },
-            Features::Image(_) | Features::Compressed(_) => {
+            Features::Compressed(_) => Err(SessionError::BadFrame(
+                "a compressed image reached the step undecoded".into(),
+            )),
+            Features::Image(rgb) => {
                 let k = session.config().intrinsics;
-                let rgb = frame.features.rgb().expect("an image frame");
-                rgb.and_then(|rgb| slot.map.encode(&rgb)).and_then(|m| {
+                slot.map.encode(rgb).and_then(|m| {
                     let f = crate::encode::image::EncodedFrame {
                         map: &m,
                         width: k.width,
