@@ -1096,3 +1096,55 @@ fn outputs_over_the_inputs_are_refused_and_leave_them_intact() {
     assert!(r.ok(), "{}", r.text());
     assert_eq!(read_tum(&est).len(), 4);
 }
+
+/// `map ground` on words that leave out what the map mostly is (walls,
+/// floor) says so: one word would label most voxels (every row takes its
+/// most similar word). With every class of the table, no such note.
+#[test]
+fn grounding_on_too_few_words_is_pointed_out() {
+    let f = Fixture::new();
+    let (classes, emb) = (f.seq.join("classes.txt"), f.seq.join("embeddings.npy"));
+    let out = f.dir.path().join("g.omcl");
+    let ground = |words: &[&str]| {
+        let args = [
+            &["map", "ground", s(&f.map)][..],
+            words,
+            &[
+                "--classes",
+                s(&classes),
+                "--embeddings",
+                s(&emb),
+                "-o",
+                s(&out),
+            ],
+        ]
+        .concat();
+        let r = omcl(&args);
+        assert!(r.ok(), "{}", r.text());
+        r
+    };
+    let r = ground(&["toilet", "sink"]);
+    assert!(
+        r.stderr
+            .contains("of the voxels kept are described by no word")
+            && r.stderr.contains("--min-similarity"),
+        "{}",
+        r.text()
+    );
+    let names: Vec<String> = std::fs::read_to_string(&classes)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            // `<id> <name>` or a name a line.
+            let l = l.trim();
+            match l.split_once(' ') {
+                Some((id, name)) if id.parse::<u32>().is_ok() => name.trim().to_string(),
+                _ => l.to_string(),
+            }
+        })
+        .collect();
+    let all: Vec<&str> = names.iter().map(String::as_str).collect();
+    let r = ground(&all);
+    assert!(!r.stderr.contains("described by no word"), "{}", r.text());
+}

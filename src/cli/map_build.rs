@@ -570,6 +570,7 @@ pub fn ground(a: &GroundArgs) -> anyhow::Result<()> {
     let mut m = map::load(&a.map)?;
     let words = parse_words(&a.words, a.prompt_file.as_deref())?;
     let prompts = a.source.features(&words, m.db().dim())?;
+    let old_counts = m.row_counts();
     let rep = map::ground(&mut m, &prompts, a.min_similarity)?;
     ensure!(
         !m.is_empty(),
@@ -585,8 +586,38 @@ pub fn ground(a: &GroundArgs) -> anyhow::Result<()> {
         rep.kept,
         rep.dropped
     );
+    // Every row takes its most similar word, however loosely it is
+    // described: voxels whose row no word describes closely (the paper's
+    // rho, 0.9) mean the words leave out what the map mostly is.
+    let mut weak = vec![0usize; words.len()];
+    for (r, m) in rep.row_map.iter().enumerate() {
+        if let Some((p, sim)) = *m
+            && sim < CLOSE
+        {
+            weak[p as usize] += old_counts.get(r).copied().unwrap_or(0);
+        }
+    }
+    let loose: usize = weak.iter().sum();
+    if loose * 4 > rep.kept
+        && let Some((w, &n)) = weak.iter().enumerate().max_by_key(|(_, n)| **n)
+    {
+        eprintln!(
+            "note: {:.1} % of the voxels kept are described by no word closer than a cosine of \
+             {CLOSE} ({:.1} % now labelled {:?}, the closest of the words); name what the map \
+             mostly is (walls, floor, road, ...) among the words, or raise --min-similarity \
+             (now {}) to drop what none of them describes",
+            100.0 * loose as f64 / rep.kept.max(1) as f64,
+            100.0 * n as f64 / rep.kept.max(1) as f64,
+            words[w],
+            a.min_similarity
+        );
+    }
     Ok(())
 }
+
+/// A word describes a map row closely from this cosine on (the paper's
+/// prompt threshold rho).
+const CLOSE: f32 = 0.9;
 
 #[derive(Debug, Args)]
 pub struct QueryArgs {
