@@ -152,12 +152,12 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
         "--set",
         "sharpen=5",
         "--set",
-        "sensor.miss_score=-0.5",
+        "sensor.miss_score=0.25",
     ]);
     assert!(o.status.success(), "{text}");
     let v: serde_json::Value = serde_json::from_str(&String::from_utf8_lossy(&o.stdout)).unwrap();
     assert_eq!(v["sharpen"], 5.0);
-    assert_eq!(v["sensor"]["miss_score"], -0.5);
+    assert_eq!(v["sensor"]["miss_score"], 0.25);
     let (o, text) = bench(&["table1", "--show-config", "--set", "sensor.nope=1"]);
     assert!(!o.status.success());
     assert!(text.contains("no parameter \"sensor.nope\""), "{text}");
@@ -194,6 +194,7 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
     for (set, name) in [
         ("anneal.expand=0", "anneal.expand"),
         ("sharpen=-1", "sharpen"),
+        ("sensor.miss_score=-0.5", "sensor.miss_score"),
     ] {
         let out = tempfile::tempdir().unwrap();
         let dir = out.path().join("never");
