@@ -425,18 +425,24 @@ fn values_that_cannot_mean_anything_are_refused_by_name() {
     std::fs::write(&zero, npy).unwrap();
     let two = f.path("two.txt");
     std::fs::write(&two, "0 wall\n1 floor\n").unwrap();
-    let r = omcl(&[
-        "map",
-        "rgbd",
-        s(&seq),
-        "--out",
-        s(&f.path("z.omcl")),
-        "--classes",
-        s(&two),
-        "--embeddings",
-        s(&zero),
-    ]);
-    refused(&r, 1, &[s(&zero), "row 1", "floor", "all zeros"]);
+    let map_with = |emb: &Path| {
+        omcl(&[
+            "map",
+            "rgbd",
+            s(&seq),
+            "--out",
+            s(&f.path("z.omcl")),
+            "--classes",
+            s(&two),
+            "--embeddings",
+            s(emb),
+        ])
+    };
+    refused(
+        &map_with(&zero),
+        1,
+        &[s(&zero), "row 1", "floor", "all zeros"],
+    );
     // A row whose length f32 cannot hold (it localized to nonsense, and
     // mapping said "feature 1 is zero or not finite" naming neither).
     let mut huge = std::fs::read(&zero).unwrap();
@@ -444,18 +450,11 @@ fn values_that_cannot_mean_anything_are_refused_by_name() {
     huge[at..at + 4].copy_from_slice(&1e38f32.to_le_bytes());
     huge[at + 4..].copy_from_slice(&1e38f32.to_le_bytes());
     std::fs::write(&zero, huge).unwrap();
-    let r = omcl(&[
-        "map",
-        "rgbd",
-        s(&seq),
-        "--out",
-        s(&f.path("z.omcl")),
-        "--classes",
-        s(&two),
-        "--embeddings",
-        s(&zero),
-    ]);
-    refused(&r, 1, &[s(&zero), "row 1", "floor", "f32 cannot hold"]);
+    refused(
+        &map_with(&zero),
+        1,
+        &[s(&zero), "row 1", "floor", "f32 cannot hold"],
+    );
     // A model that is not there is named, not its card.
     let r = omcl(&[
         "encode",

@@ -220,30 +220,35 @@ fn plans_replace_nothing_unasked_and_name_in_process_experiments() {
     }
 }
 
+/// Tiny Table I runs of OMCL_GT_exact from seed 1000 (`omcl bench`'s and
+/// `omcl sweep plan`'s options).
+const TINY_TABLE1: [&str; 14] = [
+    "table1",
+    "--variants",
+    "OMCL_GT_exact",
+    "--first-seed",
+    "1000",
+    "--frames",
+    "6",
+    "--map-frames",
+    "20",
+    "--particles",
+    "64",
+    "--rays",
+    "128",
+    "--sequences",
+];
+
 fn plan_args(out: &str, sequences: &str) -> Vec<String> {
     [
-        "sweep",
-        "plan",
-        "table1",
-        "--variants",
-        "OMCL_GT_exact",
-        "--sequences",
-        sequences,
-        "--first-seed",
-        "1000",
-        "--frames",
-        "6",
-        "--map-frames",
-        "20",
-        "--particles",
-        "64",
-        "--rays",
-        "128",
-        "-o",
-        out,
+        &["sweep", "plan"][..],
+        &TINY_TABLE1,
+        &[sequences, "-o", out],
     ]
+    .concat()
+    .into_iter()
     .map(String::from)
-    .to_vec()
+    .collect()
 }
 
 /// `omcl bench` starts afresh unless `--resume`, which reuses the runs
@@ -253,26 +258,7 @@ fn bench_resumes_only_when_asked() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().to_str().unwrap();
     let args = |resume: bool| {
-        let mut v = vec![
-            "bench",
-            "table1",
-            "--variants",
-            "OMCL_GT_exact",
-            "--sequences",
-            "1",
-            "--first-seed",
-            "1000",
-            "--frames",
-            "6",
-            "--map-frames",
-            "20",
-            "--particles",
-            "64",
-            "--rays",
-            "128",
-            "-o",
-            out,
-        ];
+        let mut v = [&["bench"][..], &TINY_TABLE1, &["1", "-o", out]].concat();
         if resume {
             v.push("--resume");
         }
