@@ -8,7 +8,7 @@ use anyhow::{Context, bail, ensure};
 use clap::{Args, Subcommand, ValueEnum};
 use omcl::eval::align::{Alignment, AlignmentResult, align_trajectory};
 use omcl::eval::ape::{PoseErrors, PoseRelation, ape};
-use omcl::eval::associate::{DEFAULT_MAX_DIFF, associate};
+use omcl::eval::associate::{DEFAULT_MAX_DIFF, associate, repeated_stamps};
 use omcl::eval::kitti_metric::{KITTI_LENGTHS, KITTI_STEP, KittiMetric, kitti_metric_with};
 use omcl::eval::localization::CompletionRule;
 use omcl::eval::rpe::{Delta, RpeOptions, rpe};
@@ -344,23 +344,30 @@ fn load_pair(args: &PairArgs) -> anyhow::Result<Paired> {
     let (reference_poses, estimate_poses) = (reference.trajectory.len(), estimate.trajectory.len());
     let estimate_format = estimate.format;
     if ref_stamped && est_stamped {
+        // Repeated stamps pair with the first of each group, as in evo:
+        // said, since many of them mean a file written with too few digits.
+        for (file, path) in [(&reference, &args.reference), (&estimate, &args.estimate)] {
+            if let Some((n, first, stamp)) = repeated_stamps(&file.trajectory) {
+                eprintln!(
+                    "note: {}: {n} poses repeat the time stamp of the pose before (the first: \
+                     pose {}, {stamp} s); each pairs by time as the first of its stamp does, \
+                     as in evo{}",
+                    path.display(),
+                    first + 1,
+                    if n * 10 > file.trajectory.len() {
+                        " (so many: stamps written with too few digits?)"
+                    } else {
+                        ""
+                    }
+                );
+            }
+        }
         let (r, e) = associate(
             &reference.trajectory,
             &estimate.trajectory,
             args.t_max_diff,
             args.t_offset,
-        )
-        .map_err(|e| match &e {
-            omcl::eval::EvalError::SharedStamp { which, .. } => {
-                let file = if *which == "reference" {
-                    &args.reference
-                } else {
-                    &args.estimate
-                };
-                anyhow::anyhow!("{}: {e}", file.display())
-            }
-            _ => e.into(),
-        })?;
+        )?;
         return Ok(Paired {
             reference: r,
             estimate: e,

@@ -38,20 +38,6 @@ pub enum EvalError {
          (offset {offset} s)"
     )]
     NoMatches { max_diff: f64, offset: f64 },
-    /// Poses sharing a stamp cannot be told apart by time: each would
-    /// pair with the first of them.
-    #[error(
-        "{which} poses {first} and {second} share the time stamp {stamp} s; pairing by \
-         time needs distinct stamps (written with too few digits?)",
-        second = first + 1
-    )]
-    SharedStamp {
-        /// `reference` or `estimate`.
-        which: &'static str,
-        /// 1-based.
-        first: usize,
-        stamp: f64,
-    },
     #[error(
         "Umeyama alignment is not possible: the positions are degenerate (collinear or fewer than 2 distinct points)"
     )]
