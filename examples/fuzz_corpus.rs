@@ -184,30 +184,22 @@ fn main() -> Result<()> {
         "l8_8x6.png",
         &png(8, 6, png::ColorType::Grayscale, png::BitDepth::Eight, &lab8),
     )?;
+    // png_rgb, and image_bytes (a frame's PNG or JPEG bytes, as `omcl
+    // serve` takes them) the same PNGs; image_bytes also gets the first
+    // real 7-Scenes colour frame cut to 16 x 12 as a colour and a grey JPEG.
     let rgb: Vec<u8> = (0..144u8).collect();
-    out(
-        "png_rgb",
-        "rgb8_8x6.png",
-        &png(8, 6, png::ColorType::Rgb, png::BitDepth::Eight, &rgb),
-    )?;
-    out(
-        "png_rgb",
-        "tiny_image_input.png",
-        &std::fs::read("tests/data/encode/tiny_image_input.png")?,
-    )?;
-    // image_bytes (a frame's PNG or JPEG bytes, as `omcl serve` takes
-    // them): the PNG seeds, and the first real 7-Scenes colour frame cut
-    // to 16 x 12 as a colour and a grey JPEG.
-    out(
-        "image_bytes",
-        "rgb8_8x6.png",
-        &png(8, 6, png::ColorType::Rgb, png::BitDepth::Eight, &rgb),
-    )?;
-    out(
-        "image_bytes",
-        "tiny_image_input.png",
-        &std::fs::read("tests/data/encode/tiny_image_input.png")?,
-    )?;
+    for target in ["png_rgb", "image_bytes"] {
+        out(
+            target,
+            "rgb8_8x6.png",
+            &png(8, 6, png::ColorType::Rgb, png::BitDepth::Eight, &rgb),
+        )?;
+        out(
+            target,
+            "tiny_image_input.png",
+            &std::fs::read("tests/data/encode/tiny_image_input.png")?,
+        )?;
+    }
     let kitchen = omcl::io::rgb::read_rgb(&shared.join("rgbd_7scenes/frame-000000.color.jpg"))?;
     let small = image::imageops::resize(&kitchen, 16, 12, image::imageops::FilterType::Triangle);
     let jpeg = |img: image::DynamicImage| -> Result<Vec<u8>> {

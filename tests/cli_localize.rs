@@ -506,23 +506,9 @@ fn map_rgbd_refuses_empty_feature_maps_naming_the_file() {
 fn prompt_initialization_explains_what_is_missing() {
     let f = Fixture::new();
     let out = f.existing_out("est.txt");
-    let (classes, emb) = (f.seq.join("classes.txt"), f.seq.join("embeddings.npy"));
+    let classes = f.seq.join("classes.txt");
     let ground = |words: &[&str], to: &Path| {
-        let args = [
-            &["map", "ground", s(&f.map)][..],
-            words,
-            &[
-                "--classes",
-                s(&classes),
-                "--embeddings",
-                s(&emb),
-                "-o",
-                s(to),
-            ],
-        ]
-        .concat();
-        let r = omcl(&args);
-        assert!(r.ok(), "{}", r.text());
+        ground_map(&f, words, to);
     };
     // `--init prompt` with `words` and `extra` options.
     let prompt_with = |map: &Path, words: &str, extra: &[&str]| {
@@ -1097,32 +1083,37 @@ fn outputs_over_the_inputs_are_refused_and_leave_them_intact() {
     assert_eq!(read_tum(&est).len(), 4);
 }
 
+/// `omcl map ground` of the fixture's map on `words` (its class table) into
+/// `to`; the run, which must succeed.
+fn ground_map(f: &Fixture, words: &[&str], to: &Path) -> Run {
+    let (classes, emb) = (f.seq.join("classes.txt"), f.seq.join("embeddings.npy"));
+    let args = [
+        &["map", "ground", s(&f.map)][..],
+        words,
+        &[
+            "--classes",
+            s(&classes),
+            "--embeddings",
+            s(&emb),
+            "-o",
+            s(to),
+        ],
+    ]
+    .concat();
+    let r = omcl(&args);
+    assert!(r.ok(), "{}", r.text());
+    r
+}
+
 /// `map ground` on words that leave out what the map mostly is (walls,
 /// floor) says so: one word would label most voxels (every row takes its
 /// most similar word). With every class of the table, no such note.
 #[test]
 fn grounding_on_too_few_words_is_pointed_out() {
     let f = Fixture::new();
-    let (classes, emb) = (f.seq.join("classes.txt"), f.seq.join("embeddings.npy"));
+    let classes = f.seq.join("classes.txt");
     let out = f.dir.path().join("g.omcl");
-    let ground = |words: &[&str]| {
-        let args = [
-            &["map", "ground", s(&f.map)][..],
-            words,
-            &[
-                "--classes",
-                s(&classes),
-                "--embeddings",
-                s(&emb),
-                "-o",
-                s(&out),
-            ],
-        ]
-        .concat();
-        let r = omcl(&args);
-        assert!(r.ok(), "{}", r.text());
-        r
-    };
+    let ground = |words: &[&str]| ground_map(&f, words, &out);
     let r = ground(&["toilet", "sink"]);
     assert!(
         r.stderr
