@@ -67,15 +67,16 @@ fn main() -> Result<()> {
     omcl::io::ply::write_ply(&p, &cloud)?;
     out("ply", "omcl_binle_feat.ply", &std::fs::read(&p)?)?;
 
-    // ply_header: ascii, count kind 0 -> 1 vertex, no face element, 3 float
-    // properties x y z (never a list), no features, then one vertex line.
+    // ply_header (`ply_from`'s draws): ascii, count kind 0 -> 1 vertex, no
+    // face element, 3 properties x y z, each a float (type 0) and a scalar
+    // (list byte 1), no features, then one vertex line.
     out(
         "ply_header",
         "ascii_one_vertex",
-        b"\x00\x00\x01\x01\x00\x00\x00\x01\x00\x01\x00\x01\x011 2 3\n",
+        b"\x00\x00\x01\x01\x00\x00\x01\x00\x01\x00\x01\x011 2 3\n",
     )?;
     // binary little endian, 2 vertices of 3 floats.
-    let mut b = b"\x01\x00\x02\x01\x00\x00\x00\x01\x00\x01\x00\x01\x01".to_vec();
+    let mut b = b"\x01\x00\x02\x01\x00\x00\x01\x00\x01\x00\x01\x01".to_vec();
     for v in [1.0f32, 2.0, 3.0, 4.0, 5.0, 6.0] {
         b.extend_from_slice(&v.to_le_bytes());
     }

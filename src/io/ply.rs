@@ -277,6 +277,12 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, CloudError> {
                 )?
             }
         };
+        if pos + 1 == header.elements.len() {
+            // Nothing may follow the last element: more data means the
+            // header's count or properties do not describe the file, and
+            // reading on would take one column for another.
+            refuse_trailing_data(path, reader.get_mut(), def, header.encoding)?;
+        }
         break;
     }
     cloud.validate(&path.display().to_string())?;
@@ -289,6 +295,76 @@ impl PropertyAccess for Skip {
     fn new() -> Self {
         Skip
     }
+}
+
+/// Refuses bytes after the last element's records (whitespace aside).
+fn refuse_trailing_data(
+    path: &Path,
+    r: &mut impl BufRead,
+    def: &ElementDef,
+    encoding: Encoding,
+) -> Result<(), CloudError> {
+    let mut rest = Vec::new();
+    // 64 KiB tell enough; a bigger tail is refused all the same.
+    r.take(1 << 16)
+        .read_to_end(&mut rest)
+        .map_err(|e| CloudError::io(path, e))?;
+    if rest.iter().all(u8::is_ascii_whitespace) {
+        return Ok(());
+    }
+    let what = match encoding {
+        Encoding::Ascii => {
+            let first = String::from_utf8_lossy(&rest);
+            let first = first.trim_start().lines().next().unwrap_or_default();
+            let shown: String = first.chars().take(60).collect();
+            format!("more lines follow (the first: '{shown}')")
+        }
+        _ => "more bytes follow".to_string(),
+    };
+    Err(CloudError::format(
+        path,
+        format!(
+            "the header declares {} {} records, but {what}: the header's count \
+             or properties do not describe the file",
+            def.count, def.name
+        ),
+    ))
+}
+
+/// Checks that an ASCII record's line holds exactly the values the
+/// element's properties take (a list: its count, then that many values).
+fn ascii_values_match(line: &str, def: &ElementDef) -> Result<(), String> {
+    let mut tokens = line.split_ascii_whitespace();
+    let mut want = 0usize;
+    for p in def.properties.values() {
+        match &p.data_type {
+            PropertyType::Scalar(_) => {
+                want += 1;
+                if tokens.next().is_none() {
+                    return Ok(()); // too few: the parser names it
+                }
+            }
+            PropertyType::List(..) => {
+                let Some(n) = tokens.next().and_then(|t| t.parse::<usize>().ok()) else {
+                    return Ok(());
+                };
+                want += 1 + n;
+                for _ in 0..n {
+                    if tokens.next().is_none() {
+                        return Ok(());
+                    }
+                }
+            }
+        }
+    }
+    let extra = tokens.count();
+    if extra > 0 {
+        return Err(format!(
+            "{} values on the line, but the header's properties take {want}",
+            want + extra
+        ));
+    }
+    Ok(())
 }
 
 fn read_one<E: PropertyAccess, R: BufRead>(
@@ -318,6 +394,7 @@ fn read_one<E: PropertyAccess, R: BufRead>(
                     break;
                 }
             }
+            ascii_values_match(&line, def)?;
             parser
                 .read_ascii_element(&line, def)
                 .map_err(|e| e.to_string())
@@ -782,6 +859,66 @@ mod tests {
         let e = read_ply(&p).unwrap_err().to_string();
         assert!(
             e.contains("neg.ply") && e.contains("vertex 0") && e.contains("-1"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn data_the_header_does_not_describe_is_refused() {
+        let d = tempfile::tempdir().unwrap();
+        let head = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n\
+                    property float y\nproperty float z\nend_header\n";
+        // Trailing blank lines are fine.
+        let p = write(
+            d.path(),
+            "ok.ply",
+            format!("{head}0 0 0\n1 1 1\n\n \n").as_bytes(),
+        );
+        assert_eq!(read_ply(&p).unwrap().points.len(), 2);
+        // A column the header does not declare (say normals): refused,
+        // not read as if the header were right.
+        let p = write(
+            d.path(),
+            "col.ply",
+            format!("{head}0 0 0 0.5\n1 1 1 0.5\n").as_bytes(),
+        );
+        let e = read_ply(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("col.ply") && e.contains("vertex 0") && e.contains("4 values"),
+            "{e}"
+        );
+        // More vertex lines than the header's count.
+        let p = write(
+            d.path(),
+            "lines.ply",
+            format!("{head}0 0 0\n1 1 1\n2 2 2\n").as_bytes(),
+        );
+        let e = read_ply(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("lines.ply") && e.contains("declares 2 vertex") && e.contains("'2 2 2'"),
+            "{e}"
+        );
+        // Faces after the vertices are still read past.
+        let p = write(
+            d.path(),
+            "faces.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+                 property float z\nelement face 1\nproperty list uchar int vertex_indices\n\
+                 end_header\n0 0 0\n3 0 0 0\n",
+        );
+        assert_eq!(read_ply(&p).unwrap().points.len(), 1);
+        // Binary: a header that leaves out a property (records of 12 bytes
+        // declared, 16 written) leaves bytes over.
+        let mut b = b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n\
+                      property float y\nproperty float z\nend_header\n"
+            .to_vec();
+        for v in [1.0f32, 2.0, 3.0, 9.0, 4.0, 5.0, 6.0, 9.0] {
+            b.extend(v.to_le_bytes());
+        }
+        let p = write(d.path(), "bin.ply", &b);
+        let e = read_ply(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("bin.ply") && e.contains("more bytes follow"),
             "{e}"
         );
     }
