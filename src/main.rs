@@ -21,13 +21,24 @@ fn main() -> ExitCode {
 /// The LAZ decoder (crate `laz`) asserts on some corrupt streams; the LAS
 /// reader catches that and reports the file as corrupt. Its panic message
 /// would only add noise before that error, so the hook drops it; every other
-/// panic is printed as usual.
+/// panic is printed as usual. Output into a closed pipe (`omcl map classes
+/// semantickitti | head -1`) panics in `println!`: the reader has gone, so
+/// omcl ends quietly with 141, as a program the pipe's signal stops.
 fn quiet_contained_panics() {
     let default = std::panic::take_hook();
     std::panic::set_hook(Box::new(move |info| {
         let contained = info
             .location()
             .is_some_and(|l| l.file().contains("/laz-") || l.file().contains("\\laz-"));
+        let payload = info.payload();
+        let message = payload
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| payload.downcast_ref::<&str>().copied())
+            .unwrap_or_default();
+        if message.starts_with("failed printing to stdout") && message.contains("Broken pipe") {
+            std::process::exit(141);
+        }
         if !contained {
             default(info);
         }

@@ -587,6 +587,41 @@ fn a_kitti_folder_without_calib_says_so() {
     refused(&r, 1, &[s(&seq), "calib.txt", "KITTI"]);
 }
 
+/// A typo in the path, or the KITTI dataset's root given for one of its
+/// sequences, is named as such (it was "intrinsics.txt: No such file" or
+/// "cannot tell the format from the extension").
+#[test]
+fn a_missing_folder_or_the_dataset_root_is_named_as_such() {
+    let f = Fixture::new();
+    let root = f.path("dataset");
+    std::fs::create_dir_all(root.join("sequences/00")).unwrap();
+    std::fs::create_dir_all(root.join("sequences/08")).unwrap();
+    let typo = f.path("sequences0");
+    let est = f.path("est.txt");
+    let map = f.path("map.omcl");
+    let localize = |seq: &Path| {
+        omcl(&[
+            "localize",
+            "--map",
+            s(&map),
+            "--sequence",
+            s(seq),
+            "--out",
+            s(&est),
+        ])
+    };
+    refused(&localize(&typo), 1, &[s(&typo), "no such folder"]);
+    let one = root.join("sequences/00");
+    refused(&localize(&root), 1, &[s(&root), "dataset's root", s(&one)]);
+    let new_map = f.path("new.omcl");
+    let cloud = |input: &Path| omcl(&["map", "cloud", s(input), "-o", s(&new_map)]);
+    refused(&cloud(&typo), 1, &[s(&typo), "no such file or folder"]);
+    refused(&cloud(&root), 1, &[s(&root), "dataset's root"]);
+    let r = omcl(&["map", "rgbd", s(&typo), "-o", s(&new_map)]);
+    refused(&r, 1, &[s(&typo), "no such folder"]);
+    assert!(!est.exists() && !new_map.exists());
+}
+
 #[test]
 fn serve_names_unreadable_tls_files_and_one_port_for_both_planes() {
     let f = Fixture::new();
@@ -676,4 +711,22 @@ fn all_zero_point_features_are_named_with_their_file() {
     ]);
     assert!(r.ok(), "{}", r.text());
     assert!(out.exists());
+}
+
+/// `omcl map classes semantickitti | head -1`: output into a pipe whose
+/// reader has gone ends quietly with 141 (as the pipe's signal would), not
+/// a panic and its backtrace.
+#[test]
+fn output_into_a_closed_pipe_ends_quietly() {
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(["map", "classes", "semantickitti"])
+        .stdout(writer)
+        .stderr(std::process::Stdio::piped())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(141), "{stderr}");
+    assert!(stderr.is_empty(), "{stderr}");
 }

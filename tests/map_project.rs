@@ -206,3 +206,76 @@ fn bad_sequences_are_refused_by_name_with_nothing_written() {
     assert!(!ok && text.contains("empty"), "{text}");
     assert!(!empty.join("labels_2").exists());
 }
+
+#[test]
+fn project_writes_only_where_asked_and_never_into_read_only_folders() {
+    use std::os::unix::fs::PermissionsExt;
+    let real = shared("semantickitti/sequences/00");
+    let dir = tempfile::tempdir().unwrap();
+    let seq = dir.path().join("00");
+    copy_dir(&real, &seq);
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let untouched = |what: &str| {
+        for f in ["labels_2", "classes.txt", "embeddings.npy"] {
+            assert!(!seq.join(f).exists(), "{what}: {f} written");
+        }
+    };
+    // A folder marked read-only (the shared data's mode) is left alone,
+    // even by root, whom the permissions do not stop.
+    std::fs::set_permissions(&seq, std::fs::Permissions::from_mode(0o555)).unwrap();
+    let (ok, text) = omcl(&["map", "project", &s(&seq)]);
+    std::fs::set_permissions(&seq, std::fs::Permissions::from_mode(0o755)).unwrap();
+    assert!(
+        !ok && text.contains("read-only") && text.contains("555"),
+        "{text}"
+    );
+    untouched("read-only");
+    // -o elsewhere: the images and the class table there, nothing in the
+    // sequence.
+    let other = dir.path().join("work");
+    let (ok, text) = omcl(&[
+        "map",
+        "project",
+        &s(&seq),
+        "-o",
+        &s(&other.join("labels_2")),
+    ]);
+    assert!(ok, "{text}");
+    untouched("-o elsewhere");
+    assert!(other.join("labels_2/000002.png").exists());
+    assert!(other.join("classes.txt").exists() && other.join("embeddings.npy").exists());
+    // A failure leaves no empty label folder behind (localize would then
+    // say "no frames" instead of the cause).
+    std::fs::remove_file(seq.join("labels/000001.label")).unwrap();
+    let (ok, text) = omcl(&["map", "project", &s(&seq)]);
+    assert!(!ok && text.contains("000001.label"), "{text}");
+    untouched("a missing label file");
+    copy_dir(&real.join("labels"), &seq.join("labels"));
+    // Camera images of another size than KITTI 00's (sequences 04-10):
+    // label images of that size.
+    std::fs::create_dir(seq.join("image_2")).unwrap();
+    image::RgbImage::new(1226, 370)
+        .save(seq.join("image_2/000000.png"))
+        .unwrap();
+    let (ok, text) = omcl(&["map", "project", &s(&seq), "--frames", "1"]);
+    assert!(ok, "{text}");
+    let (w, h, _) = read_label_png(&seq.join("labels_2/000000.png")).unwrap();
+    assert_eq!((w, h), (1226, 370));
+    // `map cloud` does not write its map over a file the sequence is read
+    // from.
+    let poses = std::fs::read(seq.join("poses.txt")).unwrap();
+    for out in ["poses.txt", "calib.txt", "velodyne/000003.bin"] {
+        let (ok, text) = omcl(&[
+            "map",
+            "cloud",
+            &s(&seq),
+            "--classes",
+            "semantickitti",
+            "-o",
+            &s(&seq.join(out)),
+        ]);
+        assert!(!ok && text.contains(out), "{out}: {text}");
+    }
+    assert_eq!(std::fs::read(seq.join("poses.txt")).unwrap(), poses);
+    assert!(!seq.join("velodyne/000003.bin").exists());
+}

@@ -212,6 +212,10 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     ));
     inputs.extend(a.ort_lib.clone().map(|p| ("the --ort-lib".to_string(), p)));
     super::outputs::refuse_overlaps(&[("--out", &a.build.out)], &inputs)?;
+    if a.input.is_dir() {
+        // A sequence folder: its scans, labels, poses and calibration.
+        super::outputs::refuse_inside_sequence(&[("--out", &a.build.out)], &a.input)?;
+    }
     a.build.check()?;
     let input = CloudInput {
         path: a.input.clone(),
@@ -359,6 +363,7 @@ fn sevenscenes(a: &RgbdArgs) -> anyhow::Result<()> {
 }
 
 pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
+    omcl::io::kitti::check_sequence_folder(&a.dir)?;
     a.build.check()?;
     let files = super::outputs::sequence_files(&a.dir);
     let mut inputs: Vec<_> = files
@@ -765,10 +770,11 @@ pub struct ProjectArgs {
     /// P2), poses.txt.
     pub sequence: PathBuf,
     /// Folder of the label images (default: SEQUENCE/labels_2, what
-    /// `omcl localize` reads). A sequence with neither classes.txt nor
-    /// embeddings.npy also gets the built-in SemanticKITTI table there
-    /// (SEQUENCE/classes.txt, SEQUENCE/embeddings.npy), which `omcl
-    /// localize` reads beside the label images; existing ones are kept.
+    /// `omcl localize` reads). The folder that holds it (SEQUENCE by
+    /// default) also gets the built-in SemanticKITTI class table
+    /// (classes.txt, embeddings.npy), which `omcl localize` reads beside
+    /// labels_2/, unless it has one. Nothing is written into SEQUENCE
+    /// when OUT is elsewhere, nor into a folder marked read-only.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
     /// Use at most this many scans (and make that many images).
@@ -824,14 +830,33 @@ pub fn project(a: &ProjectArgs) -> anyhow::Result<()> {
     };
     // Checked before anything is written: the folder opens as a sequence.
     omcl::io::kitti::KittiSequence::open(&a.sequence)?;
+    // The class table goes beside the label images' folder.
+    let table_dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let needs_table =
+        !table_dir.join("classes.txt").exists() && !table_dir.join("embeddings.npy").exists();
+    super::outputs::refuse_read_only("--out", &out)?;
+    if needs_table {
+        super::outputs::refuse_read_only("the class table's folder", &table_dir)?;
+    }
+    let made = !out.exists();
     super::outputs::create_folder("--out", &out)?;
     let t0 = std::time::Instant::now();
     let pb = super::progress::bar(0, "projecting");
     let s = pipeline::project_sequence_labels(&input, &params, &out, &mut |done, total| {
         pb.set_length(total as u64);
         pb.set_position(done as u64);
-    })?;
+    });
     pb.finish_and_clear();
+    let s = s.inspect_err(|_| {
+        if made {
+            // Nothing is written before the scans are read: a failure
+            // leaves the new folder empty, and it goes.
+            let _ = std::fs::remove_dir(&out);
+        }
+    })?;
     let secs = t0.elapsed().as_secs_f64();
     println!(
         "wrote {} label images to {} from {} labelled points ({:.1} % of pixels labelled; {:.2} s, {:.0} ms a frame)",
@@ -842,10 +867,9 @@ pub fn project(a: &ProjectArgs) -> anyhow::Result<()> {
         secs,
         1e3 * secs / s.frames.max(1) as f64
     );
-    let dir = &a.sequence;
-    if !dir.join("classes.txt").exists() && !dir.join("embeddings.npy").exists() {
+    if needs_table {
         let (t, _) = super::encoders::class_table("semantickitti", None, None, None)?;
-        write_table(dir, &t, false)?;
+        write_table(&table_dir, &t, false)?;
     }
     Ok(())
 }

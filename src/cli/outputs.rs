@@ -125,6 +125,7 @@ pub fn refuse_unwritable(outputs: &[(&str, &Path)], figures: &[&str]) -> anyhow:
             "{}: {option} is a folder; give a file name",
             p.display()
         );
+        refuse_read_only(option, p)?;
         if figures.contains(&option) {
             let ext = p
                 .extension()
@@ -141,14 +142,48 @@ pub fn refuse_unwritable(outputs: &[(&str, &Path)], figures: &[&str]) -> anyhow:
     Ok(())
 }
 
+/// Refuses to write at `p` (a file or folder, existing or to be made)
+/// when the nearest folder that exists on its way is marked read-only (no
+/// write bit for anyone): a shared data folder (`../shared/data` is mode
+/// 555) stays as it is even for root, whom the permissions do not stop.
+pub fn refuse_read_only(option: &str, p: &Path) -> anyhow::Result<()> {
+    use std::os::unix::fs::PermissionsExt;
+    let mut at = Some(p);
+    while let Some(d) = at {
+        let d = if d.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            d
+        };
+        if let Ok(m) = std::fs::metadata(d)
+            && m.is_dir()
+        {
+            let mode = m.permissions().mode() & 0o777;
+            anyhow::ensure!(
+                mode & 0o222 != 0,
+                "{}: {option} would write into {}, which is marked read-only (mode {mode:o}); \
+                 omcl does not write there, even as root (choose another path, or work on a \
+                 copy)",
+                p.display(),
+                d.display()
+            );
+            return Ok(());
+        }
+        at = d.parent();
+    }
+    Ok(())
+}
+
 /// Creates the folder `dir` that `option` names (and its parents), or
-/// says by name that a file is in the way.
+/// says by name that a file is in the way or that the folder it would go
+/// in is marked read-only ([`refuse_read_only`]).
 pub fn create_folder(option: &str, dir: &Path) -> anyhow::Result<()> {
     anyhow::ensure!(
         !dir.exists() || dir.is_dir(),
         "{}: {option} names a folder, and this is a file (choose another path)",
         dir.display()
     );
+    refuse_read_only(option, dir)?;
     std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("creating {}: {e}", dir.display()))
 }
 

@@ -40,6 +40,9 @@ pub fn read_point_cloud(
     path: &Path,
     format: Option<CloudFormat>,
 ) -> Result<PointCloud, CloudError> {
+    if !path.exists() {
+        return Err(CloudError::format(path, "no such file or folder"));
+    }
     let format = format
         .or_else(|| CloudFormat::from_path(path))
         .ok_or_else(|| {

@@ -381,6 +381,7 @@ pub(crate) fn numbered_files(
 impl KittiSequence {
     /// Opens a sequence: reads calibration and poses and lists the scans.
     pub fn open(dir: &Path) -> Result<Self, CloudError> {
+        check_sequence_folder(dir)?;
         let calib = read_calib(&dir.join("calib.txt"))?;
         let camera_poses = read_kitti_poses(&dir.join("poses.txt"))?;
         let vel = dir.join("velodyne");
@@ -525,6 +526,45 @@ impl KittiSequence {
             "no points left after filtering",
         )
     }
+}
+
+/// Refuses, by name, a sequence folder that is not there or not a
+/// folder, and the KITTI dataset's root (a `sequences/` folder inside and
+/// no `calib.txt`) with the way to one of its sequences: a typo or the
+/// root otherwise read as a folder missing `calib.txt` or `intrinsics.txt`.
+pub fn check_sequence_folder(dir: &Path) -> Result<(), CloudError> {
+    if !dir.exists() {
+        return Err(CloudError::format(dir, "no such folder"));
+    }
+    if !dir.is_dir() {
+        return Err(CloudError::format(
+            dir,
+            "not a folder (a sequence is a folder)",
+        ));
+    }
+    let sequences = dir.join("sequences");
+    if sequences.is_dir() && !dir.join("calib.txt").exists() {
+        let mut names: Vec<String> = std::fs::read_dir(&sequences)
+            .map(|d| {
+                d.filter_map(|e| e.ok())
+                    .filter(|e| e.path().is_dir())
+                    .filter_map(|e| e.file_name().to_str().map(str::to_string))
+                    .collect()
+            })
+            .unwrap_or_default();
+        names.sort();
+        let example = names.first().map_or("00", String::as_str);
+        return Err(CloudError::format(
+            dir,
+            format!(
+                "a KITTI dataset's root ({} sequences in sequences/); give one sequence's \
+                 folder, e.g. {}",
+                names.len(),
+                sequences.join(example).display()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -28,6 +28,18 @@ use super::rgb::read_rgb;
 use super::rgbd::read_label_png;
 use crate::geometry::Pose;
 
+/// The size of camera 2's images when the sequence has them
+/// (`image_2/000000.png`, its header read): KITTI's sequences differ
+/// (1241 x 376 for 00-02, 1226 x 370 for 04-10). `None` without images.
+pub fn camera2_image_size(dir: &Path) -> Result<Option<(u32, u32)>, CloudError> {
+    let first = dir.join("image_2").join("000000.png");
+    if !first.exists() {
+        return Ok(None);
+    }
+    let bytes = std::fs::read(&first).map_err(|e| CloudError::io(&first, e))?;
+    super::rgb::image_size(&bytes, &first).map(Some)
+}
+
 /// What camera 2 gives the localizer per frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CameraInput {

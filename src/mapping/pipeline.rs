@@ -752,7 +752,8 @@ pub fn refuse_sequence_input(
 /// (down-sampled to `params.spacing`, the authors' dropped classes gone
 /// unless `input.keep_all`), projected at every camera-2 pose
 /// ([`super::projection`]) and written to `out/NNNNNN.png` (16-bit ids,
-/// 0 = no point), each written atomically. `input.frames` caps the scans
+/// 0 = no point; the size of `image_2/`'s images where the sequence has
+/// them, else 1241 x 376), each written atomically. `input.frames` caps the scans
 /// aggregated and the images made.
 pub fn project_sequence_labels(
     input: &CloudInput,
@@ -767,7 +768,9 @@ pub fn project_sequence_labels(
     let (seq, frames, mut opts) = open_sequence(input)?;
     let calib_path = dir.join("calib.txt");
     let calib = read_calib(&calib_path)?;
-    let (w, h) = KITTI_IMAGE_SIZE;
+    // Label images the size of the camera's own, where the sequence has
+    // them; else KITTI 00's.
+    let (w, h) = crate::io::kitti_camera::camera2_image_size(dir)?.unwrap_or(KITTI_IMAGE_SIZE);
     let camera = calib.camera("P2", w, h, &calib_path)?;
     let poses = read_kitti_poses(&dir.join("poses.txt"))?;
     let n = frames.len().min(poses.len());

@@ -124,6 +124,7 @@ impl CameraSequence {
     /// the camera-2 folder read; on 7-Scenes, `pick` the frames (the other
     /// layouts use every frame: any other `pick` is an error).
     pub fn open(dir: &Path, input: CameraInput, pick: FramePick) -> Result<Self, SequenceError> {
+        crate::io::kitti::check_sequence_folder(dir)?;
         let layout = Layout::of(dir);
         if layout != Layout::SevenScenes && (pick.step > 1 || pick.offset > 0) {
             return Err(SequenceError::Input(format!(
