@@ -230,6 +230,26 @@ fn bad_kitti_input_is_named_and_leaves_no_output() {
         r.text()
     );
     assert_eq!(std::fs::read_to_string(&out).unwrap().lines().count(), 11);
+    // poses.txt cut to those 11 frames, times.txt the whole drive's: the
+    // first stamps are theirs. Fewer stamps than poses is refused.
+    let text = std::fs::read_to_string(seq.join("poses.txt")).unwrap();
+    let kept: String = text.lines().take(11).map(|l| format!("{l}\n")).collect();
+    std::fs::write(seq.join("poses.txt"), kept).unwrap();
+    let out = f.dir.path().join("out_cut.txt");
+    let r = f.localize(&f.map, &seq, &out, &[]);
+    assert_eq!(r.code, Some(0), "{}", r.text());
+    assert_eq!(std::fs::read_to_string(&out).unwrap().lines().count(), 11);
+    let text = std::fs::read_to_string(seq.join("times.txt")).unwrap();
+    let kept: String = text.lines().take(10).map(|l| format!("{l}\n")).collect();
+    std::fs::write(seq.join("times.txt"), kept).unwrap();
+    let out = f.existing_out("out_few_stamps.txt");
+    let r = f.localize(&f.map, &seq, &out, &[]);
+    assert_clean_failure(&r, &out, &["times.txt", "10 time stamps for 11 poses"]);
+    // A global start on a street: refused with the reason (its class
+    // table has no floor), not only "floor is not a class".
+    let out = f.existing_out("out_global.txt");
+    let r = f.localize(&f.map, &f.seq, &out, &["--init", "global"]);
+    assert_clean_failure(&r, &out, &["indoor idea", "--init local", "\"floor\""]);
     // A label image of another size than frame 0's (and the camera's).
     let seq = f.copy_seq("small");
     std::fs::copy(

@@ -102,6 +102,24 @@ fn ape_sim3_json_matches_evo_and_bad_pairs_fail() {
         .unwrap();
     assert!(!bad.status.success());
     assert!(String::from_utf8_lossy(&bad.stderr).contains("counts must agree"));
+    // An estimate over the first frames only: the way to compare them.
+    let tmp = tempfile::tempdir().unwrap();
+    let gt = std::fs::read_to_string(dir.join("KITTI_00_gt.txt")).unwrap();
+    let first: String = gt.lines().take(3).map(|l| format!("{l}\n")).collect();
+    let est = tmp.path().join("est.txt");
+    std::fs::write(&est, first).unwrap();
+    let short = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(["eval", "ape"])
+        .arg(dir.join("KITTI_00_gt.txt"))
+        .arg(&est)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&short.stderr);
+    assert!(!short.status.success());
+    assert!(
+        err.contains("first 3 frames") && err.contains("head -n 3"),
+        "{err}"
+    );
 }
 
 /// `--save-aligned` and `--json` never replace the pose files read: the

@@ -378,10 +378,21 @@ fn load_pair(args: &PairArgs) -> anyhow::Result<Paired> {
         });
     }
     if reference_poses != estimate_poses {
+        // A run over a sequence's first frames (a folder with the first
+        // scans and the whole drive's poses) is the usual case.
+        let first = if estimate_poses < reference_poses {
+            format!(
+                " (for a run over the sequence's first {estimate_poses} frames, compare with \
+                 those: head -n {estimate_poses} {} > ref_first.txt)",
+                args.reference.display()
+            )
+        } else {
+            String::new()
+        };
         bail!(
             "{} has {reference_poses} poses and {} has {estimate_poses}; without time stamps on \
              both (TUM files, or --ref-times/--est-times for KITTI files) poses are paired by \
-             index and the counts must agree",
+             index and the counts must agree{first}",
             args.reference.display(),
             args.estimate.display()
         );

@@ -829,7 +829,25 @@ fn open_session(
     }
     let floor_feature = match (a.init, a.recovery) {
         (InitArg::Local, false) => None,
-        _ => Some(words.features("floor", "map word")?.remove(0)),
+        _ => Some(
+            words
+                .features("floor", "map word")
+                .map_err(|e| {
+                    if is_kitti {
+                        // A street's class table has no floor (its ground
+                        // is road, sidewalk, parking, ...).
+                        e.context(
+                            "--init global, --init prompt and --recovery place cameras on the \
+                             map's floor, an indoor idea; on a KITTI sequence start from a pose \
+                             (--init local, the default: the first ground-truth pose or \
+                             --init-pose)",
+                        )
+                    } else {
+                        e
+                    }
+                })?
+                .remove(0),
+        ),
     };
     let config = SessionConfig {
         intrinsics: k,

@@ -93,7 +93,8 @@ impl KittiCameraSequence {
     /// the input folder holds frames `000000`, `000001`, ... without a
     /// gap: all of the sequence's or its first ones (a copy of the first
     /// scans), whose poses and times are kept; more frames than poses, or
-    /// none, is an error naming both files.
+    /// none, is an error naming both files. `times.txt` may run longer
+    /// than `poses.txt` (the whole drive's stamps), not shorter.
     pub fn open(dir: &Path, input: CameraInput) -> Result<Self, CloudError> {
         let calib_path = dir.join("calib.txt");
         let calib = read_calib(&calib_path)?;
@@ -102,17 +103,20 @@ impl KittiCameraSequence {
         let n = camera0_poses.len();
         let times_path = dir.join("times.txt");
         let times = if times_path.exists() {
-            let t = read_times(&times_path)?;
-            if t.len() != n {
+            let mut t = read_times(&times_path)?;
+            // The whole drive's stamps with poses.txt cut to the frames
+            // at hand: the first stamps are theirs.
+            if t.len() < n {
                 return Err(CloudError::mismatch(
                     &times_path,
                     format!(
-                        "{} time stamps for {n} poses in {}",
+                        "{} time stamps for {n} poses in {}: every pose needs its stamp",
                         t.len(),
                         poses_path.display()
                     ),
                 ));
             }
+            t.truncate(n);
             t
         } else {
             (0..n).map(|i| i as f64 * 0.1).collect()
