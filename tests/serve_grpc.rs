@@ -421,12 +421,39 @@ async fn caps_overload_idle_expiry_and_shutdown() {
         dim: 512,
         data: vec![0.5; 24 * 32 * 512],
     }));
-    let e = c.localize(fr).await.unwrap_err();
+    let e = c.localize(fr.clone()).await.unwrap_err();
     assert!(
         matches!(e.code(), Code::ResourceExhausted | Code::OutOfRange),
         "{e:?}"
     );
     c.localize(f.frame(&b, 1)).await.unwrap();
+    // In a stream, the stream ends with that status, not with OK and the
+    // frames after it silently unread.
+    let frames = vec![f.frame(&b, 2), fr, f.frame(&b, 3), f.frame(&b, 4)];
+    let mut answers = c
+        .stream(tokio_stream::iter(frames))
+        .await
+        .unwrap()
+        .into_inner();
+    let end = loop {
+        match answers.message().await {
+            Ok(Some(_)) => {}
+            Ok(None) => break None,
+            Err(e) => break Some(e),
+        }
+    };
+    let e = end.expect("the stream ended with OK after an oversized frame");
+    assert_eq!(e.code(), Code::OutOfRange, "{e:?}");
+    assert!(e.message().contains("too large"), "{e:?}");
+    c.localize(f.frame(&b, 5)).await.unwrap();
+    // A session whose step would cast more rays than --max-rays-per-step
+    // (here 2^27) is refused up front: a running step cannot be stopped.
+    let mut huge = f.create(0);
+    huge.particles = Some(1_000_000);
+    huge.rays = Some(1_000_000);
+    let e = c.create_session(huge).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    assert!(e.message().contains("--max-rays-per-step"), "{e:?}");
 
     // Idle sessions expire (1 s): wait until the server says none is open
     // (a hang guard of a minute, not a time bound).
@@ -442,10 +469,45 @@ async fn caps_overload_idle_expiry_and_shutdown() {
     };
     let e = c.localize(f.frame(&a, 0)).await.unwrap_err();
     assert_eq!(e.code(), Code::NotFound, "{e:?}");
+    assert!(e.message().contains("--idle-timeout-s"), "{e:?}");
     assert!(
         metrics.contains("omcl_sessions_expired_total 2"),
         "{metrics}"
     );
+    let e = c.localize(f.frame("s999-00000000", 0)).await.unwrap_err();
+    assert!(e.message().contains("unknown session"), "{e:?}");
+
+    // Closing a session whose long step runs answers at once (it waited
+    // for the step, and a shutdown waited for the close): the close
+    // returns while the step's call is still pending.
+    let long = c.create_session({
+        let mut r = f.create(0);
+        r.particles = Some(30_000);
+        r
+    });
+    let long = long.await.unwrap().into_inner().session_id;
+    let mut cl = c.clone();
+    let fl = f.frame(&long, 0);
+    let stepping = tokio::spawn(async move { cl.localize(fl).await });
+    let t0 = Instant::now();
+    loop {
+        let (_, metrics) = server.get("/metrics", &[("Authorization", &bearer)]);
+        if metrics.contains("omcl_queue_depth 1") {
+            break;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(60), "{metrics}");
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
+    c.close_session(proto::CloseSessionRequest {
+        session_id: long.clone(),
+    })
+    .await
+    .unwrap();
+    assert!(
+        !stepping.is_finished(),
+        "the close waited for the step to end"
+    );
+    stepping.await.unwrap().unwrap();
 
     // Graceful shutdown: a step in flight is answered, then the process
     // exits by itself with status 0.

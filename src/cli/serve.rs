@@ -96,9 +96,17 @@ pub struct ServeArgs {
     /// whose caller has gone by its turn is not stepped either.
     #[arg(long, default_value_t = 10.0, value_parser = super::positive_seconds)]
     pub deadline_s: f64,
-    /// Largest gRPC message, MiB.
+    /// Largest gRPC message, MiB (a larger one is answered OUT_OF_RANGE;
+    /// in a stream, the stream ends with it).
     #[arg(long, default_value_t = 32, value_parser = super::count_in::<1, 4096>)]
     pub max_message_mib: usize,
+    /// A session's particles x rays at most (the rays a step casts):
+    /// CreateSession over it is refused. A running step cannot be stopped,
+    /// so this bounds what one costs (the default, 2^27, is 64 times the
+    /// paper's 1024 x 2048, a few seconds on a 2-core host).
+    #[arg(long, default_value_t = omcl::serve::DEFAULT_MAX_RAYS_PER_STEP,
+          value_parser = super::count_in::<1, { usize::MAX }>)]
+    pub max_rays_per_step: usize,
     /// PEM certificate chain for TLS on both planes, gRPC and HTTPS (with
     /// --tls-key).
     #[arg(long, requires = "tls_key")]
@@ -158,6 +166,7 @@ pub fn run(a: ServeArgs) -> anyhow::Result<()> {
         idle_timeout: seconds(a.idle_timeout_s, "idle-timeout-s")?,
         deadline: seconds(a.deadline_s, "deadline-s")?,
         max_message_bytes: a.max_message_mib.max(1) << 20,
+        max_rays_per_step: a.max_rays_per_step,
         ..Limits::default()
     };
     if let Some(t) = a.threads {

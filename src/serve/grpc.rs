@@ -141,6 +141,18 @@ impl Localization for Service {
                 crate::mcl::MAX_COUNT
             )));
         }
+        // A step cannot be stopped once it runs (its caller may give up,
+        // its session may close, the server may be told to stop): what one
+        // may cost is bounded here.
+        let most = particles.max(base.kld.as_ref().map_or(0, |k| k.max_particles));
+        let cap = self.state.limits.max_rays_per_step;
+        if most.saturating_mul(rays) > cap {
+            return Err(Status::invalid_argument(format!(
+                "particles x rays: {most} x {rays} = {} rays a step, over the server's \
+                 --max-rays-per-step {cap}",
+                most.saturating_mul(rays)
+            )));
+        }
         let start = match &r.start {
             Some(proto::create_session_request::Start::InitialPose(p)) => convert::initial_pose(p)?,
             Some(proto::create_session_request::Start::Global(_)) => Start::Global,
@@ -296,9 +308,18 @@ impl Localization for Service {
                 };
                 let f = match next {
                     Ok(Some(f)) => f,
-                    // End of the client's stream, or a transport error
-                    // (the client is gone).
-                    Ok(None) | Err(_) => break,
+                    // End of the client's stream.
+                    Ok(None) => break,
+                    // A message that could not be read (over
+                    // --max-message-mib: OUT_OF_RANGE), after which the
+                    // stream carries nothing more: it ends with that
+                    // status, not an OK that hides the frames after it. A
+                    // transport error (the client gone) goes nowhere.
+                    Err(s) => {
+                        state.metrics.reject("invalid_frame");
+                        let _ = tx.send(Err(s)).await;
+                        break;
+                    }
                 };
                 budget = budget.saturating_sub(prost::Message::encoded_len(&f));
                 if state.shutting_down.load(Ordering::Relaxed) {

@@ -41,6 +41,7 @@ use tokio_stream::wrappers::TcpListenerStream;
 use crate::session::SharedMap;
 
 pub use auth::Token;
+pub use state::DEFAULT_MAX_RAYS_PER_STEP;
 pub use state::{Limits, State};
 
 /// Errors that stop the server.

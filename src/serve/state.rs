@@ -56,9 +56,17 @@ pub struct Limits {
     pub max_message_bytes: usize,
     /// Answers of a stream buffered for a slow reader; more are dropped.
     pub stream_buffer: usize,
+    /// A session's particles x rays at most: the rays one step casts. A
+    /// step cannot be stopped once it runs; this bounds how long one takes.
+    pub max_rays_per_step: usize,
     /// The retry hint sent with RESOURCE_EXHAUSTED / 503.
     pub retry_after: Duration,
 }
+
+/// 2^27 rays a step: 64 times the paper's 1024 particles x 2048 rays, a
+/// few seconds of a 2-core host's time (a step at the paper's size
+/// takes about 50 ms on one).
+pub const DEFAULT_MAX_RAYS_PER_STEP: usize = 1 << 27;
 
 impl Default for Limits {
     fn default() -> Self {
@@ -72,6 +80,7 @@ impl Default for Limits {
             deadline: Duration::from_secs(10),
             max_message_bytes: 32 << 20,
             stream_buffer: 16,
+            max_rays_per_step: DEFAULT_MAX_RAYS_PER_STEP,
             retry_after: Duration::from_millis(200),
         }
     }
@@ -106,6 +115,10 @@ pub struct Slot {
     session: Mutex<Session>,
     queue: Mutex<Queue>,
     pub frames_dropped: AtomicU64,
+    /// Frames stepped, as the session counts them after each step: read
+    /// without the session's lock, which a long step holds (closing a
+    /// session or listing them waited for it).
+    frames: AtomicU64,
     last_used: Mutex<Instant>,
     closed: AtomicBool,
     /// How many times a step has taken the frame waiting behind it (stream
@@ -125,7 +138,7 @@ impl Slot {
         lock(&self.last_used).elapsed()
     }
     pub fn frames(&self) -> u64 {
-        lock(&self.session).frames()
+        self.frames.load(Ordering::Relaxed)
     }
     /// The count of takes, seen as it is now: `changed()` returns at the
     /// next take (every receiver is told, so any number of streams may
@@ -156,12 +169,19 @@ pub struct State {
     /// Open gRPC connections, capped.
     pub connections: super::connections::Connections,
     sessions: Mutex<HashMap<String, Arc<Slot>>>,
+    /// Ids of the sessions closed for idling, the latest
+    /// [`EXPIRED_REMEMBERED`], so that a call for one says why it is gone.
+    expired: Mutex<std::collections::VecDeque<String>>,
     compute: super::compute::Compute,
     /// Steps queued or running on the pool.
     queued: AtomicUsize,
     next_id: AtomicU64,
     pub shutting_down: AtomicBool,
 }
+
+/// Idled-out session ids remembered for their message (ids are about 20
+/// bytes: 80 KB at most).
+const EXPIRED_REMEMBERED: usize = 4096;
 
 /// The RESOURCE_EXHAUSTED answer with its retry hint (`retry-after-ms`).
 pub fn exhausted(msg: impl Into<String>, retry_after: Duration) -> Status {
@@ -199,6 +219,7 @@ impl State {
             metrics: Metrics::default(),
             connections,
             sessions: Mutex::new(HashMap::new()),
+            expired: Mutex::default(),
             compute,
             queued: AtomicUsize::new(0),
             next_id: AtomicU64::new(1),
@@ -214,9 +235,20 @@ impl State {
 
     pub fn session(&self, id: &str) -> Result<Arc<Slot>, Status> {
         let s = lock(&self.sessions).get(id).cloned();
-        s.ok_or_else(|| {
-            Status::not_found(format!("unknown session {}", super::convert::quoted(id)))
-        })
+        s.ok_or_else(|| self.unknown_session(id))
+    }
+
+    /// NOT_FOUND for a session id, saying so when it idled out.
+    fn unknown_session(&self, id: &str) -> Status {
+        let quoted = super::convert::quoted(id);
+        if lock(&self.expired).iter().any(|e| e == id) {
+            return Status::not_found(format!(
+                "session {quoted} was closed after {:.0} s without a frame or call (the \
+                 server's --idle-timeout-s); create a new one",
+                self.limits.idle_timeout.as_secs_f64()
+            ));
+        }
+        Status::not_found(format!("unknown session {quoted}"))
     }
 
     pub fn sessions(&self) -> Vec<Arc<Slot>> {
@@ -272,6 +304,7 @@ impl State {
                 map,
                 frame_id,
                 camera: session.config().intrinsics,
+                frames: AtomicU64::new(session.frames()),
                 session: Mutex::new(session),
                 queue: Mutex::new(Queue::default()),
                 frames_dropped: AtomicU64::new(0),
@@ -288,9 +321,7 @@ impl State {
 
     pub fn remove_session(&self, id: &str) -> Result<Arc<Slot>, Status> {
         let s = lock(&self.sessions).remove(id);
-        let s = s.ok_or_else(|| {
-            Status::not_found(format!("unknown session {}", super::convert::quoted(id)))
-        })?;
+        let s = s.ok_or_else(|| self.unknown_session(id))?;
         s.closed.store(true, Ordering::Relaxed);
         Ok(s)
     }
@@ -299,15 +330,24 @@ impl State {
     /// theirs is queued or running). Returns how many.
     pub fn expire_idle(&self) -> usize {
         let mut all = lock(&self.sessions);
-        let before = all.len();
-        all.retain(|_, s| {
+        let mut gone = Vec::new();
+        all.retain(|id, s| {
             let keep = s.busy() || s.idle() < self.limits.idle_timeout;
             if !keep {
                 s.closed.store(true, Ordering::Relaxed);
+                gone.push(id.clone());
             }
             keep
         });
-        let n = before - all.len();
+        drop(all);
+        let n = gone.len();
+        let mut expired = lock(&self.expired);
+        for id in gone {
+            if expired.len() == EXPIRED_REMEMBERED {
+                expired.pop_front();
+            }
+            expired.push_back(id);
+        }
         self.metrics
             .sessions_expired
             .fetch_add(n as u64, Ordering::Relaxed);
@@ -517,6 +557,7 @@ impl State {
                 Err(status_of(&e))
             }
         };
+        slot.frames.store(session.frames(), Ordering::Relaxed);
         drop(session);
         slot.touch();
         (reply, answer, frame)
