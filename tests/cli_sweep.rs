@@ -59,6 +59,24 @@ fn runs_are_idempotent_and_bad_input_names_the_run_and_file() {
         "{text}"
     );
     assert!(text.contains("missing runs: 0-2"), "{text}");
+    // A results folder that is not there (a typo) is named.
+    let nowhere = dir.path().join("no_such_results");
+    let (o, text) = omcl(&[
+        "sweep",
+        "status",
+        &m,
+        "--results",
+        nowhere.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{text}");
+    assert!(text.contains("no_such_results does not exist"), "{text}");
+    // A pool of workers larger than the sweep: the extra ones have
+    // nothing to do, which is no failure.
+    let (o, text) = omcl(&["sweep", "run", &m, "--index", "5", "--stride", "10"]);
+    assert!(o.status.success(), "{text}");
+    assert!(text.contains("none of the 3 runs"), "{text}");
+    let (o, text) = omcl(&["sweep", "run", &m, "--index", "5"]);
+    assert_eq!(o.status.code(), Some(1), "{text}");
 
     // One run by index, then all: the first is not computed again.
     let (o, text) = omcl(&["sweep", "run", &m, "--index", "1"]);
@@ -94,6 +112,43 @@ fn runs_are_idempotent_and_bad_input_names_the_run_and_file() {
         serde_json::from_str(&std::fs::read_to_string(out.join("table1.json")).unwrap()).unwrap();
     assert_eq!(rows[0]["per_sequence"].as_array().unwrap().len(), 3);
     assert!(out.join("figure4_OMCL_GT_exact.png").exists());
+    // What a collect wrote is recorded, and the next collect into the
+    // folder removes it first: one sweep's tables never stand beside
+    // another's (an earlier sweep's figure of another variant, here).
+    let stamp = std::fs::read_to_string(out.join("collected.txt")).unwrap();
+    assert!(stamp.lines().any(|l| l == "table1.json"), "{stamp}");
+    std::fs::write(out.join("figure4_OMCL_Other.png"), b"an older sweep's").unwrap();
+    std::fs::write(
+        out.join("collected.txt"),
+        stamp + "figure4_OMCL_Other.png\n",
+    )
+    .unwrap();
+    std::fs::write(out.join("notes.txt"), b"mine").unwrap();
+    let (o, text) = omcl(&["sweep", "collect", &m, "-o", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{text}");
+    assert!(!out.join("figure4_OMCL_Other.png").exists());
+    assert!(out.join("table1.json").exists() && out.join("notes.txt").exists());
+    // Tables no collect recorded: refused unless --force, and kept.
+    let theirs = dir.path().join("theirs");
+    std::fs::create_dir(&theirs).unwrap();
+    std::fs::write(theirs.join("bench.md"), b"another sweep's table").unwrap();
+    let (o, text) = omcl(&["sweep", "collect", &m, "-o", theirs.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("bench.md") && text.contains("--force"),
+        "{text}"
+    );
+    assert!(!theirs.join("table1.json").exists());
+    let (o, text) = omcl(&[
+        "sweep",
+        "collect",
+        &m,
+        "-o",
+        theirs.to_str().unwrap(),
+        "--force",
+    ]);
+    assert!(o.status.success(), "{text}");
+    assert!(theirs.join("table1.json").exists() && theirs.join("bench.md").exists());
 
     // Corrupt run 0's result; make run 2's manifest line another version's.
     let bad_result = result_file(dir.path(), &ids[0]);

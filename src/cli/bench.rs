@@ -113,7 +113,9 @@ fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
     let cache = Cache::new(dir.join("cache"), true)?;
     let all: Vec<usize> = (0..manifest.len()).collect();
     let failures = run_with_progress(&manifest, &all, &results, &cache, a.jobs);
-    let c = report::collect(&manifest, &results, Some(cache.dir()), &a.out)?;
+    // The bench's own folder: what it holds besides an earlier run's
+    // recorded files is left as it is.
+    let c = report::collect(&manifest, &results, Some(cache.dir()), &a.out, true)?;
     println!("{}", c.markdown);
     println!("wrote {}", a.out.display());
     if table4 {

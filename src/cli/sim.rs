@@ -3,7 +3,6 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use indicatif::{ProgressBar, ProgressStyle};
 
 use omcl::sim::dataset::{self, IndoorDatasetConfig};
 use omcl::sim::features::Preset;
@@ -176,14 +175,6 @@ fn load_table(dir: Option<&Path>) -> anyhow::Result<omcl::sim::embeddings::Class
     })
 }
 
-fn progress_bar(n: usize) -> ProgressBar {
-    let pb = ProgressBar::new(n as u64);
-    if let Ok(style) = ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} frames ({eta})") {
-        pb.set_style(style.progress_chars("=> "));
-    }
-    pb
-}
-
 /// Runs one `omcl sim` command.
 pub fn run(cmd: SimCommand) -> anyhow::Result<()> {
     match cmd {
@@ -263,8 +254,7 @@ fn indoor(a: IndoorArgs) -> anyhow::Result<()> {
                 / 1_000_000
         );
     }
-    let pb = progress_bar(frames);
-    pb.set_message("rendering");
+    let pb = super::progress::bar_of(frames as u64, "rendering", "frames");
     let mut summary = dataset::write_indoor(staging.path(), &cfg, &table, (&drift, source), &|n| {
         pb.set_position(n as u64)
     })
@@ -335,8 +325,7 @@ fn outdoor(a: OutdoorArgs) -> anyhow::Result<()> {
     cfg.feature_stride = feature_stride;
     let table = load_table(table.as_deref())?;
     let staging = super::outputs::stage_sim_folder(&out, &dataset::OUTDOOR_ENTRIES, force)?;
-    let pb = progress_bar(frames);
-    pb.set_message("scanning");
+    let pb = super::progress::bar_of(frames as u64, "scanning", "frames");
     let mut summary = dataset::write_outdoor(staging.path(), &cfg, &gt, &table, &|n| {
         pb.set_position(n as u64)
     })

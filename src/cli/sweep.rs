@@ -112,9 +112,14 @@ pub struct CollectCmd {
     pub manifest: PathBuf,
     #[command(flatten)]
     pub dirs: Dirs,
-    /// Output folder of the tables and figures.
+    /// Output folder of the tables and figures. What an earlier collect
+    /// wrote there (listed in its collected.txt) is replaced; other tables
+    /// or figures there are refused (see --force).
     #[arg(long, short)]
     pub out: PathBuf,
+    /// Write beside tables and figures in --out that no collect recorded.
+    #[arg(long)]
+    pub force: bool,
 }
 
 #[derive(Debug, Args)]
@@ -229,7 +234,18 @@ fn run_entries(c: RunCmd) -> anyhow::Result<()> {
         (Some(i), None) => vec![i],
         (Some(i), Some(s)) => {
             anyhow::ensure!(s > 0, "--stride must be at least 1");
-            (i..manifest.len().max(i + 1)).step_by(s).collect()
+            // A fixed pool of workers (`--index $i --stride N`) may have
+            // more workers than runs: the extra ones have nothing to do.
+            if i >= manifest.len() {
+                eprintln!(
+                    "note: --index {i} --stride {s}: none of the {} runs of {} falls to this \
+                     worker",
+                    manifest.len(),
+                    c.manifest.display()
+                );
+                return Ok(());
+            }
+            (i..manifest.len()).step_by(s).collect()
         }
         _ => (0..manifest.len()).collect(),
     };
@@ -250,6 +266,7 @@ fn status(c: StatusCmd) -> anyhow::Result<()> {
     let manifest = Manifest::read(&c.manifest)?;
     let results = ResultDir::new(c.results.unwrap_or_else(|| beside(&c.manifest, "results")));
     let s = sweep::status(&manifest, &results);
+    warn_no_results(&results);
     println!(
         "{} runs: {} done, {} failed, {} missing",
         manifest.len(),
@@ -273,11 +290,23 @@ fn status(c: StatusCmd) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A results folder that is not there (a typo in --results, or no run
+/// yet): every run counts as missing, which status and slurm say.
+fn warn_no_results(results: &ResultDir) {
+    if !results.dir.exists() {
+        eprintln!(
+            "note: {} does not exist: no run has written a result there yet (check --results \
+             if runs were done)",
+            results.dir.display()
+        );
+    }
+}
+
 fn collect(c: CollectCmd) -> anyhow::Result<()> {
     let manifest = Manifest::read(&c.manifest)?;
     let results = ResultDir::new(c.dirs.results(&c.manifest));
     let cache = c.dirs.cache(&c.manifest);
-    let r = report::collect(&manifest, &results, Some(&cache), &c.out)?;
+    let r = report::collect(&manifest, &results, Some(&cache), &c.out, c.force)?;
     println!("{}", r.markdown);
     println!("wrote {}", c.out.display());
     finish(&r, 0)
@@ -333,6 +362,7 @@ fn slurm_cmd(c: SlurmCmd) -> anyhow::Result<()> {
         retries: c.retries,
     };
     o.check()?;
+    warn_no_results(&ResultDir::new(&results));
     for (option, d) in [("--results", &results), ("--logs", &logs)] {
         super::outputs::create_folder(option, d)?;
     }

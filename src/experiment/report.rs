@@ -25,19 +25,133 @@ pub struct Collected {
     pub failed: Vec<(usize, String)>,
 }
 
+/// The file in a collect's output folder that names the manifest and the
+/// files that collect wrote: the next collect into the folder removes
+/// those first, so that one sweep's tables never stand beside another's.
+pub const COLLECTED: &str = "collected.txt";
+
 /// Reads the results of `manifest` from `results` and writes the tables
 /// and figures of its experiments into `out` (created if missing). Floor
 /// plans of Figure 4 come from the maps in `cache` where they are there.
+///
+/// The files an earlier collect wrote into `out` (listed in its
+/// [`COLLECTED`]) are removed first. Tables or figures in `out` that no
+/// collect recorded (another tool's, or written before 2026-11-28) are
+/// refused unless `beside_foreign`.
 pub fn collect(
     manifest: &Manifest,
     results: &ResultDir,
     cache: Option<&Path>,
     out: &Path,
+    beside_foreign: bool,
 ) -> Result<Collected, SweepError> {
     std::fs::create_dir_all(out).map_err(|source| SweepError::Io {
         path: out.to_path_buf(),
         source,
     })?;
+    clear_previous(out, beside_foreign)?;
+    let before = top_files(out);
+    let collected = collect_into(manifest, results, cache, out)?;
+    let after = top_files(out);
+    let mut written: Vec<&String> = after
+        .iter()
+        .filter(|(name, id)| before.get(*name) != Some(id) && name.as_str() != COLLECTED)
+        .map(|(name, _)| name)
+        .collect();
+    written.sort();
+    let mut stamp = format!(
+        "# Written by omcl sweep collect (or omcl bench) from the manifest below; the next \
+         collect into this folder removes these files first.\nmanifest: {}\n",
+        manifest.path.display()
+    );
+    for name in written {
+        let _ = writeln!(stamp, "{name}");
+    }
+    write_text(&out.join(COLLECTED), &stamp)?;
+    Ok(collected)
+}
+
+/// The plain files at the top of `dir` by name, each with its inode and
+/// modification time (a file rewritten in place of another, atomically,
+/// has a new inode).
+fn top_files(
+    dir: &Path,
+) -> std::collections::HashMap<String, (u64, Option<std::time::SystemTime>)> {
+    use std::os::unix::fs::MetadataExt;
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Default::default();
+    };
+    entries
+        .filter_map(Result::ok)
+        .filter_map(|e| {
+            let m = e.metadata().ok()?;
+            m.is_file()
+                .then(|| {
+                    Some((
+                        e.file_name().into_string().ok()?,
+                        (m.ino(), m.modified().ok()),
+                    ))
+                })
+                .flatten()
+        })
+        .collect()
+}
+
+/// Removes what the collect recorded in `out`'s [`COLLECTED`] wrote, or
+/// refuses tables and figures no collect recorded.
+fn clear_previous(out: &Path, beside_foreign: bool) -> Result<(), SweepError> {
+    let stamp = out.join(COLLECTED);
+    match std::fs::read_to_string(&stamp) {
+        Ok(text) => {
+            for name in text.lines().skip(2) {
+                // Plain names only: never a path out of the folder.
+                if name.is_empty() || name.contains('/') || name == ".." || name == "." {
+                    continue;
+                }
+                let p = out.join(name);
+                if p.is_file() {
+                    std::fs::remove_file(&p)
+                        .map_err(|source| SweepError::Io { path: p, source })?;
+                }
+            }
+            Ok(())
+        }
+        Err(_) if beside_foreign => Ok(()),
+        Err(_) => {
+            let mut foreign: Vec<String> = top_files(out)
+                .into_keys()
+                .filter(|n| {
+                    [".md", ".json", ".png", ".svg"]
+                        .iter()
+                        .any(|x| n.ends_with(x))
+                })
+                .collect();
+            foreign.sort();
+            match foreign.first() {
+                None => Ok(()),
+                Some(first) => Err(SweepError::Plan(format!(
+                    "{}: holds tables or figures no collect recorded ({first}{}): another \
+                     sweep's or your own, which this sweep's would stand beside; collect into \
+                     another folder, or pass --force to write beside them",
+                    out.display(),
+                    if foreign.len() > 1 {
+                        format!(" and {} more", foreign.len() - 1)
+                    } else {
+                        String::new()
+                    }
+                ))),
+            }
+        }
+    }
+}
+
+/// [`collect`]'s tables and figures, written into `out`.
+fn collect_into(
+    manifest: &Manifest,
+    results: &ResultDir,
+    cache: Option<&Path>,
+    out: &Path,
+) -> Result<Collected, SweepError> {
     let mut failed = Vec::new();
     let mut slots = Vec::new();
     for (i, line) in manifest.lines.iter().enumerate() {
