@@ -13,7 +13,11 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {}", chain_message(&e));
-            ExitCode::FAILURE
+            if e.downcast_ref::<cli::CannotSucceed>().is_some() {
+                ExitCode::from(cli::EXIT_CANNOT_SUCCEED)
+            } else {
+                ExitCode::FAILURE
+            }
         }
     }
 }

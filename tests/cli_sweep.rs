@@ -76,7 +76,8 @@ fn runs_are_idempotent_and_bad_input_names_the_run_and_file() {
     assert!(o.status.success(), "{text}");
     assert!(text.contains("none of the 3 runs"), "{text}");
     let (o, text) = omcl(&["sweep", "run", &m, "--index", "5"]);
-    assert_eq!(o.status.code(), Some(1), "{text}");
+    assert_eq!(o.status.code(), Some(3), "{text}");
+    assert!(text.contains("run index 5 is out of range"), "{text}");
 
     // One run by index, then all: the first is not computed again.
     let (o, text) = omcl(&["sweep", "run", &m, "--index", "1"]);
@@ -159,6 +160,14 @@ fn runs_are_idempotent_and_bad_input_names_the_run_and_file() {
     lines[3] = lines[3].replace(&format!("\"omcl\":\"{version}\""), "\"omcl\":\"0.0.1-old\"");
     std::fs::write(&m, lines.join("\n") + "\n").unwrap();
 
+    // A run whose manifest line is unusable cannot succeed on a retry:
+    // exit 3, which the Slurm script does not requeue.
+    let (o, text) = omcl(&["sweep", "run", &m, "--index", "2"]);
+    assert_eq!(o.status.code(), Some(3), "{text}");
+    assert!(
+        text.contains("cannot run") && text.contains("line 4"),
+        "{text}"
+    );
     // Failed runs: listed, and the exit code says so (for scripts).
     let (o, text) = omcl(&["sweep", "status", &m]);
     assert_eq!(o.status.code(), Some(1), "{text}");

@@ -287,6 +287,23 @@ fn a_sweep_through_a_slurm_job_array_equals_the_local_path() {
     let results2 = d.join("results2");
     let logs2 = d.join("logs2");
     let jobs = submit(ms, &results2, &cache, &logs2, "1");
+    // Submitting again while they are queued would run their runs twice:
+    // refused, naming the jobs.
+    let (o, text) = omcl(&[
+        "sweep",
+        "slurm",
+        ms,
+        "--submit",
+        "--results",
+        results2.to_str().unwrap(),
+        "--logs",
+        logs2.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("still queued") && text.contains(&jobs[0]),
+        "{text}"
+    );
     let t = Instant::now();
     while status(ms, &results2).0 < 4 {
         assert!(t.elapsed() < PATIENCE, "{}", diagnostics(&logs2));

@@ -129,6 +129,22 @@ pub const MAX_FRAMES: usize = 100_000;
 /// from `omcl serve`'s clients.
 pub use omcl::mcl::MAX_COUNT;
 
+/// An error no retry can mend (a sweep run's manifest line is unusable):
+/// the process exits 3, which a Slurm task does not requeue.
+#[derive(Debug)]
+pub struct CannotSucceed(pub String);
+
+impl std::fmt::Display for CannotSucceed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for CannotSucceed {}
+
+/// The exit code of [`CannotSucceed`].
+pub const EXIT_CANNOT_SUCCEED: u8 = 3;
+
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Map(cmd) => map::run(cmd),

@@ -136,9 +136,14 @@ pub struct SlurmCmd {
     /// `submit.sh` beside it holds the sbatch commands.
     #[arg(long)]
     pub script: Option<PathBuf>,
-    /// Submit the arrays (else only write the scripts).
+    /// Submit the arrays (else only write the scripts). Refused while
+    /// jobs of this sweep's script are still in the queue (their runs
+    /// would be submitted twice), unless --force.
     #[arg(long)]
     pub submit: bool,
+    /// Submit even while jobs of this sweep's script are queued.
+    #[arg(long, requires = "submit")]
+    pub force: bool,
     /// The omcl binary the tasks run [default: this one].
     #[arg(long)]
     pub omcl: Option<PathBuf>,
@@ -252,6 +257,24 @@ fn run_entries(c: RunCmd) -> anyhow::Result<()> {
     let results = ResultDir::new(c.dirs.results(&c.manifest));
     let cache = Cache::new(c.dirs.cache(&c.manifest), !c.no_build_maps)?;
     let failures = run_with_progress(&manifest, &indices, &results, &cache, c.jobs);
+    // Runs whose manifest line is unusable fail the same way every time:
+    // said by the exit code, so that a Slurm task does not requeue them.
+    let hopeless = |e: &sweep::SweepError| {
+        matches!(
+            e,
+            sweep::SweepError::Manifest { .. } | sweep::SweepError::Index { .. }
+        )
+    };
+    if !failures.is_empty() && failures.iter().all(|(_, e)| hopeless(e)) {
+        let (i, e) = &failures[0];
+        return Err(super::CannotSucceed(format!(
+            "{} of {} runs cannot run (their manifest lines; a retry cannot mend them); the \
+             first, run {i}: {e}",
+            failures.len(),
+            indices.len()
+        ))
+        .into());
+    }
     if let Some((i, e)) = failures.first() {
         anyhow::bail!(
             "{} of {} runs failed; the first, run {i}: {e}",
@@ -386,6 +409,20 @@ fn slurm_cmd(c: SlurmCmd) -> anyhow::Result<()> {
         submit_sh.display()
     );
     if c.submit && !chunks.is_empty() {
+        if !c.force {
+            // Runs of jobs still queued count as to do: submitting them
+            // again would run them twice.
+            let queued = slurm::queued_jobs(&script)?;
+            anyhow::ensure!(
+                queued.is_empty(),
+                "job(s) {} of this sweep ({}) are still queued or running: submitting now \
+                 would run their runs twice; wait for them (squeue), cancel them (scancel {}), \
+                 or pass --force",
+                queued.join(" "),
+                script.display(),
+                queued.join(" ")
+            );
+        }
         let jobs = slurm::submit(&chunks, &o, &script)?;
         println!("submitted job(s) {}", jobs.join(" "));
     }

@@ -188,7 +188,9 @@ export RAYON_NUM_THREADS="${{SLURM_CPUS_PER_TASK:-1}}"
 echo "omcl sweep: job ${{SLURM_ARRAY_JOB_ID:-?}}_${{SLURM_ARRAY_TASK_ID}} run $index on $(hostname -s), restart ${{SLURM_RESTART_COUNT:-0}}"
 {omcl} sweep run {manifest} --index "$index" --results {results} --cache {cache}
 rc=$?
-if [ "$rc" -ne 0 ] && [ "${{SLURM_RESTART_COUNT:-0}}" -lt {retries} ]; then
+if [ "$rc" -eq 3 ]; then
+  echo "omcl sweep: run $index cannot run (exit 3: its manifest line); not requeued" >&2
+elif [ "$rc" -ne 0 ] && [ "${{SLURM_RESTART_COUNT:-0}}" -lt {retries} ]; then
   echo "omcl sweep: run $index failed (exit $rc); requeueing" >&2
   scontrol requeue "${{SLURM_ARRAY_JOB_ID}}_${{SLURM_ARRAY_TASK_ID}}"
 fi
@@ -253,6 +255,27 @@ pub fn submit(
         .collect()
 }
 
+/// The array jobs in the queue (pending or running) that run `script`
+/// (`squeue`'s command column), by job id.
+pub fn queued_jobs(script: &Path) -> Result<Vec<String>, SweepError> {
+    let out = run_tool(Command::new("squeue").args(["--noheader", "--format=%F|%o"]))?;
+    Ok(jobs_running(&out, script))
+}
+
+/// The job ids of `squeue --format=%F|%o` lines whose command is `script`.
+fn jobs_running(squeue: &str, script: &Path) -> Vec<String> {
+    let mut ids: Vec<String> = squeue
+        .lines()
+        .filter_map(|l| {
+            let (id, command) = l.trim().split_once('|')?;
+            (Path::new(command.trim()) == script).then(|| id.trim().to_string())
+        })
+        .collect();
+    ids.sort();
+    ids.dedup();
+    ids
+}
+
 fn run_tool(cmd: &mut Command) -> Result<String, SweepError> {
     let name = format!("{cmd:?}");
     let out = cmd.output().map_err(|source| SweepError::Io {
@@ -272,6 +295,15 @@ fn run_tool(cmd: &mut Command) -> Result<String, SweepError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn queued_jobs_are_those_of_the_script() {
+        let squeue = "1160|/tmp/a/sweep.sbatch\n1160|/tmp/a/sweep.sbatch\n1161|/tmp/b/sweep.sbatch\n\
+                      1170|/tmp/a/sweep.sbatch\n";
+        let a = Path::new("/tmp/a/sweep.sbatch");
+        assert_eq!(jobs_running(squeue, a), vec!["1160", "1170"]);
+        assert!(jobs_running("", a).is_empty());
+    }
 
     #[test]
     fn ranges_by_hand() {
@@ -433,6 +465,47 @@ mod tests {
             "{s}"
         );
         assert!(s.contains("-lt 2 ]"), "{s}");
+        // The script's own logic, run by bash: a failed run is requeued,
+        // one that cannot run (exit 3) is not. `omcl` and `scontrol` are
+        // stand-ins that exit with a code and record the call.
+        let d = tempfile::tempdir().unwrap();
+        let calls = d.path().join("calls");
+        let bin = d.path().join("bin");
+        std::fs::create_dir(&bin).unwrap();
+        let tool = |name: &str, body: &str| {
+            let p = bin.join(name);
+            std::fs::write(&p, format!("#!/bin/sh\n{body}\n")).unwrap();
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o755)).unwrap();
+            p
+        };
+        let fake_omcl = tool("omcl", "exit \"$RUN_EXIT\"");
+        tool("scontrol", &format!("echo \"$@\" >> '{}'", calls.display()));
+        let o = SlurmOptions {
+            omcl: fake_omcl,
+            ..o
+        };
+        let path = d.path().join("job.sh");
+        std::fs::write(&path, script(&o)).unwrap();
+        for (exit, requeued) in [("1", true), ("3", false), ("0", false)] {
+            let _ = std::fs::remove_file(&calls);
+            let st = std::process::Command::new("bash")
+                .arg(&path)
+                .env("PATH", format!("{}:/usr/bin:/bin", bin.display()))
+                .env("RUN_EXIT", exit)
+                .env("SLURM_ARRAY_TASK_ID", "4")
+                .env("SLURM_ARRAY_JOB_ID", "77")
+                .env("SLURM_RESTART_COUNT", "0")
+                .output()
+                .unwrap();
+            assert_eq!(st.status.code(), exit.parse().ok(), "{st:?}");
+            let called = std::fs::read_to_string(&calls).unwrap_or_default();
+            assert_eq!(
+                called == "requeue 77_4\n",
+                requeued,
+                "exit {exit}: {called:?}"
+            );
+        }
         let a = sbatch_args(
             &Chunk {
                 offset: 1001,
