@@ -75,6 +75,14 @@ fn runs_are_idempotent_and_bad_input_names_the_run_and_file() {
     let (o, text) = omcl(&["sweep", "run", &m, "--index", "5", "--stride", "10"]);
     assert!(o.status.success(), "{text}");
     assert!(text.contains("none of the 3 runs"), "{text}");
+    let file = dir.path().join("notes.txt");
+    std::fs::write(&file, b"not a folder").unwrap();
+    let (o, text) = omcl(&["sweep", "run", &m, "--cache", file.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("notes.txt: the map cache is a folder"),
+        "{text}"
+    );
     let (o, text) = omcl(&["sweep", "run", &m, "--index", "5"]);
     assert_eq!(o.status.code(), Some(3), "{text}");
     assert!(text.contains("run index 5 is out of range"), "{text}");

@@ -86,6 +86,39 @@ fn python_client_streams_the_sequence_and_prints_the_cli_poses() {
     assert!(!r.status.success());
     assert!(stderr.contains("UNAUTHENTICATED"), "{stderr}");
     assert!(!stdout.contains("pose"), "{stdout}");
+    assert!(!stderr.contains("Traceback"), "{stderr}");
+    // No server there, a missing sequence, --frames 0: one line each, no
+    // traceback.
+    let client_with = |args: &[&str]| {
+        let r = Command::new("python3")
+            .arg(&client)
+            .args(["--map", "room"])
+            .args(args)
+            .env("OMCL_TOKEN", TOKEN)
+            .output()
+            .unwrap();
+        (
+            r.status.code(),
+            String::from_utf8_lossy(&r.stderr).into_owned(),
+        )
+    };
+    let (code, err) = client_with(&["--target", "127.0.0.1:1", "--sequence", s(&f.seq)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("UNAVAILABLE") && !err.contains("Traceback"),
+        "{err}"
+    );
+    let grpc = server.grpc.to_string();
+    let missing = f.dir.path().join("no_such_sequence");
+    let (code, err) = client_with(&["--target", &grpc, "--sequence", s(&missing)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("no_such_sequence") && !err.contains("Traceback"),
+        "{err}"
+    );
+    let (code, err) = client_with(&["--target", &grpc, "--sequence", s(&f.seq), "--frames", "0"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--frames 0"), "{err}");
 }
 
 /// The client's `frame` lines, as poses.

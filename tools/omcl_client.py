@@ -241,7 +241,7 @@ def main():
                     help="send the camera images rgb/NNNNNN.png (or .jpg) as they are, "
                          "decoded and encoded on the server with the map's image encoder "
                          "(omcl serve --image-model), instead of features/NNNNNN.npy")
-    ap.add_argument("--frames", type=int, help="stream at most this many frames")
+    ap.add_argument("--frames", type=int, help="stream at most this many frames (at least 1)")
     ap.add_argument("--particles", type=int)
     ap.add_argument("--rays", type=int)
     ap.add_argument("--seed", type=int, default=0)
@@ -257,7 +257,19 @@ def main():
     ap.add_argument("--global", dest="global_", action="store_true",
                     help="start globally instead of at the first ground-truth pose")
     a = ap.parse_args()
+    if a.frames is not None and a.frames < 1:
+        ap.error(f"--frames {a.frames}: give at least 1 (leave it out for every frame)")
+    # One line for what went wrong, not a traceback: the server's status,
+    # or the file that could not be read.
+    try:
+        run(a)
+    except grpc.RpcError as e:
+        sys.exit(f"omcl_client: {e.code().name}: {e.details()} (server {a.target})")
+    except (OSError, ValueError) as e:
+        sys.exit(f"omcl_client: {e}")
 
+
+def run(a):
     if a.token_file:
         with open(a.token_file) as f:
             token = f.readline().strip()
@@ -273,7 +285,7 @@ def main():
         sys.exit(f"omcl_client: no map {a.map!r} on the server (it has {names})")
     gt = read_tum(os.path.join(a.sequence, "poses.txt"))
     odom = read_tum(os.path.join(a.sequence, "odometry.txt"))
-    n = min(len(gt), len(odom), a.frames or len(gt))
+    n = min(len(gt), len(odom), a.frames if a.frames is not None else len(gt))
     camera = read_camera(a.sequence)
     init = None if a.global_ else (gt[0][1], gt[0][2])
     sid = client.create_session(a.map, camera, initial_pose=init,
@@ -327,10 +339,13 @@ def main():
                   f"{t.x!r} {t.y!r} {t.z!r} {q.x!r} {q.y!r} {q.z!r} {q.w!r} "
                   f"confidence {r.pose.confidence:.3f} step_ms {r.pose.step_ms:.1f}", flush=True)
             count += 1
-    except grpc.RpcError as e:
-        sys.exit(f"omcl_client: {e.code().name}: {e.details()}")
     finally:
-        client.close_session(sid)
+        # The session is the server's to expire if it has gone meanwhile
+        # (the stream's own error is the one to report).
+        try:
+            client.close_session(sid)
+        except grpc.RpcError:
+            pass
     if unreadable:
         sys.exit(f"omcl_client: {unreadable[0]} (after {count} poses)")
     print(f"{count} poses from session {sid}", file=sys.stderr)

@@ -229,7 +229,8 @@ fn plan(c: PlanCmd) -> anyhow::Result<()> {
         return Ok(());
     }
     sweep::write_manifest(&c.out, &bench, &entries)?;
-    println!("planned {} runs into {}", entries.len(), c.out.display());
+    let runs = if entries.len() == 1 { "run" } else { "runs" };
+    println!("planned {} {runs} into {}", entries.len(), c.out.display());
     Ok(())
 }
 

@@ -356,6 +356,12 @@ impl Cache {
     /// A cache in `dir` (created if missing); `build`: build missing maps.
     pub fn new(dir: impl Into<PathBuf>, build: bool) -> Result<Cache, SweepError> {
         let dir = dir.into();
+        if dir.exists() && !dir.is_dir() {
+            return Err(SweepError::Plan(format!(
+                "{}: the map cache is a folder, and this is a file (--cache)",
+                dir.display()
+            )));
+        }
         std::fs::create_dir_all(&dir).map_err(io_err(&dir))?;
         let table = builtin_table().map_err(|e| SweepError::Plan(e.to_string()))?;
         Ok(Cache {

@@ -74,20 +74,42 @@ fn jpeg_reader<'a>(
             "not a readable PNG or JPEG image: it starts as neither",
         ));
     }
-    if jpeg_end(bytes).is_none() {
-        return Err(CloudError::format(
-            name,
-            format!(
-                "truncated JPEG: its segments end without the end-of-image marker (FF D9) \
-                 ({} bytes in all)",
-                bytes.len()
-            ),
-        ));
+    match jpeg_end(bytes) {
+        Ok(_) => {}
+        Err(JpegWalk::Truncated) => {
+            return Err(CloudError::format(
+                name,
+                format!(
+                    "truncated JPEG: its segments end without the end-of-image marker (FF D9) \
+                     ({} bytes in all)",
+                    bytes.len()
+                ),
+            ));
+        }
+        Err(JpegWalk::NoMarker(at)) => {
+            return Err(CloudError::format(
+                name,
+                format!(
+                    "corrupt JPEG: byte {at} should begin a marker (FF xx) where the segment \
+                     before it ends, and does not ({} bytes in all)",
+                    bytes.len()
+                ),
+            ));
+        }
     }
     Ok(image::ImageReader::with_format(
         Cursor::new(bytes),
         image::ImageFormat::Jpeg,
     ))
+}
+
+/// Why a JPEG's segments do not reach its end-of-image marker.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum JpegWalk {
+    /// The data ends first.
+    Truncated,
+    /// No marker at this byte, where a segment ends.
+    NoMarker(usize),
 }
 
 /// Where a JPEG's own end-of-image marker (`FF D9`) ends, found by walking
@@ -96,33 +118,37 @@ fn jpeg_reader<'a>(
 /// entropy-coded data ends at the first marker that is neither a stuffed
 /// `FF 00` nor a restart (`FF D0`-`D7`). Bytes after the marker (a
 /// phone's appended video, a driver's padding) are the file's business;
-/// `None` when the data ends first (a truncated file).
-fn jpeg_end(bytes: &[u8]) -> Option<usize> {
+/// [`JpegWalk`] says why not: the data ends first (a truncated file), or a
+/// segment ends where no marker follows (bytes changed or inserted).
+fn jpeg_end(bytes: &[u8]) -> Result<usize, JpegWalk> {
+    use JpegWalk::Truncated;
+    let byte = |i: usize| bytes.get(i).copied().ok_or(Truncated);
     let mut i = 2; // after SOI
     loop {
         // Fill bytes (FF FF ...) may precede a marker.
         while bytes.get(i) == Some(&0xff) && bytes.get(i + 1) == Some(&0xff) {
             i += 1;
         }
-        if bytes.get(i) != Some(&0xff) {
-            return None;
+        if byte(i)? != 0xff {
+            return Err(JpegWalk::NoMarker(i));
         }
-        let marker = *bytes.get(i + 1)?;
+        let marker = byte(i + 1)?;
         match marker {
-            0xd9 => return Some(i + 2),
+            0xd9 => return Ok(i + 2),
             // Markers without a length: TEM and stray restarts.
             0x01 | 0xd0..=0xd7 => i += 2,
             _ => {
-                let len = u16::from_be_bytes([*bytes.get(i + 2)?, *bytes.get(i + 3)?]) as usize;
+                let len = u16::from_be_bytes([byte(i + 2)?, byte(i + 3)?]) as usize;
                 if len < 2 {
-                    return None;
+                    return Err(JpegWalk::NoMarker(i));
                 }
                 i += 2 + len;
                 if marker == 0xda {
                     // Entropy-coded data up to the next real marker.
                     loop {
-                        let at = i + bytes.get(i..)?.iter().position(|&b| b == 0xff)?;
-                        match *bytes.get(at + 1)? {
+                        let rest = bytes.get(i..).ok_or(Truncated)?;
+                        let at = i + rest.iter().position(|&b| b == 0xff).ok_or(Truncated)?;
+                        match byte(at + 1)? {
                             0x00 | 0xd0..=0xd7 | 0xff => i = at + 1,
                             _ => {
                                 i = at;
@@ -262,6 +288,19 @@ mod tests {
         assert_eq!(
             rgb_from_bytes(&thumb, Path::new("t")).unwrap(),
             read_rgb(&p).unwrap()
+        );
+        // Bytes inserted where a segment ends: corrupt, said as such (not
+        // "truncated"), naming the byte.
+        let first_end = 4 + u16::from_be_bytes([jpeg[4], jpeg[5]]) as usize;
+        let mut spliced = jpeg[..first_end].to_vec();
+        spliced.extend([0x12, 0x34, 0x56]);
+        spliced.extend(&jpeg[first_end..]);
+        let e = rgb_from_bytes(&spliced, Path::new("t"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!("corrupt JPEG: byte {first_end} ")),
+            "{e}"
         );
         for junk in [&b"GIF89a...."[..], b"", b"\xff\xd8"] {
             let e = image_size(junk, Path::new("frame 4"))
