@@ -481,7 +481,12 @@ fn an_odometry_shorter_than_the_sequence_is_refused_not_a_shorter_run() {
     refused(
         &r,
         1,
-        &["the odometry gives 2 poses for 6 frames", "--frames 2"],
+        &[
+            "the odometry gives 2 poses for 6 frames",
+            "--frames 2",
+            s(&odom),
+            "--odom-first",
+        ],
     );
     assert!(!est.exists());
     // Asking for those two is fine.

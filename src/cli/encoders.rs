@@ -14,7 +14,9 @@ use omcl::io::labels::{BuiltinClasses, EmbeddingTable, read_class_list};
 #[derive(Debug, Args, Default)]
 pub struct EncoderArgs {
     /// Image encoder (`.onnx` with its `.card.json`): per-pixel features
-    /// from the sequence's rgb/NNNNNN.png instead of labels or feature files.
+    /// from the sequence's camera images (rgb/NNNNNN.png; KITTI:
+    /// image_2/NNNNNN.png; 7-Scenes: frame-NNNNNN.color.jpg) instead of
+    /// labels or feature files.
     #[arg(long, value_name = "ONNX")]
     pub image_model: Option<PathBuf>,
     /// Cache folder for image-encoder features (NNNNNN.npy; reused when

@@ -963,8 +963,18 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     );
     let table = class_table(&a, &inputs, image.is_some(), m)?;
     let words = Words::new(&a, table.as_ref(), classes, m.db().dim())?;
-    let odom = inputs.odometry(&odometry_source(&a, &inputs)?)?;
-    let n = inputs.frames(odom.len(), a.frames)?;
+    let source = odometry_source(&a, &inputs)?;
+    let odom = inputs.odometry(&source)?;
+    let n = inputs
+        .frames(odom.len(), a.frames)
+        .map_err(|e| match &source {
+            // Which file gave too few poses, and from where it was read.
+            Odometry::File { path, first } => anyhow::Error::new(e).context(format!(
+                "{} (read from its pose {first}, --odom-first)",
+                path.display()
+            )),
+            Odometry::FromTruth(_) => anyhow::Error::new(e),
+        })?;
 
     // The session's map: the 3-D map with its Embree scene, or (with
     // --floorplan) the floor plan's sighted map with its planar caster, the
