@@ -735,3 +735,55 @@ fn output_into_a_closed_pipe_ends_quietly() {
     assert_eq!(out.status.code(), Some(141), "{stderr}");
     assert!(stderr.is_empty(), "{stderr}");
 }
+
+/// Outputs into a folder marked read-only (the shared data's mode 555) are
+/// refused first, even as root: a simulation's folder, and a file reached
+/// through a link into such a folder.
+#[test]
+fn outputs_into_read_only_folders_are_refused() {
+    use std::os::unix::fs::PermissionsExt;
+    let f = Fixture::new();
+    let ro = f.path("ro");
+    std::fs::create_dir(&ro).unwrap();
+    std::fs::write(ro.join("theirs.json"), b"{}").unwrap();
+    let link = f.path("metrics.json");
+    std::os::unix::fs::symlink(ro.join("theirs.json"), &link).unwrap();
+    std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o555)).unwrap();
+    let sim = ro.join("sim");
+    let r = omcl(&["sim", "indoor", "--out", s(&sim), "--frames", "2"]);
+    let est = f.path("est.txt");
+    let r2 = f.localize(&est, &["--metrics", s(&link)]);
+    std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o755)).unwrap();
+    refused(&r, 1, &[s(&ro), "read-only (mode 555)"]);
+    refused(&r2, 1, &[s(&ro), "read-only (mode 555)", "metrics.json"]);
+    assert!(!sim.exists() && !est.exists());
+    assert_eq!(std::fs::read(ro.join("theirs.json")).unwrap(), b"{}");
+}
+
+/// Standard error redirected, as in a batch job's log: progress comes as
+/// plain lines (every `OMCL_PROGRESS_EVERY_S`, here every update), not
+/// nothing; by default a short command's log holds none.
+#[test]
+fn progress_goes_into_logs_as_plain_lines() {
+    let f = Fixture::new();
+    let run = |every: Option<&str>, out: &Path| {
+        let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_omcl"));
+        c.args(["sim", "outdoor", "--out", s(out), "--frames", "3"]);
+        c.args(["--resolution", "0.4", "--azimuth-steps", "256"]);
+        if let Some(e) = every {
+            c.env("OMCL_PROGRESS_EVERY_S", e);
+        }
+        let o = c.output().unwrap();
+        assert!(o.status.success(), "{o:?}");
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let logged = run(Some("0"), &f.path("a"));
+    assert!(
+        logged
+            .lines()
+            .any(|l| l.starts_with("scanning: ") && l.contains("/3 frames (elapsed")),
+        "{logged}"
+    );
+    let quiet = run(None, &f.path("b"));
+    assert!(!quiet.contains("scanning"), "{quiet}");
+}

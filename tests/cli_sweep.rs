@@ -69,7 +69,10 @@ fn runs_are_idempotent_and_bad_input_names_the_run_and_file() {
         nowhere.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{text}");
-    assert!(text.contains("no_such_results does not exist"), "{text}");
+    assert!(
+        text.contains("no_such_results does not exist yet"),
+        "{text}"
+    );
     // A pool of workers larger than the sweep: the extra ones have
     // nothing to do, which is no failure.
     let (o, text) = omcl(&["sweep", "run", &m, "--index", "5", "--stride", "10"]);

@@ -90,7 +90,7 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
         }
     }
     let md = markdown(&dir, &spec, &rows);
-    std::fs::write(a.out.join("sevenscenes.md"), &md)
+    omcl::io::atomic::write(&a.out.join("sevenscenes.md"), md.as_bytes())
         .with_context(|| format!("writing {}", a.out.join("sevenscenes.md").display()))?;
     let json = serde_json::json!({
         "spec": spec,
@@ -98,7 +98,7 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
         "runs": rows.iter().map(|(v, s, r)| serde_json::json!({"variant": v, "seed": s, "result": r})).collect::<Vec<_>>(),
     });
     let p = a.out.join("sevenscenes.json");
-    std::fs::write(&p, serde_json::to_string_pretty(&json)?)
+    omcl::io::atomic::write(&p, serde_json::to_string_pretty(&json)?.as_bytes())
         .with_context(|| format!("writing {}", p.display()))?;
     for (k, (name, _)) in variants(a).iter().enumerate() {
         if let Some((_, seed, r)) = rows.iter().find(|(v, ..)| v == name) {

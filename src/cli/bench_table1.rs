@@ -254,9 +254,10 @@ fn block_spec(
 /// `*`).
 fn write(a: &BenchArgs, name: &str, tag: &str, b: &BlockResult) -> anyhow::Result<()> {
     let p = a.out.join(format!("{name}.md"));
-    std::fs::write(&p, &b.markdown).with_context(|| format!("writing {}", p.display()))?;
+    omcl::io::atomic::write(&p, b.markdown.as_bytes())
+        .with_context(|| format!("writing {}", p.display()))?;
     let p = a.out.join(format!("{name}.json"));
-    std::fs::write(&p, serde_json::to_string_pretty(&b.rows)?)
+    omcl::io::atomic::write(&p, serde_json::to_string_pretty(&b.rows)?.as_bytes())
         .with_context(|| format!("writing {}", p.display()))?;
     for (row, panels) in b.rows.iter().zip(&b.figures) {
         // SeDAR*_GT -> SeDAR_GT: no shell pattern in a file name.

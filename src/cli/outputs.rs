@@ -142,34 +142,20 @@ pub fn refuse_unwritable(outputs: &[(&str, &Path)], figures: &[&str]) -> anyhow:
     Ok(())
 }
 
-/// Refuses to write at `p` (a file or folder, existing or to be made)
-/// when the nearest folder that exists on its way is marked read-only (no
-/// write bit for anyone): a shared data folder (`../shared/data` is mode
-/// 555) stays as it is even for root, whom the permissions do not stop.
+/// Refuses to write at `p` (a file or folder, existing or to be made;
+/// a link is followed as the writer follows it) when the folder it is or
+/// would go in is marked read-only (`io::atomic::read_only_folder`: a
+/// shared data folder of mode 555 stays as it is, even for root).
 pub fn refuse_read_only(option: &str, p: &Path) -> anyhow::Result<()> {
-    use std::os::unix::fs::PermissionsExt;
-    let mut at = Some(p);
-    while let Some(d) = at {
-        let d = if d.as_os_str().is_empty() {
-            Path::new(".")
-        } else {
-            d
-        };
-        if let Ok(m) = std::fs::metadata(d)
-            && m.is_dir()
-        {
-            let mode = m.permissions().mode() & 0o777;
-            anyhow::ensure!(
-                mode & 0o222 != 0,
-                "{}: {option} would write into {}, which is marked read-only (mode {mode:o}); \
-                 omcl does not write there, even as root (choose another path, or work on a \
-                 copy)",
-                p.display(),
-                d.display()
-            );
-            return Ok(());
-        }
-        at = d.parent();
+    let target = omcl::io::atomic::follow_links(p).unwrap_or_else(|_| p.to_path_buf());
+    if let Some((dir, mode)) = omcl::io::atomic::read_only_folder(&target) {
+        anyhow::bail!(
+            "{}: {option} would write into {}, which is marked read-only (mode {mode:o}); omcl \
+             does not write there, even as root (choose another path; a copy made with `cp -r` \
+             keeps the mode: `chmod -R u+w` it)",
+            p.display(),
+            dir.display()
+        );
     }
     Ok(())
 }
@@ -279,6 +265,7 @@ pub fn stage_sim_folder(
     entries: &'static [&'static str],
     force: bool,
 ) -> anyhow::Result<SimStaging> {
+    refuse_read_only("--out", out)?;
     let mut replace: &'static [&'static str] = &[];
     match std::fs::read_dir(out) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
@@ -320,7 +307,7 @@ pub fn stage_sim_folder(
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    std::fs::create_dir_all(parent)
+    omcl::io::atomic::create_folder(parent)
         .map_err(|e| anyhow::anyhow!("{}: cannot create the folder: {e}", parent.display()))?;
     let temp = tempfile::Builder::new()
         .prefix(".omcl-sim-")
@@ -345,7 +332,7 @@ impl SimStaging {
         let out = &self.out;
         let fail =
             |what: &str, e: std::io::Error| anyhow::anyhow!("{}: {what}: {e}", out.display());
-        std::fs::create_dir_all(out).map_err(|e| fail("cannot create the folder", e))?;
+        omcl::io::atomic::create_folder(out).map_err(|e| fail("cannot create the folder", e))?;
         for name in self.replace {
             let p = out.join(name);
             let removed = match std::fs::symlink_metadata(&p) {

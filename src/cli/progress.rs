@@ -1,7 +1,8 @@
 //! Progress on standard error: bars on a terminal; in a log (standard
-//! error redirected, as under Slurm or `nohup`) a plain line every
-//! [`LOG_EVERY`] instead of nothing, so that a long run's log says how far
-//! it is.
+//! error redirected, as under Slurm or `nohup`) a plain line every 10 s
+//! (`OMCL_PROGRESS_EVERY_S` sets it; the first after 2 s, or the interval
+//! if shorter) instead of nothing, so that a long run's log says how far
+//! it is, and a short or failing command's log holds only what it says.
 
 use std::io::IsTerminal;
 use std::sync::Mutex;
@@ -9,8 +10,22 @@ use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle, TermLike};
 
-/// How often a progress line goes into a log.
+/// How often a progress line goes into a log, by default.
 pub const LOG_EVERY: Duration = Duration::from_secs(10);
+
+/// The first progress line of a log waits this long (a short command's
+/// log gets none).
+const LOG_FIRST: Duration = Duration::from_secs(2);
+
+/// The log interval: `OMCL_PROGRESS_EVERY_S` (seconds, >= 0), else
+/// [`LOG_EVERY`].
+fn log_every() -> Duration {
+    std::env::var("OMCL_PROGRESS_EVERY_S")
+        .ok()
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .and_then(|s| Duration::try_from_secs_f64(s).ok())
+        .unwrap_or(LOG_EVERY)
+}
 
 /// A bar for `len` steps of `what`.
 pub fn bar(len: u64, what: &str) -> ProgressBar {
@@ -37,13 +52,15 @@ pub fn bar_of(len: u64, what: &str, unit: &str) -> ProgressBar {
 
 /// A spinner for work of unknown length.
 pub fn spinner(what: &str) -> ProgressBar {
-    let pb = ProgressBar::with_draw_target(None, target());
-    if logging()
-        && let Ok(style) = ProgressStyle::with_template("{msg} (elapsed {elapsed})")
-    {
-        pb.set_style(style);
-    }
-    pb.set_message(what.to_string());
+    let style = if logging() {
+        ProgressStyle::with_template("{msg} (elapsed {elapsed})")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner())
+    } else {
+        ProgressStyle::default_spinner()
+    };
+    let pb = ProgressBar::with_draw_target(None, target())
+        .with_message(what.to_string())
+        .with_style(style);
     pb.enable_steady_tick(Duration::from_millis(120));
     pb
 }
@@ -56,24 +73,39 @@ fn logging() -> bool {
 /// Where bars draw: the terminal, or a log's lines.
 pub fn target() -> ProgressDrawTarget {
     if logging() {
-        ProgressDrawTarget::term_like_with_hz(Box::new(LogLines::default()), 1)
+        ProgressDrawTarget::term_like_with_hz(Box::new(LogLines::new()), 1)
     } else {
         ProgressDrawTarget::stderr()
     }
 }
 
 /// A terminal that writes a bar's state as one line of standard error at
-/// most every [`LOG_EVERY`] (the first at once), and drops the cursor
-/// moves.
-#[derive(Debug, Default)]
+/// most every [`log_every`] (the first after [`LOG_FIRST`]), and drops the
+/// cursor moves.
+#[derive(Debug)]
 struct LogLines {
+    every: Duration,
     state: Mutex<LogState>,
 }
 
-#[derive(Debug, Default)]
+#[derive(Debug)]
 struct LogState {
     line: String,
-    last: Option<Instant>,
+    /// When a line may next be written.
+    next: Instant,
+}
+
+impl LogLines {
+    fn new() -> LogLines {
+        let every = log_every();
+        LogLines {
+            every,
+            state: Mutex::new(LogState {
+                line: String::new(),
+                next: Instant::now() + every.min(LOG_FIRST),
+            }),
+        }
+    }
 }
 
 impl TermLike for LogLines {
@@ -107,9 +139,9 @@ impl TermLike for LogLines {
         let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());
         let line = std::mem::take(&mut st.line);
         let line = line.trim();
-        let due = st.last.is_none_or(|t| t.elapsed() >= LOG_EVERY);
-        if due && !line.is_empty() {
-            st.last = Some(Instant::now());
+        let now = Instant::now();
+        if now >= st.next && !line.is_empty() {
+            st.next = now + self.every;
             eprintln!("{line}");
         }
         Ok(())

@@ -319,8 +319,8 @@ fn status(c: StatusCmd) -> anyhow::Result<()> {
 fn warn_no_results(results: &ResultDir) {
     if !results.dir.exists() {
         eprintln!(
-            "note: {} does not exist: no run has written a result there yet (check --results \
-             if runs were done)",
+            "note: {} does not exist yet: every run counts as missing (check --results if runs \
+             were done)",
             results.dir.display()
         );
     }

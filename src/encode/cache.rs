@@ -38,7 +38,7 @@ pub struct FeatureCache {
 impl FeatureCache {
     /// A cache in `dir` (created if missing) for features of `encoder`.
     pub fn new(dir: &Path, encoder: &str) -> Result<FeatureCache, EncodeError> {
-        std::fs::create_dir_all(dir).map_err(|err| EncodeError::Io {
+        crate::io::atomic::create_folder(dir).map_err(|err| EncodeError::Io {
             path: dir.to_path_buf(),
             err,
         })?;

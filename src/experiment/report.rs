@@ -45,7 +45,7 @@ pub fn collect(
     out: &Path,
     beside_foreign: bool,
 ) -> Result<Collected, SweepError> {
-    std::fs::create_dir_all(out).map_err(|source| SweepError::Io {
+    crate::io::atomic::create_folder(out).map_err(|source| SweepError::Io {
         path: out.to_path_buf(),
         source,
     })?;

@@ -309,7 +309,7 @@ impl ResultDir {
     fn write(&self, r: &RunRecord) -> Result<(), SweepError> {
         let path = self.result_path(&r.id);
         let dir = self.dir.join(shard(&r.id));
-        std::fs::create_dir_all(&dir).map_err(io_err(&dir))?;
+        crate::io::atomic::create_folder(&dir).map_err(io_err(&dir))?;
         crate::io::atomic::write_with(&path, |w| {
             serde_json::to_writer(w, r).map_err(std::io::Error::other)
         })
@@ -323,7 +323,7 @@ impl ResultDir {
 
     fn write_failure(&self, id: &str, message: &str) -> Result<(), SweepError> {
         let dir = self.dir.join(shard(id));
-        std::fs::create_dir_all(&dir).map_err(io_err(&dir))?;
+        crate::io::atomic::create_folder(&dir).map_err(io_err(&dir))?;
         let path = self.failed_path(id);
         crate::io::atomic::write(&path, message.as_bytes()).map_err(io_err(&path))
     }
@@ -362,7 +362,7 @@ impl Cache {
                 dir.display()
             )));
         }
-        std::fs::create_dir_all(&dir).map_err(io_err(&dir))?;
+        crate::io::atomic::create_folder(&dir).map_err(io_err(&dir))?;
         let table = builtin_table().map_err(|e| SweepError::Plan(e.to_string()))?;
         Ok(Cache {
             dir,

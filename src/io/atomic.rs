@@ -52,9 +52,57 @@ pub fn write_with(
     replace_file(&target, fill)
 }
 
+/// The folder that `path` is or would be created in, when it is marked
+/// read-only (no write bit for anyone): the nearest folder that exists on
+/// the way up from `path` (itself, if it is one). A shared data folder
+/// (mode 555) stays as it is even for root, whom permissions do not stop.
+pub fn read_only_folder(path: &Path) -> Option<(std::path::PathBuf, u32)> {
+    use std::os::unix::fs::PermissionsExt;
+    let mut at = Some(path);
+    while let Some(d) = at {
+        let d = if d.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            d
+        };
+        if let Ok(m) = std::fs::metadata(d)
+            && m.is_dir()
+        {
+            let mode = m.permissions().mode() & 0o777;
+            return (mode & 0o222 == 0).then(|| (d.to_path_buf(), mode));
+        }
+        at = d.parent();
+    }
+    None
+}
+
+/// [`read_only_folder`] as an error.
+fn refuse_read_only(path: &Path) -> io::Result<()> {
+    match read_only_folder(path) {
+        None => Ok(()),
+        Some((dir, mode)) => Err(io::Error::new(
+            io::ErrorKind::PermissionDenied,
+            format!(
+                "its folder {} is marked read-only (mode {mode:o}); omcl does not write there, \
+                 even as root",
+                dir.display()
+            ),
+        )),
+    }
+}
+
+/// Creates the folder `dir` and its parents, unless the folder they would
+/// go in is marked read-only ([`read_only_folder`]).
+pub fn create_folder(dir: &Path) -> io::Result<()> {
+    if !dir.is_dir() {
+        refuse_read_only(dir)?;
+    }
+    std::fs::create_dir_all(dir)
+}
+
 /// `path` with its symbolic links followed to the last one's target
 /// (which need not exist yet).
-fn follow_links(path: &Path) -> io::Result<std::path::PathBuf> {
+pub fn follow_links(path: &Path) -> io::Result<std::path::PathBuf> {
     let mut p = path.to_path_buf();
     for _ in 0..40 {
         match std::fs::symlink_metadata(&p) {
@@ -81,6 +129,7 @@ fn replace_file(
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
+    refuse_read_only(dir)?;
     let mut builder = tempfile::Builder::new();
     builder.prefix(".omcl-").suffix(".tmp");
     #[cfg(unix)]
@@ -209,5 +258,39 @@ mod tests {
         let expected = std::fs::metadata(&probe).unwrap().permissions().mode() & 0o777;
         assert_eq!(mode, expected, "{mode:o} vs {expected:o}");
         assert_eq!(mode & 0o600, 0o600);
+    }
+
+    /// A folder marked read-only (mode 555, as shared data) is not written
+    /// into, even by root, whom permissions do not stop: no file, no new
+    /// folder; a link out of it to a writable place is followed.
+    #[test]
+    fn read_only_folders_are_left_as_they_are() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let ro = dir.path().join("ro");
+        let w = dir.path().join("w");
+        std::fs::create_dir(&ro).unwrap();
+        std::fs::create_dir(&w).unwrap();
+        std::fs::write(ro.join("kept.txt"), b"theirs").unwrap();
+        std::os::unix::fs::symlink(w.join("out.txt"), ro.join("link.txt")).unwrap();
+        std::os::unix::fs::symlink(ro.join("kept.txt"), w.join("into_ro.txt")).unwrap();
+        std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o555)).unwrap();
+        let e = write(&ro.join("kept.txt"), b"mine").unwrap_err();
+        let e2 = write(&w.join("into_ro.txt"), b"mine").unwrap_err();
+        let e3 = create_folder(&ro.join("new/deeper")).unwrap_err();
+        let through = write(&ro.join("link.txt"), b"through the link");
+        std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o755)).unwrap();
+        for e in [e, e2, e3] {
+            assert_eq!(e.kind(), io::ErrorKind::PermissionDenied, "{e}");
+            assert!(e.to_string().contains("read-only (mode 555)"), "{e}");
+        }
+        assert_eq!(std::fs::read(ro.join("kept.txt")).unwrap(), b"theirs");
+        assert!(!ro.join("new").exists());
+        through.unwrap();
+        assert_eq!(
+            std::fs::read(w.join("out.txt")).unwrap(),
+            b"through the link"
+        );
+        assert_eq!(read_only_folder(&w.join("x")), None);
     }
 }

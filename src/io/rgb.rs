@@ -90,8 +90,8 @@ fn jpeg_reader<'a>(
             return Err(CloudError::format(
                 name,
                 format!(
-                    "corrupt JPEG: byte {at} should begin a marker (FF xx) where the segment \
-                     before it ends, and does not ({} bytes in all)",
+                    "corrupt JPEG: no valid segment at byte {at}, where the one before it ends \
+                     ({} bytes in all)",
                     bytes.len()
                 ),
             ));
@@ -299,7 +299,9 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains(&format!("corrupt JPEG: byte {first_end} ")),
+            e.contains(&format!(
+                "corrupt JPEG: no valid segment at byte {first_end},"
+            )),
             "{e}"
         );
         for junk in [&b"GIF89a...."[..], b"", b"\xff\xd8"] {

@@ -316,7 +316,24 @@ impl Localization for Service {
                     // status, not an OK that hides the frames after it. A
                     // transport error (the client gone) goes nowhere.
                     Err(s) => {
-                        state.metrics.reject("invalid_frame");
+                        if !matches!(
+                            s.code(),
+                            tonic::Code::Cancelled
+                                | tonic::Code::Unavailable
+                                | tonic::Code::Unknown
+                        ) {
+                            state.metrics.reject("invalid_frame");
+                        }
+                        // The answers of frames already handed to the pool
+                        // go out first (each job holds a clone of `tx`
+                        // until it has answered or been dropped); the
+                        // error ends the stream after them.
+                        while tx.strong_count() > 1 {
+                            tokio::select! {
+                                _ = tokio::time::sleep(std::time::Duration::from_millis(5)) => {}
+                                _ = tx.closed() => break,
+                            }
+                        }
                         let _ = tx.send(Err(s)).await;
                         break;
                     }

@@ -96,7 +96,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SimIoError> {
 
 /// Creates a directory and its parents.
 pub fn create_dir(path: &Path) -> Result<(), SimIoError> {
-    std::fs::create_dir_all(path).map_err(io_err(path))
+    crate::io::atomic::create_folder(path).map_err(io_err(path))
 }
 
 /// Loads the real CLIP ViT-B/32 text embeddings of `dir` (the layout of
