@@ -202,11 +202,21 @@ fn format_dispatch_by_extension() {
     assert_eq!(ply.len(), 37);
     let laz = read_point_cloud(&local("laspy_pf3_rgb.laz"), None).unwrap();
     assert_eq!(laz.len(), 53);
-    let bin = local("scan.bin");
+    // A .bin is KITTI's or ScanNet's: the reader asks which (a file that
+    // is there; a path that is not is named as such).
+    let d = tempfile::tempdir().unwrap();
+    let bin = d.path().join("scan.bin");
+    std::fs::write(&bin, [0u8; 16]).unwrap();
     assert_err_names(
         read_point_cloud(&bin, None).unwrap_err(),
         &bin,
         "kitti or scannet",
+    );
+    let gone = d.path().join("gone.bin");
+    assert_err_names(
+        read_point_cloud(&gone, None).unwrap_err(),
+        &gone,
+        "no such file or folder",
     );
     // An explicit format wins over the extension.
     let e = read_point_cloud(&local("laspy_pf3_rgb.las"), Some(CloudFormat::Ply)).unwrap_err();

@@ -53,9 +53,13 @@ pub fn collect(
     let before = top_files(out);
     let collected = collect_into(manifest, results, cache, out)?;
     let after = top_files(out);
+    // Tables and figures only: a file of another kind that changed
+    // meanwhile is someone else's.
     let mut written: Vec<&String> = after
         .iter()
-        .filter(|(name, id)| before.get(*name) != Some(id) && name.as_str() != COLLECTED)
+        .filter(|(name, id)| {
+            before.get(*name) != Some(id) && name.as_str() != COLLECTED && is_table_or_figure(name)
+        })
         .map(|(name, _)| name)
         .collect();
     written.sort();
@@ -120,11 +124,7 @@ fn clear_previous(out: &Path, beside_foreign: bool) -> Result<(), SweepError> {
         Err(_) => {
             let mut foreign: Vec<String> = top_files(out)
                 .into_keys()
-                .filter(|n| {
-                    [".md", ".json", ".png", ".svg"]
-                        .iter()
-                        .any(|x| n.ends_with(x))
-                })
+                .filter(|n| is_table_or_figure(n))
                 .collect();
             foreign.sort();
             match foreign.first() {
@@ -143,6 +143,13 @@ fn clear_previous(out: &Path, beside_foreign: bool) -> Result<(), SweepError> {
             }
         }
     }
+}
+
+/// What a collect writes: Markdown and JSON tables, PNG and SVG figures.
+fn is_table_or_figure(name: &str) -> bool {
+    [".md", ".json", ".png", ".svg"]
+        .iter()
+        .any(|x| name.ends_with(x))
 }
 
 /// [`collect`]'s tables and figures, written into `out`.

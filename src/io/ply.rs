@@ -297,7 +297,9 @@ impl PropertyAccess for Skip {
     }
 }
 
-/// Refuses bytes after the last element's records (whitespace aside).
+/// Refuses bytes after the last element's records: whitespace, NUL
+/// padding and a DOS end-of-file byte (0x1a) aside, which some writers
+/// leave.
 fn refuse_trailing_data(
     path: &Path,
     r: &mut impl BufRead,
@@ -309,7 +311,10 @@ fn refuse_trailing_data(
     r.take(1 << 16)
         .read_to_end(&mut rest)
         .map_err(|e| CloudError::io(path, e))?;
-    if rest.iter().all(u8::is_ascii_whitespace) {
+    if rest
+        .iter()
+        .all(|b| b.is_ascii_whitespace() || *b == 0 || *b == 0x1a)
+    {
         return Ok(());
     }
     let what = match encoding {
@@ -868,13 +873,16 @@ mod tests {
         let d = tempfile::tempdir().unwrap();
         let head = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n\
                     property float y\nproperty float z\nend_header\n";
-        // Trailing blank lines are fine.
-        let p = write(
-            d.path(),
-            "ok.ply",
-            format!("{head}0 0 0\n1 1 1\n\n \n").as_bytes(),
-        );
-        assert_eq!(read_ply(&p).unwrap().points.len(), 2);
+        // Trailing blank lines, NUL padding and a DOS end-of-file byte are
+        // fine.
+        for tail in ["\n \n", "\0\0\0\0", "\x1a"] {
+            let p = write(
+                d.path(),
+                "ok.ply",
+                format!("{head}0 0 0\n1 1 1\n{tail}").as_bytes(),
+            );
+            assert_eq!(read_ply(&p).unwrap().points.len(), 2, "{tail:?}");
+        }
         // A column the header does not declare (say normals): refused,
         // not read as if the header were right.
         let p = write(
