@@ -480,24 +480,7 @@ async fn caps_overload_idle_expiry_and_shutdown() {
     // Closing a session whose long step runs answers at once (it waited
     // for the step, and a shutdown waited for the close): the close
     // returns while the step's call is still pending.
-    let long = c.create_session({
-        let mut r = f.create(0);
-        r.particles = Some(30_000);
-        r
-    });
-    let long = long.await.unwrap().into_inner().session_id;
-    let mut cl = c.clone();
-    let fl = f.frame(&long, 0);
-    let stepping = tokio::spawn(async move { cl.localize(fl).await });
-    let t0 = Instant::now();
-    loop {
-        let (_, metrics) = server.get("/metrics", &[("Authorization", &bearer)]);
-        if metrics.contains("omcl_queue_depth 1") {
-            break;
-        }
-        assert!(t0.elapsed() < Duration::from_secs(60), "{metrics}");
-        tokio::time::sleep(Duration::from_millis(1)).await;
-    }
+    let (long, stepping) = step_in_flight(&server, &c, &f, 30_000).await;
     c.close_session(proto::CloseSessionRequest {
         session_id: long.clone(),
     })
@@ -511,30 +494,9 @@ async fn caps_overload_idle_expiry_and_shutdown() {
 
     // Graceful shutdown: a step in flight is answered, then the process
     // exits by itself with status 0.
-    let a = c.create_session({
-        let mut r = f.create(0);
-        r.particles = Some(20_000);
-        r
-    });
-    let a = a.await.unwrap().into_inner().session_id;
-    let mut ca = c.clone();
-    let fa = f.frame(&a, 0);
-    let inflight = tokio::spawn(async move { ca.localize(fa).await });
     // SIGTERM once the step is on the pool (the server's own gauge), so
     // the in-flight path is the one tested.
-    let t0 = Instant::now();
-    loop {
-        let (_, metrics) = server.get("/metrics", &[("Authorization", &bearer)]);
-        if metrics.contains("omcl_queue_depth 1") {
-            break;
-        }
-        assert!(
-            !inflight.is_finished(),
-            "the step finished before it was seen in flight"
-        );
-        assert!(t0.elapsed() < Duration::from_secs(60), "{metrics}");
-        tokio::time::sleep(Duration::from_millis(1)).await;
-    }
+    let (_, inflight) = step_in_flight(&server, &c, &f, 20_000).await;
     let mut server = server;
     unsafe_free_sigterm(server.pid());
     let r = inflight.await.unwrap();
@@ -549,6 +511,39 @@ async fn caps_overload_idle_expiry_and_shutdown() {
         std::thread::sleep(Duration::from_millis(20));
     };
     assert!(status.success(), "{status:?}");
+}
+
+/// A session of `particles` whose first frame's step is on the pool (the
+/// server's own gauge says so): its id and the pending call.
+async fn step_in_flight(
+    server: &Server,
+    c: &Client,
+    f: &Fixture,
+    particles: u32,
+) -> (
+    String,
+    tokio::task::JoinHandle<Result<tonic::Response<proto::PoseUpdate>, tonic::Status>>,
+) {
+    let mut req = f.create(0);
+    req.particles = Some(particles);
+    let mut c = c.clone();
+    let id = c.create_session(req).await.unwrap().into_inner().session_id;
+    let frame = f.frame(&id, 0);
+    let call = tokio::spawn(async move { c.localize(frame).await });
+    let bearer = format!("Bearer {TOKEN}");
+    let t0 = Instant::now();
+    loop {
+        let (_, metrics) = server.get("/metrics", &[("Authorization", &bearer)]);
+        if metrics.contains("omcl_queue_depth 1") {
+            return (id, call);
+        }
+        assert!(
+            !call.is_finished(),
+            "the step finished before it was seen in flight"
+        );
+        assert!(t0.elapsed() < Duration::from_secs(60), "{metrics}");
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
 }
 
 /// SIGTERM by the `kill` command (no `unsafe` outside the Embree module).
