@@ -1,6 +1,8 @@
 //! `omcl bench` on a tiny benchmark: every experiment writes its Markdown
 //! and JSON tables and its figures, with values in range.
 
+mod common;
+
 use std::process::Command;
 
 fn bench(args: &[&str]) -> (std::process::Output, String) {
@@ -18,20 +20,7 @@ fn bench(args: &[&str]) -> (std::process::Output, String) {
 fn table1_and_table2_write_tables_and_figures() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().to_str().unwrap();
-    let small = [
-        "--sequences",
-        "1",
-        "--frames",
-        "6",
-        "--map-frames",
-        "20",
-        "--particles",
-        "64",
-        "--rays",
-        "128",
-        "-o",
-        out,
-    ];
+    let small = [&["--sequences", "1"][..], &common::TINY_RUN, &["-o", out]].concat();
     let (o, text) = bench(&[&["table1"], &small[..]].concat());
     assert!(o.status.success(), "{text}");
     for f in [

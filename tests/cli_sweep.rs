@@ -3,6 +3,8 @@
 //! version, a corrupt result file and a missing map each give an error
 //! naming the run and the file, and collect still writes the rest.
 
+mod common;
+
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -296,28 +298,26 @@ fn plans_replace_nothing_unasked_and_name_in_process_experiments() {
 }
 
 /// Tiny Table I runs of OMCL_GT_exact from seed 1000 (`omcl bench`'s and
-/// `omcl sweep plan`'s options).
-const TINY_TABLE1: [&str; 14] = [
-    "table1",
-    "--variants",
-    "OMCL_GT_exact",
-    "--first-seed",
-    "1000",
-    "--frames",
-    "6",
-    "--map-frames",
-    "20",
-    "--particles",
-    "64",
-    "--rays",
-    "128",
-    "--sequences",
-];
+/// `omcl sweep plan`'s options), their count to follow.
+fn tiny_table1() -> Vec<&'static str> {
+    [
+        &[
+            "table1",
+            "--variants",
+            "OMCL_GT_exact",
+            "--first-seed",
+            "1000",
+        ][..],
+        &common::TINY_RUN,
+        &["--sequences"],
+    ]
+    .concat()
+}
 
 fn plan_args(out: &str, sequences: &str) -> Vec<String> {
     [
         &["sweep", "plan"][..],
-        &TINY_TABLE1,
+        &tiny_table1(),
         &[sequences, "-o", out],
     ]
     .concat()
@@ -333,7 +333,7 @@ fn bench_resumes_only_when_asked() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().to_str().unwrap();
     let args = |resume: bool| {
-        let mut v = [&["bench"][..], &TINY_TABLE1, &["1", "-o", out]].concat();
+        let mut v = [&["bench"][..], &tiny_table1(), &["1", "-o", out]].concat();
         if resume {
             v.push("--resume");
         }

@@ -10,6 +10,8 @@
 //!
 //! If the cluster cannot start, the test fails with the daemons' logs.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
@@ -223,24 +225,22 @@ fn assert_same_tables(a: &Path, b: &Path) {
     }
 }
 
-const PLAN: [&str; 16] = [
-    "table1",
-    "table2",
-    "--variants",
-    "OMCL_LSeg,OMCL_GT_exact",
-    "--sequences",
-    "5",
-    "--first-seed",
-    "1000",
-    "--frames",
-    "6",
-    "--map-frames",
-    "20",
-    "--particles",
-    "64",
-    "--rays",
-    "128",
-];
+fn plan() -> Vec<&'static str> {
+    [
+        &[
+            "table1",
+            "table2",
+            "--variants",
+            "OMCL_LSeg,OMCL_GT_exact",
+            "--sequences",
+            "5",
+            "--first-seed",
+            "1000",
+        ][..],
+        &common::TINY_RUN,
+    ]
+    .concat()
+}
 
 #[test]
 fn a_sweep_through_a_slurm_job_array_equals_the_local_path() {
@@ -250,13 +250,13 @@ fn a_sweep_through_a_slurm_job_array_equals_the_local_path() {
 
     // The local path.
     let local = d.join("local");
-    let (o, text) = omcl(&[&["bench"], &PLAN[..], &["-o", local.to_str().unwrap()]].concat());
+    let (o, text) = omcl(&[&["bench"], &plan()[..], &["-o", local.to_str().unwrap()]].concat());
     assert!(o.status.success(), "{text}");
 
     // The same sweep through a job array of 20 tasks, two at a time.
     let m = d.join("m.jsonl");
     let ms = m.to_str().unwrap();
-    let (o, text) = omcl(&[&["sweep", "plan"], &PLAN[..], &["-o", ms]].concat());
+    let (o, text) = omcl(&[&["sweep", "plan"], &plan()[..], &["-o", ms]].concat());
     assert!(o.status.success(), "{text}");
     assert!(text.contains(&format!("planned {RUNS} runs")), "{text}");
     let (cache, logs) = (d.join("cache"), d.join("logs"));

@@ -93,3 +93,16 @@ pub fn assert_err_names<E: std::fmt::Display>(e: E, file: &Path, what: &str) {
     );
     assert!(msg.contains(what), "error lacks '{what}': {msg}");
 }
+
+/// The size of the tests' tiny bench runs (`omcl bench`'s and `omcl sweep
+/// plan`'s options): 6 frames, maps from 20, 64 particles x 128 rays.
+pub const TINY_RUN: [&str; 8] = [
+    "--frames",
+    "6",
+    "--map-frames",
+    "20",
+    "--particles",
+    "64",
+    "--rays",
+    "128",
+];
