@@ -9,6 +9,9 @@ use clap::Parser;
 fn main() -> ExitCode {
     quiet_contained_panics();
     let args = cli::Cli::parse();
+    if !args.handles_signals() {
+        clean_up_on_interrupt();
+    }
     match cli::run(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -20,6 +23,42 @@ fn main() -> ExitCode {
             }
         }
     }
+}
+
+/// Ctrl-C (SIGINT) and SIGTERM (`scancel`, `kill`): the temporary file
+/// being written and a folder the command made and is filling are removed
+/// (`omcl::io::atomic::remove_interrupted`), and omcl ends with 130 or
+/// 143, as the signal would have ended it. Without the handler the
+/// signal ends omcl at once and a map being saved leaves its hidden
+/// `.omcl-*.tmp` behind.
+fn clean_up_on_interrupt() {
+    use tokio::signal::unix::{SignalKind, signal};
+    let Ok(rt) = tokio::runtime::Builder::new_current_thread()
+        .enable_io()
+        .build()
+    else {
+        return;
+    };
+    // Registered before the command starts, so no signal is missed.
+    let signals = rt.block_on(async {
+        Some((
+            signal(SignalKind::interrupt()).ok()?,
+            signal(SignalKind::terminate()).ok()?,
+        ))
+    });
+    let Some((mut int, mut term)) = signals else {
+        return;
+    };
+    std::thread::spawn(move || {
+        let code = rt.block_on(async {
+            tokio::select! {
+                _ = int.recv() => 130,
+                _ = term.recv() => 143,
+            }
+        });
+        omcl::io::atomic::remove_interrupted();
+        std::process::exit(code);
+    });
 }
 
 /// The LAZ decoder (crate `laz`) asserts on some corrupt streams; the LAS

@@ -762,7 +762,8 @@ fn outputs_into_read_only_folders_are_refused() {
 
 /// Standard error redirected, as in a batch job's log: progress comes as
 /// plain lines (every `OMCL_PROGRESS_EVERY_S`, here every update), not
-/// nothing; by default a short command's log holds none.
+/// nothing, and a last one when the work is done; by default a short
+/// command's log holds none.
 #[test]
 fn progress_goes_into_logs_as_plain_lines() {
     let f = Fixture::new();
@@ -782,6 +783,12 @@ fn progress_goes_into_logs_as_plain_lines() {
         logged
             .lines()
             .any(|l| l.starts_with("scanning: ") && l.contains("/3 frames (elapsed")),
+        "{logged}"
+    );
+    assert!(
+        logged
+            .lines()
+            .any(|l| l.starts_with("scanning: 3/3 frames (done in ")),
         "{logged}"
     );
     let quiet = run(None, &f.path("b"));

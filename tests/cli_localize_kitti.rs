@@ -296,6 +296,56 @@ fn bad_kitti_input_is_named_and_leaves_no_output() {
     );
 }
 
+/// A KITTI sequence without poses.txt (KITTI's test sequences 11-21 have
+/// none) localizes from a given odometry and start pose; without either
+/// the run says which to pass, and metrics need the ground truth.
+#[test]
+fn a_kitti_sequence_without_poses_localizes_from_odometry_and_a_start() {
+    let f = Street::new(12);
+    let truth = omcl::io::kitti_camera::KittiCameraSequence::open(
+        &f.seq,
+        omcl::io::kitti_camera::CameraInput::Labels,
+    )
+    .unwrap()
+    .ground_truth()
+    .unwrap();
+    let seq = f.copy_seq("no_poses");
+    let odometry = f.dir.path().join("vo.txt");
+    std::fs::rename(seq.join("poses.txt"), &odometry).unwrap();
+    let out = f.existing_out("out_no_odometry.txt");
+    let r = f.localize(&f.map, &seq, &out, &[]);
+    assert_clean_failure(&r, &out, &["no odometry", "--odometry FILE"]);
+    let r = f.localize(&f.map, &seq, &out, &["--odometry", s(&odometry)]);
+    assert_clean_failure(&r, &out, &["--init-pose", "camera 2", "poses.txt"]);
+    let metrics = f.dir.path().join("m.json");
+    let (p, q) = (truth[0].translation.vector, truth[0].rotation.coords);
+    let start = format!("{} {} {} {} {} {} {}", p.x, p.y, p.z, q.x, q.y, q.z, q.w);
+    let with = ["--odometry", s(&odometry), "--init-pose", &start];
+    let r = f.localize(
+        &f.map,
+        &seq,
+        &out,
+        &[&with[..], &["--metrics", s(&metrics)]].concat(),
+    );
+    assert_clean_failure(&r, &out, &["--metrics needs ground truth", "poses.txt"]);
+    let out = f.dir.path().join("est.txt");
+    let r = f.localize(&f.map, &seq, &out, &with);
+    assert!(r.ok(), "{}", r.text());
+    // The estimate (KITTI camera-0 rows, as poses.txt) follows the drive.
+    let (est, gt) = (kitti_rows(&out), kitti_rows(&odometry));
+    assert_eq!(est.len(), 12);
+    let err: f64 = est
+        .iter()
+        .zip(&gt)
+        .map(|(e, g)| {
+            ((e[3] - g[3]).powi(2) + (e[7] - g[7]).powi(2) + (e[11] - g[11]).powi(2)).sqrt()
+        })
+        .sum::<f64>()
+        / 12.0;
+    assert!(err < 0.5, "mean error {err} m\n{}", r.text());
+    assert!(gt.last().unwrap()[11] > 5.0, "the drive moves forward");
+}
+
 /// A KITTI sequence localizes with two-pass likelihoods by default (half
 /// the pixels first), as accurately as with every pixel cast for every
 /// particle (`--every-ray`); the two switches exclude each other. Misses

@@ -649,3 +649,157 @@ fn a_sequence_mapped_scan_by_scan_equals_the_merged_cloud() {
         );
     }
 }
+
+/// An ASCII PLY of `points` with an ASPRS `classification` each.
+fn labelled_ply(path: &Path, points: &[([f64; 3], u32)]) {
+    let mut text = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\n\
+         property double z\nproperty uchar classification\nend_header\n",
+        points.len()
+    );
+    for ([x, y, z], c) in points {
+        text += &format!("{x} {y} {z} {c}\n");
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+/// What a user converting real LiDAR gets told: a stray point at 0, 0, 0
+/// in UTM data is left out with a warning (the data mapped, not the other
+/// way round); most points' classes missing from the table, or every
+/// point of one class, are warned about; `-o` does not replace a file that
+/// is not a map without `--force`, nor take an input's extension.
+#[test]
+fn map_cloud_warns_about_strays_and_tables_and_guards_its_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    // 40 x 50 points 0.1 m apart near (630000, 4830000), classes 2, 5 and
+    // 6, and one point at the origin.
+    let mut pts: Vec<([f64; 3], u32)> = (0..2000)
+        .map(|i| {
+            let (x, y) = ((i % 40) as f64 * 0.1, (i / 40) as f64 * 0.1);
+            ([630_000.0 + x, 4_830_000.0 + y, 12.0], [2, 5, 6][i % 3])
+        })
+        .collect();
+    pts.insert(0, ([0.0; 3], 2));
+    labelled_ply(&dir.path().join("utm.ply"), &pts);
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        &p("utm.ply"),
+        "--classes",
+        "asprs",
+        "-o",
+        &p("utm.omcl"),
+    ]);
+    assert!(ok, "{text}");
+    assert!(text.contains("2000 of 2001 inputs integrated"), "{text}");
+    assert!(
+        text.contains("warning: 1 of 2001 points were left out") && text.contains("reach"),
+        "{text}"
+    );
+    let m = map::load(Path::new(&p("utm.omcl"))).unwrap();
+    assert_eq!(m.len(), 2000);
+    assert!(
+        (m.grid().origin.x - 630_002.0).abs() < 0.2,
+        "{:?}",
+        m.grid().origin
+    );
+    assert!(!text.contains("skipped: their labels"), "{text}");
+    // A third of the points of a class the table does not have (ASPRS
+    // codes end at 22 here): warned, with the table named.
+    let half: Vec<_> = pts[1..]
+        .iter()
+        .map(|&(q, c)| (q, if c == 6 { 200 } else { c }))
+        .collect();
+    labelled_ply(&dir.path().join("half.ply"), &half);
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        &p("half.ply"),
+        "--classes",
+        "asprs",
+        "-o",
+        &p("half.omcl"),
+    ]);
+    assert!(ok, "{text}");
+    assert!(
+        text.contains("33 % of the points were skipped") && text.contains("asprs"),
+        "{text}"
+    );
+    assert!(!text.contains("same class"), "{text}");
+    // Never classified: one class, one feature.
+    let never: Vec<_> = pts[1..].iter().map(|&(q, _)| (q, 0)).collect();
+    labelled_ply(&dir.path().join("never.ply"), &never);
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        &p("never.ply"),
+        "--classes",
+        "asprs",
+        "-o",
+        &p("never.omcl"),
+    ]);
+    assert!(ok, "{text}");
+    assert!(
+        text.contains("every mapped point has the same class"),
+        "{text}"
+    );
+    // -o over a file that is not a map, and with an input's extension.
+    std::fs::write(dir.path().join("notes.omcl"), "my notes\n").unwrap();
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        &p("half.ply"),
+        "--classes",
+        "asprs",
+        "-o",
+        &p("notes.omcl"),
+    ]);
+    assert!(
+        !ok && text.contains("notes.omcl")
+            && text.contains("not an omcl map")
+            && text.contains("--force"),
+        "{text}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("notes.omcl")).unwrap(),
+        "my notes\n"
+    );
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        &p("half.ply"),
+        "--classes",
+        "asprs",
+        "-o",
+        &p("notes.omcl"),
+        "--force",
+    ]);
+    assert!(ok, "{text}");
+    assert!(map::load(&dir.path().join("notes.omcl")).is_ok());
+    // A map replaces a map without --force.
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        &p("utm.ply"),
+        "--classes",
+        "asprs",
+        "-o",
+        &p("half.omcl"),
+    ]);
+    assert!(ok, "{text}");
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        &p("utm.ply"),
+        "--classes",
+        "asprs",
+        "-o",
+        &p("map.ply"),
+    ]);
+    assert!(
+        !ok && text.contains("map.ply") && text.contains(".omcl file"),
+        "{text}"
+    );
+    assert!(!dir.path().join("map.ply").exists());
+}

@@ -279,3 +279,58 @@ fn project_writes_only_where_asked_and_never_into_read_only_folders() {
     assert_eq!(std::fs::read(seq.join("poses.txt")).unwrap(), poses);
     assert!(!seq.join("velodyne/000003.bin").exists());
 }
+
+/// Ctrl-C (SIGINT) while `map project` writes its label images: the
+/// folder it made goes, images and all, and omcl ends with 130, so that
+/// the rerun starts clean instead of finding a half-filled folder.
+#[test]
+fn an_interrupted_projection_leaves_no_half_filled_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("street");
+    let r = common::omcl(&[
+        "sim",
+        "outdoor",
+        "--out",
+        root.to_str().unwrap(),
+        "--frames",
+        "120",
+        "--resolution",
+        "0.4",
+        "--azimuth-steps",
+        "256",
+    ]);
+    assert!(r.ok(), "{}", r.text());
+    let seq = root.join("sequences/00");
+    let out = dir.path().join("work/labels_2");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(["map", "project", seq.to_str().unwrap(), "-o"])
+        .arg(&out)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Interrupted once the first images are there.
+    let t0 = std::time::Instant::now();
+    while !out.join("000001.png").exists() {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "ended before it wrote a second image"
+        );
+        assert!(t0.elapsed().as_secs() < 120, "no image in 120 s");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let kill = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let o = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(130), "{stderr}");
+    assert!(!out.exists(), "{} left behind", out.display());
+    assert!(dir.path().join("work").exists());
+    let left: Vec<_> = std::fs::read_dir(dir.path().join("work"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}

@@ -150,7 +150,7 @@ pub fn run_with_progress(
             Err(e) => eprintln!("[{k}/{n}] run {i} failed: {e}"),
         });
     });
-    pb.finish_and_clear();
+    super::progress::finish(&pb);
     failures
 }
 
@@ -246,6 +246,6 @@ fn street_table4(a: &BenchArgs, table: &ClassEmbeddings) -> anyhow::Result<Strin
         &|msg| pb.set_message(msg.to_string()),
         &|line| pb.suspend(|| eprintln!("{line}")),
     )?;
-    pb.finish_and_clear();
+    super::progress::finish(&pb);
     Ok(t.markdown)
 }

@@ -523,7 +523,11 @@ fn start(
             let pose = match (&a.init_pose, gt) {
                 (Some(s), _) => parse_pose(s)?,
                 (None, Some(g)) => g.poses()[0],
-                (None, None) => bail!("--init local needs --init-pose or a poses.txt"),
+                (None, None) => bail!(
+                    "--init local needs --init-pose 'tx ty tz qx qy qz qw' (the camera in the \
+                     map's frame; camera 2 on a KITTI sequence) without ground truth to start \
+                     from (poses.txt)"
+                ),
             };
             Start::Pose {
                 pose,
@@ -927,13 +931,15 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         d.display()
     );
     let inputs = CameraSequence::open(d, camera_input(&a, image.is_some()), pick)?;
-    if let Some(k) = inputs.kitti.as_ref().filter(|k| k.len() < k.poses_in_file) {
+    if let Some((k, n)) = (inputs.kitti.as_ref())
+        .and_then(|k| Some((k, k.poses_in_file?)))
+        .filter(|(k, n)| k.len() < *n)
+    {
         eprintln!(
-            "note: {} holds the sequence's first {} frames, of {} poses in poses.txt: those \
+            "note: {} holds the sequence's first {} frames, of {n} poses in poses.txt: those \
              frames are localized",
             d.join(k.input.folder()).display(),
             k.len(),
-            k.poses_in_file
         );
     }
     let gt = inputs.ground_truth.clone();
@@ -1010,7 +1016,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         &stamps,
         &mut |_| pb.inc(1),
     )?;
-    pb.finish_and_clear();
+    super::progress::finish(&pb);
     let (estimates, diag, filter_s, input_s) = diagnostics(&frames);
     let est = Trajectory::new(stamps.clone(), estimates)?;
     let metric = gt

@@ -53,6 +53,10 @@ pub struct BuildOptions {
     /// Name of the feature space, stored in the map (e.g. clip-vit-b32).
     #[arg(long, default_value = DEFAULT_ENCODER)]
     pub encoder: String,
+    /// Replace --out even when it is a file that is not an omcl map (a map
+    /// is replaced without it).
+    #[arg(long)]
+    pub force: bool,
 }
 
 const DEFAULT_ENCODER: &str = "clip-vit-b32";
@@ -131,13 +135,44 @@ impl BuildOptions {
             "--tau must be in [0, 2], got {}",
             self.tau
         );
-        super::outputs::refuse_unwritable(&[("--out", &self.out)], &[])
+        super::outputs::refuse_unwritable(&[("--out", &self.out)], &[])?;
+        let out = &self.out;
+        let ext = out.extension().and_then(|e| e.to_str()).unwrap_or("");
+        ensure!(
+            !["ply", "las", "laz", "bin", "npy", "png"]
+                .iter()
+                .any(|e| ext.eq_ignore_ascii_case(e)),
+            "--out {}: a map is an .omcl file, not a .{ext} (to see a map as a point cloud: \
+             `omcl map query MAP --ply FILE`, `omcl map info`)",
+            out.display()
+        );
+        if out.is_file()
+            && !self.force
+            && let Err(e) = map::file::read_header(out)
+        {
+            bail!(
+                "--out {} exists and is not an omcl map ({e}); pass --force to replace it",
+                out.display()
+            );
+        }
+        Ok(())
     }
 }
 
 /// Saves the map and says what it holds.
 fn save(m: &LanguageMap, b: &BuildOptions, stats: &IntegrationStats) -> anyhow::Result<()> {
     map::save(m, &b.out)?;
+    if stats.rejected > 0 {
+        let g = m.grid();
+        let reach = f64::from(omcl::map::key::CELL_MAX) * g.resolution;
+        eprintln!(
+            "warning: {} of {} points were left out: not finite, or beyond the grid's reach \
+             ({:.0} m each way of its origin ({:.2}, {:.2}, {:.2}), the data's middle, at {} m): \
+             strays far from the data (such as points at 0, 0, 0 in georeferenced \
+             coordinates), or a cloud wider than that (a coarser --resolution reaches farther)",
+            stats.rejected, stats.offered, reach, g.origin.x, g.origin.y, g.origin.z, g.resolution
+        );
+    }
     println!(
         "wrote {}: {} voxels at {} m, {} feature rows x {} dims ({} of {} inputs integrated, {} skipped, {} rejected)",
         b.out.display(),
@@ -236,7 +271,10 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     let text_encoder = text_encoder.flatten();
     if a.input.is_dir() && a.point_model.is_none() {
         // A sequence folder: scan by scan, never the merged cloud in memory.
-        let pb = super::progress::bar(0, "bounds");
+        let pb = super::progress::bar_of(0, "bounds", "scans");
+        // After the last scan the map is finished (its voxels sorted, its
+        // features merged): a spinner, not a bar stuck at N/N.
+        let mut finishing = None;
         let (m, stats) = pipeline::map_from_sequence(
             &input,
             &a.build.params(text_encoder.as_deref()),
@@ -250,10 +288,19 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
                     });
                 }
                 pb.set_position(done as u64);
+                if pass == pipeline::SequencePass::Mapping && done == total {
+                    super::progress::finish(&pb);
+                    finishing = Some(super::progress::spinner("finishing the map"));
+                }
             },
         )?;
-        pb.finish_and_clear();
-        return save(&m, &a.build, &stats);
+        super::progress::finish(&pb);
+        if let Some(s) = finishing {
+            super::progress::finish(&s);
+        }
+        save(&m, &a.build, &stats)?;
+        warn_labels(&m, &a.build, &stats, table.is_some());
+        return Ok(());
     }
     let pb = super::progress::spinner(&format!("reading {}", a.input.display()));
     let c = pipeline::load_cloud(&input)?;
@@ -272,8 +319,39 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         table.as_ref(),
         encoder.as_mut(),
     )?;
-    pb.finish_and_clear();
-    save(&m, &a.build, &stats)
+    super::progress::finish(&pb);
+    save(&m, &a.build, &stats)?;
+    let labelled = table.is_some() && a.features.is_none() && a.point_model.is_none();
+    warn_labels(&m, &a.build, &stats, labelled);
+    Ok(())
+}
+
+/// Warns when a map made from labels through a class table says little:
+/// most points' labels are not in the table (the table of another
+/// dataset), or every point has the same class (a LAS file never
+/// classified).
+fn warn_labels(m: &LanguageMap, b: &BuildOptions, stats: &IntegrationStats, labelled: bool) {
+    let table = b.classes.as_deref().unwrap_or("");
+    if !labelled || stats.offered == 0 {
+        return;
+    }
+    let share = stats.skipped as f64 / stats.offered as f64;
+    if share > 0.2 {
+        eprintln!(
+            "warning: {:.0} % of the points were skipped: their labels are not in the class \
+             table {table}; is it the table of the cloud's dataset? (`omcl map classes \
+             {table}` lists its ids)",
+            100.0 * share
+        );
+    }
+    let used: std::collections::BTreeSet<u32> = m.rows().iter().copied().collect();
+    if used.len() == 1 && m.len() > 1 {
+        eprintln!(
+            "warning: every mapped point has the same class, so the map holds one feature and \
+             cannot tell places apart by meaning (a LAS file whose points were never \
+             classified has only class 0)"
+        );
+    }
 }
 
 #[derive(Debug, Args)]
@@ -353,7 +431,7 @@ fn sevenscenes(a: &RgbdArgs) -> anyhow::Result<()> {
         pipeline::map_from_sevenscenes(&seq, &input, &a.build.params(None), &mut src, &mut |_| {
             pb.inc(1)
         })?;
-    pb.finish_and_clear();
+    super::progress::finish(&pb);
     if a.drop_depth_edges.is_some() {
         println!("dropped {dropped} depth pixels at depth edges");
     }
@@ -423,7 +501,7 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
         features,
         &mut |_| pb.inc(1),
     )?;
-    pb.finish_and_clear();
+    super::progress::finish(&pb);
     let mut b = a.build.clone();
     b.encoder = m.encoder().to_string();
     save(&m, &b, &stats)
@@ -843,13 +921,25 @@ pub fn project(a: &ProjectArgs) -> anyhow::Result<()> {
     }
     let made = !out.exists();
     super::outputs::create_folder("--out", &out)?;
+    // A folder this run made goes if the run is interrupted, not only
+    // when it fails.
+    let _interrupt = made.then(|| omcl::io::atomic::remove_on_interrupt(&out));
     let t0 = std::time::Instant::now();
-    let pb = super::progress::bar(0, "projecting");
+    // The scans are read and merged before the first frame is projected.
+    let reading = super::progress::spinner("merging the scans");
+    let pb = super::progress::bar_of(0, "projecting", "frames");
     let s = pipeline::project_sequence_labels(&input, &params, &out, &mut |done, total| {
+        super::progress::finish(&reading);
         pb.set_length(total as u64);
         pb.set_position(done as u64);
     });
-    pb.finish_and_clear();
+    match &s {
+        Ok(_) => super::progress::finish(&pb),
+        Err(_) => {
+            reading.finish_and_clear();
+            pb.finish_and_clear();
+        }
+    }
     let s = s.inspect_err(|_| {
         if made {
             // Nothing is written before the scans are read: a failure

@@ -145,6 +145,14 @@ impl std::error::Error for CannotSucceed {}
 /// The exit code of [`CannotSucceed`].
 pub const EXIT_CANNOT_SUCCEED: u8 = 3;
 
+impl Cli {
+    /// The command handles SIGINT and SIGTERM itself (`omcl serve`: a
+    /// graceful shutdown).
+    pub fn handles_signals(&self) -> bool {
+        matches!(self.command, Command::Serve(_))
+    }
+}
+
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Map(cmd) => map::run(cmd),

@@ -3,6 +3,8 @@
 //! (`OMCL_PROGRESS_EVERY_S` sets it; the first after 2 s, or the interval
 //! if shorter) instead of nothing, so that a long run's log says how far
 //! it is, and a short or failing command's log holds only what it says.
+//! A log that got progress lines gets a last one when the work is done
+//! ([`finish`]), so that it does not end at 97/100.
 
 use std::io::IsTerminal;
 use std::sync::Mutex;
@@ -63,6 +65,29 @@ pub fn spinner(what: &str) -> ProgressBar {
         .with_style(style);
     pb.enable_steady_tick(Duration::from_millis(120));
     pb
+}
+
+/// Ends `pb`'s work: the bar is cleared from a terminal; a log that got
+/// progress lines (the bar lived past the first line's delay) gets a last
+/// one, `what: N/N unit (done in 12s)` (a spinner: its message and the
+/// time). An error path drops the bar
+/// instead, and its message is the log's last line.
+pub fn finish(pb: &ProgressBar) {
+    // Once: a second call says nothing.
+    if pb.is_finished() {
+        return;
+    }
+    pb.finish_and_clear();
+    if !logging() || pb.elapsed() < log_every().min(LOG_FIRST) {
+        return;
+    }
+    let done = indicatif::HumanDuration(pb.elapsed());
+    let line = match pb.length() {
+        Some(len) => format!("{}: {}/{len} {}", pb.prefix(), pb.position(), pb.message()),
+        None => pb.message(),
+    };
+    let line = line.split_whitespace().collect::<Vec<_>>().join(" ");
+    eprintln!("{line} (done in {done})");
 }
 
 /// Standard error is not a terminal: progress goes to a log.
@@ -138,7 +163,8 @@ impl TermLike for LogLines {
     fn flush(&self) -> std::io::Result<()> {
         let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());
         let line = std::mem::take(&mut st.line);
-        let line = line.trim();
+        // An empty message leaves two spaces in the template's line.
+        let line = line.split_whitespace().collect::<Vec<_>>().join(" ");
         let now = Instant::now();
         if now >= st.next && !line.is_empty() {
             st.next = now + self.every;

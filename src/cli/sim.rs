@@ -259,7 +259,7 @@ fn indoor(a: IndoorArgs) -> anyhow::Result<()> {
         pb.set_position(n as u64)
     })
     .with_context(|| format!("writing the indoor dataset to {}", out.display()))?;
-    pb.finish_and_clear();
+    super::progress::finish(&pb);
     staging.commit()?;
     summary.dir = out;
     println!("{summary}");
@@ -330,7 +330,7 @@ fn outdoor(a: OutdoorArgs) -> anyhow::Result<()> {
         pb.set_position(n as u64)
     })
     .with_context(|| format!("writing the outdoor dataset to {}", out.display()))?;
-    pb.finish_and_clear();
+    super::progress::finish(&pb);
     staging.commit()?;
     summary.dir = out;
     println!("{summary}");

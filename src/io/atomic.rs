@@ -10,10 +10,64 @@
 //! process umask, so 0644 under the usual umask 022), not private as
 //! `tempfile` makes it by default: maps, trajectories and figures are for
 //! sharing.
+//!
+//! A temporary file being written is registered for removal on an
+//! interrupt ([`remove_on_interrupt`]), as is a folder a command made and
+//! is filling: the command line's Ctrl-C and SIGTERM handler calls
+//! [`remove_interrupted`] before it exits, so an interrupted command
+//! leaves neither a hidden `.omcl-*.tmp` nor a half-filled new folder.
 
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// Paths to remove if the process is interrupted.
+static ON_INTERRUPT: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Removes its path from the interrupt list when dropped.
+#[derive(Debug)]
+#[must_use = "the path is removed on an interrupt only while the guard lives"]
+pub struct RemoveOnInterrupt(PathBuf);
+
+/// Registers `path` (a file, or a folder and what is in it) for removal
+/// if the process is interrupted while the returned guard lives.
+pub fn remove_on_interrupt(path: &Path) -> RemoveOnInterrupt {
+    let mut list = ON_INTERRUPT.lock().unwrap_or_else(|e| e.into_inner());
+    list.push(path.to_path_buf());
+    RemoveOnInterrupt(path.to_path_buf())
+}
+
+impl Drop for RemoveOnInterrupt {
+    fn drop(&mut self) {
+        let mut list = ON_INTERRUPT.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(i) = list.iter().rposition(|p| *p == self.0) {
+            list.remove(i);
+        }
+    }
+}
+
+/// Removes every path registered with [`remove_on_interrupt`] whose guard
+/// still lives, and keeps the list locked, so that no new one starts: for
+/// a signal handler that then ends the process.
+pub fn remove_interrupted() {
+    let list = ON_INTERRUPT.lock().unwrap_or_else(|e| e.into_inner());
+    remove_all(&list);
+    // Held until the process ends.
+    std::mem::forget(list);
+}
+
+/// Removes each of `paths` that is there: a folder with what is in it,
+/// a file, or a link (not what it points to).
+fn remove_all(paths: &[PathBuf]) {
+    for p in paths {
+        let _ = match std::fs::symlink_metadata(p) {
+            Ok(m) if m.is_dir() => std::fs::remove_dir_all(p),
+            Ok(_) => std::fs::remove_file(p),
+            Err(_) => Ok(()),
+        };
+    }
+}
 
 /// Writes `path` atomically with `fill`, which writes the contents into a
 /// buffered writer. A symbolic link is written through (its final target
@@ -138,6 +192,7 @@ fn replace_file(
         builder.permissions(std::fs::Permissions::from_mode(0o666));
     }
     let tmp = builder.tempfile_in(dir)?;
+    let _interrupt = remove_on_interrupt(tmp.path());
     {
         let mut w = BufWriter::with_capacity(1 << 16, tmp.as_file());
         fill(&mut w)?;
@@ -156,6 +211,24 @@ pub fn write(path: &Path, bytes: &[u8]) -> io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn interrupt_list_holds_what_is_being_written_and_removes_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let (file, folder) = (dir.path().join(".omcl-x.tmp"), dir.path().join("labels_2"));
+        std::fs::write(&file, b"half").unwrap();
+        std::fs::create_dir(&folder).unwrap();
+        std::fs::write(folder.join("000000.png"), b"x").unwrap();
+        let listed = |p: &Path| ON_INTERRUPT.lock().unwrap().iter().any(|q| q == p);
+        let (g1, g2) = (remove_on_interrupt(&file), remove_on_interrupt(&folder));
+        assert!(listed(&file) && listed(&folder));
+        drop(g1);
+        assert!(!listed(&file) && listed(&folder));
+        remove_all(&[file.clone(), folder.clone(), dir.path().join("never there")]);
+        assert!(!file.exists() && !folder.exists() && dir.path().exists());
+        drop(g2);
+        assert!(!listed(&folder));
+    }
 
     #[test]
     fn replaces_whole_files_and_leaves_no_temporaries() {

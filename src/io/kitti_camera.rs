@@ -77,66 +77,85 @@ pub struct KittiCameraSequence {
     /// Camera 2: intrinsics (image size from frame 0's image, else
     /// [`KITTI_IMAGE_SIZE`]) and `camera0_from_camera2`.
     pub camera: KittiCamera,
-    /// `poses.txt`: camera 0 of every frame, KITTI camera frame.
-    pub camera0_poses: Vec<Pose>,
+    /// `poses.txt`: camera 0 of every frame, KITTI camera frame; `None`
+    /// without the file (KITTI's test sequences 11-21 have none: such a
+    /// sequence is localized from a given odometry and start, and not
+    /// evaluated).
+    pub camera0_poses: Option<Vec<Pose>>,
     /// `times.txt` (seconds), or `0.1 s` a frame when it is missing.
     pub times: Vec<f64>,
     pub input: CameraInput,
     /// Poses in `poses.txt`: more than the frames when the folder holds
-    /// only the sequence's first frames (whose poses are kept).
-    pub poses_in_file: usize,
+    /// only the sequence's first frames (whose poses are kept); `None`
+    /// without the file.
+    pub poses_in_file: Option<usize>,
+    /// Frames in the input folder (`000000` to `frames - 1`).
+    frames: usize,
 }
 
 impl KittiCameraSequence {
     /// Opens `dir` for `input`: reads the calibration (a missing `P2` is
-    /// an error naming `calib.txt`), the poses and times, and checks that
-    /// the input folder holds frames `000000`, `000001`, ... without a
-    /// gap: all of the sequence's or its first ones (a copy of the first
-    /// scans), whose poses and times are kept; more frames than poses, or
-    /// none, is an error naming both files. `times.txt` may run longer
-    /// than `poses.txt` (the whole drive's stamps), not shorter.
+    /// an error naming `calib.txt`), the poses (when `poses.txt` is
+    /// there) and times, and checks that the input folder holds frames
+    /// `000000`, `000001`, ... without a gap: all of the sequence's or
+    /// its first ones (a copy of the first scans), whose poses and times
+    /// are kept; more frames than poses, or none, is an error naming both
+    /// files. `times.txt` may run longer than `poses.txt` (the whole
+    /// drive's stamps), not shorter.
     pub fn open(dir: &Path, input: CameraInput) -> Result<Self, CloudError> {
         let calib_path = dir.join("calib.txt");
         let calib = read_calib(&calib_path)?;
+        let folder = dir.join(input.folder());
+        let count = count_frames(&folder, input.extension())?;
+        if count == 0 {
+            let problem = format!("no frames (NNNNNN.{}) in it", input.extension());
+            return Err(CloudError::mismatch(&folder, problem));
+        }
         let poses_path = dir.join("poses.txt");
-        let camera0_poses = read_kitti_poses(&poses_path)?;
-        let n = camera0_poses.len();
+        let camera0_poses = match poses_path.exists() {
+            true => Some(read_kitti_poses(&poses_path)?),
+            false => None,
+        };
+        let poses_in_file = camera0_poses.as_ref().map(Vec::len);
+        if let Some(n) = poses_in_file.filter(|&n| count > n) {
+            let problem = format!(
+                "{count} frames (NNNNNN.{}) but only {n} poses in {}: every frame needs its pose",
+                input.extension(),
+                poses_path.display()
+            );
+            return Err(CloudError::mismatch(&folder, problem));
+        }
+        // Stamps for the poses, else for the frames.
+        let n = poses_in_file.unwrap_or(count);
         let times_path = dir.join("times.txt");
         let times = if times_path.exists() {
             let mut t = read_times(&times_path)?;
             // The whole drive's stamps with poses.txt cut to the frames
             // at hand: the first stamps are theirs.
             if t.len() < n {
-                return Err(CloudError::mismatch(
-                    &times_path,
-                    format!(
+                let problem = match poses_in_file {
+                    Some(_) => format!(
                         "{} time stamps for {n} poses in {}: every pose needs its stamp",
                         t.len(),
                         poses_path.display()
                     ),
-                ));
+                    None => format!(
+                        "{} time stamps for {n} frames in {}: every frame needs its stamp",
+                        t.len(),
+                        folder.display()
+                    ),
+                };
+                return Err(CloudError::mismatch(&times_path, problem));
             }
             t.truncate(n);
             t
         } else {
             (0..n).map(|i| i as f64 * 0.1).collect()
         };
-        let folder = dir.join(input.folder());
-        let count = count_frames(&folder, input.extension())?;
-        if count == 0 || count > n {
-            let problem = if count == 0 {
-                format!("no frames (NNNNNN.{}) in it", input.extension())
-            } else {
-                format!(
-                    "{count} frames (NNNNNN.{}) but only {n} poses in {}: every frame needs its pose",
-                    input.extension(),
-                    poses_path.display()
-                )
-            };
-            return Err(CloudError::mismatch(&folder, problem));
-        }
         let (mut camera0_poses, mut times) = (camera0_poses, times);
-        camera0_poses.truncate(count);
+        if let Some(p) = camera0_poses.as_mut() {
+            p.truncate(count);
+        }
         times.truncate(count);
         let first = folder.join(format!("000000.{}", input.extension()));
         let (w, h) = match input {
@@ -158,18 +177,19 @@ impl KittiCameraSequence {
             camera0_poses,
             times,
             input,
-            poses_in_file: n,
+            poses_in_file,
+            frames: count,
         })
     }
 
     /// Number of frames.
     pub fn len(&self) -> usize {
-        self.camera0_poses.len()
+        self.frames
     }
 
     /// Whether the sequence has no frames.
     pub fn is_empty(&self) -> bool {
-        self.camera0_poses.is_empty()
+        self.frames == 0
     }
 
     /// The input file of frame `i`.
@@ -197,9 +217,10 @@ impl KittiCameraSequence {
             .collect()
     }
 
-    /// Ground truth: camera 2 of every frame in the map frame.
-    pub fn ground_truth(&self) -> Vec<Pose> {
-        self.camera2_in_map(&self.camera0_poses)
+    /// Ground truth: camera 2 of every frame in the map frame (`None`
+    /// without `poses.txt`).
+    pub fn ground_truth(&self) -> Option<Vec<Pose>> {
+        self.camera0_poses.as_ref().map(|p| self.camera2_in_map(p))
     }
 }
 
@@ -253,14 +274,15 @@ mod tests {
             dir: PathBuf::new(),
             calib,
             camera,
-            camera0_poses: vec![Pose::identity()],
+            camera0_poses: Some(vec![Pose::identity()]),
             times: vec![0.0],
             input: CameraInput::Labels,
-            poses_in_file: 1,
+            poses_in_file: Some(1),
+            frames: 1,
         };
         // Frame 0: camera 0 at the KITTI origin; the map origin is the first
         // LiDAR frame, so camera 2 sits at Tr^-1 applied to (-0.063, 0, 0).
-        let g = seq.ground_truth()[0];
+        let g = seq.ground_truth().unwrap()[0];
         let expect =
             seq.calib.camera_from_lidar.inverse() * nalgebra::Point3::new(-0.063_131_211, 0.0, 0.0);
         assert!((g.translation.vector - expect.coords).norm() < 1e-8);

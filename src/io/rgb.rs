@@ -1,7 +1,9 @@
 //! Colour images from disk (PNG, JPEG) as 8-bit RGB: the one colour reader
 //! of the crate (RGB-D frames, KITTI camera images, encoders). PNGs go
 //! through [`super::bounded_png`], whose header claims are checked against
-//! the file; JPEGs through `image` with its allocation limit.
+//! the file; JPEGs through `image` with its allocation limit, after their
+//! header's size is checked against the file's (one bit an 8 x 8 block at
+//! least).
 
 use std::io::Cursor;
 use std::path::Path;
@@ -51,6 +53,23 @@ fn decode_bytes(bytes: &[u8], name: &Path) -> Result<DynamicImage, CloudError> {
                 return Err(CloudError::format(name, "palette PNG was not expanded"));
             }
         });
+    }
+    // Every 8 x 8 block of the first component takes at least one bit of
+    // entropy-coded data (its DC code), so a header that claims more
+    // pixels than 512 a byte lies: refused before the decoder allocates
+    // the image it claims (a 396-byte file claiming 22529 x 22783 pixels
+    // asked for 2 GB; AFL++, 2026-11-28).
+    let (w, h) = image_size(bytes, name)?;
+    let claimed = u64::from(w) * u64::from(h);
+    if claimed > 512 * bytes.len() as u64 {
+        return Err(CloudError::format(
+            name,
+            format!(
+                "corrupt JPEG: its header claims {w} x {h} pixels, more than its {} bytes can \
+                 hold (at least one bit each 8 x 8 block)",
+                bytes.len()
+            ),
+        ));
     }
     let mut reader = jpeg_reader(bytes, name)?;
     let mut limits = image::Limits::default();
@@ -199,6 +218,40 @@ pub fn read_luma(path: &Path) -> Result<(u32, u32, Vec<u8>), CloudError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// AFL++'s finds (fuzz/corpus/image_bytes): a few hundred bytes whose
+    /// header claims a huge image are refused before anything is
+    /// allocated for it.
+    #[test]
+    fn a_jpeg_claiming_more_pixels_than_its_bytes_hold_is_refused() {
+        let tiny = include_bytes!("../../fuzz/corpus/image_bytes/crash-a6d37541c00a.jpg");
+        let e = rgb_from_bytes(tiny, Path::new("f.jpg"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("f.jpg") && e.contains("22529 x 22783") && e.contains("396 bytes"),
+            "{e}"
+        );
+        for (file, bytes) in [
+            (
+                "f3b28fb46d47",
+                &include_bytes!("../../fuzz/corpus/image_bytes/crash-f3b28fb46d47.jpg")[..],
+            ),
+            (
+                "645c403026b3",
+                &include_bytes!("../../fuzz/corpus/image_bytes/crash-645c403026b3.jpg")[..],
+            ),
+            (
+                "b3ba0a564c66",
+                &include_bytes!("../../fuzz/corpus/image_bytes/crash-b3ba0a564c66.jpg")[..],
+            ),
+        ] {
+            let e = rgb_from_bytes(bytes, Path::new(file))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("more than its"), "{file}: {e}");
+        }
+    }
 
     #[test]
     fn png_and_jpeg_read_and_bad_file_named() {

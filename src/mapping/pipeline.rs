@@ -181,7 +181,7 @@ pub enum SequencePass {
 /// Builds the map of a SemanticKITTI sequence folder (`input.path`) one
 /// scan at a time, so memory holds one scan and the map being integrated,
 /// never the merged cloud (4541 scans of KITTI 00 are about 9 GB of
-/// points): a first pass reads every scan for the lower corner of the kept
+/// points): a first pass reads every scan for the centre of the kept
 /// points (the grid's origin, as [`grid_for`] of the merged cloud), a
 /// second integrates each scan and drops it. Points, their order and the
 /// grid are those of `map_from_cloud(load_cloud(input))`, so the map is the
@@ -194,20 +194,17 @@ pub fn map_from_sequence(
 ) -> Result<(LanguageMap, IntegrationStats), PipelineError> {
     let name = input.path.display().to_string();
     let (seq, frames, opts) = open_sequence(input)?;
-    let mut lo = [f64::INFINITY; 3];
-    let mut any = false;
+    let mut origin = OriginEstimate::default();
     for (done, &f) in frames.iter().enumerate() {
         let scan = seq.filtered_scan(f, &opts)?;
-        any |= !scan.is_empty();
-        lower_corner(&mut lo, &scan.points);
+        origin.add(&scan.points);
         progress(SequencePass::Bounds, done + 1, frames.len());
     }
-    if !any {
-        return Err(PipelineError::Input(format!(
+    let grid = origin.grid(params.resolution).ok_or_else(|| {
+        PipelineError::Input(format!(
             "{name}: empty result: no points left to map; no map written"
-        )));
-    }
-    let grid = grid_at(lo, params.resolution);
+        ))
+    })?;
     let mut integ: Option<Integrator> = None;
     let mut stats = IntegrationStats::default();
     for (done, &f) in frames.iter().enumerate() {
@@ -275,25 +272,73 @@ fn no_features(input: &str) -> PipelineError {
     ))
 }
 
-/// Lowers `lo` to the corner of `points`.
-fn lower_corner(lo: &mut [f64; 3], points: &[[f64; 3]]) {
-    for p in points {
-        for a in 0..3 {
-            lo[a] = lo[a].min(p[a]);
+/// Where a cloud's grid is centred: the per-axis median of the medians of
+/// consecutive blocks of [`ORIGIN_BLOCK`] points, fed in the cloud's order
+/// (so a sequence fed scan by scan gets the origin of its merged cloud).
+/// A median, not the lower corner: one stray point far from the data (a
+/// point at 0, 0, 0 in UTM coordinates, common in real LAS files) cannot
+/// move the grid away from the data; it falls out of the grid's reach and
+/// is counted as rejected.
+#[derive(Debug, Default)]
+pub struct OriginEstimate {
+    block: Vec<[f64; 3]>,
+    medians: Vec<[f64; 3]>,
+}
+
+/// Points a block of [`OriginEstimate`].
+pub const ORIGIN_BLOCK: usize = 1 << 16;
+
+impl OriginEstimate {
+    /// Feeds the next points of the cloud.
+    pub fn add(&mut self, points: &[[f64; 3]]) {
+        for p in points {
+            self.block.push(*p);
+            if self.block.len() == ORIGIN_BLOCK {
+                let m = median3(&mut self.block);
+                self.medians.push(m);
+                self.block.clear();
+            }
         }
+    }
+
+    /// The grid of resolution `resolution` centred on the points fed
+    /// (the origin snapped to the resolution, so the voxels are those of
+    /// any other snapped origin); `None` before any point.
+    pub fn grid(mut self, resolution: f64) -> Option<GridSpec> {
+        if !self.block.is_empty() {
+            let m = median3(&mut self.block);
+            self.medians.push(m);
+        }
+        if self.medians.is_empty() {
+            return None;
+        }
+        Some(grid_at(median3(&mut self.medians), resolution))
     }
 }
 
-/// A grid whose origin is the cloud's lower corner snapped to the
-/// resolution, so that georeferenced coordinates (UTM) keep float precision.
-pub fn grid_for(points: &[[f64; 3]], resolution: f64) -> GridSpec {
-    let mut lo = [f64::INFINITY; 3];
-    lower_corner(&mut lo, points);
-    grid_at(lo, resolution)
+/// The per-axis medians (the upper one of an even count) of `v`, which
+/// must not be empty; non-finite values sort last.
+fn median3(v: &mut [[f64; 3]]) -> [f64; 3] {
+    let mid = v.len() / 2;
+    std::array::from_fn(|a| {
+        let (_, m, _) = v.select_nth_unstable_by(mid, |x, y| x[a].total_cmp(&y[a]));
+        m[a]
+    })
 }
 
-/// The grid of resolution `resolution` whose origin is `lo` snapped down.
-fn grid_at(lo: [f64; 3], resolution: f64) -> GridSpec {
+/// A grid centred on the cloud ([`OriginEstimate`]) with its origin
+/// snapped to the resolution, so that georeferenced coordinates (UTM)
+/// keep float precision and a stray point cannot push the data out of
+/// the grid's reach (2^20 cells each way of the origin).
+pub fn grid_for(points: &[[f64; 3]], resolution: f64) -> GridSpec {
+    let mut o = OriginEstimate::default();
+    o.add(points);
+    o.grid(resolution)
+        .unwrap_or_else(|| grid_at([0.0; 3], resolution))
+}
+
+/// The grid of resolution `resolution` whose origin is `at` snapped down.
+fn grid_at(at: [f64; 3], resolution: f64) -> GridSpec {
     let snap = |v: f64| {
         if v.is_finite() {
             (v / resolution).floor() * resolution
@@ -303,7 +348,7 @@ fn grid_at(lo: [f64; 3], resolution: f64) -> GridSpec {
     };
     GridSpec {
         resolution,
-        origin: Vector3::new(snap(lo[0]), snap(lo[1]), snap(lo[2])),
+        origin: Vector3::new(snap(at[0]), snap(at[1]), snap(at[2])),
     }
 }
 
@@ -800,4 +845,79 @@ pub fn project_sequence_labels(
         points: cloud.len(),
         coverage: labelled as f64 / (n.max(1) * (w * h) as usize) as f64,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Georeferenced points (UTM, 0.1 m apart on a 100 x 200 patch) with
+    /// one stray point at 0, 0, 0, 6,400 km away.
+    fn utm_with_a_stray_point() -> PointCloud {
+        let mut points: Vec<[f64; 3]> = (0..20_000)
+            .map(|i| {
+                let (x, y) = ((i % 100) as f64, (i / 100) as f64);
+                [630_000.0 + 0.1 * x, 4_830_000.0 + 0.1 * y, 100.0]
+            })
+            .collect();
+        points.insert(7, [0.0; 3]);
+        let n = points.len();
+        PointCloud {
+            features: Some((2, [1.0, 0.0].repeat(n))),
+            ..PointCloud::from_points(points)
+        }
+    }
+
+    #[test]
+    fn a_stray_point_far_from_the_data_is_rejected_not_the_data() {
+        let params = BuildParams {
+            resolution: 0.05,
+            tau: 0.02,
+            max_rows: 16,
+            encoder: "test".into(),
+        };
+        let (m, stats) =
+            map_from_cloud(utm_with_a_stray_point(), "utm", &params, None, None).unwrap();
+        assert_eq!(
+            (stats.offered, stats.integrated, stats.rejected),
+            (20_001, 20_000, 1)
+        );
+        // 0.1 m apart at 0.05 m: a voxel a point.
+        assert_eq!(m.len(), 20_000);
+        // The origin is the data's middle, snapped to the resolution.
+        let o = m.grid().origin;
+        assert!((o.x - 630_005.0).abs() < 0.2, "{o:?}");
+        assert!((o.y - 4_830_010.0).abs() < 0.2, "{o:?}");
+        assert!((o.z - 100.0).abs() < 0.051, "{o:?}");
+    }
+
+    #[test]
+    fn the_origin_does_not_depend_on_how_the_points_are_fed() {
+        let pts: Vec<[f64; 3]> = (0..150_001)
+            .map(|i| {
+                let t = i as f64;
+                [
+                    (t * 0.37).sin() * 50.0 + t * 1e-3,
+                    (t * 0.11).cos() * 20.0,
+                    t * 1e-4,
+                ]
+            })
+            .collect();
+        let whole = grid_for(&pts, 0.1);
+        let mut fed = OriginEstimate::default();
+        for chunk in pts.chunks(7_001) {
+            fed.add(chunk);
+        }
+        assert_eq!(fed.grid(0.1), Some(whole));
+        assert_eq!(OriginEstimate::default().grid(0.1), None);
+        // Three blocks' medians and the last block's: the median of four
+        // is the upper middle one, per axis.
+        let mut v = vec![
+            [1.0, 9.0, 0.0],
+            [4.0, 2.0, 0.0],
+            [3.0, 3.0, 5.0],
+            [2.0, 1.0, 5.0],
+        ];
+        assert_eq!(median3(&mut v), [3.0, 3.0, 5.0]);
+    }
 }

@@ -7,7 +7,8 @@
 //! RGB-D folder  intrinsics.txt, poses.txt (TUM, ground truth, optional),
 //!               labels/NNNNNN.png | features/NNNNNN.npy | rgb/NNNNNN.png,
 //!               classes.txt + embeddings.npy for label images
-//! KITTI folder  calib.txt (camera 2 from P2), poses.txt (camera 0),
+//! KITTI folder  calib.txt (camera 2 from P2), poses.txt (camera 0,
+//!               ground truth, optional),
 //!               times.txt, labels_2/ | features_2/ | image_2/
 //!               (see crate::io::kitti_camera)
 //! 7-Scenes      camera-intrinsics.txt, frame-NNNNNN.{color.jpg,
@@ -242,11 +243,14 @@ impl CameraSequence {
     /// A KITTI odometry folder; `input` picks the camera-2 folder read.
     pub fn kitti(d: &Path, input: CameraInput) -> Result<Self, SequenceError> {
         let seq = KittiCameraSequence::open(d, input)?;
-        let gt = Trajectory::new(seq.times.clone(), seq.ground_truth())?;
+        let gt = seq
+            .ground_truth()
+            .map(|g| Trajectory::new(seq.times.clone(), g))
+            .transpose()?;
         Ok(CameraSequence {
             dir: d.to_path_buf(),
             intrinsics: seq.camera.intrinsics,
-            ground_truth: Some(gt),
+            ground_truth: gt,
             ground_truth_path: d.join("poses.txt"),
             classes: d.join("classes.txt"),
             embeddings: d.join("embeddings.npy"),
