@@ -803,3 +803,89 @@ fn map_cloud_warns_about_strays_and_tables_and_guards_its_output() {
     );
     assert!(!dir.path().join("map.ply").exists());
 }
+
+/// Near misses of `map cloud`'s input, each told what to give instead,
+/// and options that do not apply to the input refused rather than
+/// ignored.
+#[test]
+fn map_cloud_names_near_misses_and_options_that_do_not_apply() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("m.omcl");
+    let o = out.to_str().unwrap();
+    let run = |input: &Path, extra: &[&str]| {
+        let args = [
+            &["map", "cloud", input.to_str().unwrap(), "-o", o][..],
+            extra,
+        ]
+        .concat();
+        omcl(&args)
+    };
+    let seq = shared("semantickitti/sequences/00");
+    let cases: [(PathBuf, &[&str], &[&str]); 3] = [
+        (
+            shared("semantickitti/sequences"),
+            &[],
+            &["a folder of 1 KITTI sequences", "sequences/00"],
+        ),
+        (
+            seq.join("velodyne"),
+            &[],
+            &[
+                "a folder inside the KITTI sequence",
+                "give the sequence's folder",
+            ],
+        ),
+        (
+            shared("las"),
+            &["--classes", "asprs"],
+            &["point-cloud files", "give one file", "pdal merge"],
+        ),
+    ];
+    for (input, extra, needles) in cases {
+        let (ok, text) = run(&input, extra);
+        assert!(!ok, "{text}");
+        for n in needles {
+            assert!(text.contains(n), "{}: lacks {n:?}: {text}", input.display());
+        }
+    }
+    let las = shared("las/simple.las");
+    for (extra, needle) in [
+        (&["--frames", "2"][..], "--frames is for a sequence folder"),
+        (
+            &["--max-range", "30"][..],
+            "--max-range is for a sequence folder",
+        ),
+        (&["--frames", "0"][..], "0 is less than 1"),
+    ] {
+        let (ok, text) = run(&las, &[&["--classes", "asprs"][..], extra].concat());
+        assert!(!ok && text.contains(needle), "{extra:?}: {text}");
+    }
+    let (ok, text) = run(&seq, &["--classes", "semantickitti", "--max-range", "nan"]);
+    assert!(
+        !ok && text.contains("--max-range must be a positive"),
+        "{text}"
+    );
+    let feats = dir.path().join("f.npy");
+    npy::write_npy(&feats, &[1, 2], &[1.0, 0.0]).unwrap();
+    let (ok, text) = run(
+        &las,
+        &["--classes", "asprs", "--features", feats.to_str().unwrap()],
+    );
+    assert!(
+        !ok && text.contains("--features") && text.contains("--classes"),
+        "{text}"
+    );
+    let bin = dir.path().join("scan.bin");
+    std::fs::write(&bin, [0u8; 16]).unwrap();
+    let (ok, text) = run(&bin, &[]);
+    assert!(
+        !ok && text.contains("--format kitti") && text.contains("--format scannet"),
+        "{text}"
+    );
+    let (ok, text) = run(&dir.path().join("missing.laz"), &["--classes", "asprs"]);
+    assert!(
+        !ok && text.contains("missing.laz: no such file or folder"),
+        "{text}"
+    );
+    assert!(!out.exists());
+}

@@ -207,8 +207,9 @@ pub struct CloudArgs {
     /// Format of a file whose extension does not tell.
     #[arg(long, value_enum)]
     pub format: Option<FormatArg>,
-    /// Per-point features (`N x F` .npy, e.g. OpenScene run elsewhere).
-    #[arg(long)]
+    /// Per-point features (`N x F` .npy, e.g. OpenScene run elsewhere);
+    /// the map is made of them, so not with --classes.
+    #[arg(long, conflicts_with = "classes")]
     pub features: Option<PathBuf>,
     /// A single KITTI scan's SemanticKITTI `.label` file (default: the
     /// scan's name with `.label` beside it, or in `../labels/`).
@@ -252,6 +253,31 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         super::outputs::refuse_inside_sequence(&[("--out", &a.build.out)], &a.input)?;
     }
     a.build.check()?;
+    // Before a text model is loaded for the class table.
+    ensure!(
+        a.input.exists(),
+        "{}: no such file or folder",
+        a.input.display()
+    );
+    if !a.input.is_dir() {
+        for (given, what) in [
+            (a.frames.is_some(), "--frames"),
+            (a.max_range.is_some(), "--max-range"),
+            (a.features_dir.is_some(), "--features-dir"),
+        ] {
+            ensure!(
+                !given,
+                "{what} is for a sequence folder (scan by scan); {} is a file",
+                a.input.display()
+            );
+        }
+    }
+    if let Some(r) = a.max_range {
+        ensure!(
+            r.is_finite() && r > 0.0,
+            "--max-range must be a positive number of metres, got {r}"
+        );
+    }
     let input = CloudInput {
         path: a.input.clone(),
         format: a.format.map(|f| match f {

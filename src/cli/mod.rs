@@ -65,6 +65,8 @@ pub fn count_in<const LO: usize, const HI: usize>(s: &str) -> Result<usize, Stri
     let n: usize = s.trim().parse().map_err(|e| format!("{e}"))?;
     if (LO..=HI).contains(&n) {
         Ok(n)
+    } else if HI == usize::MAX {
+        Err(format!("{n} is less than {LO}: give at least {LO}"))
     } else {
         Err(format!("{n} is not in {LO}..={HI}"))
     }

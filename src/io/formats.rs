@@ -49,7 +49,7 @@ pub fn read_point_cloud(
             CloudError::format(
                 path,
                 "cannot tell the format from the extension (.ply, .las, .laz); \
-             for .bin say kitti or scannet",
+             for a .bin pass --format kitti (a Velodyne scan) or --format scannet",
             )
         })?;
     match format {

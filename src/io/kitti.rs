@@ -382,6 +382,7 @@ impl KittiSequence {
     /// Opens a sequence: reads calibration and poses and lists the scans.
     pub fn open(dir: &Path) -> Result<Self, CloudError> {
         check_sequence_folder(dir)?;
+        check_near_misses(dir)?;
         let calib = read_calib(&dir.join("calib.txt"))?;
         let camera_poses = read_kitti_poses(&dir.join("poses.txt"))?;
         let vel = dir.join("velodyne");
@@ -561,6 +562,66 @@ pub fn check_sequence_folder(dir: &Path) -> Result<(), CloudError> {
                  folder, e.g. {}",
                 names.len(),
                 sequences.join(example).display()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// A LiDAR sequence folder's near misses, named before `calib.txt` is
+/// found missing: the `sequences/` folder itself, a sequence's subfolder
+/// (`velodyne/`), a folder of point-cloud files (LAS tiles).
+fn check_near_misses(dir: &Path) -> Result<(), CloudError> {
+    if dir.join("calib.txt").exists() {
+        return Ok(());
+    }
+    let mut sequences: Vec<String> = std::fs::read_dir(dir)
+        .map(|d| {
+            d.filter_map(|e| e.ok())
+                .filter(|e| e.path().join("calib.txt").is_file())
+                .filter_map(|e| e.file_name().to_str().map(str::to_string))
+                .collect()
+        })
+        .unwrap_or_default();
+    sequences.sort();
+    if let Some(first) = sequences.first() {
+        return Err(CloudError::format(
+            dir,
+            format!(
+                "a folder of {} KITTI sequences; give one sequence's folder, e.g. {}",
+                sequences.len(),
+                dir.join(first).display()
+            ),
+        ));
+    }
+    if let Some(seq) = dir.parent().filter(|p| p.join("calib.txt").is_file()) {
+        return Err(CloudError::format(
+            dir,
+            format!(
+                "a folder inside the KITTI sequence {}; give the sequence's folder",
+                seq.display()
+            ),
+        ));
+    }
+    let clouds = std::fs::read_dir(dir)
+        .map(|d| {
+            d.filter_map(|e| e.ok())
+                .filter(|e| {
+                    let p = e.path();
+                    let ext = p.extension().and_then(|x| x.to_str()).unwrap_or("");
+                    ["las", "laz", "ply"]
+                        .iter()
+                        .any(|k| ext.eq_ignore_ascii_case(k))
+                })
+                .count()
+        })
+        .unwrap_or(0);
+    if clouds > 0 {
+        return Err(CloudError::format(
+            dir,
+            format!(
+                "a folder of {clouds} point-cloud files, not a KITTI sequence (no calib.txt): \
+                 give one file; merge tiles first (e.g. `pdal merge`) to map them together"
             ),
         ));
     }
