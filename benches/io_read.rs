@@ -23,6 +23,7 @@ fn synthetic(n: usize, dim: usize) -> PointCloud {
         labels: Some((0..n).map(|_| rng.random_range(0..30)).collect()),
         colors: Some((0..n).map(|_| rng.random()).collect()),
         features: (dim > 0).then(|| (dim, (0..n * dim).map(|_| rng.random()).collect())),
+        notes: Vec::new(),
     }
 }
 

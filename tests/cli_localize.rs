@@ -482,7 +482,11 @@ fn an_empty_feature_map_is_an_error_not_a_panic() {
 #[test]
 fn map_rgbd_refuses_empty_feature_maps_naming_the_file() {
     let f = Fixture::new();
-    let out = f.existing_out("map.omcl");
+    // An earlier map (a map's -o replaces only a map) that a failed run
+    // must leave as it is.
+    let out = f.dir.path().join("map.omcl");
+    std::fs::copy(&f.map, &out).unwrap();
+    let before = std::fs::read(&out).unwrap();
     let seq = f.copy_seq("empty_features_map");
     let bad = seq.join("features").join("000001.npy");
     // 0 x W x F and H x 0 x F: the right dimension, no pixels.
@@ -498,7 +502,12 @@ fn map_rgbd_refuses_empty_feature_maps_naming_the_file() {
             "0.1",
             "--use-features",
         ]);
-        assert_clean_failure(&r, &out, &[s(&bad), "every extent must be at least 1"]);
+        let text = r.text();
+        assert_eq!(r.code, Some(1), "{text}");
+        for n in [s(&bad), "every extent must be at least 1"] {
+            assert!(r.stderr.contains(n), "message lacks {n:?}:\n{text}");
+        }
+        assert!(std::fs::read(&out).unwrap() == before, "{text}");
     }
 }
 

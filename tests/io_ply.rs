@@ -136,28 +136,297 @@ fn corrupt_header_and_garbage_name_file() {
     assert_err_names(read_ply(&missing).unwrap_err(), &missing, "");
 }
 
+/// A binary little-endian PLY: `header` lines between `ply`/`format` and
+/// `end_header`, then `body`.
+fn binary_ply(header: &str, body: &[u8]) -> Vec<u8> {
+    let mut b = format!("ply\nformat binary_little_endian 1.0\n{header}end_header\n").into_bytes();
+    b.extend_from_slice(body);
+    b
+}
+
+fn le(values: &[f32]) -> Vec<u8> {
+    values.iter().flat_map(|v| v.to_le_bytes()).collect()
+}
+
+fn note_count(c: &PointCloud, path: &std::path::Path, parts: &[&str]) -> usize {
+    let name = path.display().to_string();
+    c.notes
+        .iter()
+        .filter(|n| n.starts_with(&name) && parts.iter().all(|p| n.contains(p)))
+        .count()
+}
+
 #[test]
-fn non_finite_points_name_file_and_index() {
+fn non_finite_points_are_left_out_with_their_rows_and_a_note() {
     let d = tempfile::tempdir().unwrap();
+    // ASCII as PCL and Open3D write invalid points (glibc prints "-nan"),
+    // with colour, label and feature columns that must stay aligned; the
+    // left-out vertex's label (-1) is not even looked at.
     let p = d.path().join("nan.ply");
     std::fs::write(
         &p,
-        b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
-          property float z\nend_header\n1 2 3\n4 5 6\n7 nan 9\n",
+        "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\n\
+         property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n\
+         property int label\nproperty float f0\nend_header\n\
+         1 2 3 10 11 12 1 0.5\nnan nan nan 0 0 0 -1 0\n4 -nan 6 20 21 22 2 1.5\n\
+         7 8 9 30 31 32 3 2.5\n1 inf 1 0 0 0 4 0\n-Infinity 0 0 0 0 0 5 0\n",
     )
     .unwrap();
-    // ply-rs-bw's ASCII grammar has no "nan": a parse error at the record.
-    assert_err_names(read_ply(&p).unwrap_err(), &p, "vertex 2");
-    // Binary infinity passes the parser and is caught by validation.
-    let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n\
-        property float y\nproperty float z\nend_header\n"
-        .to_vec();
-    for v in [0.0f32, 1.0, 2.0, f32::INFINITY, 0.0, 0.0] {
-        bytes.extend_from_slice(&v.to_le_bytes());
+    let c = read_ply(&p).unwrap();
+    assert_eq!(c.points, vec![[1.0, 2.0, 3.0], [7.0, 8.0, 9.0]]);
+    assert_eq!(c.labels, Some(vec![1, 3]));
+    assert_eq!(c.colors, Some(vec![[10, 11, 12], [30, 31, 32]]));
+    assert_eq!(c.features, Some((1, vec![0.5, 2.5])));
+    assert_eq!(
+        note_count(&c, &p, &["4 of 6 vertices", "non-finite", "left out"]),
+        1,
+        "{:?}",
+        c.notes
+    );
+    // Binary, fixed records (the bulk decoder) and with a list property
+    // (record by record): NaN and infinity alike.
+    for with_list in [false, true] {
+        let header = format!(
+            "element vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
+             property ushort label\n{}",
+            if with_list {
+                "property list uchar int extra\n"
+            } else {
+                ""
+            }
+        );
+        let mut body = Vec::new();
+        for (i, xyz) in [
+            [0.0, 1.0, 2.0],
+            [f32::NAN; 3],
+            [3.0, f32::INFINITY, 0.0],
+            [4.0, 5.0, 6.0],
+        ]
+        .iter()
+        .enumerate()
+        {
+            body.extend(le(xyz));
+            body.extend((10 * i as u16).to_le_bytes());
+            if with_list {
+                body.push(1);
+                body.extend(7i32.to_le_bytes());
+            }
+        }
+        let p = d.path().join(format!("nan_{with_list}.ply"));
+        std::fs::write(&p, binary_ply(&header, &body)).unwrap();
+        let c = read_ply(&p).unwrap();
+        assert_eq!(
+            c.points,
+            vec![[0.0, 1.0, 2.0], [4.0, 5.0, 6.0]],
+            "list {with_list}"
+        );
+        assert_eq!(c.labels, Some(vec![0, 30]), "list {with_list}");
+        assert_eq!(note_count(&c, &p, &["2 of 4 vertices"]), 1, "{:?}", c.notes);
     }
-    let p = d.path().join("inf.ply");
-    std::fs::write(&p, bytes).unwrap();
-    assert_err_names(read_ply(&p).unwrap_err(), &p, "point 1");
+    // Nothing but invalid points: empty, and said why.
+    let p = d.path().join("all_nan.ply");
+    std::fs::write(
+        &p,
+        b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+          property float z\nend_header\nnan nan nan\nnan nan nan\n",
+    )
+    .unwrap();
+    assert_err_names(
+        read_ply(&p).unwrap_err(),
+        &p,
+        "all 2 vertices have a non-finite",
+    );
+}
+
+#[test]
+fn label_properties_in_cloudcompare_and_other_spellings() {
+    let d = tempfile::tempdir().unwrap();
+    for name in [
+        "scalar_Classification",
+        "scalar_class",
+        "SCALAR_LABEL",
+        "Label",
+        "Classification",
+        "semantic",
+        "scalar_semantic_label",
+    ] {
+        let p = d.path().join(format!("{name}.ply"));
+        std::fs::write(
+            &p,
+            format!(
+                "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+                 property float z\nproperty float {name}\nend_header\n0 0 0 6\n1 1 1 2\n"
+            ),
+        )
+        .unwrap();
+        assert_eq!(read_ply(&p).unwrap().labels, Some(vec![6, 2]), "{name}");
+        // The bulk binary decoder matches the same names.
+        let header = format!(
+            "element vertex 1\nproperty float x\nproperty float y\nproperty float z\n\
+             property float {name}\n"
+        );
+        std::fs::write(&p, binary_ply(&header, &le(&[0.0, 0.0, 0.0, 9.0]))).unwrap();
+        assert_eq!(read_ply(&p).unwrap().labels, Some(vec![9]), "{name}");
+    }
+    // Names that only look alike are other scalar fields.
+    for name in ["scalar_Intensity", "labels_x", "scalar_", "subclass"] {
+        let p = d.path().join("other.ply");
+        let header = format!(
+            "element vertex 1\nproperty float x\nproperty float y\nproperty float z\n\
+             property float {name}\n"
+        );
+        std::fs::write(&p, binary_ply(&header, &le(&[0.0, 0.0, 0.0, 9.0]))).unwrap();
+        assert_eq!(read_ply(&p).unwrap().labels, None, "{name}");
+    }
+    // Two of them: which one is meant is not guessed.
+    let p = d.path().join("two.ply");
+    let header = "element vertex 1\nproperty float x\nproperty float y\nproperty float z\n\
+                  property float scalar_Classification\nproperty uchar label\n";
+    let mut body = le(&[0.0, 0.0, 0.0, 9.0]);
+    body.push(1);
+    std::fs::write(&p, binary_ply(header, &body)).unwrap();
+    assert_err_names(read_ply(&p).unwrap_err(), &p, "several label properties");
+}
+
+#[test]
+fn sixteen_bit_and_float_colours_scale_to_eight_bits() {
+    let d = tempfile::tempdir().unwrap();
+    let rgb16 = [[0u16, 255, 256], [65535, 32768, 511]];
+    let want16 = vec![[0u8, 0, 1], [255, 128, 1]];
+    for with_list in [false, true] {
+        let header = format!(
+            "element vertex 2\nproperty float x\nproperty float y\nproperty float z\n{}\
+             property ushort red\nproperty ushort green\nproperty ushort blue\n",
+            if with_list {
+                "property list uchar uchar extra\n"
+            } else {
+                ""
+            }
+        );
+        let mut body = Vec::new();
+        for c in rgb16 {
+            body.extend(le(&[1.0, 2.0, 3.0]));
+            if with_list {
+                body.extend([2, 7, 7]);
+            }
+            body.extend(c.iter().flat_map(|v| v.to_le_bytes()));
+        }
+        let p = d.path().join(format!("u16_{with_list}.ply"));
+        std::fs::write(&p, binary_ply(&header, &body)).unwrap();
+        let c = read_ply(&p).unwrap();
+        assert_eq!(c.colors, Some(want16.clone()), "list {with_list}");
+        assert!(c.notes.is_empty(), "{:?}", c.notes);
+    }
+    let p = d.path().join("u16.ply");
+    std::fs::write(
+        &p,
+        "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+         property float z\nproperty ushort red\nproperty ushort green\nproperty ushort blue\n\
+         end_header\n0 0 0 0 255 256\n0 0 0 65535 32768 511\n",
+    )
+    .unwrap();
+    assert_eq!(read_ply(&p).unwrap().colors, Some(want16));
+    // Float and double 0-1 (Open3D writes double): times 255, rounded;
+    // outside 0-1 clamped, and said.
+    let p = d.path().join("unit.ply");
+    std::fs::write(
+        &p,
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+         property float z\nproperty double red\nproperty double green\nproperty float blue\n\
+         end_header\n0 0 0 0 0.5 1\n0 0 0 0.2 0.998 0.003\n0 0 0 1.5 -0.25 nan\n",
+    )
+    .unwrap();
+    let c = read_ply(&p).unwrap();
+    assert_eq!(
+        c.colors,
+        Some(vec![[0, 128, 255], [51, 254, 1], [255, 0, 0]])
+    );
+    assert_eq!(
+        note_count(&c, &p, &["3 float colour values", "clamped"]),
+        1,
+        "{:?}",
+        c.notes
+    );
+    let header = "element vertex 2\nproperty float x\nproperty float y\nproperty float z\n\
+                  property float red\nproperty float green\nproperty float blue\n";
+    let body = le(&[
+        0.0, 0.0, 0.0, 0.0, 0.5, 1.0, 0.0, 0.0, 0.0, 0.2, 0.998, 0.003,
+    ]);
+    std::fs::write(&p, binary_ply(header, &body)).unwrap();
+    let c = read_ply(&p).unwrap();
+    assert_eq!(c.colors, Some(vec![[0, 128, 255], [51, 254, 1]]));
+    assert!(c.notes.is_empty(), "{:?}", c.notes);
+}
+
+#[test]
+fn unusable_colour_types_are_named_in_ply_words() {
+    let d = tempfile::tempdir().unwrap();
+    for (t, word) in [
+        ("int", "int"),
+        ("char", "char"),
+        ("list uchar uchar", "list uchar uchar"),
+    ] {
+        let p = d.path().join("int_red.ply");
+        std::fs::write(
+            &p,
+            format!(
+                "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+                 property float z\nproperty {t} red\nproperty uchar green\nproperty uchar blue\n\
+                 end_header\n0 0 0 1 2 3\n"
+            ),
+        )
+        .unwrap();
+        let e = read_ply(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("int_red.ply")
+                && e.contains("'red'")
+                && e.contains(&format!("type {word};"))
+                && e.contains("ushort"),
+            "{e}"
+        );
+        assert!(!e.contains("Scalar") && !e.contains("Some("), "{e}");
+    }
+    let p = d.path().join("int_x.ply");
+    std::fs::write(
+        &p,
+        "ply\nformat ascii 1.0\nelement vertex 1\nproperty int x\nproperty float y\n\
+         property float z\nend_header\n0 0 0\n",
+    )
+    .unwrap();
+    assert_err_names(
+        read_ply(&p).unwrap_err(),
+        &p,
+        "'x' has type int, expected float or double",
+    );
+}
+
+#[test]
+fn files_that_are_not_ply_say_what_they_look_like() {
+    let d = tempfile::tempdir().unwrap();
+    // A LAS file renamed .ply (it failed as "stream did not contain valid
+    // UTF-8").
+    let p = d.path().join("scan.ply");
+    std::fs::copy(local("laspy_pf3_rgb.las"), &p).unwrap();
+    let e = read_ply(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("scan.ply")
+            && e.contains("not a PLY file")
+            && e.contains("starts like a LAS/LAZ file")
+            && e.contains("--format las"),
+        "{e}"
+    );
+    assert!(!e.contains("UTF-8"), "{e}");
+    let p = d.path().join("text.ply");
+    std::fs::write(&p, "1 2 3\n4 5 6\n").unwrap();
+    let e = read_ply(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("text.ply") && e.contains("does not start with the \"ply\" header line"),
+        "{e}"
+    );
+    assert!(!e.contains("starts like"), "{e}");
+    let p = d.path().join("empty.ply");
+    std::fs::write(&p, "").unwrap();
+    assert_err_names(read_ply(&p).unwrap_err(), &p, "not a PLY file: it is empty");
 }
 
 #[test]
@@ -210,7 +479,7 @@ fn format_dispatch_by_extension() {
     assert_err_names(
         read_point_cloud(&bin, None).unwrap_err(),
         &bin,
-        "kitti or scannet",
+        "--format kitti (a Velodyne scan) or --format scannet",
     );
     let gone = d.path().join("gone.bin");
     assert_err_names(
@@ -256,6 +525,7 @@ mod roundtrip {
                         labels: has_label.then_some(labels),
                         colors: has_rgb.then_some(rgb),
                         features: (dim > 0).then_some((dim, feats)),
+                        notes: Vec::new(),
                     })
             },
         )
@@ -270,5 +540,44 @@ mod roundtrip {
             write_ply(&p, &cloud).unwrap();
             prop_assert_eq!(read_ply(&p).unwrap(), cloud);
         }
+    }
+}
+
+/// UTM coordinates stored as `float`: at 630 km neighbouring values are
+/// 6 cm apart, coarser than a street map's voxels, and the reader says so;
+/// the same points as `double`, or small `float` ones, get no note.
+#[test]
+fn float_coordinates_far_from_zero_get_a_precision_note() {
+    let d = tempfile::tempdir().unwrap();
+    let write = |name: &str, ty: &str, x: f64| {
+        let p = d.path().join(name);
+        std::fs::write(
+            &p,
+            format!(
+                "ply\nformat ascii 1.0\nelement vertex 2\nproperty {ty} x\nproperty {ty} y\n\
+                 property {ty} z\nend_header\n{x} 10 1\n{} 10 1\n",
+                x + 0.5
+            ),
+        )
+        .unwrap();
+        (p.clone(), read_ply(&p).unwrap())
+    };
+    let (p, c) = write("utm.ply", "float", 630_000.0);
+    assert_eq!(
+        note_count(
+            &c,
+            &p,
+            &["float (32-bit)", "reach 63000", "0.06", "m apart", "double"]
+        ),
+        1,
+        "{:?}",
+        c.notes
+    );
+    for (name, ty, x) in [
+        ("utm64.ply", "double", 630_000.0),
+        ("local.ply", "float", 5_000.0),
+    ] {
+        let (_, c) = write(name, ty, x);
+        assert!(c.notes.is_empty(), "{name}: {:?}", c.notes);
     }
 }

@@ -330,6 +330,11 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     }
     let pb = super::progress::spinner(&format!("reading {}", a.input.display()));
     let c = pipeline::load_cloud(&input)?;
+    pb.suspend(|| {
+        for n in &c.notes {
+            eprintln!("note: {n}");
+        }
+    });
     let mut encoder = match &a.point_model {
         Some(model) => {
             let rt = super::encode::init_runtime(a.ort_lib.as_deref())?;
@@ -468,7 +473,6 @@ fn sevenscenes(a: &RgbdArgs) -> anyhow::Result<()> {
 
 pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
     omcl::io::kitti::check_sequence_folder(&a.dir)?;
-    a.build.check()?;
     let files = super::outputs::sequence_files(&a.dir);
     let mut inputs: Vec<_> = files
         .into_iter()
@@ -476,8 +480,10 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
         .collect();
     inputs.extend(a.build.inputs());
     inputs.extend(a.encoder.inputs());
+    // What --out would overwrite first: it says more than its extension.
     super::outputs::refuse_overlaps(&[("--out", &a.build.out)], &inputs)?;
     super::outputs::refuse_inside_sequence(&[("--out", &a.build.out)], &a.dir)?;
+    a.build.check()?;
     let d = &a.dir;
     let is_sevenscenes =
         omcl::session::sequence::Layout::of(d) == omcl::session::sequence::Layout::SevenScenes;

@@ -5,6 +5,10 @@
 //! kilometres) lose centimetres in `f32`. Per-point attributes are separate
 //! columns, present or absent as a whole, so a reader allocates a handful of
 //! vectors and never one per point.
+//!
+//! Readers never print. What a reader did to the file's data that the user
+//! should know (units converted, points left out) goes into
+//! [`PointCloud::notes`], for the command line to show.
 
 use std::path::{Path, PathBuf};
 
@@ -78,6 +82,13 @@ pub struct PointCloud {
     /// Per-point features: `(dim, values)`, `values.len() == dim * len()`,
     /// row `i` at `values[i * dim..(i + 1) * dim]`.
     pub features: Option<(usize, Vec<f32>)>,
+    /// What the reader changed or left out on the way from the file to
+    /// these columns, one human-readable sentence each, naming the file
+    /// (for example `autzen.laz: coordinates in international feet (WKT
+    /// UNIT["foot",0.3048]) converted to metres`). Empty when the file was
+    /// taken as it is. Library code never prints: the command line shows
+    /// these to the user.
+    pub notes: Vec<String>,
 }
 
 impl PointCloud {
@@ -171,7 +182,7 @@ impl PointCloud {
     }
 
     /// Keeps the points for which `keep(index)` is true, in order, with all
-    /// their columns.
+    /// their columns (and every note).
     pub fn retain_indices(&mut self, mut keep: impl FnMut(usize) -> bool) {
         let mask: Vec<bool> = (0..self.len()).map(&mut keep).collect();
         let mut it = mask.iter();
@@ -199,13 +210,18 @@ impl PointCloud {
 
     /// Appends `other`. A column is kept only when both clouds have it
     /// (features also need equal dimensions); otherwise it is dropped, because
-    /// a half-filled column would break the length invariant.
-    pub fn append(&mut self, other: PointCloud) {
+    /// a half-filled column would break the length invariant. Notes of both
+    /// are kept, `self`'s first.
+    pub fn append(&mut self, mut other: PointCloud) {
         let was_empty = self.is_empty();
         if was_empty {
+            let mut notes = std::mem::take(&mut self.notes);
+            notes.append(&mut other.notes);
             *self = other;
+            self.notes = notes;
             return;
         }
+        self.notes.append(&mut other.notes);
         self.points.extend_from_slice(&other.points);
         self.labels = match (self.labels.take(), other.labels) {
             (Some(mut a), Some(b)) => {
@@ -315,6 +331,7 @@ mod tests {
             labels: Some(vec![1, 2, 3]),
             colors: Some(vec![[1, 1, 1], [2, 2, 2], [3, 3, 3]]),
             features: Some((2, vec![0.0, 0.1, 1.0, 1.1, 2.0, 2.1])),
+            notes: vec!["c: a note".into()],
         }
     }
 
@@ -385,5 +402,17 @@ mod tests {
         assert!(a.colors.is_none());
         assert_eq!(a.labels.as_ref().map(Vec::len), Some(6));
         assert!(a.validate("a").is_ok());
+        assert_eq!(a.notes.len(), 2, "{:?}", a.notes);
+    }
+
+    #[test]
+    fn append_to_an_empty_cloud_keeps_both_notes() {
+        let mut a = PointCloud {
+            notes: vec!["a: first".into()],
+            ..Default::default()
+        };
+        a.append(cloud3());
+        assert_eq!(a.len(), 3);
+        assert_eq!(a.notes, vec!["a: first".to_string(), "c: a note".into()]);
     }
 }

@@ -2,11 +2,16 @@
 //! pure-Rust `laz` decoder).
 //!
 //! Coordinates come out with the header's scale and offset applied, in the
-//! file's coordinate reference system (usually projected metres). The
-//! classification code becomes the label. Colour, when the point format has
-//! it, is 16 bits a channel by the specification, but many writers store
-//! 0-255 in those 16 bits: when no channel in the file exceeds 255 the
-//! values are taken as 8-bit, otherwise the high byte is kept.
+//! file's coordinate reference system, converted to metres when the CRS
+//! its records state (OGC WKT, or GeoTIFF keys) counts in another linear
+//! unit (feet, US survey feet, ...), with a note saying so. A geographic
+//! CRS (degrees) is refused: reproject such a cloud first. A file without
+//! a CRS record is taken to be in metres. Points flagged withheld (deleted)
+//! are left out, with a note counting them. The classification code
+//! becomes the label. Colour, when the point format has it, is 16 bits a
+//! channel by the specification, but many writers store 0-255 in those 16
+//! bits: when no channel in the file exceeds 255 the values are taken as
+//! 8-bit, otherwise the high byte is kept.
 
 use std::io::{Seek, SeekFrom};
 use std::path::Path;
@@ -236,7 +241,8 @@ fn check_laz_chunk_table(
     Ok(())
 }
 
-/// Reads every point of a `.las` or `.laz` file.
+/// Reads every point of a `.las` or `.laz` file that is not withheld, in
+/// metres ([`PointCloud::notes`] says what was converted or left out).
 pub fn read_las(path: &Path) -> Result<PointCloud, CloudError> {
     // Open ourselves so a missing file is an I/O error, not a format error.
     let mut file = std::fs::File::open(path).map_err(|e| CloudError::io(path, e))?;
@@ -269,8 +275,15 @@ fn decode(
 ) -> Result<PointCloud, CloudError> {
     let mut reader = Reader::new(std::io::BufReader::with_capacity(1 << 20, file))
         .map_err(|e| las_err(path, e))?;
+    let name = path.display().to_string();
+    let units = crs::units(reader.header()).map_err(|reason| CloudError::Invalid {
+        source_name: name.clone(),
+        reason,
+    })?;
+    let ([xy_to_m, z_to_m], mut notes) = crs::to_metres(&name, &units);
     let n = reader.header().number_of_points();
     let has_color = reader.header().point_format().has_color;
+    let extended = reader.header().point_format().is_extended;
     let record = reader.header().point_format().len().max(1) as u64;
     // The header's count was checked against the file's size above; cap the
     // up-front reservation all the same (the points still arrive in full).
@@ -296,6 +309,7 @@ fn decode(
     let mut rgb16: Vec<[u16; 3]> = Vec::with_capacity(if has_color { cap } else { 0 });
     let mut batch = PointDataBuilder::new().for_header(reader.header()).build();
     let mut read = 0u64;
+    let mut withheld = 0u64;
     while read < n {
         let got = reader
             .fill_points(batch_points.min(n - read), &mut batch)
@@ -307,17 +321,41 @@ fn decode(
             ));
         }
         read += got;
-        points.extend(
-            batch
-                .x()
-                .zip(batch.y())
-                .zip(batch.z())
-                .map(|((x, y), z)| [x, y, z]),
-        );
-        labels.extend(batch.classification().map(u32::from));
-        if let Some(c) = batch.rgb() {
-            rgb16.extend(c.map(|(r, g, b)| [r, g, b]));
+        let mut rgb = batch.rgb();
+        let kept = batch
+            .raw_bytes()
+            .chunks_exact(batch.record_len().max(1))
+            .map(|r| !is_withheld(r, extended));
+        let columns = batch
+            .x()
+            .zip(batch.y())
+            .zip(batch.z())
+            .zip(batch.classification())
+            .zip(kept);
+        for ((((x, y), z), class), keep) in columns {
+            let colour = rgb.as_mut().and_then(Iterator::next);
+            if !keep {
+                withheld += 1;
+                continue;
+            }
+            points.push([x * xy_to_m, y * xy_to_m, z * z_to_m]);
+            labels.push(u32::from(class));
+            if let Some((r, g, b)) = colour {
+                rgb16.push([r, g, b]);
+            }
         }
+    }
+    if withheld > 0 {
+        if points.is_empty() {
+            return Err(CloudError::Empty {
+                source_name: name,
+                reason: format!("all {n} points are flagged withheld (deleted)"),
+            });
+        }
+        notes.push(format!(
+            "{name}: {withheld} of {n} points are flagged withheld (deleted by the \
+             producer) and were left out"
+        ));
     }
     let colors = has_color.then(|| {
         let eight_bit = rgb16.iter().all(|c| c.iter().all(|&v| v <= 255));
@@ -337,7 +375,26 @@ fn decode(
         labels: Some(labels),
         colors,
         features: None,
+        notes,
     };
-    cloud.validate(&path.display().to_string())?;
-    cloud.non_empty(&path.display().to_string(), "the file holds no points")
+    cloud.validate(&name)?;
+    cloud.non_empty(&name, "the file holds no points")
 }
+
+/// The withheld flag of a raw point record: bit 7 of byte 15 (the
+/// classification byte) in formats 0-5, bit 2 of byte 15 (the
+/// classification flags) in formats 6-10.
+fn is_withheld(record: &[u8], extended: bool) -> bool {
+    let flags = record.get(15).copied().unwrap_or(0);
+    if extended {
+        flags & 0x04 != 0
+    } else {
+        flags & 0x80 != 0
+    }
+}
+
+/// The linear units of a LAS file's coordinates, from the coordinate
+/// reference system its records state: OGC WKT (`LASF_Projection` record
+/// 2112) or, without one, GeoTIFF keys (record 34735, doubles in 34736).
+/// Parsing only: no EPSG database, so a unit must be stated by the file.
+mod crs;

@@ -1,19 +1,28 @@
-//! PLY point clouds: reading (ASCII, binary little- and big-endian, via
-//! `ply-rs-bw`) and writing (binary little-endian, atomic).
+//! PLY point clouds: reading (ASCII, binary little- and big-endian; headers
+//! and binary records with lists via `ply-rs-bw`) and writing (binary
+//! little-endian, atomic).
 //!
-//! The `vertex` element is read; other elements (faces, ...) are skipped.
+//! A file must start with the `ply` magic line; anything else is refused
+//! with what it looks like instead (a LAS file renamed `.ply`, say). The
+//! `vertex` element is read; other elements (faces, ...) are skipped.
 //! Recognised vertex properties:
 //! - `x y z`: `float` or `double` (required), metres;
-//! - `red green blue`: `uchar` (optional, all three or none);
-//! - one label property named `label`, `class`, `scalar_label` or
-//!   `classification` (any letter case; CloudCompare writes `scalar_Label`):
-//!   any integer type, or a float type holding whole numbers (CloudCompare
-//!   stores scalar fields as float); non-negative (optional);
+//! - `red green blue` (optional, all three or none), each `uchar` (0-255),
+//!   `ushort` (0-65535, the high byte kept) or `float`/`double` (0-1,
+//!   clamped, times 255, rounded);
+//! - one label property named `label`, `class`, `classification`,
+//!   `semantic` or `semantic_label`, in any letter case and with or without
+//!   CloudCompare's `scalar_` prefix (`scalar_Label`,
+//!   `scalar_Classification`): any integer type, or a float type holding
+//!   whole numbers (CloudCompare stores scalar fields as float);
+//!   non-negative (optional);
 //! - features `f0 f1 ...` or `feat_0 feat_1 ...` (also `feature_0 ...`):
 //!   `float` or `double`, numbered consecutively from 0 in header order
 //!   (optional).
 //!
-//! Other properties are ignored.
+//! Other properties are ignored. Vertices with a non-finite coordinate
+//! (`nan`, `inf`: how PCL and Open3D write invalid points) are left out
+//! with their other values, and a note on the cloud counts them.
 
 use std::fs::File;
 use std::io::{BufRead, BufReader, Read, Write};
@@ -26,17 +35,83 @@ use ply_rs_bw::ply::{
 
 use crate::io::cloud::{CloudError, PointCloud};
 
-const LABEL_NAMES: [&str; 4] = ["label", "class", "scalar_label", "classification"];
+/// Label property names, compared ignoring letter case, each also with
+/// CloudCompare's `scalar_` prefix (see [`is_label_name`]).
+const LABEL_NAMES: [&str; 5] = [
+    "label",
+    "class",
+    "classification",
+    "semantic",
+    "semantic_label",
+];
 
+/// A name of [`LABEL_NAMES`] in any letter case, with or without a
+/// `scalar_` prefix (CloudCompare writes its scalar field `Classification`
+/// as the property `scalar_Classification`).
 fn is_label_name(name: &str) -> bool {
-    LABEL_NAMES.iter().any(|n| n.eq_ignore_ascii_case(name))
+    let base = match name.get(..7) {
+        Some(p) if p.eq_ignore_ascii_case("scalar_") => &name[7..],
+        _ => name,
+    };
+    LABEL_NAMES.iter().any(|n| n.eq_ignore_ascii_case(base))
 }
 
 /// A label value as a class id: a whole number in `0..=u32::MAX`.
 fn label_id(raw: f64) -> Option<u32> {
     (raw >= 0.0 && raw <= u32::MAX as f64 && raw.fract() == 0.0).then_some(raw as u32)
 }
+
+fn label_of(path: &Path, vertex: usize, raw: f64) -> Result<u32, CloudError> {
+    label_id(raw).ok_or_else(|| {
+        CloudError::format(
+            path,
+            format!("vertex {vertex}: label {raw} is not a whole number in 0..=4294967295"),
+        )
+    })
+}
+
 const FEATURE_PREFIXES: [&str; 3] = ["feat_", "feature_", "f"];
+
+const COLOR_NAMES: [&str; 3] = ["red", "green", "blue"];
+
+/// A `float`/`double` colour channel (0-1) as 8 bits: clamped, times 255,
+/// rounded; NaN is 0.
+fn unit_to_u8(v: f64) -> u8 {
+    if v.is_nan() {
+        0
+    } else {
+        (v.clamp(0.0, 1.0) * 255.0).round() as u8
+    }
+}
+
+/// True for a float colour value [`unit_to_u8`] had to clamp (or NaN).
+fn outside_unit(v: f64) -> bool {
+    !(0.0..=1.0).contains(&v)
+}
+
+/// The type's name as a PLY header writes it.
+fn ply_type_name(t: &ScalarType) -> &'static str {
+    match t {
+        ScalarType::Char => "char",
+        ScalarType::UChar => "uchar",
+        ScalarType::Short => "short",
+        ScalarType::UShort => "ushort",
+        ScalarType::Int => "int",
+        ScalarType::UInt => "uint",
+        ScalarType::Float => "float",
+        ScalarType::Double => "double",
+    }
+}
+
+/// A property's type as a PLY header writes it (`int`, `list uchar int`).
+fn ply_property_type(p: &PropertyType) -> String {
+    match p {
+        PropertyType::Scalar(t) => ply_type_name(t).to_string(),
+        PropertyType::List(count, item) => {
+            format!("list {} {}", ply_type_name(count), ply_type_name(item))
+        }
+    }
+}
 
 /// One vertex as the parser fills it. Features go to a `Vec` only when the
 /// file has them (the parser constructs a fresh element per vertex, so that
@@ -45,6 +120,8 @@ const FEATURE_PREFIXES: [&str; 3] = ["feat_", "feature_", "f"];
 struct Vertex {
     xyz: [f64; 3],
     rgb: [u8; 3],
+    /// Float colour values outside 0-1 that were clamped.
+    clamped: u8,
     /// Any PLY scalar is exact in `f64`.
     label: f64,
     feat: Vec<f32>,
@@ -64,12 +141,20 @@ impl Vertex {
             "x" => self.xyz[0] = v,
             "y" => self.xyz[1] = v,
             "z" => self.xyz[2] = v,
+            "red" => self.set_unit_colour(0, v),
+            "green" => self.set_unit_colour(1, v),
+            "blue" => self.set_unit_colour(2, v),
             _ if is_label_name(name) => self.label = v,
             // The header check guarantees features arrive in index order.
             _ if feature_index(name).is_some() => self.feat.push(v as f32),
             _ => return PropertyAccessResult::Ignored,
         }
         PropertyAccessResult::Set
+    }
+
+    fn set_unit_colour(&mut self, k: usize, v: f64) {
+        self.clamped += u8::from(outside_unit(v));
+        self.rgb[k] = unit_to_u8(v);
     }
 
     fn set_int(&mut self, name: &str, v: i64) -> PropertyAccessResult {
@@ -105,7 +190,14 @@ impl PropertyAccess for Vertex {
         self.set_int(name, v as i64)
     }
     fn set_ushort(&mut self, name: &str, v: u16) -> PropertyAccessResult {
-        self.set_int(name, v as i64)
+        // 16-bit colour: the high byte is the 8-bit value.
+        match name {
+            "red" => self.rgb[0] = (v >> 8) as u8,
+            "green" => self.rgb[1] = (v >> 8) as u8,
+            "blue" => self.rgb[2] = (v >> 8) as u8,
+            _ => return self.set_int(name, v as i64),
+        }
+        PropertyAccessResult::Set
     }
     fn set_int(&mut self, name: &str, v: i32) -> PropertyAccessResult {
         Vertex::set_int(self, name, v as i64)
@@ -143,7 +235,8 @@ fn check_vertex_layout(path: &Path, def: &ElementDef) -> Result<Layout, CloudErr
             Some(ScalarType::Float | ScalarType::Double) => {}
             Some(t) => {
                 return Err(fmt(format!(
-                    "vertex property '{axis}' has type {t:?}, expected float or double"
+                    "vertex property '{axis}' has type {}, expected float or double",
+                    ply_type_name(t)
                 )));
             }
             None => {
@@ -153,18 +246,25 @@ fn check_vertex_layout(path: &Path, def: &ElementDef) -> Result<Layout, CloudErr
             }
         }
     }
-    let rgb: Vec<_> = ["red", "green", "blue"].iter().map(|n| find(n)).collect();
+    let rgb: Vec<_> = COLOR_NAMES.iter().map(|n| find(n)).collect();
     let colors = rgb.iter().all(Option::is_some);
     if !colors && rgb.iter().any(Option::is_some) {
         return Err(fmt("vertex has some but not all of red, green, blue".into()));
     }
-    if colors {
-        for (n, t) in ["red", "green", "blue"].iter().zip(&rgb) {
-            if t.and_then(scalar) != Some(&ScalarType::UChar) {
-                return Err(fmt(format!(
-                    "vertex property '{n}' must be uchar (0-255), found {t:?}"
-                )));
-            }
+    for (n, t) in COLOR_NAMES.iter().zip(&rgb) {
+        if let Some(t) = t
+            && !matches!(
+                scalar(t),
+                Some(
+                    ScalarType::UChar | ScalarType::UShort | ScalarType::Float | ScalarType::Double
+                )
+            )
+        {
+            return Err(fmt(format!(
+                "vertex property '{n}' has type {}; colours must be uchar (0-255), \
+                 ushort (0-65535), or float or double (0-1)",
+                ply_property_type(t)
+            )));
         }
     }
     let labels: Vec<&str> = def
@@ -211,12 +311,57 @@ fn check_vertex_layout(path: &Path, def: &ElementDef) -> Result<Layout, CloudErr
     })
 }
 
+/// Why a file named `.ply` is not one, from its first bytes: what it
+/// looks like instead, when that is recognisable.
+fn not_ply(head: &[u8]) -> String {
+    if head.is_empty() {
+        return "not a PLY file: it is empty".into();
+    }
+    let like = if head.starts_with(b"LASF") {
+        Some("a LAS/LAZ file: use the .las or .laz extension, or --format las")
+    } else if head.starts_with(b"# .PCD") || head.starts_with(b"VERSION") {
+        Some("a PCL .pcd file: convert it to PLY first (pcl_pcd2ply, CloudCompare)")
+    } else if head.starts_with(b"\x93NUMPY") {
+        Some("a NumPy .npy array")
+    } else if head.starts_with(b"\x89PNG") {
+        Some("a PNG image")
+    } else if head.starts_with(&[0x1f, 0x8b]) {
+        Some("a gzip-compressed file: decompress it first")
+    } else if head.starts_with(b"PK\x03\x04") {
+        Some("a zip archive: extract it first")
+    } else {
+        None
+    };
+    let why = "not a PLY file: it does not start with the \"ply\" header line";
+    match like {
+        Some(like) => format!("{why} (it starts like {like})"),
+        None => why.to_string(),
+    }
+}
+
+/// What the vertex readers left out or changed, for the cloud's notes.
+#[derive(Default)]
+struct Tally {
+    /// Vertices left out for a non-finite coordinate.
+    non_finite: usize,
+    /// Float colour values outside 0-1, clamped.
+    clamped: usize,
+}
+
 /// Reads the vertices of a PLY file (any encoding) into a [`PointCloud`] in
-/// the file's frame, then validates it (finite points, non-negative labels).
+/// the file's frame, then validates it (non-negative whole labels, every
+/// coordinate within a map's reach). Vertices with a non-finite coordinate
+/// are left out, and [`PointCloud::notes`] says how many; so does it when
+/// float colours had to be clamped to 0-1.
 pub fn read_ply(path: &Path) -> Result<PointCloud, CloudError> {
     let file = File::open(path).map_err(|e| CloudError::io(path, e))?;
     let file_len = file.metadata().map_err(|e| CloudError::io(path, e))?.len();
-    let mut reader = Reader::new(BufReader::with_capacity(1 << 20, file));
+    let mut buffered = BufReader::with_capacity(1 << 20, file);
+    let head = buffered.fill_buf().map_err(|e| CloudError::io(path, e))?;
+    if !head.starts_with(b"ply") {
+        return Err(CloudError::format(path, not_ply(head)));
+    }
+    let mut reader = Reader::new(buffered);
     let parser = Parser::<Vertex>::new();
     let header = parser
         .read_header(&mut reader)
@@ -226,6 +371,9 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, CloudError> {
     };
     let skip = Parser::<Skip>::new();
     let mut cloud = PointCloud::default();
+    let mut tally = Tally::default();
+    let mut declared = 0;
+    let mut float_axes = [false; 3];
     for (pos, (_, def)) in header.elements.iter().enumerate() {
         if pos < vertex_pos {
             // Elements before the vertices must be consumed to reach them.
@@ -236,13 +384,19 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, CloudError> {
             }
             continue;
         }
+        declared = def.count;
         let layout = check_vertex_layout(path, def)?;
+        float_axes = ["x", "y", "z"].map(|a| {
+            def.properties
+                .get(a)
+                .is_some_and(|p| matches!(p.data_type, PropertyType::Scalar(ScalarType::Float)))
+        });
         let big_endian = match header.encoding {
             Encoding::Ascii => None,
             Encoding::BinaryLittleEndian => Some(false),
             Encoding::BinaryBigEndian => Some(true),
         };
-        cloud = match (big_endian, FixedRecord::new(def)) {
+        let cols = match (big_endian, FixedRecord::new(def)) {
             // Scalar-only binary vertices have a fixed record size: decode
             // them in bulk instead of one property call at a time.
             (Some(big), Some(rec)) => {
@@ -257,7 +411,9 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, CloudError> {
                         ),
                     ));
                 }
-                read_fixed_vertices(path, reader.get_mut(), def, &layout, &rec, big)?
+                // `n` records fit in the file (checked just above).
+                let cols = Columns::new(&layout, def.count);
+                read_fixed_vertices(path, reader.get_mut(), def, cols, &rec, big)?
             }
             _ => {
                 // A vertex takes at least a byte a property (ASCII: a digit and
@@ -266,17 +422,11 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, CloudError> {
                 let cap = usize::try_from(file_len / def.properties.len().max(1) as u64)
                     .unwrap_or(usize::MAX)
                     .min(def.count);
-                read_vertices(
-                    path,
-                    &parser,
-                    &mut reader,
-                    def,
-                    header.encoding,
-                    &layout,
-                    cap,
-                )?
+                let cols = Columns::new(&layout, cap);
+                read_vertices(path, &parser, &mut reader, def, header.encoding, cols)?
             }
         };
+        (cloud, tally) = cols.finish();
         if pos + 1 == header.elements.len() {
             // Nothing may follow the last element: more data means the
             // header's count or properties do not describe the file, and
@@ -285,8 +435,53 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, CloudError> {
         }
         break;
     }
-    cloud.validate(&path.display().to_string())?;
-    cloud.non_empty(&path.display().to_string(), "the file holds no vertices")
+    let name = path.display().to_string();
+    if tally.non_finite > 0 {
+        if cloud.is_empty() {
+            return Err(CloudError::Empty {
+                source_name: name,
+                reason: format!(
+                    "all {declared} vertices have a non-finite coordinate (NaN or infinity)"
+                ),
+            });
+        }
+        cloud.notes.push(format!(
+            "{name}: {} of {declared} vertices have a non-finite coordinate (NaN or \
+             infinity, as PCL and Open3D write invalid points) and were left out",
+            tally.non_finite
+        ));
+    }
+    if let Some(note) = float_precision_note(&name, &cloud.points, float_axes) {
+        cloud.notes.push(note);
+    }
+    if tally.clamped > 0 {
+        cloud.notes.push(format!(
+            "{name}: {} float colour values lie outside 0-1 and were clamped to it \
+             (colours stored as 0-255 in float properties come out white)",
+            tally.clamped
+        ));
+    }
+    cloud.validate(&name)?;
+    cloud.non_empty(&name, "the file holds no vertices")
+}
+
+/// A note when coordinates stored as `float` lie so far from 0 (UTM
+/// metres) that neighbouring `float` values are more than a centimetre
+/// apart: the file itself has quantized the positions.
+fn float_precision_note(name: &str, points: &[[f64; 3]], float_axes: [bool; 3]) -> Option<String> {
+    let far = points
+        .iter()
+        .flat_map(|p| (0..3).filter(|&a| float_axes[a]).map(move |a| p[a].abs()))
+        .fold(0.0f64, f64::max);
+    // The spacing of f32 values near `far`.
+    let step = (far as f32).next_up() as f64 - (far as f32) as f64;
+    (step > 0.01).then(|| {
+        format!(
+            "{name}: coordinates stored as float (32-bit) reach {far:.0} m, where such values \
+             are {step:.3} m apart: positions are rounded to that in the file (write double \
+             coordinates, or coordinates relative to a local origin)"
+        )
+    })
 }
 
 /// An element whose every property is ignored.
@@ -336,28 +531,67 @@ fn refuse_trailing_data(
     ))
 }
 
-/// Checks that an ASCII record's line holds exactly the values the
-/// element's properties take (a list: its count, then that many values).
-fn ascii_values_match(line: &str, def: &ElementDef) -> Result<(), String> {
+/// The next value of an ASCII record, counted in `used`.
+fn next_value<'a>(
+    tokens: &mut std::str::SplitAsciiWhitespace<'a>,
+    used: &mut usize,
+    property: &str,
+) -> Result<&'a str, String> {
+    let t = tokens.next().ok_or_else(|| {
+        format!("the line ends before property '{property}' (after {used} values)")
+    })?;
+    *used += 1;
+    Ok(t)
+}
+
+/// Parses `token` as a number of PLY type `t`.
+fn ascii_number<T: std::str::FromStr>(
+    property: &str,
+    t: &ScalarType,
+    token: &str,
+) -> Result<T, String> {
+    token.parse().map_err(|_| {
+        let want = match t {
+            ScalarType::Float | ScalarType::Double => "a number".to_string(),
+            _ => format!("a whole number in the range of {}", ply_type_name(t)),
+        };
+        let shown: String = token.chars().take(40).collect();
+        format!("property '{property}': '{shown}' is not {want}")
+    })
+}
+
+/// Parses one ASCII record of `def`: every property in header order (a
+/// list: its count, then that many values), and nothing more. Floats take
+/// `nan` and `inf` (PCL and Open3D write them for invalid points); integers
+/// must be whole numbers of their type.
+fn parse_ascii_element<E: PropertyAccess>(line: &str, def: &ElementDef) -> Result<E, String> {
     let mut tokens = line.split_ascii_whitespace();
-    let mut want = 0usize;
-    for p in def.properties.values() {
+    let mut used = 0usize;
+    let mut e = E::new();
+    for (name, p) in &def.properties {
+        let token = next_value(&mut tokens, &mut used, name)?;
         match &p.data_type {
-            PropertyType::Scalar(_) => {
-                want += 1;
-                if tokens.next().is_none() {
-                    return Ok(()); // too few: the parser names it
-                }
-            }
-            PropertyType::List(..) => {
-                let Some(n) = tokens.next().and_then(|t| t.parse::<usize>().ok()) else {
-                    return Ok(());
+            PropertyType::Scalar(t) => {
+                let n = name.as_str();
+                // What the element does with a value (set or ignore) is its
+                // own business, as with ply-rs-bw's binary reader.
+                let _ = match t {
+                    ScalarType::Char => e.set_char(n, ascii_number(n, t, token)?),
+                    ScalarType::UChar => e.set_uchar(n, ascii_number(n, t, token)?),
+                    ScalarType::Short => e.set_short(n, ascii_number(n, t, token)?),
+                    ScalarType::UShort => e.set_ushort(n, ascii_number(n, t, token)?),
+                    ScalarType::Int => e.set_int(n, ascii_number(n, t, token)?),
+                    ScalarType::UInt => e.set_uint(n, ascii_number(n, t, token)?),
+                    ScalarType::Float => e.set_float(n, ascii_number(n, t, token)?),
+                    ScalarType::Double => e.set_double(n, ascii_number(n, t, token)?),
                 };
-                want += 1 + n;
-                for _ in 0..n {
-                    if tokens.next().is_none() {
-                        return Ok(());
-                    }
+            }
+            // Lists are read past: no element of ours keeps one.
+            PropertyType::List(count, item) => {
+                let len: usize = ascii_number(name, count, token)?;
+                for _ in 0..len {
+                    let v = next_value(&mut tokens, &mut used, name)?;
+                    ascii_number::<f64>(name, item, v)?;
                 }
             }
         }
@@ -365,11 +599,11 @@ fn ascii_values_match(line: &str, def: &ElementDef) -> Result<(), String> {
     let extra = tokens.count();
     if extra > 0 {
         return Err(format!(
-            "{} values on the line, but the header's properties take {want}",
-            want + extra
+            "{} values on the line, but the header's properties take {used}",
+            used + extra
         ));
     }
-    Ok(())
+    Ok(e)
 }
 
 fn read_one<E: PropertyAccess, R: BufRead>(
@@ -399,11 +633,54 @@ fn read_one<E: PropertyAccess, R: BufRead>(
                     break;
                 }
             }
-            ascii_values_match(&line, def)?;
-            parser
-                .read_ascii_element(&line, def)
-                .map_err(|e| e.to_string())
+            parse_ascii_element(&line, def)
         }
+    }
+}
+
+/// The vertex columns being filled, and what was left out on the way.
+struct Columns {
+    points: Vec<[f64; 3]>,
+    labels: Option<Vec<u32>>,
+    colors: Option<Vec<[u8; 3]>>,
+    dim: usize,
+    feats: Option<Vec<f32>>,
+    tally: Tally,
+}
+
+impl Columns {
+    /// Empty columns for `layout`, room for `cap` vertices (at most 2^24 up
+    /// front: the rest grows as vertices arrive).
+    fn new(layout: &Layout, cap: usize) -> Self {
+        let cap = cap.min(1 << 24);
+        let dim = layout.feature_dim;
+        Columns {
+            points: Vec::with_capacity(cap),
+            labels: layout.label.then(|| Vec::with_capacity(cap)),
+            colors: layout.colors.then(|| Vec::with_capacity(cap)),
+            dim,
+            feats: (dim > 0).then(|| Vec::with_capacity(cap.saturating_mul(dim))),
+            tally: Tally::default(),
+        }
+    }
+
+    /// Counts a vertex with a non-finite coordinate, which is left out;
+    /// true when `xyz` is to be kept.
+    fn keep(&mut self, xyz: &[f64; 3]) -> bool {
+        let finite = xyz.iter().all(|c| c.is_finite());
+        self.tally.non_finite += usize::from(!finite);
+        finite
+    }
+
+    fn finish(self) -> (PointCloud, Tally) {
+        let cloud = PointCloud {
+            points: self.points,
+            labels: self.labels,
+            colors: self.colors,
+            features: self.feats.map(|f| (self.dim, f)),
+            notes: Vec::new(),
+        };
+        (cloud, self.tally)
     }
 }
 
@@ -413,16 +690,8 @@ fn read_vertices<R: BufRead>(
     reader: &mut Reader<R>,
     def: &ElementDef,
     encoding: Encoding,
-    layout: &Layout,
-    cap: usize,
-) -> Result<PointCloud, CloudError> {
-    // The header's count is untrusted: `cap` is what the file's size allows.
-    let cap = cap.min(1 << 24);
-    let mut points = Vec::with_capacity(cap);
-    let mut labels = layout.label.then(|| Vec::with_capacity(cap));
-    let mut colors = layout.colors.then(|| Vec::with_capacity(cap));
-    let dim = layout.feature_dim;
-    let mut feats = (dim > 0).then(|| Vec::with_capacity(cap.saturating_mul(dim)));
+    mut cols: Columns,
+) -> Result<Columns, CloudError> {
     for i in 0..def.count {
         let v = read_one(parser, reader, def, encoding).map_err(|e| {
             if e.contains("failed to fill whole buffer") || e.contains("end of file") {
@@ -437,39 +706,29 @@ fn read_vertices<R: BufRead>(
                 CloudError::format(path, format!("vertex {i}: {}", first_line(&e)))
             }
         })?;
-        points.push(v.xyz);
-        if let Some(l) = &mut labels {
-            let lab = label_id(v.label).ok_or_else(|| {
-                CloudError::format(
-                    path,
-                    format!(
-                        "vertex {i}: label {} is not a whole number in 0..=4294967295",
-                        v.label
-                    ),
-                )
-            })?;
-            l.push(lab);
+        if !cols.keep(&v.xyz) {
+            continue;
         }
-        if let Some(c) = &mut colors {
+        cols.points.push(v.xyz);
+        if let Some(l) = &mut cols.labels {
+            l.push(label_of(path, i, v.label)?);
+        }
+        if let Some(c) = &mut cols.colors {
             c.push(v.rgb);
+            cols.tally.clamped += v.clamped as usize;
         }
-        if let Some(f) = &mut feats {
+        if let Some(f) = &mut cols.feats {
             f.extend_from_slice(&v.feat);
         }
     }
-    Ok(PointCloud {
-        points,
-        labels,
-        colors,
-        features: feats.map(|f| (dim, f)),
-    })
+    Ok(cols)
 }
 
 /// Byte offsets of the used properties in a fixed-size binary record.
 struct FixedRecord {
     len: usize,
     xyz: [(usize, ScalarType); 3],
-    rgb: [usize; 3],
+    rgb: [(usize, ScalarType); 3],
     label: Option<(usize, ScalarType)>,
     features: Vec<(usize, ScalarType)>,
 }
@@ -493,7 +752,11 @@ impl FixedRecord {
                 (0, ScalarType::Float),
                 (0, ScalarType::Float),
             ],
-            rgb: [0; 3],
+            rgb: [
+                (0, ScalarType::UChar),
+                (0, ScalarType::UChar),
+                (0, ScalarType::UChar),
+            ],
             label: None,
             features: Vec::new(),
         };
@@ -505,9 +768,9 @@ impl FixedRecord {
                 "x" => rec.xyz[0] = (at, t),
                 "y" => rec.xyz[1] = (at, t),
                 "z" => rec.xyz[2] = (at, t),
-                "red" => rec.rgb[0] = at,
-                "green" => rec.rgb[1] = at,
-                "blue" => rec.rgb[2] = at,
+                "red" => rec.rgb[0] = (at, t),
+                "green" => rec.rgb[1] = (at, t),
+                "blue" => rec.rgb[2] = (at, t),
                 n if is_label_name(n) => rec.label = Some((at, t)),
                 n if feature_index(n).is_some() => rec.features.push((at, t)),
                 _ => {}
@@ -548,6 +811,20 @@ fn decode(r: &[u8], at: usize, t: &ScalarType, big: bool) -> f64 {
     }
 }
 
+/// An 8-bit colour channel of type `t` (uchar, ushort or float/double, as
+/// the layout check admits) at `at` in record `r`; counts clamped floats.
+fn channel(r: &[u8], at: usize, t: &ScalarType, big: bool, clamped: &mut usize) -> u8 {
+    match t {
+        ScalarType::UChar => r[at],
+        ScalarType::UShort => (decode(r, at, t, big) as u16 >> 8) as u8,
+        _ => {
+            let v = decode(r, at, t, big);
+            *clamped += usize::from(outside_unit(v));
+            unit_to_u8(v)
+        }
+    }
+}
+
 /// Reads until `buf` is full or the input ends; returns the bytes read.
 fn read_full(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
     let mut got = 0;
@@ -566,18 +843,11 @@ fn read_fixed_vertices(
     path: &Path,
     r: &mut impl Read,
     def: &ElementDef,
-    layout: &Layout,
+    mut cols: Columns,
     rec: &FixedRecord,
     big: bool,
-) -> Result<PointCloud, CloudError> {
+) -> Result<Columns, CloudError> {
     let n = def.count;
-    // `n` records fit in the file (checked by the caller).
-    let cap = n.min(1 << 24);
-    let mut points = Vec::with_capacity(cap);
-    let mut labels = layout.label.then(|| Vec::with_capacity(cap));
-    let mut colors = layout.colors.then(|| Vec::with_capacity(cap));
-    let dim = layout.feature_dim;
-    let mut feats = (dim > 0).then(|| Vec::with_capacity(cap.saturating_mul(dim)));
     let chunk = (1usize << 20) / rec.len.max(1) + 1;
     let mut buf = vec![0u8; chunk * rec.len];
     let mut done = 0;
@@ -595,25 +865,23 @@ fn read_fixed_vertices(
             ));
         }
         for (j, v) in buf[..want].chunks_exact(rec.len).enumerate() {
-            let [x, y, z] = rec.xyz.each_ref().map(|(at, t)| decode(v, *at, t, big));
-            points.push([x, y, z]);
-            if let (Some(l), Some((at, t))) = (&mut labels, &rec.label) {
-                let raw = decode(v, *at, t, big);
-                let id = label_id(raw).ok_or_else(|| {
-                    CloudError::format(
-                        path,
-                        format!(
-                            "vertex {}: label {raw} is not a whole number in 0..=4294967295",
-                            done + j
-                        ),
-                    )
-                })?;
-                l.push(id);
+            let xyz = rec.xyz.each_ref().map(|(at, t)| decode(v, *at, t, big));
+            if !cols.keep(&xyz) {
+                continue;
             }
-            if let Some(c) = &mut colors {
-                c.push(rec.rgb.map(|at| v[at]));
+            cols.points.push(xyz);
+            if let (Some(l), Some((at, t))) = (&mut cols.labels, &rec.label) {
+                l.push(label_of(path, done + j, decode(v, *at, t, big))?);
             }
-            if let Some(f) = &mut feats {
+            if let Some(c) = &mut cols.colors {
+                let clamped = &mut cols.tally.clamped;
+                c.push(
+                    rec.rgb
+                        .each_ref()
+                        .map(|(at, t)| channel(v, *at, t, big, clamped)),
+                );
+            }
+            if let Some(f) = &mut cols.feats {
                 f.extend(
                     rec.features
                         .iter()
@@ -623,12 +891,7 @@ fn read_fixed_vertices(
         }
         done += k;
     }
-    Ok(PointCloud {
-        points,
-        labels,
-        colors,
-        features: feats.map(|f| (dim, f)),
-    })
+    Ok(cols)
 }
 
 fn first_line(s: &str) -> String {
@@ -734,6 +997,7 @@ mod tests {
             labels: Some(vec![7, u32::MAX]),
             colors: Some(vec![[1, 2, 3], [4, 5, 6]]),
             features: Some((3, vec![0.5, -1.0, 2.0, 0.0, 0.25, 9.0])),
+            notes: Vec::new(),
         };
         write_ply(&p, &cloud).unwrap();
         assert_eq!(read_ply(&p).unwrap(), cloud);
@@ -850,6 +1114,59 @@ mod tests {
             e.contains("neg_bin.ply") && e.contains("vertex 0") && e.contains("-4"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn label_names_match_in_any_case_with_or_without_scalar_prefix() {
+        for n in [
+            "label",
+            "Label",
+            "scalar_Label",
+            "scalar_Classification",
+            "SCALAR_CLASS",
+            "classification",
+            "semantic",
+            "semantic_label",
+            "scalar_semantic",
+        ] {
+            assert!(is_label_name(n), "{n}");
+        }
+        for n in [
+            "scalar_",
+            "scalar_scalar_label",
+            "labels",
+            "x",
+            "scalar_Intensity",
+            "sémantic",
+        ] {
+            assert!(!is_label_name(n), "{n}");
+        }
+    }
+
+    #[test]
+    fn ascii_values_that_do_not_parse_are_named() {
+        let d = tempfile::tempdir().unwrap();
+        let head = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+                    property float z\nproperty uchar label\nend_header\n0 0 0 1\n";
+        for (line, want) in [
+            (
+                "1 zwei 3 4",
+                "vertex 1: property 'y': 'zwei' is not a number",
+            ),
+            (
+                "1 2 3 2.5",
+                "vertex 1: property 'label': '2.5' is not a whole number in the range of uchar",
+            ),
+            ("1 2 3 256", "in the range of uchar"),
+            (
+                "1 2",
+                "vertex 1: the line ends before property 'z' (after 2 values)",
+            ),
+        ] {
+            let p = write(d.path(), "v.ply", format!("{head}{line}\n").as_bytes());
+            let e = read_ply(&p).unwrap_err().to_string();
+            assert!(e.contains("v.ply") && e.contains(want), "{line}: {e}");
+        }
     }
 
     #[test]

@@ -260,6 +260,7 @@ pub fn read_rgbd_frame(
         labels: None,
         colors: Some(colors),
         features: None,
+        notes: Vec::new(),
     };
     cloud.transform(world_from_camera);
     cloud.non_empty(&depth_path.display().to_string(), "no valid depth pixel")

@@ -43,6 +43,7 @@ pub fn read_scannet_xyzrgb_bin(path: &Path) -> Result<PointCloud, CloudError> {
         labels: None,
         colors: Some(colors),
         features: None,
+        notes: Vec::new(),
     };
     cloud.validate(&path.display().to_string())?;
     cloud.non_empty(&path.display().to_string(), "the file holds no points")

@@ -97,7 +97,9 @@ pub fn load_cloud(input: &CloudInput) -> Result<PointCloud, PipelineError> {
     if kitti_scan && !input.keep_all {
         // As for sequences: unlabeled, outlier and moving points are dropped.
         if let Some(labels) = c.labels.clone() {
+            let before = c.len();
             c.retain_indices(|i| !crate::io::labels::is_dropped_semantic_kitti(labels[i]));
+            note_dropped(&mut c, path, before, "unlabeled, outlier and moving");
         }
     }
     let is_las = matches!(
@@ -107,7 +109,9 @@ pub fn load_cloud(input: &CloudInput) -> Result<PointCloud, PipelineError> {
     if is_las && !input.keep_all {
         // ASPRS classes 7 (low point, noise) and 18 (high noise) are outliers.
         if let Some(labels) = c.labels.clone() {
+            let before = c.len();
             c.retain_indices(|i| !matches!(labels[i], 7 | 18));
+            note_dropped(&mut c, path, before, "noise (ASPRS classes 7 and 18)");
         }
     }
     if let (Some(f), Some((dim, values))) = (&input.features, &c.features) {
@@ -115,6 +119,17 @@ pub fn load_cloud(input: &CloudInput) -> Result<PointCloud, PipelineError> {
     }
     c.validate(&path.display().to_string())?;
     Ok(c)
+}
+
+/// Notes how many of `before` points a class filter left out of `c`.
+fn note_dropped(c: &mut PointCloud, path: &Path, before: usize, what: &str) {
+    let dropped = before - c.len();
+    if dropped > 0 {
+        c.notes.push(format!(
+            "{}: {dropped} {what} points left out (--keep-all keeps them)",
+            path.display()
+        ));
+    }
 }
 
 /// A feature is a direction: a point kept for the map whose feature row (from

@@ -1,0 +1,601 @@
+//! The linear units of a LAS file's coordinates, from the coordinate
+//! reference system its records state: OGC WKT (`LASF_Projection` record
+//! 2112) or, without one, GeoTIFF keys (record 34735, doubles in 34736).
+//! Parsing only: no EPSG database, so a unit must be stated by the file.
+
+use las::{Header, Vlr};
+
+/// A linear unit and where the file states it.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Unit {
+    /// Metres per unit.
+    pub metres: f64,
+    /// The file's own words, e.g. `WKT UNIT["foot",0.3048]` or
+    /// `GeoTIFF ProjLinearUnitsGeoKey 9002`.
+    pub source: String,
+}
+
+/// What a file's CRS records say about its coordinates' units.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) enum Units {
+    /// No CRS record: metres assumed, nothing to tell.
+    Unstated,
+    /// The horizontal unit, and the vertical one if stated apart
+    /// (otherwise z counts in the horizontal unit); `remarks` are
+    /// doubts worth a note (a unit's name and factor disagreeing).
+    Stated {
+        xy: Unit,
+        z: Option<Unit>,
+        remarks: Vec<String>,
+    },
+    /// A CRS record that does not tell the unit (unreadable, or no unit
+    /// in it): metres assumed; why, for the note.
+    Unknown(String),
+}
+
+/// EPSG linear units of measure: code, metres per unit, plural name.
+/// GeoTIFF uses these codes (9001-9003 nearly always).
+const EPSG_UNITS: [(u16, f64, &str); 14] = [
+    (9001, 1.0, "metres"),
+    (9002, 0.3048, "international feet"),
+    (9003, 1200.0 / 3937.0, "US survey feet"),
+    (9005, 0.304_797_265_4, "Clarke's feet"),
+    (9014, 1.8288, "fathoms"),
+    (9030, 1852.0, "nautical miles"),
+    (9033, 79_200.0 / 3937.0, "US survey chains"),
+    (9034, 792.0 / 3937.0, "US survey links"),
+    (9035, 6_336_000.0 / 3937.0, "US survey miles"),
+    (9036, 1000.0, "kilometres"),
+    (9093, 1609.344, "statute miles"),
+    (9096, 0.9144, "yards"),
+    (9097, 20.1168, "chains"),
+    (9098, 0.201_168, "links"),
+];
+
+fn same_factor(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-8 * b.abs()
+}
+
+fn is_metre(m: f64) -> bool {
+    same_factor(m, 1.0)
+}
+
+/// "international feet" for 0.3048, or "units of 0.5 m".
+fn unit_words(metres: f64) -> String {
+    EPSG_UNITS
+        .iter()
+        .find(|(_, m, _)| same_factor(metres, *m))
+        .map(|(_, _, w)| w.to_string())
+        .unwrap_or_else(|| format!("units of {metres} m"))
+}
+
+/// Metres per unit of a unit name WKT writers use, when the name alone
+/// says (OGC, EPSG and ESRI spellings).
+fn factor_of_name(name: &str) -> Option<f64> {
+    let key: String = name
+        .chars()
+        .filter(char::is_ascii_alphanumeric)
+        .map(|c| c.to_ascii_lowercase())
+        .collect();
+    match key.as_str() {
+        "metre" | "meter" | "metres" | "meters" | "m" => Some(1.0),
+        "foot" | "feet" | "ft" | "internationalfoot" | "footinternational" => Some(0.3048),
+        "ussurveyfoot" | "ussurveyfeet" | "footus" | "ftus" | "usfoot" | "usft"
+        | "footussurvey" => Some(1200.0 / 3937.0),
+        _ => None,
+    }
+}
+
+/// Scale factors to metres (`[x and y, z]`) and the notes that say
+/// what was done, each naming the file (`name`).
+pub(super) fn to_metres(name: &str, units: &Units) -> ([f64; 2], Vec<String>) {
+    match units {
+        Units::Unstated => ([1.0, 1.0], Vec::new()),
+        Units::Unknown(why) => (
+            [1.0, 1.0],
+            vec![format!(
+                "{name}: {why}; its coordinates were taken as metres"
+            )],
+        ),
+        Units::Stated { xy, z, remarks } => {
+            let mut notes: Vec<String> = remarks.iter().map(|r| format!("{name}: {r}")).collect();
+            let zu = z.as_ref().unwrap_or(xy);
+            if !(is_metre(xy.metres) && is_metre(zu.metres)) {
+                notes.push(match z {
+                    None => format!(
+                        "{name}: coordinates in {} ({}) converted to metres",
+                        unit_words(xy.metres),
+                        xy.source
+                    ),
+                    Some(z) if same_factor(z.metres, xy.metres) => format!(
+                        "{name}: coordinates in {} ({}; z: {}) converted to metres",
+                        unit_words(xy.metres),
+                        xy.source,
+                        z.source
+                    ),
+                    Some(z) => format!(
+                        "{name}: x and y in {} ({}), z in {} ({}); converted to metres",
+                        unit_words(xy.metres),
+                        xy.source,
+                        unit_words(z.metres),
+                        z.source
+                    ),
+                });
+            }
+            // Within rounding of a metre is a metre: exactly 1, no note.
+            let factor = |m: f64| if is_metre(m) { 1.0 } else { m };
+            ([factor(xy.metres), factor(zu.metres)], notes)
+        }
+    }
+}
+
+fn projection_record(header: &Header, id: u16) -> Option<&Vlr> {
+    header
+        .all_vlrs()
+        .find(|v| v.record_id == id && v.user_id.eq_ignore_ascii_case("LASF_Projection"))
+}
+
+/// The units `header`'s CRS records state; an error (the reason, for a
+/// message naming the file) for coordinates that cannot be made metres:
+/// a geographic CRS (degrees) or a unit code this module does not know.
+/// WKT wins over GeoTIFF keys when a file has both (LAS 1.4 says so for
+/// files that set the WKT bit; in older files both agree in practice).
+pub(super) fn units(header: &Header) -> Result<Units, String> {
+    let wkt = projection_record(header, 2112).map(|v| wkt_units(&v.data));
+    let geotiff = || {
+        projection_record(header, 34735)
+            .map(|keys| geotiff_units(&keys.data, projection_record(header, 34736)))
+    };
+    match wkt {
+        Some(Ok(Units::Unknown(why))) => match geotiff() {
+            // An unreadable WKT: the GeoTIFF keys may still tell.
+            Some(Ok(Units::Unknown(_))) | None => Ok(Units::Unknown(why)),
+            Some(other) => other,
+        },
+        Some(w) => w,
+        None => geotiff().unwrap_or(Ok(Units::Unstated)),
+    }
+}
+
+const REPROJECT: &str = "reproject the cloud to a projected CRS in metres (UTM, say; \
+                         PDAL and LAStools do it) first";
+
+// ---- GeoTIFF keys ------------------------------------------------------
+
+/// Reads the units of a GeoKeyDirectory (`keys`: u16 little-endian,
+/// a 4-value header then 4 values a key: id, location, count, value).
+fn geotiff_units(keys: &[u8], doubles: Option<&Vlr>) -> Result<Units, String> {
+    let word = |i: usize| {
+        keys.get(2 * i..2 * i + 2)
+            .map(|b| u16::from_le_bytes([b[0], b[1]]))
+    };
+    let Some(count) = word(3) else {
+        return Ok(Units::Unknown(
+            "its GeoTIFF key directory (record 34735) is truncated".into(),
+        ));
+    };
+    // A key: (location, value); location 0 holds the value itself.
+    let key = |id: u16| {
+        (0..count as usize).find_map(|k| {
+            let at = 4 + 4 * k;
+            (word(at)? == id).then_some((word(at + 1)?, word(at + 3)?))
+        })
+    };
+    let short = |id: u16| key(id).and_then(|(loc, v)| (loc == 0).then_some(v));
+    let double = |id: u16| {
+        let (loc, index) = key(id)?;
+        let data = &doubles?.data;
+        let at = 8 * index as usize;
+        (loc == 34736)
+            .then(|| data.get(at..at + 8))
+            .flatten()
+            .map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8])))
+    };
+    let model = short(1024);
+    if model == Some(2) {
+        return Err(format!(
+            "coordinates are longitude and latitude in degrees (a geographic CRS: \
+             GeoTIFF GTModelTypeGeoKey 2), not metres: {REPROJECT}"
+        ));
+    }
+    // Geocentric CRSs state their unit in GeogLinearUnitsGeoKey.
+    let (unit_key, unit_key_name) = if model == Some(3) {
+        (2052, "GeogLinearUnitsGeoKey")
+    } else {
+        (3076, "ProjLinearUnitsGeoKey")
+    };
+    let xy = match short(unit_key).filter(|&c| c != 0) {
+        Some(32767) => match double(3077).filter(|m| m.is_finite() && *m > 0.0) {
+            Some(m) => Unit {
+                metres: m,
+                source: format!("GeoTIFF ProjLinearUnitSizeGeoKey {m}"),
+            },
+            None => {
+                return Ok(Units::Unknown(
+                    "its GeoTIFF CRS has a user-defined linear unit without a size".into(),
+                ));
+            }
+        },
+        Some(code) => epsg_unit(code, unit_key_name)?,
+        None => {
+            let why = match short(3072) {
+                Some(crs) => format!(
+                    "its GeoTIFF CRS (ProjectedCRSGeoKey {crs}) states no linear unit \
+                     (ProjLinearUnitsGeoKey)"
+                ),
+                None => "its GeoTIFF keys state no linear unit".to_string(),
+            };
+            return Ok(Units::Unknown(why));
+        }
+    };
+    let z = match short(4099).filter(|&c| c != 0) {
+        Some(code) => Some(epsg_unit(code, "VerticalUnitsGeoKey")?),
+        None => None,
+    };
+    Ok(Units::Stated {
+        xy,
+        z,
+        remarks: Vec::new(),
+    })
+}
+
+fn epsg_unit(code: u16, key: &str) -> Result<Unit, String> {
+    EPSG_UNITS
+        .iter()
+        .find(|(c, _, _)| *c == code)
+        .map(|(_, m, _)| Unit {
+            metres: *m,
+            source: format!("GeoTIFF {key} {code}"),
+        })
+        .ok_or_else(|| {
+            format!(
+                "its GeoTIFF {key} gives the unit code {code}, not a length unit omcl \
+                 knows: {REPROJECT}"
+            )
+        })
+}
+
+// ---- OGC WKT -----------------------------------------------------------
+
+/// A WKT value: `KEYWORD[args]` (or with parentheses), a quoted text,
+/// or a bare number or word, unparsed.
+#[derive(Debug, PartialEq)]
+pub(super) enum Wkt {
+    Node(String, Vec<Wkt>),
+    Text(String),
+    Bare(String),
+}
+
+impl Wkt {
+    fn key(&self) -> Option<&str> {
+        match self {
+            Wkt::Node(k, _) => Some(k),
+            _ => None,
+        }
+    }
+    fn children(&self) -> impl Iterator<Item = &Wkt> {
+        let args: &[Wkt] = match self {
+            Wkt::Node(_, args) => args,
+            _ => &[],
+        };
+        args.iter().filter(|a| a.key().is_some())
+    }
+    fn child(&self, keys: &[&str]) -> Option<&Wkt> {
+        self.children().find(|c| {
+            c.key()
+                .is_some_and(|k| keys.iter().any(|w| w.eq_ignore_ascii_case(k)))
+        })
+    }
+    /// The first argument, when it is a quoted text (the name).
+    fn name(&self) -> &str {
+        match self {
+            Wkt::Node(_, args) => match args.first() {
+                Some(Wkt::Text(t)) => t,
+                _ => "",
+            },
+            _ => "",
+        }
+    }
+}
+
+/// Nesting deeper than real CRSs go (about 6) is refused, so that a
+/// hostile record cannot exhaust the stack.
+const MAX_DEPTH: usize = 32;
+
+/// Parses WKT 1 or 2 text; `None` when it is not well formed.
+pub(super) fn parse_wkt(text: &str) -> Option<Wkt> {
+    let mut p = WktParser {
+        s: text.as_bytes(),
+        i: 0,
+    };
+    p.value(0)
+}
+
+struct WktParser<'a> {
+    s: &'a [u8],
+    i: usize,
+}
+
+impl WktParser<'_> {
+    fn skip_space(&mut self) {
+        while self.s.get(self.i).is_some_and(u8::is_ascii_whitespace) {
+            self.i += 1;
+        }
+    }
+
+    fn value(&mut self, depth: usize) -> Option<Wkt> {
+        if depth > MAX_DEPTH {
+            return None;
+        }
+        self.skip_space();
+        if *self.s.get(self.i)? == b'"' {
+            return self.text().map(Wkt::Text);
+        }
+        let start = self.i;
+        while self
+            .s
+            .get(self.i)
+            .is_some_and(|c| c.is_ascii_alphanumeric() || b"_.+-".contains(c))
+        {
+            self.i += 1;
+        }
+        if start == self.i {
+            return None;
+        }
+        let word = String::from_utf8_lossy(&self.s[start..self.i]).into_owned();
+        self.skip_space();
+        if !matches!(self.s.get(self.i), Some(b'[' | b'(')) {
+            return Some(Wkt::Bare(word));
+        }
+        self.i += 1;
+        let mut args = Vec::new();
+        loop {
+            self.skip_space();
+            if args.is_empty() && matches!(self.s.get(self.i), Some(b']' | b')')) {
+                self.i += 1;
+                break;
+            }
+            args.push(self.value(depth + 1)?);
+            self.skip_space();
+            match self.s.get(self.i)? {
+                b',' => self.i += 1,
+                b']' | b')' => {
+                    self.i += 1;
+                    break;
+                }
+                _ => return None,
+            }
+        }
+        Some(Wkt::Node(word, args))
+    }
+
+    /// A quoted text; `""` inside stands for one quote.
+    fn text(&mut self) -> Option<String> {
+        self.i += 1;
+        let mut out = Vec::new();
+        loop {
+            let c = *self.s.get(self.i)?;
+            self.i += 1;
+            if c == b'"' {
+                if self.s.get(self.i) == Some(&b'"') {
+                    out.push(b'"');
+                    self.i += 1;
+                } else {
+                    break;
+                }
+            } else {
+                out.push(c);
+            }
+        }
+        Some(String::from_utf8_lossy(&out).into_owned())
+    }
+}
+
+const PROJECTED: [&str; 3] = ["PROJCS", "PROJCRS", "PROJECTEDCRS"];
+const GEOGRAPHIC: [&str; 3] = ["GEOGCS", "GEOGCRS", "GEOGRAPHICCRS"];
+/// WKT 2 geodetic CRSs: geographic with an ellipsoidal coordinate
+/// system, geocentric with a Cartesian one.
+const GEODETIC: [&str; 2] = ["GEODCRS", "GEODETICCRS"];
+const GEOCENTRIC: [&str; 1] = ["GEOCCS"];
+const VERTICAL: [&str; 4] = ["VERT_CS", "VERTCS", "VERTCRS", "VERTICALCRS"];
+const COMPOUND: [&str; 2] = ["COMPD_CS", "COMPOUNDCRS"];
+const UNIT: [&str; 2] = ["UNIT", "LENGTHUNIT"];
+
+fn is(node: &Wkt, keys: &[&str]) -> bool {
+    node.key()
+        .is_some_and(|k| keys.iter().any(|w| w.eq_ignore_ascii_case(k)))
+}
+
+fn is_geographic(node: &Wkt) -> bool {
+    is(node, &GEOGRAPHIC)
+        || (is(node, &GEODETIC) && node.child(&["CS"]).is_none_or(|cs| match cs {
+            Wkt::Node(_, args) => {
+                matches!(args.first(), Some(Wkt::Bare(t)) if t.eq_ignore_ascii_case("ellipsoidal"))
+            }
+            _ => false,
+        }))
+}
+
+/// The length unit a CRS node states for its coordinates: its own
+/// `UNIT`/`LENGTHUNIT`, else (WKT 2) its first axis's. Never a nested
+/// CRS's (a PROJCS's GEOGCS counts in degrees) nor a parameter's.
+fn length_unit(node: &Wkt) -> Option<&Wkt> {
+    node.child(&UNIT)
+        .or_else(|| node.child(&["AXIS"]).and_then(|a| a.child(&UNIT)))
+}
+
+/// A WKT unit node as a [`Unit`], with a remark when its name says
+/// another factor than its number; `what` is "x and y" or "z".
+fn wkt_unit(
+    unit: &Wkt,
+    prefix: &str,
+    what: &str,
+    remarks: &mut Vec<String>,
+) -> Result<Unit, String> {
+    let Wkt::Node(key, args) = unit else {
+        return Err(String::new());
+    };
+    let name = unit.name();
+    let raw = match args.get(1) {
+        Some(Wkt::Bare(n)) => n.as_str(),
+        _ => "",
+    };
+    let source = format!("WKT {prefix}{key}[\"{name}\",{raw}]");
+    let metres = raw
+        .parse::<f64>()
+        .ok()
+        .filter(|m| m.is_finite() && *m > 0.0)
+        .ok_or_else(|| format!("its {source} gives no positive length factor"))?;
+    if let Some(named) = factor_of_name(name)
+        && !same_factor(metres, named)
+    {
+        remarks.push(format!(
+            "{what}: {source} names a unit of {named} m but gives the factor {metres}; \
+             the factor was used"
+        ));
+    }
+    Ok(Unit { metres, source })
+}
+
+/// Reads the units of WKT text (`data`, NUL-terminated by LAS writers).
+fn wkt_units(data: &[u8]) -> Result<Units, String> {
+    let end = data.iter().position(|&b| b == 0).unwrap_or(data.len());
+    let text = String::from_utf8_lossy(&data[..end]);
+    let Some(parsed) = parse_wkt(&text) else {
+        return Ok(Units::Unknown(
+            "its WKT coordinate system (record 2112) could not be parsed".into(),
+        ));
+    };
+    let mut root = &parsed;
+    // WKT 2 BOUNDCRS: the data are in the source CRS.
+    if is(root, &["BOUNDCRS"]) {
+        match root.child(&["SOURCECRS"]).and_then(|s| s.children().next()) {
+            Some(source) => root = source,
+            None => return Ok(Units::Unknown("its WKT BOUNDCRS has no source CRS".into())),
+        }
+    }
+    let (horizontal, vertical) = if is(root, &COMPOUND) {
+        (
+            root.children().find(|c| {
+                is(c, &PROJECTED) || is(c, &GEOCENTRIC) || is(c, &GEOGRAPHIC) || is(c, &GEODETIC)
+            }),
+            root.child(&VERTICAL),
+        )
+    } else {
+        // Some writers nest the VERT_CS inside the PROJCS.
+        (Some(root), root.child(&VERTICAL))
+    };
+    let Some(horizontal) = horizontal else {
+        return Ok(Units::Unknown(
+            "its WKT coordinate system has no horizontal part".into(),
+        ));
+    };
+    let key = horizontal.key().unwrap_or_default();
+    if is_geographic(horizontal) {
+        return Err(format!(
+            "coordinates are longitude and latitude in degrees (a geographic CRS: WKT \
+             {key}[\"{}\"]), not metres: {REPROJECT}",
+            horizontal.name()
+        ));
+    }
+    let mut remarks = Vec::new();
+    let Some(unit) = length_unit(horizontal) else {
+        return Ok(Units::Unknown(format!(
+            "its WKT coordinate system {key}[\"{}\"] states no length unit",
+            horizontal.name()
+        )));
+    };
+    let xy = match wkt_unit(unit, "", "x and y", &mut remarks) {
+        Ok(u) => u,
+        Err(why) => return Ok(Units::Unknown(why)),
+    };
+    let z = match vertical.and_then(|v| Some((v, length_unit(v)?))) {
+        Some((v, unit)) => {
+            let prefix = format!("{} ", v.key().unwrap_or_default());
+            match wkt_unit(unit, &prefix, "z", &mut remarks) {
+                Ok(u) => Some(u),
+                Err(why) => return Ok(Units::Unknown(why)),
+            }
+        }
+        None => None,
+    };
+    Ok(Units::Stated { xy, z, remarks })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn wkt_parses_quotes_parentheses_and_bare_words() {
+        let w = parse_wkt(r#"LOCAL_CS["a ""quoted"" name", UNIT ("Foot_US", 0.3048006096012192), AXIS["x",EAST]]"#)
+            .unwrap();
+        let Wkt::Node(k, args) = &w else {
+            panic!("{w:?}")
+        };
+        assert_eq!(k, "LOCAL_CS");
+        assert_eq!(args[0], Wkt::Text("a \"quoted\" name".into()));
+        assert_eq!(
+            args[1],
+            Wkt::Node(
+                "UNIT".into(),
+                vec![
+                    Wkt::Text("Foot_US".into()),
+                    Wkt::Bare("0.3048006096012192".into())
+                ]
+            )
+        );
+        assert_eq!(
+            args[2],
+            Wkt::Node(
+                "AXIS".into(),
+                vec![Wkt::Text("x".into()), Wkt::Bare("EAST".into())]
+            )
+        );
+        for bad in ["", "PROJCS[", "PROJCS[\"a\"", "PROJCS[\"a\" \"b\"]", "[1]"] {
+            assert_eq!(parse_wkt(bad), None, "{bad}");
+        }
+        // Deeper than any CRS: refused, not a stack overflow.
+        let deep = format!("{}1{}", "A[".repeat(10_000), "]".repeat(10_000));
+        assert_eq!(parse_wkt(&deep), None);
+    }
+
+    #[test]
+    fn esri_names_and_local_systems() {
+        // ESRI writes Foot_US; a LOCAL_CS counts in its own UNIT.
+        let u = wkt_units(br#"PROJCS["NAD_1983_StatePlane_Texas_Central_FIPS_4203_Feet",GEOGCS["GCS_North_American_1983",UNIT["Degree",0.0174532925199433]],PARAMETER["False_Easting",2296583.333333333],UNIT["Foot_US",0.3048006096012192]]"#).unwrap();
+        let Units::Stated { xy, z, remarks } = u else {
+            panic!("{u:?}")
+        };
+        assert!(same_factor(xy.metres, 1200.0 / 3937.0) && z.is_none() && remarks.is_empty());
+        let u = wkt_units(br#"LOCAL_CS["site grid",UNIT["metre",1]]"#).unwrap();
+        assert!(matches!(u, Units::Stated { xy, .. } if xy.metres == 1.0));
+        // A unit that is not a positive length: not guessed.
+        let u = wkt_units(br#"PROJCS["x",UNIT["foot",0]]"#).unwrap();
+        assert!(
+            matches!(u, Units::Unknown(ref why) if why.contains("no positive")),
+            "{u:?}"
+        );
+        let u = wkt_units(br#"PROJCS["x",PROJECTION["Mercator"]]"#).unwrap();
+        assert!(
+            matches!(u, Units::Unknown(ref why) if why.contains("no length unit")),
+            "{u:?}"
+        );
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(512))]
+        #[test]
+        fn arbitrary_crs_records_never_panic(
+            text in "[A-Z_\\[\\](),\" 0-9.e-]{0,120}",
+            keys in proptest::collection::vec(any::<u8>(), 0..80),
+            doubles in proptest::collection::vec(any::<u8>(), 0..40),
+        ) {
+            let _ = wkt_units(text.as_bytes());
+            let d = Vlr { user_id: "LASF_Projection".into(), record_id: 34736, description: String::new(), data: doubles };
+            let _ = geotiff_units(&keys, Some(&d));
+            let _ = geotiff_units(&keys, None);
+        }
+    }
+}
