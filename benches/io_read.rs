@@ -24,6 +24,7 @@ fn synthetic(n: usize, dim: usize) -> PointCloud {
         colors: Some((0..n).map(|_| rng.random()).collect()),
         features: (dim > 0).then(|| (dim, (0..n * dim).map(|_| rng.random()).collect())),
         notes: Vec::new(),
+        left_out: Vec::new(),
     }
 }
 

@@ -63,6 +63,7 @@ fn main() -> Result<()> {
         colors: Some(vec![[1, 2, 3], [4, 5, 6]]),
         features: Some((2, vec![0.5, 0.5, 1.0, 0.0])),
         notes: Vec::new(),
+        left_out: Vec::new(),
     };
     let p = tmp.path().join("w.ply");
     omcl::io::ply::write_ply(&p, &cloud)?;

@@ -15,6 +15,13 @@ fn main() -> ExitCode {
     match cli::run(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
+            if omcl::io::atomic::interrupted() {
+                // The handler is removing what the command was writing
+                // (the error is likely its doing) and then ends omcl.
+                loop {
+                    std::thread::park();
+                }
+            }
             eprintln!("error: {}", chain_message(&e));
             if e.downcast_ref::<cli::CannotSucceed>().is_some() {
                 ExitCode::from(cli::EXIT_CANNOT_SUCCEED)
@@ -27,38 +34,71 @@ fn main() -> ExitCode {
 
 /// Ctrl-C (SIGINT) and SIGTERM (`scancel`, `kill`): the temporary file
 /// being written and a folder the command made and is filling are removed
-/// (`omcl::io::atomic::remove_interrupted`), and omcl ends with 130 or
-/// 143, as the signal would have ended it. Without the handler the
-/// signal ends omcl at once and a map being saved leaves its hidden
-/// `.omcl-*.tmp` behind.
+/// (`omcl::io::atomic::remove_interrupted`), then omcl ends as the signal
+/// ends a program (the default action, re-raised), so a shell loop or a
+/// batch system sees the signal, not an exit code. A signal the shell
+/// set to be ignored (SIGINT for `omcl ... &` in a script) stays ignored.
+/// Without the handler the signal ends omcl at once and a map being saved
+/// leaves its hidden `.omcl-*.tmp` behind.
 fn clean_up_on_interrupt() {
     use tokio::signal::unix::{SignalKind, signal};
+    const SIGINT: i32 = 2;
+    const SIGTERM: i32 = 15;
+    let ignored = ignored_signals();
     let Ok(rt) = tokio::runtime::Builder::new_current_thread()
         .enable_io()
         .build()
     else {
         return;
     };
-    // Registered before the command starts, so no signal is missed.
-    let signals = rt.block_on(async {
-        Some((
-            signal(SignalKind::interrupt()).ok()?,
-            signal(SignalKind::terminate()).ok()?,
-        ))
-    });
-    let Some((mut int, mut term)) = signals else {
-        return;
+    // Registered before the command starts, so no signal is missed; a
+    // signal that is ignored gets no handler (installing one would undo
+    // the ignoring).
+    let listen = |kind: SignalKind, sig: i32| {
+        (ignored & (1 << (sig - 1)) == 0)
+            .then(|| rt.block_on(async { signal(kind).ok() }))
+            .flatten()
     };
+    let int = listen(SignalKind::interrupt(), SIGINT);
+    let term = listen(SignalKind::terminate(), SIGTERM);
+    if int.is_none() && term.is_none() {
+        return;
+    }
     std::thread::spawn(move || {
-        let code = rt.block_on(async {
+        let sig = rt.block_on(async move {
+            let wait = |s: Option<tokio::signal::unix::Signal>, n: i32| async move {
+                match s {
+                    Some(mut s) => {
+                        s.recv().await;
+                        n
+                    }
+                    None => std::future::pending().await,
+                }
+            };
             tokio::select! {
-                _ = int.recv() => 130,
-                _ = term.recv() => 143,
+                n = wait(int, SIGINT) => n,
+                n = wait(term, SIGTERM) => n,
             }
         });
         omcl::io::atomic::remove_interrupted();
-        std::process::exit(code);
+        let _ = signal_hook::low_level::emulate_default_handler(sig);
+        // Not reached unless the default action could not be restored.
+        std::process::exit(128 + sig);
     });
+}
+
+/// The signals this process was started with set to be ignored (bit
+/// `n - 1` for signal `n`), from `/proc/self/status`'s `SigIgn`; none when
+/// it cannot be read.
+fn ignored_signals() -> u64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find_map(|l| l.strip_prefix("SigIgn:"))
+                .and_then(|v| u64::from_str_radix(v.trim(), 16).ok())
+        })
+        .unwrap_or(0)
 }
 
 /// The LAZ decoder (crate `laz`) asserts on some corrupt streams; the LAS

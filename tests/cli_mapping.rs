@@ -777,6 +777,44 @@ fn map_cloud_warns_about_strays_and_tables_and_guards_its_output() {
     ]);
     assert!(ok, "{text}");
     assert!(map::load(&dir.path().join("notes.omcl")).is_ok());
+    // A floor plan (the same container, another format) is not a map; an
+    // empty file (`mktemp`'s) holds nothing to lose.
+    let plan = p("utm.plan");
+    let (ok, text) = omcl(&[
+        "map",
+        "floorplan",
+        &p("utm.omcl"),
+        "-o",
+        &plan,
+        "--band-min",
+        "0",
+        "--band-max",
+        "1",
+    ]);
+    assert!(ok, "{text}");
+    let before = std::fs::read(&plan).unwrap();
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        &p("half.ply"),
+        "--classes",
+        "asprs",
+        "-o",
+        &plan,
+    ]);
+    assert!(!ok && text.contains("not an omcl map"), "{text}");
+    assert_eq!(std::fs::read(&plan).unwrap(), before);
+    std::fs::write(dir.path().join("empty.omcl"), b"").unwrap();
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        &p("half.ply"),
+        "--classes",
+        "asprs",
+        "-o",
+        &p("empty.omcl"),
+    ]);
+    assert!(ok, "{text}");
     // A map replaces a map without --force.
     let (ok, text) = omcl(&[
         "map",

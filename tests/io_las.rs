@@ -403,6 +403,15 @@ fn geographic_coordinates_and_unknown_units_are_refused_by_name() {
             vec!["geographic", "GTModelTypeGeoKey 2", "reproject"],
         ),
         (
+            "geog_no_model.las",
+            vec![geokeys(&[(2048, 0, 1, 4326)])],
+            vec![
+                "geographic",
+                "GeodeticCRSGeoKey without a projected CRS",
+                "reproject",
+            ],
+        ),
+        (
             "unknown_unit.las",
             vec![geokeys(&[(1024, 0, 1, 1), (3076, 0, 1, 9102)])],
             vec!["ProjLinearUnitsGeoKey", "9102", "reproject"],
@@ -417,6 +426,23 @@ fn geographic_coordinates_and_unknown_units_are_refused_by_name() {
             assert!(e.contains(p), "{name}: no {p:?} in {e}");
         }
     }
+    // A vertical unit code omcl does not know, under known horizontal
+    // feet: read, z in feet too, with a note.
+    let path = d.path().join("odd_vertical.las");
+    let keys = geokeys(&[(1024, 0, 1, 1), (3076, 0, 1, 9002), (4099, 0, 1, 9102)]);
+    write_las(&path, (1, 2), 1, vec![keys], &THREE);
+    let c = read_las(&path).unwrap();
+    has_note(
+        &c,
+        &path,
+        &[
+            "VerticalUnitsGeoKey",
+            "9102",
+            "z taken in the horizontal unit",
+        ],
+    );
+    let z0 = THREE[0].0[2] * 0.3048;
+    assert!((c.points[0][2] - z0).abs() < 1e-6, "{:?}", c.points[0]);
 }
 
 #[test]
@@ -451,6 +477,25 @@ fn withheld_points_are_left_out_with_a_note() {
         assert_eq!(c.colors.is_some(), format != 6, "{name}");
         assert_eq!(c.notes.len(), 1, "{name}: {:?}", c.notes);
         has_note(&c, &path, &["2 of 7 points", "withheld", "left out"]);
+        assert_eq!(c.left_out, vec![1, 4], "{name}");
+        // Features made for the file, a row a point of it: the withheld
+        // points' rows go with them; a row a kept point is taken as it is.
+        let mut c = c;
+        let npy = d.path().join(format!("{name}.npy"));
+        let rows: Vec<f32> = (0..7).flat_map(|i| [i as f32, 1.0]).collect();
+        omcl::io::npy::write_npy(&npy, &[7, 2], &rows).unwrap();
+        let mut of_file = c.clone();
+        of_file.attach_features_npy(&npy).unwrap();
+        let want: Vec<f32> = kept.iter().flat_map(|&i| [i as f32, 1.0]).collect();
+        assert_eq!(of_file.features, Some((2, want)), "{name}");
+        omcl::io::npy::write_npy(&npy, &[5, 2], &rows[..10]).unwrap();
+        c.attach_features_npy(&npy).unwrap();
+        omcl::io::npy::write_npy(&npy, &[6, 2], &rows[..12]).unwrap();
+        let e = c.attach_features_npy(&npy).unwrap_err().to_string();
+        assert!(
+            e.contains("6 feature rows for a cloud of 5 points (7 in the file; 2 left out"),
+            "{e}"
+        );
     }
     let all: Vec<Rec> = THREE.iter().map(|&(p, c, _)| (p, c, true)).collect();
     let path = d.path().join("all_withheld.las");

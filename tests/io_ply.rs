@@ -526,6 +526,7 @@ mod roundtrip {
                         colors: has_rgb.then_some(rgb),
                         features: (dim > 0).then_some((dim, feats)),
                         notes: Vec::new(),
+                        left_out: Vec::new(),
                     })
             },
         )

@@ -146,12 +146,12 @@ impl BuildOptions {
              `omcl map query MAP --ply FILE`, `omcl map info`)",
             out.display()
         );
-        if out.is_file()
-            && !self.force
-            && let Err(e) = map::file::read_header(out)
-        {
+        // An empty file (`mktemp`'s) holds nothing to lose.
+        let holds_something = std::fs::metadata(out).is_ok_and(|m| m.is_file() && m.len() > 0);
+        if holds_something && !self.force && !map::file::is_map_file(out).unwrap_or(false) {
             bail!(
-                "--out {} exists and is not an omcl map ({e}); pass --force to replace it",
+                "--out {} exists and is not an omcl map (a floor plan, another program's file?); \
+                 pass --force to replace it",
                 out.display()
             );
         }
@@ -167,7 +167,7 @@ fn save(m: &LanguageMap, b: &BuildOptions, stats: &IntegrationStats) -> anyhow::
         let reach = f64::from(omcl::map::key::CELL_MAX) * g.resolution;
         eprintln!(
             "warning: {} of {} points were left out: not finite, or beyond the grid's reach \
-             ({:.0} m each way of its origin ({:.2}, {:.2}, {:.2}), the data's middle, at {} m): \
+             ({:.0} m each way of its origin ({:.2}, {:.2}, {:.2}) at {} m): \
              strays far from the data (such as points at 0, 0, 0 in georeferenced \
              coordinates), or a cloud wider than that (a coarser --resolution reaches farther)",
             stats.rejected, stats.offered, reach, g.origin.x, g.origin.y, g.origin.z, g.resolution
@@ -325,11 +325,18 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
             super::progress::finish(&s);
         }
         save(&m, &a.build, &stats)?;
-        warn_labels(&m, &a.build, &stats, table.is_some());
+        warn_labels(
+            &m,
+            &a.build,
+            &stats,
+            table.is_some() && a.features_dir.is_none(),
+        );
         return Ok(());
     }
     let pb = super::progress::spinner(&format!("reading {}", a.input.display()));
     let c = pipeline::load_cloud(&input)?;
+    // A cloud with feature columns of its own is mapped from them.
+    let own_features = c.features.is_some();
     pb.suspend(|| {
         for n in &c.notes {
             eprintln!("note: {n}");
@@ -352,7 +359,7 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     )?;
     super::progress::finish(&pb);
     save(&m, &a.build, &stats)?;
-    let labelled = table.is_some() && a.features.is_none() && a.point_model.is_none();
+    let labelled = table.is_some() && !own_features && a.point_model.is_none();
     warn_labels(&m, &a.build, &stats, labelled);
     Ok(())
 }

@@ -246,6 +246,8 @@ pub fn refuse_overlaps<S: AsRef<str>, P: AsRef<Path>>(
 /// the earlier simulation as it was.
 pub struct SimStaging {
     out: PathBuf,
+    /// Removed if the run is interrupted (dropped before `temp`).
+    _interrupt: omcl::io::atomic::RemoveOnInterrupt,
     temp: tempfile::TempDir,
     /// Entries of an earlier simulation to remove at commit (`--force`).
     replace: &'static [&'static str],
@@ -315,6 +317,7 @@ pub fn stage_sim_folder(
         .map_err(|e| anyhow::anyhow!("{}: cannot write there: {e}", parent.display()))?;
     Ok(SimStaging {
         out: out.to_path_buf(),
+        _interrupt: omcl::io::atomic::remove_on_interrupt(temp.path()),
         temp,
         replace,
     })

@@ -1,7 +1,8 @@
 //! Point encoder: points with colours to per-point features.
 //!
 //! Contract: input `points` `[N, 3]` or `[1, N, 3]` float32 (metres, the
-//! cloud's frame), optional input `colors` of the same shape with RGB in
+//! cloud's frame moved to its lower corner snapped to the map's
+//! resolution, so georeferenced coordinates keep float precision), optional input `colors` of the same shape with RGB in
 //! [0, 1], output `[N, F]` or `[1, N, F]` float32. OpenScene's own network
 //! (sparse convolutions) does not export to ONNX; its per-point features are
 //! read as `.npy` files instead, and any ONNX model honouring this contract

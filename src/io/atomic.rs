@@ -25,6 +25,16 @@ use std::sync::Mutex;
 /// Paths to remove if the process is interrupted.
 static ON_INTERRUPT: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
+/// Set once [`remove_interrupted`] has begun.
+static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Whether the process is being interrupted ([`remove_interrupted`] has
+/// begun): an error the command then meets may be the clean-up's doing
+/// and is not worth reporting.
+pub fn interrupted() -> bool {
+    INTERRUPTED.load(std::sync::atomic::Ordering::SeqCst)
+}
+
 /// Removes its path from the interrupt list when dropped.
 #[derive(Debug)]
 #[must_use = "the path is removed on an interrupt only while the guard lives"]
@@ -51,6 +61,7 @@ impl Drop for RemoveOnInterrupt {
 /// still lives, and keeps the list locked, so that no new one starts: for
 /// a signal handler that then ends the process.
 pub fn remove_interrupted() {
+    INTERRUPTED.store(true, std::sync::atomic::Ordering::SeqCst);
     let list = ON_INTERRUPT.lock().unwrap_or_else(|e| e.into_inner());
     remove_all(&list);
     // Held until the process ends.
@@ -61,11 +72,18 @@ pub fn remove_interrupted() {
 /// a file, or a link (not what it points to).
 fn remove_all(paths: &[PathBuf]) {
     for p in paths {
-        let _ = match std::fs::symlink_metadata(p) {
-            Ok(m) if m.is_dir() => std::fs::remove_dir_all(p),
-            Ok(_) => std::fs::remove_file(p),
-            Err(_) => Ok(()),
-        };
+        // A folder may gain a file while it is emptied (the command
+        // writes on until the process ends): a few tries.
+        for _ in 0..5 {
+            let done = match std::fs::symlink_metadata(p) {
+                Ok(m) if m.is_dir() => std::fs::remove_dir_all(p).is_ok(),
+                Ok(_) => std::fs::remove_file(p).is_ok(),
+                Err(_) => true,
+            };
+            if done {
+                break;
+            }
+        }
     }
 }
 
@@ -191,8 +209,15 @@ fn replace_file(
         use std::os::unix::fs::PermissionsExt;
         builder.permissions(std::fs::Permissions::from_mode(0o666));
     }
-    let tmp = builder.tempfile_in(dir)?;
-    let _interrupt = remove_on_interrupt(tmp.path());
+    // Made and registered under the interrupt list's lock, so that an
+    // interrupt cannot come between the two.
+    let (tmp, _interrupt) = {
+        let mut list = ON_INTERRUPT.lock().unwrap_or_else(|e| e.into_inner());
+        let tmp = builder.tempfile_in(dir)?;
+        list.push(tmp.path().to_path_buf());
+        let guard = RemoveOnInterrupt(tmp.path().to_path_buf());
+        (tmp, guard)
+    };
     {
         let mut w = BufWriter::with_capacity(1 << 16, tmp.as_file());
         fill(&mut w)?;

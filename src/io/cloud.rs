@@ -89,6 +89,11 @@ pub struct PointCloud {
     /// taken as it is. Library code never prints: the command line shows
     /// these to the user.
     pub notes: Vec<String>,
+    /// Where in the file the points the reader left out were (withheld
+    /// LAS points), ascending: per-point data made for the whole file (a
+    /// `--features` `.npy` with a row a point of the file) skips their
+    /// rows ([`Self::attach_features_npy`]). Empty when none were.
+    pub left_out: Vec<usize>,
 }
 
 impl PointCloud {
@@ -184,6 +189,8 @@ impl PointCloud {
     /// Keeps the points for which `keep(index)` is true, in order, with all
     /// their columns (and every note).
     pub fn retain_indices(&mut self, mut keep: impl FnMut(usize) -> bool) {
+        // The points are no longer the file's but for those left out.
+        self.left_out.clear();
         let mask: Vec<bool> = (0..self.len()).map(&mut keep).collect();
         let mut it = mask.iter();
         self.points.retain(|_| *it.next().unwrap_or(&false));
@@ -213,6 +220,9 @@ impl PointCloud {
     /// a half-filled column would break the length invariant. Notes of both
     /// are kept, `self`'s first.
     pub fn append(&mut self, mut other: PointCloud) {
+        // Two files' points: no longer one file's but for those left out.
+        self.left_out.clear();
+        other.left_out.clear();
         let was_empty = self.is_empty();
         if was_empty {
             let mut notes = std::mem::take(&mut self.notes);
@@ -261,11 +271,21 @@ impl PointCloud {
             ));
         }
         let (rows, dim) = (arr.shape[0], arr.shape[1]);
-        if rows != self.len() {
+        // A row a point of the file: the rows of points the reader left
+        // out go with them.
+        let of_file = !self.left_out.is_empty() && rows == self.len() + self.left_out.len();
+        if rows != self.len() && !of_file {
+            let left_out = match self.left_out.len() {
+                0 => String::new(),
+                k => format!(
+                    " ({} in the file; {k} left out by the reader)",
+                    self.len() + k
+                ),
+            };
             return Err(CloudError::mismatch(
                 path,
                 format!(
-                    "{rows} feature rows for a cloud of {} points (shape {:?})",
+                    "{rows} feature rows for a cloud of {} points{left_out} (shape {:?})",
                     self.len(),
                     arr.shape
                 ),
@@ -280,7 +300,24 @@ impl PointCloud {
                 format!("feature value of point {} is not finite", i / dim),
             ));
         }
-        self.features = Some((dim, arr.data));
+        let data = if of_file {
+            let mut skip = self.left_out.iter().peekable();
+            arr.data
+                .chunks_exact(dim)
+                .enumerate()
+                .filter(|(i, _)| {
+                    let out = skip.peek() == Some(&i);
+                    if out {
+                        skip.next();
+                    }
+                    !out
+                })
+                .flat_map(|(_, r)| r.iter().copied())
+                .collect()
+        } else {
+            arr.data
+        };
+        self.features = Some((dim, data));
         Ok(())
     }
 
@@ -332,6 +369,7 @@ mod tests {
             colors: Some(vec![[1, 1, 1], [2, 2, 2], [3, 3, 3]]),
             features: Some((2, vec![0.0, 0.1, 1.0, 1.1, 2.0, 2.1])),
             notes: vec!["c: a note".into()],
+            left_out: Vec::new(),
         }
     }
 

@@ -309,7 +309,7 @@ fn decode(
     let mut rgb16: Vec<[u16; 3]> = Vec::with_capacity(if has_color { cap } else { 0 });
     let mut batch = PointDataBuilder::new().for_header(reader.header()).build();
     let mut read = 0u64;
-    let mut withheld = 0u64;
+    let mut left_out = Vec::new();
     while read < n {
         let got = reader
             .fill_points(batch_points.min(n - read), &mut batch)
@@ -332,10 +332,11 @@ fn decode(
             .zip(batch.z())
             .zip(batch.classification())
             .zip(kept);
-        for ((((x, y), z), class), keep) in columns {
+        let first = (read - got) as usize;
+        for (i, ((((x, y), z), class), keep)) in columns.enumerate() {
             let colour = rgb.as_mut().and_then(Iterator::next);
             if !keep {
-                withheld += 1;
+                left_out.push(first + i);
                 continue;
             }
             points.push([x * xy_to_m, y * xy_to_m, z * z_to_m]);
@@ -345,6 +346,7 @@ fn decode(
             }
         }
     }
+    let withheld = left_out.len();
     if withheld > 0 {
         if points.is_empty() {
             return Err(CloudError::Empty {
@@ -376,6 +378,7 @@ fn decode(
         colors,
         features: None,
         notes,
+        left_out,
     };
     cloud.validate(&name)?;
     cloud.non_empty(&name, "the file holds no points")

@@ -679,6 +679,7 @@ impl Columns {
             colors: self.colors,
             features: self.feats.map(|f| (self.dim, f)),
             notes: Vec::new(),
+            left_out: Vec::new(),
         };
         (cloud, self.tally)
     }
@@ -998,6 +999,7 @@ mod tests {
             colors: Some(vec![[1, 2, 3], [4, 5, 6]]),
             features: Some((3, vec![0.5, -1.0, 2.0, 0.0, 0.25, 9.0])),
             notes: Vec::new(),
+            left_out: Vec::new(),
         };
         write_ply(&p, &cloud).unwrap();
         assert_eq!(read_ply(&p).unwrap(), cloud);

@@ -261,6 +261,7 @@ pub fn read_rgbd_frame(
         colors: Some(colors),
         features: None,
         notes: Vec::new(),
+        left_out: Vec::new(),
     };
     cloud.transform(world_from_camera);
     cloud.non_empty(&depth_path.display().to_string(), "no valid depth pixel")

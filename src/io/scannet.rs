@@ -44,6 +44,7 @@ pub fn read_scannet_xyzrgb_bin(path: &Path) -> Result<PointCloud, CloudError> {
         colors: Some(colors),
         features: None,
         notes: Vec::new(),
+        left_out: Vec::new(),
     };
     cloud.validate(&path.display().to_string())?;
     cloud.non_empty(&path.display().to_string(), "the file holds no points")

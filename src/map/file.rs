@@ -215,6 +215,29 @@ pub fn read_header(path: &Path) -> Result<HashMap<String, String>, MapFileError>
     Ok(meta.metadata().clone().unwrap_or_default())
 }
 
+/// Whether `path` holds a 3-D language map: a safetensors header whose
+/// `format` is [`FORMAT`], read from the file's first bytes only (at most
+/// 16 MiB of header; the tensors are not read). A floor plan, another
+/// safetensors file or any other file is not one.
+pub fn is_map_file(path: &Path) -> std::io::Result<bool> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path)?;
+    let mut len = [0u8; 8];
+    if f.read_exact(&mut len).is_err() {
+        return Ok(false);
+    }
+    let n = u64::from_le_bytes(len);
+    if n == 0 || n > 16 << 20 {
+        return Ok(false);
+    }
+    let mut header = Vec::new();
+    f.take(n).read_to_end(&mut header)?;
+    let format = serde_json::from_slice::<serde_json::Value>(&header)
+        .ok()
+        .and_then(|v| v["__metadata__"]["format"].as_str().map(str::to_string));
+    Ok(format.as_deref() == Some(FORMAT))
+}
+
 /// Parses the bytes of a map file; `path` names it in errors.
 pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<LanguageMap, MapFileError> {
     parse_map(bytes, path, false)

@@ -1,8 +1,8 @@
 //! The map-building pipelines users run, the paper's two input options:
 //! - from a cloud (`omcl map cloud`): read a point-cloud file or a
 //!   SemanticKITTI sequence, drop the points the authors drop, attach or
-//!   compute per-point features, integrate them on a grid anchored at the
-//!   cloud's corner ([`load_cloud`], [`map_from_cloud`]);
+//!   compute per-point features, integrate them on a grid centred on the
+//!   cloud ([`load_cloud`], [`map_from_cloud`]);
 //! - from posed RGB-D frames (`omcl map rgbd`): depth back-projected with
 //!   each frame's labels, feature files or encoder output
 //!   ([`map_from_rgbd`]).
@@ -332,7 +332,8 @@ impl OriginEstimate {
 }
 
 /// The per-axis medians (the upper one of an even count) of `v`, which
-/// must not be empty; non-finite values sort last.
+/// must not be empty (NaN, which the readers leave out, would sort by its
+/// sign bit).
 fn median3(v: &mut [[f64; 3]]) -> [f64; 3] {
     let mid = v.len() / 2;
     std::array::from_fn(|a| {
@@ -400,12 +401,21 @@ pub fn map_from_cloud(
     let grid = grid_for(&cloud.points, params.resolution);
     let mut name = params.encoder.clone();
     if let Some(enc) = encoder {
-        // Points relative to the grid origin keep f32 precision (UTM).
+        // Points relative to the cloud's lower corner (snapped to the
+        // resolution) keep f32 precision (UTM) and stay non-negative, as
+        // the encoder contract (`crate::encode::point`) states.
+        let mut lo = [f64::INFINITY; 3];
+        for p in &cloud.points {
+            for a in 0..3 {
+                lo[a] = lo[a].min(p[a]);
+            }
+        }
+        let corner = grid_at(lo, params.resolution).origin;
         let pts: Vec<[f32; 3]> = cloud
             .points
             .iter()
             .map(|p| {
-                let q = Vector3::from(*p) - grid.origin;
+                let q = Vector3::from(*p) - corner;
                 [q.x as f32, q.y as f32, q.z as f32]
             })
             .collect();

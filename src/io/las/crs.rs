@@ -192,10 +192,17 @@ fn geotiff_units(keys: &[u8], doubles: Option<&Vlr>) -> Result<Units, String> {
             .map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8])))
     };
     let model = short(1024);
-    if model == Some(2) {
+    // Without a model type, a geographic CRS key (GeodeticCRSGeoKey 2048)
+    // and no projected one (3072) is a geographic CRS too.
+    let geographic_only = model.is_none() && short(2048).is_some() && short(3072).is_none();
+    if model == Some(2) || geographic_only {
+        let why = match model {
+            Some(_) => "GeoTIFF GTModelTypeGeoKey 2",
+            None => "GeoTIFF GeodeticCRSGeoKey without a projected CRS",
+        };
         return Err(format!(
             "coordinates are longitude and latitude in degrees (a geographic CRS: \
-             GeoTIFF GTModelTypeGeoKey 2), not metres: {REPROJECT}"
+             {why}), not metres: {REPROJECT}"
         ));
     }
     // Geocentric CRSs state their unit in GeogLinearUnitsGeoKey.
@@ -228,15 +235,20 @@ fn geotiff_units(keys: &[u8], doubles: Option<&Vlr>) -> Result<Units, String> {
             return Ok(Units::Unknown(why));
         }
     };
+    // A vertical unit omcl does not know leaves z as the horizontal unit,
+    // with a remark, rather than refusing a file whose x and y are known.
+    let mut remarks = Vec::new();
     let z = match short(4099).filter(|&c| c != 0) {
-        Some(code) => Some(epsg_unit(code, "VerticalUnitsGeoKey")?),
+        Some(code) => match epsg_unit(code, "VerticalUnitsGeoKey") {
+            Ok(u) => Some(u),
+            Err(e) => {
+                remarks.push(format!("{e}; z taken in the horizontal unit"));
+                None
+            }
+        },
         None => None,
     };
-    Ok(Units::Stated {
-        xy,
-        z,
-        remarks: Vec::new(),
-    })
+    Ok(Units::Stated { xy, z, remarks })
 }
 
 fn epsg_unit(code: u16, key: &str) -> Result<Unit, String> {
