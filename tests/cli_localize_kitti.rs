@@ -317,6 +317,13 @@ fn a_kitti_sequence_without_poses_localizes_from_odometry_and_a_start() {
     assert_clean_failure(&r, &out, &["no odometry", "--odometry FILE"]);
     let r = f.localize(&f.map, &seq, &out, &["--odometry", s(&odometry)]);
     assert_clean_failure(&r, &out, &["--init-pose", "camera 2", "poses.txt"]);
+    // A poses.txt link that leads nowhere is an error naming it, not a
+    // folder without ground truth.
+    std::os::unix::fs::symlink(f.dir.path().join("gone.txt"), seq.join("poses.txt")).unwrap();
+    let r = f.localize(&f.map, &seq, &out, &["--odometry", s(&odometry)]);
+    assert_clean_failure(&r, &out, &["poses.txt"]);
+    assert!(!r.stderr.contains("--init-pose"), "{}", r.text());
+    std::fs::remove_file(seq.join("poses.txt")).unwrap();
     let metrics = f.dir.path().join("m.json");
     let (p, q) = (truth[0].translation.vector, truth[0].rotation.coords);
     let start = format!("{} {} {} {} {} {} {}", p.x, p.y, p.z, q.x, q.y, q.z, q.w);

@@ -112,7 +112,9 @@ impl KittiCameraSequence {
             return Err(CloudError::mismatch(&folder, problem));
         }
         let poses_path = dir.join("poses.txt");
-        let camera0_poses = match poses_path.exists() {
+        // There (a link that leads nowhere included: its read names it) or
+        // not: a folder without ground truth.
+        let camera0_poses = match std::fs::symlink_metadata(&poses_path).is_ok() {
             true => Some(read_kitti_poses(&poses_path)?),
             false => None,
         };
