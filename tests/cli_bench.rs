@@ -371,24 +371,21 @@ fn table5_and_ablations_write_tables_and_figures() {
 fn table1_blocks_write_tables_and_figure4() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().to_str().unwrap();
-    let (o, text) = bench(&[
-        "table1-floorplan",
-        "table1-sixdof",
-        "--variants",
-        "OMCL_GT,SeDAR*_GT",
-        "--sequences",
-        "1",
-        "--frames",
-        "6",
-        "--map-frames",
-        "20",
-        "--particles",
-        "64",
-        "--rays",
-        "128",
-        "-o",
-        out,
-    ]);
+    let (o, text) = bench(
+        &[
+            &[
+                "table1-floorplan",
+                "table1-sixdof",
+                "--variants",
+                "OMCL_GT,SeDAR*_GT",
+                "--sequences",
+                "1",
+            ][..],
+            &common::TINY_RUN,
+            &["-o", out],
+        ]
+        .concat(),
+    );
     assert!(o.status.success(), "{text}");
     for (name, rows) in [
         ("table1_floorplan", vec!["OMCL_GT", "SeDAR*_GT"]),

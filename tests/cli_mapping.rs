@@ -672,6 +672,16 @@ fn labelled_ply(path: &Path, points: &[([f64; 3], u32)]) {
 fn map_cloud_warns_about_strays_and_tables_and_guards_its_output() {
     let dir = tempfile::tempdir().unwrap();
     let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    // `map cloud INPUT --classes asprs -o OUT` in this folder.
+    let asprs = |input: &str, out: &str, extra: &[&str]| {
+        let input = p(input);
+        let args = [
+            &["map", "cloud", &input, "--classes", "asprs", "-o", out][..],
+            extra,
+        ]
+        .concat();
+        omcl(&args)
+    };
     // 40 x 50 points 0.1 m apart near (630000, 4830000), classes 2, 5 and
     // 6, and one point at the origin.
     let mut pts: Vec<([f64; 3], u32)> = (0..2000)
@@ -682,15 +692,7 @@ fn map_cloud_warns_about_strays_and_tables_and_guards_its_output() {
         .collect();
     pts.insert(0, ([0.0; 3], 2));
     labelled_ply(&dir.path().join("utm.ply"), &pts);
-    let (ok, text) = omcl(&[
-        "map",
-        "cloud",
-        &p("utm.ply"),
-        "--classes",
-        "asprs",
-        "-o",
-        &p("utm.omcl"),
-    ]);
+    let (ok, text) = asprs("utm.ply", &p("utm.omcl"), &[]);
     assert!(ok, "{text}");
     assert!(text.contains("2000 of 2001 inputs integrated"), "{text}");
     assert!(
@@ -712,15 +714,7 @@ fn map_cloud_warns_about_strays_and_tables_and_guards_its_output() {
         .map(|&(q, c)| (q, if c == 6 { 200 } else { c }))
         .collect();
     labelled_ply(&dir.path().join("half.ply"), &half);
-    let (ok, text) = omcl(&[
-        "map",
-        "cloud",
-        &p("half.ply"),
-        "--classes",
-        "asprs",
-        "-o",
-        &p("half.omcl"),
-    ]);
+    let (ok, text) = asprs("half.ply", &p("half.omcl"), &[]);
     assert!(ok, "{text}");
     assert!(
         text.contains("33 % of the points were skipped") && text.contains("asprs"),
@@ -730,15 +724,7 @@ fn map_cloud_warns_about_strays_and_tables_and_guards_its_output() {
     // Never classified: one class, one feature.
     let never: Vec<_> = pts[1..].iter().map(|&(q, _)| (q, 0)).collect();
     labelled_ply(&dir.path().join("never.ply"), &never);
-    let (ok, text) = omcl(&[
-        "map",
-        "cloud",
-        &p("never.ply"),
-        "--classes",
-        "asprs",
-        "-o",
-        &p("never.omcl"),
-    ]);
+    let (ok, text) = asprs("never.ply", &p("never.omcl"), &[]);
     assert!(ok, "{text}");
     assert!(
         text.contains("every mapped point has the same class"),
@@ -746,15 +732,7 @@ fn map_cloud_warns_about_strays_and_tables_and_guards_its_output() {
     );
     // -o over a file that is not a map, and with an input's extension.
     std::fs::write(dir.path().join("notes.omcl"), "my notes\n").unwrap();
-    let (ok, text) = omcl(&[
-        "map",
-        "cloud",
-        &p("half.ply"),
-        "--classes",
-        "asprs",
-        "-o",
-        &p("notes.omcl"),
-    ]);
+    let (ok, text) = asprs("half.ply", &p("notes.omcl"), &[]);
     assert!(
         !ok && text.contains("notes.omcl")
             && text.contains("not an omcl map")
@@ -765,16 +743,7 @@ fn map_cloud_warns_about_strays_and_tables_and_guards_its_output() {
         std::fs::read_to_string(dir.path().join("notes.omcl")).unwrap(),
         "my notes\n"
     );
-    let (ok, text) = omcl(&[
-        "map",
-        "cloud",
-        &p("half.ply"),
-        "--classes",
-        "asprs",
-        "-o",
-        &p("notes.omcl"),
-        "--force",
-    ]);
+    let (ok, text) = asprs("half.ply", &p("notes.omcl"), &["--force"]);
     assert!(ok, "{text}");
     assert!(map::load(&dir.path().join("notes.omcl")).is_ok());
     // A floor plan (the same container, another format) is not a map; an
@@ -793,48 +762,16 @@ fn map_cloud_warns_about_strays_and_tables_and_guards_its_output() {
     ]);
     assert!(ok, "{text}");
     let before = std::fs::read(&plan).unwrap();
-    let (ok, text) = omcl(&[
-        "map",
-        "cloud",
-        &p("half.ply"),
-        "--classes",
-        "asprs",
-        "-o",
-        &plan,
-    ]);
+    let (ok, text) = asprs("half.ply", &plan, &[]);
     assert!(!ok && text.contains("not an omcl map"), "{text}");
     assert_eq!(std::fs::read(&plan).unwrap(), before);
     std::fs::write(dir.path().join("empty.omcl"), b"").unwrap();
-    let (ok, text) = omcl(&[
-        "map",
-        "cloud",
-        &p("half.ply"),
-        "--classes",
-        "asprs",
-        "-o",
-        &p("empty.omcl"),
-    ]);
+    let (ok, text) = asprs("half.ply", &p("empty.omcl"), &[]);
     assert!(ok, "{text}");
     // A map replaces a map without --force.
-    let (ok, text) = omcl(&[
-        "map",
-        "cloud",
-        &p("utm.ply"),
-        "--classes",
-        "asprs",
-        "-o",
-        &p("half.omcl"),
-    ]);
+    let (ok, text) = asprs("utm.ply", &p("half.omcl"), &[]);
     assert!(ok, "{text}");
-    let (ok, text) = omcl(&[
-        "map",
-        "cloud",
-        &p("utm.ply"),
-        "--classes",
-        "asprs",
-        "-o",
-        &p("map.ply"),
-    ]);
+    let (ok, text) = asprs("utm.ply", &p("map.ply"), &[]);
     assert!(
         !ok && text.contains("map.ply") && text.contains(".omcl file"),
         "{text}"
