@@ -326,6 +326,58 @@ fn sixteen_bit_and_float_colours_scale_to_eight_bits() {
     )
     .unwrap();
     assert_eq!(read_ply(&p).unwrap().colors, Some(want16));
+    // 0-255 stored in 16 bits (no value above 255 in the file, as many
+    // writers do): taken as it is, not as the high byte (black). One value
+    // above 255 anywhere makes the whole file 16-bit.
+    for (rows, want) in [
+        (
+            "0 0 0 0 128 255\n0 0 0 10 20 30\n",
+            [[0u8, 128, 255], [10, 20, 30]],
+        ),
+        ("0 0 0 0 128 255\n0 0 0 10 20 256\n", [[0, 0, 0], [0, 0, 1]]),
+    ] {
+        std::fs::write(
+            &p,
+            format!(
+                "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+                 property float z\nproperty ushort red\nproperty ushort green\n\
+                 property ushort blue\nend_header\n{rows}"
+            ),
+        )
+        .unwrap();
+        assert_eq!(read_ply(&p).unwrap().colors, Some(want.to_vec()), "{rows}");
+        let bin = d.path().join("u16_8bit.ply");
+        let header = "element vertex 2\nproperty float x\nproperty float y\nproperty float z\n\
+                      property ushort red\nproperty ushort green\nproperty ushort blue\n";
+        let mut body = Vec::new();
+        for line in rows.lines() {
+            let v: Vec<u16> = line
+                .split(' ')
+                .skip(3)
+                .map(|t| t.parse().unwrap())
+                .collect();
+            body.extend(le(&[0.0, 0.0, 0.0]));
+            body.extend(v.iter().flat_map(|x| x.to_le_bytes()));
+        }
+        std::fs::write(&bin, binary_ply(header, &body)).unwrap();
+        assert_eq!(
+            read_ply(&bin).unwrap().colors,
+            Some(want.to_vec()),
+            "binary {rows}"
+        );
+    }
+    // A `uchar` channel beside `ushort` ones stays 8-bit whatever they hold.
+    std::fs::write(
+        &p,
+        "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n\
+         property float z\nproperty uchar red\nproperty ushort green\nproperty ushort blue\n\
+         end_header\n0 0 0 200 1000 0\n0 0 0 7 20 30\n",
+    )
+    .unwrap();
+    assert_eq!(
+        read_ply(&p).unwrap().colors,
+        Some(vec![[200, 3, 0], [7, 0, 0]])
+    );
     // Float and double 0-1 (Open3D writes double): times 255, rounded;
     // outside 0-1 clamped, and said.
     let p = d.path().join("unit.ply");

@@ -8,8 +8,10 @@
 //! Recognised vertex properties:
 //! - `x y z`: `float` or `double` (required), metres;
 //! - `red green blue` (optional, all three or none), each `uchar` (0-255),
-//!   `ushort` (0-65535, the high byte kept) or `float`/`double` (0-1,
-//!   clamped, times 255, rounded);
+//!   `ushort` or `float`/`double` (0-1, clamped, times 255, rounded).
+//!   `ushort` is 0-65535 and keeps its high byte, but many writers store
+//!   0-255 in 16 bits: when no `ushort` channel of the file exceeds 255 its
+//!   values are taken as they are (the LAS reader's rule);
 //! - one label property named `label`, `class`, `classification`,
 //!   `semantic` or `semantic_label`, in any letter case and with or without
 //!   CloudCompare's `scalar_` prefix (`scalar_Label`,
@@ -119,7 +121,9 @@ fn ply_property_type(p: &PropertyType) -> String {
 #[derive(Default)]
 struct Vertex {
     xyz: [f64; 3],
-    rgb: [u8; 3],
+    /// 8-bit values, but a `ushort` channel's raw 16 bits ([`Columns::finish`]
+    /// scales them).
+    rgb: [u16; 3],
     /// Float colour values outside 0-1 that were clamped.
     clamped: u8,
     /// Any PLY scalar is exact in `f64`.
@@ -154,7 +158,7 @@ impl Vertex {
 
     fn set_unit_colour(&mut self, k: usize, v: f64) {
         self.clamped += u8::from(outside_unit(v));
-        self.rgb[k] = unit_to_u8(v);
+        self.rgb[k] = unit_to_u8(v) as u16;
     }
 
     fn set_int(&mut self, name: &str, v: i64) -> PropertyAccessResult {
@@ -176,9 +180,9 @@ impl PropertyAccess for Vertex {
     }
     fn set_uchar(&mut self, name: &str, v: u8) -> PropertyAccessResult {
         match name {
-            "red" => self.rgb[0] = v,
-            "green" => self.rgb[1] = v,
-            "blue" => self.rgb[2] = v,
+            "red" => self.rgb[0] = v as u16,
+            "green" => self.rgb[1] = v as u16,
+            "blue" => self.rgb[2] = v as u16,
             _ => return self.set_int(name, v as i64),
         }
         PropertyAccessResult::Set
@@ -190,11 +194,11 @@ impl PropertyAccess for Vertex {
         self.set_int(name, v as i64)
     }
     fn set_ushort(&mut self, name: &str, v: u16) -> PropertyAccessResult {
-        // 16-bit colour: the high byte is the 8-bit value.
+        // 16-bit colour, kept whole until the file's range is known.
         match name {
-            "red" => self.rgb[0] = (v >> 8) as u8,
-            "green" => self.rgb[1] = (v >> 8) as u8,
-            "blue" => self.rgb[2] = (v >> 8) as u8,
+            "red" => self.rgb[0] = v,
+            "green" => self.rgb[1] = v,
+            "blue" => self.rgb[2] = v,
             _ => return self.set_int(name, v as i64),
         }
         PropertyAccessResult::Set
@@ -216,6 +220,8 @@ impl PropertyAccess for Vertex {
 /// Which optional columns the vertex element declares.
 struct Layout {
     colors: bool,
+    /// The colour channels of type `ushort`.
+    wide_colours: [bool; 3],
     label: bool,
     feature_dim: usize,
 }
@@ -246,7 +252,7 @@ fn check_vertex_layout(path: &Path, def: &ElementDef) -> Result<Layout, CloudErr
             }
         }
     }
-    let rgb: Vec<_> = COLOR_NAMES.iter().map(|n| find(n)).collect();
+    let rgb = COLOR_NAMES.map(find);
     let colors = rgb.iter().all(Option::is_some);
     if !colors && rgb.iter().any(Option::is_some) {
         return Err(fmt("vertex has some but not all of red, green, blue".into()));
@@ -304,8 +310,10 @@ fn check_vertex_layout(path: &Path, def: &ElementDef) -> Result<Layout, CloudErr
             feature_dim += 1;
         }
     }
+    let wide_colours = rgb.map(|t| matches!(t.and_then(scalar), Some(ScalarType::UShort)));
     Ok(Layout {
         colors,
+        wide_colours,
         label: !labels.is_empty(),
         feature_dim,
     })
@@ -642,7 +650,10 @@ fn read_one<E: PropertyAccess, R: BufRead>(
 struct Columns {
     points: Vec<[f64; 3]>,
     labels: Option<Vec<u32>>,
-    colors: Option<Vec<[u8; 3]>>,
+    /// As [`Vertex::rgb`].
+    colors: Option<Vec<[u16; 3]>>,
+    /// The `ushort` channels.
+    wide_colours: [bool; 3],
     dim: usize,
     feats: Option<Vec<f32>>,
     tally: Tally,
@@ -658,6 +669,7 @@ impl Columns {
             points: Vec::with_capacity(cap),
             labels: layout.label.then(|| Vec::with_capacity(cap)),
             colors: layout.colors.then(|| Vec::with_capacity(cap)),
+            wide_colours: layout.wide_colours,
             dim,
             feats: (dim > 0).then(|| Vec::with_capacity(cap.saturating_mul(dim))),
             tally: Tally::default(),
@@ -673,10 +685,21 @@ impl Columns {
     }
 
     fn finish(self) -> (PointCloud, Tally) {
+        let wide = self.wide_colours;
+        let colors = self.colors.map(|c| {
+            // 0-255 stored in 16 bits (no `ushort` value above 255) is taken
+            // as it is, as the LAS reader does; else the high byte.
+            let eight_bit = c.iter().all(|v| (0..3).all(|k| !wide[k] || v[k] <= 255));
+            let shift = |k: usize| if wide[k] && !eight_bit { 8 } else { 0 };
+            let shifts = [shift(0), shift(1), shift(2)];
+            c.into_iter()
+                .map(|v| [0, 1, 2].map(|k| (v[k] >> shifts[k]) as u8))
+                .collect()
+        });
         let cloud = PointCloud {
             points: self.points,
             labels: self.labels,
-            colors: self.colors,
+            colors,
             features: self.feats.map(|f| (self.dim, f)),
             notes: Vec::new(),
             left_out: Vec::new(),
@@ -812,16 +835,17 @@ fn decode(r: &[u8], at: usize, t: &ScalarType, big: bool) -> f64 {
     }
 }
 
-/// An 8-bit colour channel of type `t` (uchar, ushort or float/double, as
-/// the layout check admits) at `at` in record `r`; counts clamped floats.
-fn channel(r: &[u8], at: usize, t: &ScalarType, big: bool, clamped: &mut usize) -> u8 {
+/// A colour channel of type `t` (uchar, ushort or float/double, as the
+/// layout check admits) at `at` in record `r`, as [`Vertex::rgb`] keeps it:
+/// 8 bits, or a `ushort`'s 16; counts clamped floats.
+fn channel(r: &[u8], at: usize, t: &ScalarType, big: bool, clamped: &mut usize) -> u16 {
     match t {
-        ScalarType::UChar => r[at],
-        ScalarType::UShort => (decode(r, at, t, big) as u16 >> 8) as u8,
+        ScalarType::UChar => r[at] as u16,
+        ScalarType::UShort => decode(r, at, t, big) as u16,
         _ => {
             let v = decode(r, at, t, big);
             *clamped += usize::from(outside_unit(v));
-            unit_to_u8(v)
+            unit_to_u8(v) as u16
         }
     }
 }
