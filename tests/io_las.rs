@@ -156,9 +156,23 @@ type Rec = ([f64; 3], u8, bool);
 /// ends in `.laz`), with `vlrs`; colour, when the format has it, is
 /// `1000 * index` on every channel.
 fn write_las(path: &Path, version: (u8, u8), format: u8, vlrs: Vec<las::Vlr>, points: &[Rec]) {
+    let wkt_bit = vlrs.iter().any(|v| v.record_id == 2112);
+    write_las_bit(path, version, format, vlrs, points, wkt_bit);
+}
+
+/// [`write_las`] with the header's WKT bit as given (formats 6-10 set it
+/// whatever `wkt_bit` says).
+fn write_las_bit(
+    path: &Path,
+    version: (u8, u8),
+    format: u8,
+    vlrs: Vec<las::Vlr>,
+    points: &[Rec],
+    wkt_bit: bool,
+) {
     let mut b = las::Builder::from(version);
     b.point_format = las::point::Format::new(format).unwrap();
-    b.has_wkt_crs = vlrs.iter().any(|v| v.record_id == 2112);
+    b.has_wkt_crs = wkt_bit;
     b.vlrs = vlrs;
     let header = b.into_header().unwrap();
     let has_color = header.point_format().has_color;
@@ -216,7 +230,8 @@ fn autzen_in_international_feet_comes_out_in_metres_with_a_note() {
     let c = read_las(&path).unwrap();
     // The same points as the `las` crate decodes them, times 0.3048 (the
     // file's GeoTIFF ProjLinearUnitsGeoKey 9002 and WKT UNIT["foot",0.3048];
-    // no vertical unit: z in feet too).
+    // no vertical unit: z in feet too). Its header's WKT bit is not set,
+    // so the GeoTIFF keys are the ones read, and named.
     let raw = las::Reader::from_path(&path).unwrap().read_all().unwrap();
     let (xs, ys, zs): (Vec<f64>, Vec<f64>, Vec<f64>) =
         (raw.x().collect(), raw.y().collect(), raw.z().collect());
@@ -240,7 +255,7 @@ fn autzen_in_international_feet_comes_out_in_metres_with_a_note() {
         &path,
         &[
             "international feet",
-            "WKT UNIT[\"foot\",0.3048]",
+            "GeoTIFF ProjLinearUnitsGeoKey 9002",
             "converted to metres",
         ],
     );
@@ -360,6 +375,38 @@ fn crs_units_stated_by_wkt_or_geotiff_keys_are_converted() {
             assert_eq!(c.notes.len(), 1, "{name}: {:?}", c.notes);
             has_note(&c, &path, &parts);
         }
+    }
+    // WKT in feet and GeoTIFF keys in metres in one file: the header's WKT
+    // bit chooses (the LAS specification's rule); formats 6-10 always set
+    // it. With the bit and a WKT that does not parse, the keys tell.
+    let metre_keys = || geokeys(&[(1024, 0, 1, 1), (3072, 0, 1, 32633), (3076, 0, 1, 9001)]);
+    let feet = r#"PROJCS["x",UNIT["foot",0.3048]]"#;
+    for (name, version, format, bit, wkt_text, xy) in [
+        ("both_bit.las", (1, 4), 1, true, feet, 0.3048),
+        ("both_no_bit.las", (1, 4), 1, false, feet, 1.0),
+        ("both_legacy.las", (1, 2), 1, false, feet, 1.0),
+        ("both_format6.las", (1, 4), 6, false, feet, 0.3048),
+        (
+            "both_bit_broken.las",
+            (1, 4),
+            1,
+            true,
+            r#"PROJCS["cut""#,
+            1.0,
+        ),
+    ] {
+        let path = d.path().join(name);
+        write_las_bit(
+            &path,
+            version,
+            format,
+            vec![wkt(wkt_text), metre_keys()],
+            &THREE,
+            bit,
+        );
+        let c = read_las(&path).unwrap();
+        assert_scaled(&c, xy, xy);
+        assert_eq!(c.notes.is_empty(), xy == 1.0, "{name}: {:?}", c.notes);
     }
     // WKT that does not parse: metres assumed, and said.
     let path = d.path().join("broken_wkt.las");

@@ -1,6 +1,7 @@
 //! The linear units of a LAS file's coordinates, from the coordinate
 //! reference system its records state: OGC WKT (`LASF_Projection` record
-//! 2112) or, without one, GeoTIFF keys (record 34735, doubles in 34736).
+//! 2112) or GeoTIFF keys (record 34735, doubles in 34736), the header's
+//! WKT bit choosing when a file has both.
 //! Parsing only: no EPSG database, so a unit must be stated by the file.
 
 use las::{Header, Vlr};
@@ -138,22 +139,29 @@ fn projection_record(header: &Header, id: u16) -> Option<&Vlr> {
 /// The units `header`'s CRS records state; an error (the reason, for a
 /// message naming the file) for coordinates that cannot be made metres:
 /// a geographic CRS (degrees) or a unit code this module does not know.
-/// WKT wins over GeoTIFF keys when a file has both (LAS 1.4 says so for
-/// files that set the WKT bit; in older files both agree in practice).
+/// When a file has both, the header's global encoding chooses, as the LAS
+/// specification does: WKT when its WKT bit is set (always in point
+/// formats 6-10), else the GeoTIFF keys. Either is read when it is the
+/// only one, and when the chosen one cannot be read, the other may still
+/// tell.
 pub(super) fn units(header: &Header) -> Result<Units, String> {
-    let wkt = projection_record(header, 2112).map(|v| wkt_units(&v.data));
+    let wkt = || projection_record(header, 2112).map(|v| wkt_units(&v.data));
     let geotiff = || {
         projection_record(header, 34735)
             .map(|keys| geotiff_units(&keys.data, projection_record(header, 34736)))
     };
-    match wkt {
-        Some(Ok(Units::Unknown(why))) => match geotiff() {
-            // An unreadable WKT: the GeoTIFF keys may still tell.
+    let (first, second): (&dyn Fn() -> _, &dyn Fn() -> _) = if header.has_wkt_crs() {
+        (&wkt, &geotiff)
+    } else {
+        (&geotiff, &wkt)
+    };
+    match first() {
+        Some(Ok(Units::Unknown(why))) => match second() {
             Some(Ok(Units::Unknown(_))) | None => Ok(Units::Unknown(why)),
             Some(other) => other,
         },
-        Some(w) => w,
-        None => geotiff().unwrap_or(Ok(Units::Unstated)),
+        Some(chosen) => chosen,
+        None => second().unwrap_or(Ok(Units::Unstated)),
     }
 }
 
