@@ -481,8 +481,12 @@ fn builtin_class_lists_convert_real_scans_and_las_without_a_table() {
     assert!(text.contains(" 0 skipped"), "{text}");
     let m = map::load(&out).unwrap();
     assert_eq!(m.db().dim(), 512);
+    // Not all of the built-in table is CLIP: the map is not stamped with a
+    // CLIP model's name.
+    assert_eq!(m.encoder(), "omcl-builtin-semantickitti");
     // `omcl map classes` writes the same table as files: the map made from
-    // them is the same (voxels, rows, features to the bit).
+    // them is the same (voxels, rows, features to the bit; named alike
+    // with --encoder).
     let (ok, text) = omcl(&[
         "map",
         "classes",
@@ -504,6 +508,8 @@ fn builtin_class_lists_convert_real_scans_and_las_without_a_table() {
         dir.path().join("classes.txt").to_str().unwrap(),
         "--embeddings",
         dir.path().join("embeddings.npy").to_str().unwrap(),
+        "--encoder",
+        "omcl-builtin-semantickitti",
     ]);
     assert!(ok, "{text}");
     assert!(m == map::load(&again).unwrap(), "the maps differ");

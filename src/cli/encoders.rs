@@ -104,7 +104,8 @@ pub fn class_list(
 /// (`N x F` `.npy`), from a text encoder embedding the class names, or, for
 /// a built-in list with neither, from the built-in CLIP-like table
 /// ([`omcl::sim::embeddings::builtin_label_table`]). With a text encoder,
-/// its name (the feature space the table is in) comes too.
+/// its name (the feature space the table is in) comes too; with the
+/// built-in table, `omcl-builtin-<list>`.
 pub fn class_table(
     classes: &str,
     embeddings: Option<&Path>,
@@ -123,8 +124,11 @@ pub fn class_table(
             Ok((t, Some(name)))
         }
         (None, None, Some(set)) => {
+            // Part CLIP text rows, part synthetic draws: the map says so
+            // rather than claim a CLIP feature space.
             let sim = omcl::sim::files::builtin_table()?;
-            Ok((omcl::sim::embeddings::builtin_label_table(set, &sim)?, None))
+            let table = omcl::sim::embeddings::builtin_label_table(set, &sim)?;
+            Ok((table, Some(format!("omcl-builtin-{}", set.name()))))
         }
         (None, None, None) => anyhow::bail!(
             "{classes}: a class list needs its features: --embeddings NPY (one row a class) or \
