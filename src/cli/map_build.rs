@@ -297,7 +297,9 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     let text_encoder = text_encoder.flatten();
     if a.input.is_dir() && a.point_model.is_none() {
         // A sequence folder: scan by scan, never the merged cloud in memory.
-        let pb = super::progress::bar_of(0, "bounds", "scans");
+        // Two passes over the scans, each its own bar length and ETA, named
+        // as such: the first (reading only) is the quick one.
+        let pb = super::progress::bar_of(0, "pass 1 of 2, the grid's centre", "scans");
         // After the last scan the map is finished (its voxels sorted, its
         // features merged): a spinner, not a bar stuck at N/N.
         let mut finishing = None;
@@ -309,9 +311,11 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
                 if done == 1 {
                     pb.set_length(total as u64);
                     pb.set_prefix(match pass {
-                        pipeline::SequencePass::Bounds => "bounds",
-                        pipeline::SequencePass::Mapping => "mapping",
+                        pipeline::SequencePass::Bounds => "pass 1 of 2, the grid's centre",
+                        pipeline::SequencePass::Mapping => "pass 2 of 2, mapping",
                     });
+                    // The ETA from this pass's rate; elapsed counts both.
+                    pb.reset_eta();
                 }
                 pb.set_position(done as u64);
                 if pass == pipeline::SequencePass::Mapping && done == total {
