@@ -351,6 +351,79 @@ fn a_kitti_sequence_without_poses_localizes_from_odometry_and_a_start() {
         / 12.0;
     assert!(err < 0.5, "mean error {err} m\n{}", r.text());
     assert!(gt.last().unwrap()[11] > 5.0, "the drive moves forward");
+    assert!(!r.stderr.contains("warning"), "{}", r.text());
+    // The same start given as poses.txt gives it (camera 0 in its frame,
+    // the odometry's first row) with --init-pose-frame poses.
+    let row = gt[0];
+    let rot = nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::new(
+        row[0], row[1], row[2], row[4], row[5], row[6], row[8], row[9], row[10],
+    ));
+    let q0 = nalgebra::UnitQuaternion::from_rotation_matrix(&rot);
+    let cam0 = format!(
+        "{} {} {} {} {} {} {}",
+        row[3], row[7], row[11], q0.i, q0.j, q0.k, q0.w
+    );
+    let out0 = f.dir.path().join("est_cam0.txt");
+    let as_poses = [
+        "--odometry",
+        s(&odometry),
+        "--init-pose",
+        &cam0,
+        "--init-pose-frame",
+        "poses",
+    ];
+    let r = f.localize(&f.map, &seq, &out0, &as_poses);
+    assert!(r.ok() && !r.stderr.contains("warning"), "{}", r.text());
+    let est0 = kitti_rows(&out0);
+    let gap: f64 = est0
+        .iter()
+        .zip(&gt)
+        .map(|(e, g)| ((e[3] - g[3]).powi(2) + (e[11] - g[11]).powi(2)).sqrt())
+        .sum::<f64>()
+        / 12.0;
+    assert!(gap < 0.5, "mean error {gap} m\n{}", r.text());
+    // That pose taken as the map's frame (the easy mistake) puts camera 2
+    // where it sees none of the map: said, with the option to use.
+    let r = f.localize(
+        &f.map,
+        &seq,
+        &f.dir.path().join("est_wrong.txt"),
+        &["--odometry", s(&odometry), "--init-pose", &cam0],
+    );
+    assert!(r.ok(), "{}", r.text());
+    for needle in [
+        "warning: from the start pose",
+        "of the camera's view meets the map",
+        "--init-pose-frame poses",
+    ] {
+        assert!(r.stderr.contains(needle), "{needle}: {}", r.text());
+    }
+    // With ground truth beside it, a start metres from its first pose is
+    // said too (a start inside the map, seeing it).
+    let moved = format!(
+        "{} {} {} {} {} {} {}",
+        p.x + 3.0,
+        p.y,
+        p.z,
+        q.x,
+        q.y,
+        q.z,
+        q.w
+    );
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &f.dir.path().join("est_moved.txt"),
+        &["--init-pose", &moved],
+    );
+    assert!(
+        r.ok()
+            && r.stderr.contains(
+                "--init-pose is 3.00 m and 0.0 degrees from the sequence's first ground-truth pose"
+            ),
+        "{}",
+        r.text()
+    );
 }
 
 /// A KITTI sequence localizes with two-pass likelihoods by default (half

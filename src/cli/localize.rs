@@ -9,7 +9,7 @@ use clap::{Args, ValueEnum};
 use omcl::eval::ape::{PoseRelation, ape};
 use omcl::eval::localization::CompletionRule;
 use omcl::geometry::Pose;
-use omcl::io::kitti_camera::CameraInput;
+use omcl::io::kitti_camera::{CameraInput, KittiCameraSequence};
 use omcl::io::labels::EmbeddingTable;
 use omcl::io::poses::{self, PoseFormat};
 use omcl::io::rgbd;
@@ -35,6 +35,17 @@ pub enum InitArg {
     Global,
     /// Over the floor voxels that match --prompt.
     Prompt,
+}
+
+/// The frame `--init-pose` is in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum PoseFrameArg {
+    /// The camera in the map's frame (KITTI: camera 2 in the frame of the
+    /// first scan's LiDAR, which a map of the scans is in).
+    Map,
+    /// KITTI only: camera 0 in poses.txt's frame, as poses.txt, --odometry
+    /// and the -o estimates are written.
+    Poses,
 }
 
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -149,9 +160,15 @@ pub struct LocalizeArgs {
     /// How particles start.
     #[arg(long, value_enum, default_value = "local")]
     pub init: InitArg,
-    /// `tx ty tz qx qy qz qw` for --init local (default: first ground truth).
+    /// `tx ty tz qx qy qz qw` for --init local (default: first ground
+    /// truth), in the frame --init-pose-frame names.
     #[arg(long)]
     pub init_pose: Option<String>,
+    /// The frame of --init-pose: `map` (the camera in the map's frame;
+    /// KITTI: camera 2 in the first scan's LiDAR frame) or, on a KITTI
+    /// sequence, `poses` (camera 0 as poses.txt and --odometry give it).
+    #[arg(long, value_enum, default_value = "map", requires = "init_pose")]
+    pub init_pose_frame: PoseFrameArg,
     /// Position spread of --init local, metres (paper: 0.3, with 17 degrees
     /// of --init-sigma-deg; on a KITTI sequence the authors' 0.3 m and 0.1
     /// rad).
@@ -513,15 +530,23 @@ fn start(
     a: &LocalizeArgs,
     gt: Option<&Trajectory>,
     words_of: &Words,
-    is_kitti: bool,
+    kitti: Option<&KittiCameraSequence>,
 ) -> anyhow::Result<Start> {
+    let is_kitti = kitti.is_some();
     let init_sigma_deg =
         a.init_sigma_deg
             .unwrap_or(if is_kitti { 0.1f64.to_degrees() } else { 17.0 });
     Ok(match a.init {
         InitArg::Local => {
             let pose = match (&a.init_pose, gt) {
-                (Some(s), _) => parse_pose(s)?,
+                (Some(s), _) => match (a.init_pose_frame, kitti) {
+                    (PoseFrameArg::Map, _) => parse_pose(s)?,
+                    (PoseFrameArg::Poses, Some(k)) => k.camera2_in_map(&[parse_pose(s)?])[0],
+                    (PoseFrameArg::Poses, None) => bail!(
+                        "--init-pose-frame poses is for KITTI sequences (camera 0 in \
+                         poses.txt's frame); this sequence's poses are in the map's frame"
+                    ),
+                },
                 (None, Some(g)) => g.poses()[0],
                 (None, None) => bail!(
                     "--init local needs --init-pose 'tx ty tz qx qy qz qw' (the camera in the \
@@ -816,7 +841,7 @@ fn open_session(
 ) -> anyhow::Result<Session> {
     let (k, gt) = (inputs.intrinsics, inputs.ground_truth.as_ref());
     let is_kitti = inputs.layout() == Layout::Kitti;
-    let start = start(a, gt, words, is_kitti)?;
+    let start = start(a, gt, words, inputs.kitti.as_ref())?;
     if let Start::Pose { pose, .. } = &start {
         let tilt = ground::tilt_deg(pose);
         if tilt > 2.0 && shared.is_level() {
@@ -861,6 +886,9 @@ fn open_session(
         floor_feature,
         ground: a.ground,
     };
+    if let Start::Pose { pose, .. } = &start {
+        start_advice(a, &shared, pose, &config, gt, is_kitti);
+    }
     Session::new(shared, config, &start).map_err(|e| match e {
         SessionError::Init(e) => match &a.prompt {
             Some(words) if matches!(a.init, InitArg::Prompt) => {
@@ -873,6 +901,75 @@ fn open_session(
         }
         e => e.into(),
     })
+}
+
+/// Warnings about a start pose that cannot be right: `--init-pose` far
+/// from the sequence's own first ground-truth pose, or a start from which
+/// the camera sees almost none of the map (outside it, or in another
+/// frame: every ray misses, all particles score alike, and the run goes
+/// nowhere while looking confident). Advice only; the run goes on.
+fn start_advice(
+    a: &LocalizeArgs,
+    shared: &SharedMap,
+    pose: &Pose,
+    config: &SessionConfig,
+    gt: Option<&Trajectory>,
+    is_kitti: bool,
+) {
+    let frame = match (is_kitti, a.init_pose_frame) {
+        (true, PoseFrameArg::Map) => {
+            "camera 2 in the map's frame, the first scan's LiDAR's (--init-pose-frame poses \
+             takes camera 0 as poses.txt gives it)"
+        }
+        (true, PoseFrameArg::Poses) => "camera 0 in poses.txt's frame",
+        (false, _) => "the camera in the map's frame",
+    };
+    if let (Some(_), Some(g)) = (&a.init_pose, gt) {
+        let first = &g.poses()[0];
+        let d = (pose.translation.vector - first.translation.vector).norm();
+        let angle = (pose.rotation.inverse() * first.rotation)
+            .angle()
+            .to_degrees();
+        if d > 1.0 || angle > 10.0 {
+            eprintln!(
+                "warning: --init-pose is {d:.2} m and {angle:.1} degrees from the sequence's \
+                 first ground-truth pose; is it {frame}? (without --init-pose the run starts \
+                 around the ground truth)"
+            );
+        }
+    }
+    let range = match config.filter.sensor.max_range {
+        r if r.is_finite() => r as f64,
+        _ => 100.0,
+    };
+    let share = shared.view_share(pose, &config.intrinsics, range);
+    if share < 0.05 {
+        let source = if a.init_pose.is_some() {
+            "--init-pose"
+        } else {
+            "the first ground-truth pose"
+        };
+        let bounds = shared
+            .map()
+            .world_bounds()
+            .map(|(lo, hi)| {
+                format!(
+                    " (its voxels span x {:.1} to {:.1}, y {:.1} to {:.1}, z {:.1} to {:.1} m)",
+                    lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
+                )
+            })
+            .unwrap_or_default();
+        let t = pose.translation.vector;
+        eprintln!(
+            "warning: from the start pose ({source}, at {:.2} {:.2} {:.2} m) {:.0} % of the \
+             camera's view meets the map within {range:.0} m{bounds}; every ray that misses \
+             scores alike, so the filter cannot find the camera. Is the pose {frame}?",
+            t.x,
+            t.y,
+            t.z,
+            100.0 * share
+        );
+    }
 }
 
 /// The estimates, the `--diagnostics` CSV, and the filter's and the

@@ -120,14 +120,7 @@ pub struct MapInfo {
 pub fn map_info(path: &std::path::Path, map: &LanguageMap, top: usize) -> anyhow::Result<MapInfo> {
     let header = file::read_header(path)?;
     let g = map.grid();
-    let bounds = map.cell_bounds().map(|(lo, hi)| {
-        let lo = g.origin
-            + nalgebra::Vector3::new(lo[0] as f64, lo[1] as f64, lo[2] as f64) * g.resolution;
-        let hi = g.origin
-            + nalgebra::Vector3::new((hi[0] + 1) as f64, (hi[1] + 1) as f64, (hi[2] + 1) as f64)
-                * g.resolution;
-        ([lo.x, lo.y, lo.z], [hi.x, hi.y, hi.z])
-    });
+    let bounds = map.world_bounds();
     let counts = map.row_counts();
     let mut ranked: Vec<(usize, usize)> = counts.iter().copied().enumerate().collect();
     ranked.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));

@@ -200,6 +200,18 @@ impl LanguageMap {
         }))
     }
 
+    /// The world-frame box the occupied voxels fill: the lower corner of
+    /// the lowest cell and the upper corner of the highest on each axis,
+    /// metres.
+    pub fn world_bounds(&self) -> Option<([f64; 3], [f64; 3])> {
+        let (lo, hi) = self.cell_bounds()?;
+        let g = &self.grid;
+        let at = |c: Cell, up: i32| {
+            std::array::from_fn(|k| g.origin[k] + (c[k] + up) as f64 * g.resolution)
+        };
+        Some((at(lo, 0), at(hi, 1)))
+    }
+
     /// Codes of the occupied nodes `levels` above the leaves (each level
     /// doubles the edge length), strictly increasing.
     pub fn coarse_codes(&self, levels: u32) -> Vec<u64> {

@@ -36,7 +36,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use crate::encode::{FeatureMap as EncodedMap, ImageEncoder};
-use crate::geometry::{Intrinsics, Pose};
+use crate::geometry::{Intrinsics, Pose, Ray};
 use crate::map::{self, LanguageMap};
 use crate::mcl::{
     self, Filter, FilterConfig, FloorParams, FloorSampler, FrameFeatures, MclError, Particle,
@@ -247,6 +247,43 @@ impl SharedMap {
     /// The ray-casting scene shared by the sessions.
     pub fn caster(&self) -> &Arc<dyn RayCaster> {
         &self.caster
+    }
+
+    /// The share, in `[0, 1]`, of a camera's view from `world_from_camera`
+    /// that meets the map within `max_range` metres: rays through a grid
+    /// of 32 x 24 pixels. Near 0 when the pose lies outside the map or
+    /// faces away from it, which is what a start pose given in another
+    /// frame than the map's looks like (every ray then misses, and the
+    /// filter's likelihoods are all alike).
+    pub fn view_share(
+        &self,
+        world_from_camera: &Pose,
+        intrinsics: &Intrinsics,
+        max_range: f64,
+    ) -> f64 {
+        const COLS: u32 = 32;
+        const ROWS: u32 = 24;
+        let o = world_from_camera.translation.vector - self.map.grid().origin;
+        let origin = [o.x as f32, o.y as f32, o.z as f32];
+        let rays: Vec<Ray> = (0..ROWS)
+            .flat_map(|r| (0..COLS).map(move |c| (c, r)))
+            .map(|(c, r)| {
+                let u = ((c as f64 + 0.5) * intrinsics.width as f64 / COLS as f64) as u32;
+                let v = ((r as f64 + 0.5) * intrinsics.height as f64 / ROWS as f64) as u32;
+                let d = world_from_camera.rotation * intrinsics.pixel_dir(u, v);
+                Ray {
+                    t_max: max_range as f32,
+                    ..Ray::new(origin, [d.x as f32, d.y as f32, d.z as f32])
+                }
+            })
+            .collect();
+        let mut hits = vec![crate::raycast::Hit::miss(); rays.len()];
+        self.caster.cast_serial(&rays, &mut hits);
+        // A backend error leaves misses, which is what this measures; taken
+        // here so that a filter's next step does not report it as its own.
+        let _ = self.caster.take_error();
+        let met = hits.iter().filter(|h| h.is_hit()).count();
+        met as f64 / rays.len() as f64
     }
 }
 
