@@ -359,3 +359,54 @@ fn bench_resumes_only_when_asked() {
     assert!(o.status.success(), "{text}");
     assert!(!text.contains("(result there)"), "{text}");
 }
+
+/// `omcl bench -o DIR` does not wipe a sweep `omcl sweep plan` made in
+/// `DIR/sweep/` (its manifest, results and maps) unless `--force`, nor
+/// write into a folder another bench is writing into (its lock held).
+#[test]
+fn bench_leaves_a_planned_sweep_and_a_running_bench_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let sweep = dir.path().join("sweep");
+    let manifest = sweep.join("manifest.jsonl");
+    let args: Vec<String> = plan_args(manifest.to_str().unwrap(), "2");
+    let (o, text) = omcl(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{text}");
+    let result = sweep.join("results").join("kept.json");
+    std::fs::create_dir_all(result.parent().unwrap()).unwrap();
+    std::fs::write(&result, "{}").unwrap();
+    let planned = std::fs::read(&manifest).unwrap();
+    let bench = |extra: &[&str]| {
+        let v = [&["bench"][..], &tiny_table1(), &["1", "-o", out], extra].concat();
+        omcl(&v)
+    };
+    let (o, text) = bench(&[]);
+    assert!(!o.status.success(), "{text}");
+    assert!(
+        text.contains("no omcl bench made") && text.contains("--force"),
+        "{text}"
+    );
+    assert_eq!(std::fs::read(&manifest).unwrap(), planned);
+    assert!(result.exists());
+    // A bench writing into the folder holds its lock: a second is refused.
+    let (o, text) = bench(&["--force"]);
+    assert!(o.status.success(), "{text}");
+    assert!(!result.exists(), "--force replaces the planned sweep");
+    let lock = std::fs::File::open(sweep.join("bench.lock")).unwrap();
+    lock.lock().unwrap();
+    let table = std::fs::read(dir.path().join("table1.json")).unwrap();
+    let (o, text) = bench(&[]);
+    assert!(!o.status.success(), "{text}");
+    assert!(
+        text.contains("another omcl bench is writing into it"),
+        "{text}"
+    );
+    assert_eq!(
+        std::fs::read(dir.path().join("table1.json")).unwrap(),
+        table
+    );
+    drop(lock);
+    // Its own earlier sweep a bench replaces without being asked.
+    let (o, text) = bench(&[]);
+    assert!(o.status.success(), "{text}");
+}

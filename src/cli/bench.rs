@@ -26,6 +26,17 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     let made = !out.exists();
     let result = run_experiments(a);
     if result.is_err() && made {
+        // The sweep folder's mark and lock alone are not a result.
+        let dir = out.join("sweep");
+        let only_ours = std::fs::read_dir(&dir).is_ok_and(|d| {
+            d.flatten()
+                .all(|e| e.file_name() == BENCH_MARK || e.file_name() == "bench.lock")
+        });
+        if only_ours {
+            let _ = std::fs::remove_file(dir.join(BENCH_MARK));
+            let _ = std::fs::remove_file(dir.join("bench.lock"));
+            let _ = std::fs::remove_dir(&dir);
+        }
         let _ = std::fs::remove_dir(&out);
     }
     result
@@ -97,6 +108,7 @@ fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
     }
     let bench = a.plan.bench_plan()?;
     let dir = a.out.join("sweep");
+    let _held = claim_sweep_folder(&dir, a.force)?;
     if !a.resume {
         for d in [dir.join("results"), dir.join("cache")] {
             if d.exists() {
@@ -104,7 +116,6 @@ fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
             }
         }
     }
-    super::outputs::create_folder("--out", &dir)?;
     let manifest_path = dir.join("manifest.jsonl");
     let entries = sweep::plan(&bench)?;
     sweep::write_manifest(&manifest_path, &bench, &entries)?;
@@ -123,6 +134,56 @@ fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
         println!("{report}");
     }
     finish(&c, failures.len())
+}
+
+/// The file a bench leaves in its sweep folder: what holds it is the
+/// bench's to replace.
+const BENCH_MARK: &str = "made-by-omcl-bench";
+
+/// Makes `dir` (`<out>/sweep`) this bench's: refuses a sweep folder that
+/// another omcl bench is writing into (a lock held for the bench's life,
+/// returned) and one no bench made (`omcl sweep plan`'s, whose results
+/// and maps the bench would delete) unless `force`; then marks it.
+fn claim_sweep_folder(dir: &Path, force: bool) -> anyhow::Result<std::fs::File> {
+    let out = dir.parent().unwrap_or(Path::new("."));
+    let foreign = dir.is_dir()
+        && !dir.join(BENCH_MARK).exists()
+        && std::fs::read_dir(dir)
+            .with_context(|| format!("reading {}", dir.display()))?
+            .next()
+            .is_some();
+    if foreign && !force {
+        anyhow::bail!(
+            "{}: holds a sweep that no omcl bench made (`omcl sweep plan`'s, or a bench's \
+             from before 2026-11-28): omcl bench would replace its manifest and delete its \
+             results and maps. Give another --out, or --force to replace it",
+            dir.display()
+        );
+    }
+    super::outputs::create_folder("--out", dir)?;
+    let lock_path = dir.join("bench.lock");
+    let lock = std::fs::File::create(&lock_path)
+        .with_context(|| format!("creating {}", lock_path.display()))?;
+    match lock.try_lock() {
+        Ok(()) => {}
+        Err(std::fs::TryLockError::WouldBlock) => anyhow::bail!(
+            "{}: another omcl bench is writing into it (it holds {}); wait for it to end or \
+             give another --out",
+            out.display(),
+            lock_path.display()
+        ),
+        Err(std::fs::TryLockError::Error(e)) => {
+            return Err(e).with_context(|| format!("locking {}", lock_path.display()));
+        }
+    }
+    let mark = dir.join(BENCH_MARK);
+    std::fs::write(
+        &mark,
+        "This sweep folder is omcl bench's: the next `omcl bench -o` into its parent \
+         replaces its manifest, results and maps (unless --resume).\n",
+    )
+    .with_context(|| format!("writing {}", mark.display()))?;
+    Ok(lock)
 }
 
 /// Runs `indices` locally, printing one line per run.

@@ -338,6 +338,10 @@ pub struct BenchArgs {
     /// code). Without it they are deleted first.
     #[arg(long)]
     pub resume: bool,
+    /// Replace a sweep in `<out>/sweep/` that no `omcl bench` made (one
+    /// `omcl sweep plan` wrote there, with its results and maps).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Applies `PATH=VALUE` overrides to a filter configuration through its
