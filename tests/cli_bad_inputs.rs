@@ -625,6 +625,46 @@ fn a_missing_folder_or_the_dataset_root_is_named_as_such() {
     let r = omcl(&["map", "rgbd", s(&typo), "-o", s(&new_map)]);
     refused(&r, 1, &[s(&typo), "no such folder"]);
     assert!(!est.exists() && !new_map.exists());
+    // A sequence in the odometry benchmark's layout (poses beside the
+    // sequences, not in them), the sequences/ folder and a folder inside a
+    // sequence given to localize, and a sequence with no camera frames.
+    let seq = root.join("sequences/00");
+    let calib = shared("semantickitti/sequences/00/calib.txt");
+    std::fs::copy(&calib, seq.join("calib.txt")).unwrap();
+    std::fs::create_dir_all(seq.join("velodyne")).unwrap();
+    std::fs::create_dir_all(root.join("poses")).unwrap();
+    std::fs::write(root.join("poses/00.txt"), "1 0 0 0 0 1 0 0 0 0 1 0\n").unwrap();
+    refused(
+        &cloud(&seq),
+        1,
+        &[
+            "poses.txt",
+            "odometry benchmark's layout",
+            s(&root.join("poses/00.txt")),
+        ],
+    );
+    let sequences = root.join("sequences");
+    refused(
+        &localize(&sequences),
+        1,
+        &["a folder of KITTI sequences", s(&seq)],
+    );
+    refused(
+        &localize(&seq.join("velodyne")),
+        1,
+        &["a folder inside the KITTI sequence", s(&seq)],
+    );
+    refused(
+        &localize(&seq),
+        1,
+        &[
+            "no camera-2 frames",
+            "labels_2/",
+            "omcl map project",
+            "--use-features",
+        ],
+    );
+    assert!(!est.exists() && !new_map.exists());
 }
 
 #[test]

@@ -505,3 +505,68 @@ fn streets_default_to_two_pass_likelihoods_and_every_ray_turns_them_off() {
     }
     assert_eq!(std::fs::read_to_string(&out).unwrap(), OLD_OUT);
 }
+
+/// An odometry file with more poses than the folder's frames (a sequence
+/// cut from a longer drive wants --odom-first), one in TUM whose stamps
+/// are not times.txt's (rows pair with frames by order), and a folder
+/// without times.txt are each said in a note; a TUM file with the frames'
+/// own stamps is not.
+#[test]
+fn odometry_that_does_not_fit_the_frames_is_noted() {
+    let f = Street::new(6);
+    let rows = kitti_rows(&f.seq.join("poses.txt"));
+    let times: Vec<f64> = std::fs::read_to_string(f.seq.join("times.txt"))
+        .unwrap()
+        .lines()
+        .map(|l| l.trim().parse().unwrap())
+        .collect();
+    let tum = |shift: f64| -> String {
+        rows.iter()
+            .zip(&times)
+            .map(|(r, t)| {
+                let rot = nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::new(
+                    r[0], r[1], r[2], r[4], r[5], r[6], r[8], r[9], r[10],
+                ));
+                let q = nalgebra::UnitQuaternion::from_rotation_matrix(&rot);
+                format!(
+                    "{} {} {} {} {} {} {} {}\n",
+                    t + shift,
+                    r[3],
+                    r[7],
+                    r[11],
+                    q.i,
+                    q.j,
+                    q.k,
+                    q.w
+                )
+            })
+            .collect()
+    };
+    let run = |name: &str, text: String| {
+        let odo = f.dir.path().join(name);
+        std::fs::write(&odo, text).unwrap();
+        let out = f.dir.path().join(format!("{name}.est"));
+        let r = f.localize(&f.map, &f.seq, &out, &["--odometry", s(&odo)]);
+        assert!(r.ok(), "{}", r.text());
+        r.stderr
+    };
+    let longer = std::fs::read_to_string(f.seq.join("poses.txt"))
+        .unwrap()
+        .repeat(3);
+    let e = run("longer.txt", longer);
+    assert!(
+        e.contains("has 18 poses for the sequence's 6 frames") && e.contains("--odom-first"),
+        "{e}"
+    );
+    let e = run("same_stamps.tum", tum(0.0));
+    assert!(!e.contains("note"), "{e}");
+    let e = run("later_stamps.tum", tum(1.3e9));
+    assert!(
+        e.contains("time stamps are not the frames'") && e.contains("paired with frames in order"),
+        "{e}"
+    );
+    std::fs::remove_file(f.seq.join("times.txt")).unwrap();
+    let out = f.dir.path().join("no_times.est");
+    let r = f.localize(&f.map, &f.seq, &out, &[]);
+    assert!(r.ok() && r.stderr.contains("no times.txt"), "{}", r.text());
+}

@@ -806,7 +806,7 @@ fn map_cloud_names_near_misses_and_options_that_do_not_apply() {
         (
             shared("semantickitti/sequences"),
             &[],
-            &["a folder of 1 KITTI sequences", "sequences/00"],
+            &["a folder of KITTI sequences (1 of them)", "sequences/00"],
         ),
         (
             seq.join("velodyne"),

@@ -134,12 +134,12 @@ pub struct LocalizeArgs {
     /// form, as `omcl sim` writes odometry.txt). Default 0.10; on 7-Scenes
     /// the paper's noise in proportion to the picked frames' motion (0.10 m
     /// per 0.13 m), on all six axes.
-    #[arg(long, value_parser = super::metres)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::metres)]
     pub odom_noise_m: Option<f64>,
     /// Odometry noise per frame when made from ground truth: degrees about
     /// camera y (default 6; KITTI 5.73, the authors' 0.1 rad; 7-Scenes 6
     /// per 8 degrees of motion, on all three axes).
-    #[arg(long, value_parser = super::degrees)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::degrees)]
     pub odom_noise_deg: Option<f64>,
     /// Motion model of the particles: planar (x, y, yaw; height, roll and
     /// pitch follow the odometry), full (6-DoF noise in the camera frame)
@@ -151,11 +151,11 @@ pub struct LocalizeArgs {
     pub motion: Option<MotionArg>,
     /// Particle motion noise per step: metres (paper 0.10; 7-Scenes: the
     /// odometry noise).
-    #[arg(long, value_parser = super::metres)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::metres)]
     pub motion_sigma_m: Option<f64>,
     /// Particle motion noise per step: degrees (paper 6; 7-Scenes: the
     /// odometry noise).
-    #[arg(long, value_parser = super::degrees)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::degrees)]
     pub motion_sigma_deg: Option<f64>,
     /// How particles start.
     #[arg(long, value_enum, default_value = "local")]
@@ -172,11 +172,11 @@ pub struct LocalizeArgs {
     /// Position spread of --init local, metres (paper: 0.3, with 17 degrees
     /// of --init-sigma-deg; on a KITTI sequence the authors' 0.3 m and 0.1
     /// rad).
-    #[arg(long, default_value_t = 0.3, value_parser = super::metres)]
+    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true, value_parser = super::metres)]
     pub init_sigma_m: f64,
     /// Rotation spread of --init local, degrees [default: 17; 5.73 on a
     /// KITTI sequence].
-    #[arg(long, value_parser = super::degrees)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::degrees)]
     pub init_sigma_deg: Option<f64>,
     /// Prompt words for --init prompt, comma-separated ("toilet, sink").
     #[arg(long)]
@@ -1078,6 +1078,15 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             )),
             Odometry::FromTruth(_) => anyhow::Error::new(e),
         })?;
+    for r in inputs.odometry_remarks(&source, n)? {
+        eprintln!("note: {r}");
+    }
+    if inputs.kitti.as_ref().is_some_and(|k| !k.times_in_file) {
+        eprintln!(
+            "note: {} has no times.txt: frames are stamped 0.1 s apart (KITTI's 10 Hz)",
+            d.display()
+        );
+    }
 
     // The session's map: the 3-D map with its Embree scene, or (with
     // --floorplan) the floor plan's sighted map with its planar caster, the
@@ -1098,6 +1107,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     let frames_table = plan_table.as_ref().or(table.as_ref());
 
     let mut session = open_session(&a, shared.clone(), &inputs, &words)?;
+    print_setup(&a, &inputs);
     let stamps = inputs.stamps(n);
     let mut source = match (image.as_mut(), frames_table) {
         (Some(src), _) => FrameSource::Images(src),
@@ -1137,17 +1147,47 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     if let (Some(p), Some(mt)) = (&a.metrics, &metric) {
         write_metrics(p, d, n, mt, n as f64 / filter_s.max(1e-12))?;
     }
+    println!(
+        "{:.1} filter steps/s; {:.1} frames/s with reading the frames{}",
+        n as f64 / filter_s.max(1e-12),
+        n as f64 / (filter_s + input_s).max(1e-12),
+        if image.is_some() {
+            " and the image encoder"
+        } else {
+            ""
+        }
+    );
+    print!("wrote {} ({n} frames)", a.out.display());
+    match &gt {
+        Some(g) => {
+            // The floor's feature colours the plot's floor plan.
+            let floor = words
+                .available()
+                .then(|| words.features("floor", "map word").ok())
+                .flatten()
+                .and_then(|mut w| w.pop());
+            report_against_truth(&a, g, &est, n, metric.as_ref(), floor.as_deref(), m)?
+        }
+        None => println!(),
+    }
+    Ok(())
+}
+
+/// The run's setup on standard output, before its first frame (a log
+/// of an interrupted run keeps it): particles and rays, the filter, and
+/// the street's defaults.
+fn print_setup(a: &LocalizeArgs, inputs: &CameraSequence) {
     let is_kitti = inputs.layout() == Layout::Kitti;
-    let config = filter_config(&a, &inputs);
+    let config = filter_config(a, inputs);
     println!(
         "{} particles x {} rays a frame{}",
-        particle_count(&a, is_kitti),
+        particle_count(a, is_kitti),
         config.sampling.rays,
         match (is_kitti, a.particles.is_none() && a.rays.is_none()) {
             _ if a.filter != FilterArg::Auto && a.rays.is_none() => {
                 format!(
                     " (--filter {}'s rays; --particles, --rays)",
-                    filter_preset(&a, is_kitti)
+                    filter_preset(a, is_kitti)
                 )
             }
             _ if a.floorplan.is_some() && a.rays.is_none() => {
@@ -1160,7 +1200,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     );
     println!(
         "filter {}{}: {} motion noise, likelihood exponent {} (--filter, --motion, --sharpen)",
-        filter_preset(&a, is_kitti),
+        filter_preset(a, is_kitti),
         if a.filter == FilterArg::Auto {
             " (auto)"
         } else {
@@ -1207,30 +1247,6 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             }
         );
     }
-    println!(
-        "{:.1} filter steps/s; {:.1} frames/s with reading the frames{}",
-        n as f64 / filter_s.max(1e-12),
-        n as f64 / (filter_s + input_s).max(1e-12),
-        if image.is_some() {
-            " and the image encoder"
-        } else {
-            ""
-        }
-    );
-    print!("wrote {} ({n} frames)", a.out.display());
-    match &gt {
-        Some(g) => {
-            // The floor's feature colours the plot's floor plan.
-            let floor = words
-                .available()
-                .then(|| words.features("floor", "map word").ok())
-                .flatten()
-                .and_then(|mut w| w.pop());
-            report_against_truth(&a, g, &est, n, metric.as_ref(), floor.as_deref(), m)?
-        }
-        None => println!(),
-    }
-    Ok(())
 }
 
 /// Refuses outputs over the files a run reads (the map, the plan, the

@@ -76,11 +76,11 @@ pub struct IndoorArgs {
     /// Odometry translation noise per frame, metres (--odom-sigma-r is the
     /// rotation's); where KITTI drift is replayed (--trajectories) this
     /// noise is added to it.
-    #[arg(long, default_value_t = 0.10, value_parser = super::metres)]
+    #[arg(long, default_value_t = 0.10, allow_negative_numbers = true, value_parser = super::metres)]
     pub odom_sigma_t: f64,
     /// Odometry rotation noise per frame, degrees (as --odom-sigma-t, added
     /// to replayed drift).
-    #[arg(long, default_value_t = 6.0, value_parser = super::degrees)]
+    #[arg(long, default_value_t = 6.0, allow_negative_numbers = true, value_parser = super::degrees)]
     pub odom_sigma_r: f64,
     /// Folder with KITTI_00_gt.txt and KITTI_00_ORB.txt whose relative
     /// motion errors are replayed as odometry drift; default: the shared

@@ -384,7 +384,20 @@ impl KittiSequence {
         check_sequence_folder(dir)?;
         check_near_misses(dir)?;
         let calib = read_calib(&dir.join("calib.txt"))?;
-        let camera_poses = read_kitti_poses(&dir.join("poses.txt"))?;
+        let poses_path = dir.join("poses.txt");
+        if let Some(there) = benchmark_poses(dir).filter(|_| !poses_path.exists()) {
+            return Err(CloudError::format(
+                &poses_path,
+                format!(
+                    "missing; the odometry benchmark's layout keeps this sequence's poses in \
+                     {}: link it here (ln -s {} {})",
+                    there.display(),
+                    there.display(),
+                    poses_path.display()
+                ),
+            ));
+        }
+        let camera_poses = read_kitti_poses(&poses_path)?;
         let vel = dir.join("velodyne");
         let mut frames = Vec::new();
         for (frame, p) in numbered_files(&vel, "bin")? {
@@ -478,7 +491,10 @@ impl KittiSequence {
             let Some(labels) = scan.labels.as_ref() else {
                 return Err(CloudError::mismatch(
                     &self.label_path(frame),
-                    "label file missing, but dropping unlabeled/outlier/moving classes needs labels",
+                    "missing: a SemanticKITTI sequence's labels/ give its points their \
+                     classes (and mark the unlabeled, outlier and moving ones, which are \
+                     left out); a sequence without labels maps from point features \
+                     (--point-model ONNX or --features-dir DIR, with --keep-all)",
                 ));
             };
             let keep: Vec<bool> = labels
@@ -558,8 +574,8 @@ pub fn check_sequence_folder(dir: &Path) -> Result<(), CloudError> {
         return Err(CloudError::format(
             dir,
             format!(
-                "a KITTI dataset's root ({} sequences in sequences/); give one sequence's \
-                 folder, e.g. {}",
+                "a KITTI dataset's root (sequences/ holds {}); give one sequence's folder, \
+                 e.g. {}",
                 names.len(),
                 sequences.join(example).display()
             ),
@@ -568,10 +584,27 @@ pub fn check_sequence_folder(dir: &Path) -> Result<(), CloudError> {
     Ok(())
 }
 
-/// A LiDAR sequence folder's near misses, named before `calib.txt` is
-/// found missing: the `sequences/` folder itself, a sequence's subfolder
-/// (`velodyne/`), a folder of point-cloud files (LAS tiles).
-fn check_near_misses(dir: &Path) -> Result<(), CloudError> {
+/// Where KITTI's odometry benchmark keeps the poses of the sequence
+/// `.../sequences/NN` (`.../poses/NN.txt`, not in the sequence's folder),
+/// when that file is there.
+pub fn benchmark_poses(dir: &Path) -> Option<PathBuf> {
+    let name = dir.file_name()?.to_str()?;
+    let sequences = dir.parent()?;
+    if sequences.file_name()? != "sequences" {
+        return None;
+    }
+    let poses = sequences
+        .parent()?
+        .join("poses")
+        .join(format!("{name}.txt"));
+    poses.is_file().then_some(poses)
+}
+
+/// The near misses of a KITTI sequence folder that any reader of one
+/// names before `calib.txt` is found missing: a folder of sequences (the
+/// `sequences/` folder itself), a folder inside a sequence (`velodyne/`,
+/// `labels_2/`).
+pub fn check_kitti_near_misses(dir: &Path) -> Result<(), CloudError> {
     if dir.join("calib.txt").exists() {
         return Ok(());
     }
@@ -588,7 +621,7 @@ fn check_near_misses(dir: &Path) -> Result<(), CloudError> {
         return Err(CloudError::format(
             dir,
             format!(
-                "a folder of {} KITTI sequences; give one sequence's folder, e.g. {}",
+                "a folder of KITTI sequences ({} of them); give one sequence's folder, e.g. {}",
                 sequences.len(),
                 dir.join(first).display()
             ),
@@ -603,6 +636,17 @@ fn check_near_misses(dir: &Path) -> Result<(), CloudError> {
             ),
         ));
     }
+    Ok(())
+}
+
+/// A LiDAR sequence folder's near misses, named before `calib.txt` is
+/// found missing: the `sequences/` folder itself, a sequence's subfolder
+/// (`velodyne/`), a folder of point-cloud files (LAS tiles).
+fn check_near_misses(dir: &Path) -> Result<(), CloudError> {
+    if dir.join("calib.txt").exists() {
+        return Ok(());
+    }
+    check_kitti_near_misses(dir)?;
     let clouds = std::fs::read_dir(dir)
         .map(|d| {
             d.filter_map(|e| e.ok())

@@ -84,6 +84,8 @@ pub struct KittiCameraSequence {
     pub camera0_poses: Option<Vec<Pose>>,
     /// `times.txt` (seconds), or `0.1 s` a frame when it is missing.
     pub times: Vec<f64>,
+    /// Whether `times` came from `times.txt`.
+    pub times_in_file: bool,
     pub input: CameraInput,
     /// Poses in `poses.txt`: more than the frames when the folder holds
     /// only the sequence's first frames (whose poses are kept); `None`
@@ -130,7 +132,8 @@ impl KittiCameraSequence {
         // Stamps for the poses, else for the frames.
         let n = poses_in_file.unwrap_or(count);
         let times_path = dir.join("times.txt");
-        let times = if times_path.exists() {
+        let times_in_file = times_path.exists();
+        let times = if times_in_file {
             let mut t = read_times(&times_path)?;
             // The whole drive's stamps with poses.txt cut to the frames
             // at hand: the first stamps are theirs.
@@ -178,6 +181,7 @@ impl KittiCameraSequence {
             camera,
             camera0_poses,
             times,
+            times_in_file,
             input,
             poses_in_file,
             frames: count,
@@ -278,6 +282,7 @@ mod tests {
             camera,
             camera0_poses: Some(vec![Pose::identity()]),
             times: vec![0.0],
+            times_in_file: false,
             input: CameraInput::Labels,
             poses_in_file: Some(1),
             frames: 1,

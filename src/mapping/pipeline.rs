@@ -282,8 +282,9 @@ fn no_table(input: &str) -> PipelineError {
 
 fn no_features(input: &str) -> PipelineError {
     PipelineError::Input(format!(
-        "{input}: points carry neither features nor labels: pass --features (N x F .npy), \
-         --point-model, or use a labelled cloud with --classes"
+        "{input}: points carry neither features nor labels (a class table maps labels, \
+         which these points lack): pass --features (N x F .npy; --features-dir for a \
+         sequence) or --point-model, or use a labelled cloud with --classes"
     ))
 }
 

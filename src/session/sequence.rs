@@ -205,6 +205,10 @@ impl CameraSequence {
     /// An RGB-D folder.
     pub fn rgbd(d: &Path) -> Result<Self, SequenceError> {
         let intrinsics_path = d.join("intrinsics.txt");
+        if !intrinsics_path.exists() {
+            // A folder of KITTI sequences, or one inside a sequence.
+            crate::io::kitti::check_kitti_near_misses(d)?;
+        }
         // A KITTI folder without its calib.txt is not an RGB-D folder
         // without intrinsics.txt: say which file is missing.
         if !intrinsics_path.exists()
@@ -242,6 +246,23 @@ impl CameraSequence {
 
     /// A KITTI odometry folder; `input` picks the camera-2 folder read.
     pub fn kitti(d: &Path, input: CameraInput) -> Result<Self, SequenceError> {
+        let folder = d.join(input.folder());
+        if input != CameraInput::Images && !folder.exists() {
+            // No label images and no feature files (the caller falls back
+            // from labels_2/ to features_2/): say what would do.
+            let images = if d.join(CameraInput::Images.folder()).is_dir() {
+                "; its image_2/ localizes with --image-model ONNX"
+            } else {
+                ""
+            };
+            return Err(SequenceError::Input(format!(
+                "{}: no camera-2 frames to localize from: labels_2/ (label images; `omcl map \
+                 project {}` makes them from the labelled scans) or features_2/ (per-pixel \
+                 features, --use-features){images}",
+                d.display(),
+                d.display()
+            )));
+        }
         let seq = KittiCameraSequence::open(d, input)?;
         let gt = seq
             .ground_truth()
@@ -283,9 +304,18 @@ impl CameraSequence {
             }
             Odometry::FromTruth(cfg) => {
                 let g = self.ground_truth.as_ref().ok_or_else(|| {
+                    let hint = crate::io::kitti::benchmark_poses(&self.dir)
+                        .map(|p| {
+                            format!(
+                                " (the odometry benchmark's layout keeps them in {}: link it \
+                                 as poses.txt)",
+                                p.display()
+                            )
+                        })
+                        .unwrap_or_default();
                     SequenceError::Input(format!(
                         "{}: no odometry: pass --odometry FILE, or provide poses.txt to make \
-                         it from ground truth",
+                         it from ground truth{hint}",
                         self.dir.display()
                     ))
                 })?;
@@ -314,9 +344,10 @@ impl CameraSequence {
         let wanted = held.min(limit);
         if odometry < wanted && wanted != usize::MAX {
             return Err(SequenceError::Input(format!(
-                "{}: the odometry gives {odometry} poses for {wanted} frames; pass --frames \
+                "{}: the odometry gives {odometry} pose{} for {wanted} frames; pass --frames \
                  {odometry} to localize only those, or a complete odometry",
-                self.dir.display()
+                self.dir.display(),
+                if odometry == 1 { "" } else { "s" }
             )));
         }
         let n = odometry.min(limit).min(stored);
@@ -338,6 +369,67 @@ impl CameraSequence {
             )));
         }
         Ok(n)
+    }
+
+    /// What a user should know about how `odometry` meets the first `n`
+    /// frames (each a sentence for a note; none for odometry made from
+    /// ground truth): a file with more poses than the folder has frames
+    /// from `first` on (a sequence cut from a longer drive needs
+    /// `--odom-first`), and a TUM file whose stamps are not the frames'
+    /// (rows are paired with frames by order, never by time).
+    pub fn odometry_remarks(
+        &self,
+        odometry: &Odometry,
+        n: usize,
+    ) -> Result<Vec<String>, SequenceError> {
+        let Odometry::File { path, first } = odometry else {
+            return Ok(Vec::new());
+        };
+        let file = poses::read_poses(path)?;
+        let rows = file.trajectory.len();
+        let held = [
+            self.kitti.as_ref().map(|s| s.len()),
+            self.sevenscenes.as_ref().map(|s| s.picked.len()),
+            self.ground_truth.as_ref().map(|g| g.len()),
+        ]
+        .into_iter()
+        .flatten()
+        .min();
+        let mut remarks = Vec::new();
+        if let Some(held) = held.filter(|&h| rows.saturating_sub(*first) > h) {
+            remarks.push(format!(
+                "{} has {rows} poses for the sequence's {held} frames: its poses {first} to {} \
+                 are the frames' (for a sequence cut from a longer drive, --odom-first K names \
+                 the pose of its frame 0)",
+                path.display(),
+                first + held - 1
+            ));
+        }
+        // The frames' own stamps: times.txt on KITTI, ground truth's elsewhere.
+        let own: Option<Vec<f64>> = match &self.kitti {
+            Some(k) => k.times_in_file.then(|| k.times.clone()),
+            None => self.ground_truth.as_ref().map(|g| g.stamps().to_vec()),
+        };
+        if let (poses::PoseFormat::Tum, Some(own)) = (file.format, own) {
+            let stamps = &file.trajectory.stamps()[*first..];
+            let m = n.min(own.len()).min(stamps.len());
+            let mut gaps: Vec<f64> = own[..m].windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+            gaps.sort_by(f64::total_cmp);
+            let period = gaps.get(gaps.len() / 2).copied().unwrap_or(0.1);
+            let tolerance = (0.5 * period).max(1e-3);
+            if let Some(i) = (0..m).find(|&i| (stamps[i] - own[i]).abs() > tolerance) {
+                remarks.push(format!(
+                    "{}'s time stamps are not the frames': its pose {} is stamped {:.3} s, \
+                     frame {i} {:.3} s; poses are paired with frames in order (pose {first} \
+                     with frame 0, --odom-first), not by time",
+                    path.display(),
+                    first + i,
+                    stamps[i],
+                    own[i]
+                ));
+            }
+        }
+        Ok(remarks)
     }
 
     /// The stamps of the first `n` frames (ground truth's, else indices).
