@@ -410,3 +410,73 @@ fn bench_leaves_a_planned_sweep_and_a_running_bench_alone() {
     let (o, text) = bench(&[]);
     assert!(o.status.success(), "{text}");
 }
+
+/// A manifest must be what its header plans: a header edited by hand (more
+/// sequences than the lines hold) or a line from another plan is refused,
+/// naming the line; a run's line written twice is a bad line, whose
+/// advice is to plan again. A folder or a binary file given as the
+/// manifest is named as such.
+#[test]
+fn a_manifest_edited_by_hand_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = plan(dir.path());
+    let text_m = std::fs::read_to_string(&m).unwrap();
+    let lines: Vec<&str> = text_m.lines().collect();
+    let edited = dir.path().join("edited.jsonl");
+    let write = |ls: &[String]| std::fs::write(&edited, ls.join("\n") + "\n").unwrap();
+    let e = edited.to_str().unwrap();
+    // The header says five sequences; three runs follow.
+    let header = lines[0].replace("\"sequences\":3", "\"sequences\":5");
+    assert_ne!(header, lines[0], "{}", lines[0]);
+    let mut ls: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+    ls[0] = header;
+    write(&ls);
+    let tables = dir.path().join("tables");
+    for cmd in [
+        &["status", e][..],
+        &["run", e],
+        &["collect", e, "-o", tables.to_str().unwrap()],
+    ] {
+        let (o, text) = omcl(&[&["sweep"][..], cmd].concat());
+        let cmd = cmd[0];
+        assert!(!o.status.success(), "{cmd}: {text}");
+        assert!(
+            text.contains("line 1") && text.contains("plan the sweep again"),
+            "{cmd}: {text}"
+        );
+    }
+    // Fewer particles in the header than the runs were planned with: each
+    // run line is then not one the header plans.
+    let mut ls: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+    let particles = ls[0].replace("\"particles\":64", "\"particles\":32");
+    assert_ne!(particles, ls[0], "{}", ls[0]);
+    ls[0] = particles;
+    write(&ls);
+    let (o, text) = omcl(&["sweep", "status", e]);
+    assert!(!o.status.success(), "{text}");
+    assert!(
+        text.contains("line 2") && text.contains("not a run the header (line 1) plans"),
+        "{text}"
+    );
+    // A line written twice.
+    let mut ls: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+    ls.push(lines[2].to_string());
+    write(&ls);
+    let (o, text) = omcl(&["sweep", "status", e]);
+    assert_eq!(o.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("4 runs: 0 done, 1 failed, 3 missing")
+            && text.contains("a line written twice")
+            && text.contains("it is a manifest line omcl cannot run: plan the sweep again"),
+        "{text}"
+    );
+    // Not a manifest at all.
+    let (o, text) = omcl(&["sweep", "run", dir.path().to_str().unwrap()]);
+    assert!(!o.status.success(), "{text}");
+    assert!(text.contains("a folder, not a sweep manifest"), "{text}");
+    let binary = dir.path().join("map.omcl");
+    std::fs::write(&binary, [0u8, 159, 146, 150, 255, 10]).unwrap();
+    let (o, text) = omcl(&["sweep", "run", binary.to_str().unwrap()]);
+    assert!(!o.status.success(), "{text}");
+    assert!(text.contains("not a sweep manifest (not text"), "{text}");
+}

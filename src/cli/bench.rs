@@ -197,43 +197,44 @@ pub fn run_with_progress(
     let n = indices.len();
     let done = std::sync::atomic::AtomicUsize::new(0);
     let pb = super::progress::bar(n as u64, "runs");
-    let failures = sweep::run_local(manifest, indices, results, cache, jobs, &|i, r| {
-        let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-        pb.set_position(k as u64);
-        let what = match manifest.entry(i) {
-            Ok(e) => describe(e, results),
-            Err(_) => String::new(),
-        };
-        // (A hidden bar's println prints nothing; suspend prints always.)
-        pb.suspend(|| match r {
-            Ok(RunStatus::Ran) => eprintln!("[{k}/{n}] run {i}{what}"),
-            Ok(RunStatus::Skipped) => eprintln!("[{k}/{n}] run {i}{what} (result there)"),
-            Err(e) => eprintln!("[{k}/{n}] run {i} failed: {e}"),
-        });
-    });
+    // A run takes seconds to minutes: the bar ticks on its own, so a log
+    // (a Slurm job's) gets its line every interval with the run under way.
+    pb.enable_steady_tick(std::time::Duration::from_millis(500));
+    let started = |i: usize| {
+        if let Ok(e) = manifest.entry(i) {
+            pb.set_message(format!("(now run {i}{})", describe_task(e)));
+        }
+    };
+    let failures = sweep::run_local(
+        manifest,
+        indices,
+        results,
+        cache,
+        jobs,
+        &started,
+        &|i, r| {
+            let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            pb.set_position(k as u64);
+            let what = match manifest.entry(i) {
+                Ok(e) => describe(e, results),
+                Err(_) => String::new(),
+            };
+            // (A hidden bar's println prints nothing; suspend prints always.)
+            pb.suspend(|| match r {
+                Ok(RunStatus::Ran) => eprintln!("[{k}/{n}] run {i}{what}"),
+                Ok(RunStatus::Skipped) => eprintln!("[{k}/{n}] run {i}{what} (result there)"),
+                Err(e) => eprintln!("[{k}/{n}] run {i} failed: {e}"),
+            });
+        },
+    );
+    pb.set_message("");
     super::progress::finish(&pb);
     failures
 }
 
 /// A run's uses, sequence and, for tracking, its APE.
 fn describe(e: &sweep::RunEntry, results: &ResultDir) -> String {
-    let uses: Vec<String> = e
-        .uses
-        .iter()
-        .map(|u| match u {
-            sweep::Use::Table1 { variant } => format!("table1 {variant}"),
-            sweep::Use::Table2 { variant } => format!("table2 {variant}"),
-            sweep::Use::Table5 { prompt } => format!("table5 prompt={prompt}"),
-            sweep::Use::ParticlesRays { particles, rays } => {
-                format!("particles-rays {particles}x{rays}")
-            }
-            sweep::Use::Sampling {
-                particles,
-                strategy,
-            } => format!("sampling {strategy} {particles}"),
-        })
-        .collect();
-    let mut s = format!(" ({}) sequence {}", uses.join(", "), e.task.seed);
+    let mut s = describe_task(e);
     if let Ok(Some(r)) = results.read(&e.id) {
         if let sweep::Outcome::Track(t) = &r.outcome {
             let r = &t.result;
@@ -250,6 +251,27 @@ fn describe(e: &sweep::RunEntry, results: &ResultDir) -> String {
         s += &format!(" [{:.1} s]", r.cost.wall_seconds);
     }
     s
+}
+
+/// A run's uses and sequence.
+fn describe_task(e: &sweep::RunEntry) -> String {
+    let uses: Vec<String> = e
+        .uses
+        .iter()
+        .map(|u| match u {
+            sweep::Use::Table1 { variant } => format!("table1 {variant}"),
+            sweep::Use::Table2 { variant } => format!("table2 {variant}"),
+            sweep::Use::Table5 { prompt } => format!("table5 prompt={prompt}"),
+            sweep::Use::ParticlesRays { particles, rays } => {
+                format!("particles-rays {particles}x{rays}")
+            }
+            sweep::Use::Sampling {
+                particles,
+                strategy,
+            } => format!("sampling {strategy} {particles}"),
+        })
+        .collect();
+    format!(" ({}) sequence {}", uses.join(", "), e.task.seed)
 }
 
 /// Reports failed runs (the tables were written without them).

@@ -305,9 +305,27 @@ fn status(c: StatusCmd) -> anyhow::Result<()> {
         println!("missing runs: {}", slurm::ranges(&s.missing));
     }
     // A script waiting on the sweep learns of failures from the exit code.
+    // A manifest line omcl cannot run fails the same way every time.
+    let bad_lines = manifest
+        .lines
+        .iter()
+        .filter(|l| matches!(l, sweep::ManifestLine::Bad(_)))
+        .count();
+    let advice = match (bad_lines, s.failed.len() - bad_lines) {
+        (0, _) => "`omcl sweep run` again reruns them".to_string(),
+        (b, 0) => format!(
+            "{} manifest line{} omcl cannot run: plan the sweep again (`omcl sweep plan`)",
+            if b == 1 { "it is a" } else { "they are" },
+            if b == 1 { "" } else { "s" }
+        ),
+        (b, _) => format!(
+            "{b} of them cannot run as their manifest lines stand (plan the sweep again); \
+             `omcl sweep run` again reruns the rest"
+        ),
+    };
     anyhow::ensure!(
         s.failed.is_empty(),
-        "{} of {} runs failed (listed above); `omcl sweep run` again reruns them",
+        "{} of {} runs failed (listed above); {advice}",
         s.failed.len(),
         manifest.len()
     );
@@ -332,6 +350,13 @@ fn collect(c: CollectCmd) -> anyhow::Result<()> {
     let cache = c.dirs.cache(&c.manifest);
     let r = report::collect(&manifest, &results, Some(&cache), &c.out, c.force)?;
     println!("{}", r.markdown);
+    if manifest.header.bench.wants(sweep::Experiment::Table1) && !cache.is_dir() {
+        eprintln!(
+            "note: {} is not there: Figure 4 is drawn without the maps' floor plans (they \
+             come from the cached maps; --cache names the folder)",
+            cache.display()
+        );
+    }
     println!("wrote {}", c.out.display());
     finish(&r, 0)
 }

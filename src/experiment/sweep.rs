@@ -146,17 +146,38 @@ pub struct Manifest {
 impl Manifest {
     /// Reads a manifest; only an unreadable file or header is an error.
     pub fn read(path: &Path) -> Result<Manifest, SweepError> {
-        let f = File::open(path).map_err(io_err(path))?;
-        let mut lines = BufReader::new(f).lines();
         let bad = |line: usize, reason: String| SweepError::Manifest {
             path: path.to_path_buf(),
             line,
             reason,
         };
+        if path.is_dir() {
+            let inside = path.join("manifest.jsonl");
+            let hint = if inside.is_file() {
+                format!("; give the manifest in it, {}", inside.display())
+            } else {
+                String::new()
+            };
+            return Err(SweepError::Io {
+                path: path.to_path_buf(),
+                source: std::io::Error::other(format!("a folder, not a sweep manifest{hint}")),
+            });
+        }
+        let f = File::open(path).map_err(io_err(path))?;
+        let mut lines = BufReader::new(f).lines();
+        let not_text = |e: std::io::Error| match e.kind() {
+            std::io::ErrorKind::InvalidData => SweepError::Io {
+                path: path.to_path_buf(),
+                source: std::io::Error::other(
+                    "not a sweep manifest (not text; `omcl sweep plan` writes one)",
+                ),
+            },
+            _ => io_err(path)(e),
+        };
         let first = lines
             .next()
             .ok_or_else(|| bad(1, "empty file: expected the sweep header".into()))?
-            .map_err(io_err(path))?;
+            .map_err(not_text)?;
         let header: SweepHeader =
             serde_json::from_str(&first).map_err(|e| bad(1, format!("not a sweep header: {e}")))?;
         if header.omcl != OMCL_VERSION {
@@ -170,12 +191,13 @@ impl Manifest {
         }
         let mut out = Vec::new();
         for (i, l) in lines.enumerate() {
-            let l = l.map_err(io_err(path))?;
+            let l = l.map_err(not_text)?;
             if l.trim().is_empty() {
                 continue;
             }
             out.push(parse_line(&l, i + 2));
         }
+        check_against_header(&header, &mut out).map_err(|(line, reason)| bad(line, reason))?;
         Ok(Manifest {
             path: path.to_path_buf(),
             header,
@@ -209,6 +231,67 @@ impl Manifest {
             }),
         }
     }
+}
+
+/// The run lines against the runs the header plans (the tables are
+/// collected under the header's title, so the two must agree): a second
+/// line of one run becomes a bad line; a run the header does not plan as
+/// written, or a planned run with no line, is an error (`(line, reason)`):
+/// the header or the lines were edited by hand.
+fn check_against_header(
+    header: &SweepHeader,
+    lines: &mut [ManifestLine],
+) -> Result<(), (usize, String)> {
+    let again = "plan the sweep again (`omcl sweep plan`)";
+    let planned = plan(&header.bench).map_err(|e| (1, format!("its header plans no runs: {e}")))?;
+    let planned: HashMap<&str, &RunEntry> = planned.iter().map(|e| (e.id.as_str(), e)).collect();
+    let mut seen: HashMap<String, usize> = HashMap::new();
+    let mut bad_lines = 0;
+    for (k, l) in lines.iter_mut().enumerate() {
+        let at = k + 2;
+        let entry = match l {
+            ManifestLine::Run(e) => e,
+            // A bad line (an edited id, say) stands for one planned run.
+            ManifestLine::Bad(_) => {
+                bad_lines += 1;
+                continue;
+            }
+        };
+        if let Some(first) = seen.get(&entry.id) {
+            *l = ManifestLine::Bad(BadLine {
+                line: at,
+                id: Some(entry.id.clone()),
+                reason: format!(
+                    "run {} again (its line is {first}): a line written twice",
+                    entry.id
+                ),
+            });
+            continue;
+        }
+        seen.insert(entry.id.clone(), at);
+        if planned.get(entry.id.as_str()) != Some(&&**entry) {
+            return Err((
+                at,
+                format!(
+                    "run {} is not a run the header (line 1) plans as written: the header or \
+                     the line was edited; {again}",
+                    entry.id
+                ),
+            ));
+        }
+    }
+    let missing = planned.len().saturating_sub(seen.len() + bad_lines);
+    if missing > 0 {
+        return Err((
+            1,
+            format!(
+                "the header plans {} runs, {missing} of which have no line: the header or the \
+                 lines were edited; {again}",
+                planned.len()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 fn parse_line(text: &str, line: usize) -> ManifestLine {
@@ -443,10 +526,19 @@ impl Cache {
                 .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
         drop(lock_file);
-        let map = crate::map::file::load(&path).map_err(|e| SweepError::BadMap {
-            id: id.into(),
-            path: path.clone(),
-            reason: e.to_string(),
+        let map = crate::map::file::load(&path).map_err(|e| {
+            // The error names the file; the message names it once.
+            let full = e.to_string();
+            let prefix = format!("{}: ", path.display());
+            let why = full.strip_prefix(&prefix).unwrap_or(&full);
+            SweepError::BadMap {
+                id: id.into(),
+                path: path.clone(),
+                reason: format!(
+                    "{why} (a cached map: delete it, and the next run that needs it builds it \
+                     again)"
+                ),
+            }
         })?;
         let m = Arc::new(
             BenchMap::from_map(task.map, map).map_err(|source| SweepError::Run {
@@ -591,6 +683,7 @@ pub fn run_local(
     results: &ResultDir,
     cache: &Cache,
     jobs: usize,
+    started: &(dyn Fn(usize) + Sync),
     report: &(dyn Fn(usize, &Result<RunStatus, SweepError>) + Sync),
 ) -> Vec<(usize, SweepError)> {
     use std::sync::atomic::{AtomicUsize, Ordering};
@@ -600,6 +693,7 @@ pub fn run_local(
         for _ in 0..jobs.clamp(1, indices.len().max(1)) {
             scope.spawn(|| {
                 while let Some(&i) = indices.get(next.fetch_add(1, Ordering::Relaxed)) {
+                    started(i);
                     let r = manifest.entry(i).and_then(|e| run_entry(e, results, cache));
                     report(i, &r);
                     if let Err(e) = r {
