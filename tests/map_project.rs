@@ -244,6 +244,21 @@ fn project_writes_only_where_asked_and_never_into_read_only_folders() {
     untouched("-o elsewhere");
     assert!(other.join("labels_2/000002.png").exists());
     assert!(other.join("classes.txt").exists() && other.join("embeddings.npy").exists());
+    // The copy opens as the sequence: its calibration, poses and times are
+    // links to the sequence's.
+    assert!(
+        text.contains("linked calib.txt, poses.txt, times.txt"),
+        "{text}"
+    );
+    for f in ["calib.txt", "poses.txt", "times.txt"] {
+        assert_eq!(
+            std::fs::read(other.join(f)).unwrap(),
+            std::fs::read(seq.join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    let k = KittiCameraSequence::open(&other, CameraInput::Labels).unwrap();
+    assert_eq!(k.len(), 3);
     // A failure leaves no empty label folder behind (localize would then
     // say "no frames" instead of the cause).
     std::fs::remove_file(seq.join("labels/000001.label")).unwrap();

@@ -1004,5 +1004,27 @@ pub fn project(a: &ProjectArgs) -> anyhow::Result<()> {
         let (t, _) = super::encoders::class_table("semantickitti", None, None, None)?;
         write_table(&table_dir, &t, false)?;
     }
+    // Label images written into a copy (`-o COPY/labels_2`): the copy
+    // gets the sequence's calibration, poses and times as links, so that
+    // `omcl localize --sequence COPY` reads it.
+    let same = |p: &Path, q: &Path| match (p.canonicalize(), q.canonicalize()) {
+        (Ok(p), Ok(q)) => p == q,
+        _ => false,
+    };
+    if out.file_name().is_some_and(|n| n == "labels_2") && !same(&table_dir, &a.sequence) {
+        let linked =
+            omcl::io::kitti::link_sequence_files(&a.sequence, &table_dir).with_context(|| {
+                format!("linking the sequence's files into {}", table_dir.display())
+            })?;
+        if !linked.is_empty() {
+            println!(
+                "linked {} of {} into {}: `omcl localize --sequence {}` reads it",
+                linked.join(", "),
+                a.sequence.display(),
+                table_dir.display(),
+                table_dir.display()
+            );
+        }
+    }
     Ok(())
 }
