@@ -124,8 +124,10 @@ impl FloorPlan {
     /// The floor plan of a language map at its resolution: voxels whose
     /// similarity to `floor_feature` (the text feature of "floor") is at
     /// least `rho` are floor; obstacles are the other voxels from 0.2 to
-    /// 2.0 m above the median floor height (above the lowest voxel when
-    /// there is no floor feature or no floor voxel).
+    /// 2.0 m above the median floor height. Without a floor feature or a
+    /// floor voxel (a street's map), the band is above each column's own
+    /// lowest voxel, the ground there, so a street that climbs metres
+    /// keeps its buildings along the whole way.
     pub fn from_map(
         map: &crate::map::LanguageMap,
         floor_feature: Option<&[f32]>,
@@ -151,9 +153,21 @@ impl FloorPlan {
             .map(|(p, _)| p[2])
             .collect();
         floor_z.sort_by(f64::total_cmp);
-        let base = match floor_z.get(floor_z.len() / 2) {
-            Some(&z) => z,
-            None => centres.iter().map(|p| p[2]).fold(f64::INFINITY, f64::min),
+        let Some(&base) = floor_z.get(floor_z.len() / 2) else {
+            // Heights above each column's lowest voxel.
+            let key = |p: &[f64; 3]| {
+                (
+                    (p[0] / g.resolution).floor() as i64,
+                    (p[1] / g.resolution).floor() as i64,
+                )
+            };
+            let mut ground: std::collections::HashMap<(i64, i64), f64> = Default::default();
+            for p in &centres {
+                let z = ground.entry(key(p)).or_insert(p[2]);
+                *z = z.min(p[2]);
+            }
+            let above = centres.iter().map(|p| [p[0], p[1], p[2] - ground[&key(p)]]);
+            return Self::from_voxels(above.zip(is_floor), g.resolution, (0.2, 2.0));
         };
         Self::from_voxels(
             centres.into_iter().zip(is_floor),
@@ -252,6 +266,32 @@ mod tests {
     /// Voxels of 0.1 m at centres (i + 0.5) * 0.1 in x and y.
     fn centre(i: i32, j: i32, z: f64) -> [f64; 3] {
         [(i as f64 + 0.5) * 0.1, (j as f64 + 0.5) * 0.1, z]
+    }
+
+    /// A street climbing 4 m over 20 columns, with a wall 1 m above the
+    /// ground at its foot and one at its top, and no floor feature: both
+    /// walls are obstacles (above the lowest voxel of the whole map, the
+    /// top one fell outside the band), the ground between them is not.
+    #[test]
+    fn a_climbing_street_keeps_its_walls_along_the_whole_way() {
+        use crate::map::{FeatureDb, GridSpec, LanguageMap};
+        let grid = GridSpec {
+            resolution: 0.2,
+            origin: nalgebra::Vector3::zeros(),
+        };
+        let db = FeatureDb::from_rows(2, 0.02, vec![1.0, 0.0]).unwrap();
+        let mut leaves = Vec::new();
+        for i in 0..20 {
+            leaves.push(([i, 0, i], 0u32)); // the ground, 0.2 m up a column
+        }
+        leaves.push(([0, 0, 5], 0)); // 1 m above the foot's ground
+        leaves.push(([19, 0, 24], 0)); // 1 m above the top's ground
+        let map = LanguageMap::from_cells(grid, db, "t", leaves).unwrap();
+        let plan = FloorPlan::from_map(&map, None, 0.9).unwrap();
+        let at = |x: f64| plan.get(plan.cell_of(x, 0.1).unwrap().0, 0).unwrap();
+        assert_eq!(at(0.1), Obstacle);
+        assert_eq!(at(19.0 * 0.2 + 0.1), Obstacle);
+        assert_eq!(at(10.0 * 0.2 + 0.1), Unknown);
     }
 
     #[test]
