@@ -371,3 +371,49 @@ fn options_that_cannot_work_are_refused_before_any_output() {
     );
     assert!(!stdout.contains("rmse") && !saved.exists(), "{stdout}");
 }
+
+/// A rigid alignment fitted to nearly collinear positions (three poses of a
+/// straight drive) is warned about; a spread trajectory's is not.
+#[test]
+fn an_alignment_to_positions_on_a_line_is_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, rows: &[[f64; 3]]| {
+        let p = dir.path().join(name);
+        let text: String = rows
+            .iter()
+            .enumerate()
+            .map(|(i, r)| format!("{i} {} {} {} 0 0 0 1\n", r[0], r[1], r[2]))
+            .collect();
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let run = |r: &std::path::Path, e: &std::path::Path| {
+        let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
+            .args(["eval", "ape"])
+            .args([r, e])
+            .args(["--align", "se3"])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{out:?}");
+        String::from_utf8_lossy(&out.stderr).to_string()
+    };
+    let line = write(
+        "line.txt",
+        &[[0.0, 0.0, 0.0], [1.0, 1.0, 0.0], [2.0, 2.0, 0.01]],
+    );
+    let est = write(
+        "est.txt",
+        &[[0.0, 0.0, 0.0], [1.0, 1.1, 0.02], [2.0, 2.1, 0.0]],
+    );
+    let e = run(&line, &est);
+    assert!(
+        e.contains("lie almost on a line") && e.contains("0.20 %"),
+        "{e}"
+    );
+    let square = write(
+        "square.txt",
+        &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.2]],
+    );
+    let e = run(&square, &est);
+    assert!(!e.contains("warning"), "{e}");
+}

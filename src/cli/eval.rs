@@ -212,6 +212,7 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
                 align.into(),
                 n_to_align,
             )?;
+            warn_line_alignment(&paired.reference, &alignment);
             let errors = ape(&paired.reference, &aligned, relation.into())?;
             // The repo's completion rule (as `omcl localize` and the bench
             // apply it) on translation errors in pose order.
@@ -270,6 +271,7 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
             let paired = load_pair(&pair)?;
             let (aligned, alignment) =
                 align_trajectory(&paired.estimate, &paired.reference, align.into(), None)?;
+            warn_line_alignment(&paired.reference, &alignment);
             let options = RpeOptions {
                 relation: relation.into(),
                 delta,
@@ -554,4 +556,28 @@ fn write_json(
         .with_context(|| format!("writing {}", path.display()))?;
     emit(&format!("JSON written to {}\n", path.display()));
     Ok(())
+}
+
+/// A rotation fitted to positions that lie almost on a line (a few poses
+/// of a straight drive) is noise about that line: said, with the spread.
+fn warn_line_alignment(reference: &Trajectory, alignment: &AlignmentResult) {
+    if !matches!(alignment.alignment, Alignment::Se3 | Alignment::Sim3) {
+        return;
+    }
+    let used: Vec<_> = reference
+        .poses()
+        .iter()
+        .take(alignment.poses_used)
+        .map(|p| p.translation.vector)
+        .collect();
+    let r = omcl::eval::align::off_line(&used);
+    if r < 0.01 {
+        eprintln!(
+            "warning: the {} reference positions the alignment is fitted to lie almost on a \
+             line (their spread across it is {:.2} % of that along it): the rotation about \
+             that line is left to noise; use more poses, or --align origin or none",
+            used.len(),
+            100.0 * r
+        );
+    }
 }

@@ -117,6 +117,29 @@ pub fn umeyama(
     })
 }
 
+/// How far `points` are from lying on one line: the second largest over
+/// the largest singular value of their centred scatter, in `[0, 1]` (0 for
+/// points on a line or fewer than two distinct points). A rigid alignment
+/// fitted to nearly collinear positions leaves the rotation about that
+/// line to noise.
+pub fn off_line(points: &[Vector3<f64>]) -> f64 {
+    if points.len() < 2 {
+        return 0.0;
+    }
+    let mean = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
+    let mut scatter = Matrix3::zeros();
+    for p in points {
+        scatter += (p - mean) * (p - mean).transpose();
+    }
+    let mut d: Vec<f64> = scatter
+        .symmetric_eigenvalues()
+        .iter()
+        .map(|v| v.max(0.0).sqrt())
+        .collect();
+    d.sort_by(|a, b| b.total_cmp(a));
+    if d[0] <= 0.0 { 0.0 } else { d[1] / d[0] }
+}
+
 /// Aligns `estimate` to `reference` (equal length, paired by index).
 /// `n_to_align` limits the Umeyama fit to the first `n` pairs (evo's
 /// `--n_to_align`); the transform is then applied to the whole estimate.
@@ -166,6 +189,20 @@ pub fn align_trajectory(
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn off_line_tells_a_line_from_a_square() {
+        let v = |x: f64, y: f64| Vector3::new(x, y, 0.0);
+        assert!(off_line(&[v(0.0, 0.0), v(1.0, 0.0), v(2.0, 0.0)]) < 1e-9);
+        assert!(
+            (off_line(&[v(0.0, 0.0), v(1.0, 0.0), v(0.0, 1.0), v(1.0, 1.0)]) - 1.0).abs() < 1e-9
+        );
+        // 1 cm off a 2 m line: about 0.01 / 1.4 of the spread along it.
+        let r = off_line(&[v(0.0, 0.0), v(1.0, 0.01), v(2.0, 0.0)]);
+        assert!(r > 1e-3 && r < 1e-2, "{r}");
+        assert_eq!(off_line(&[v(1.0, 1.0)]), 0.0);
+        assert_eq!(off_line(&[v(1.0, 1.0), v(1.0, 1.0)]), 0.0);
+    }
+
     use super::*;
     use nalgebra::{Translation3, UnitQuaternion};
 
