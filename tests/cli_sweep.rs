@@ -409,6 +409,20 @@ fn bench_leaves_a_planned_sweep_and_a_running_bench_alone() {
     // Its own earlier sweep a bench replaces without being asked.
     let (o, text) = bench(&[]);
     assert!(o.status.success(), "{text}");
+    // A sequence's folder is not a bench's.
+    let seq = dir.path().join("seq");
+    std::fs::create_dir(&seq).unwrap();
+    std::fs::write(seq.join("intrinsics.txt"), "525 525 319.5 239.5 640 480\n").unwrap();
+    let v = [
+        &["bench"][..],
+        &tiny_table1(),
+        &["1", "-o", seq.to_str().unwrap()],
+    ]
+    .concat();
+    let (o, text) = omcl(&v);
+    assert!(!o.status.success(), "{text}");
+    assert!(text.contains("a sequence's folder"), "{text}");
+    assert_eq!(std::fs::read_dir(&seq).unwrap().count(), 1);
 }
 
 /// A manifest must be what its header plans: a header edited by hand (more

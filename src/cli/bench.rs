@@ -43,6 +43,16 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
 }
 
 fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
+    // Tables and figures go into --out: not into a sequence's folder.
+    if let Some(f) = ["intrinsics.txt", "calib.txt", "sim.json", "poses.txt"]
+        .iter()
+        .find(|f| a.out.join(f).is_file())
+    {
+        anyhow::bail!(
+            "--out {}: holds {f}, a sequence's folder: give omcl bench a folder of its own",
+            a.out.display()
+        );
+    }
     if a.show_config {
         // The filter the experiment starts from: the street's for table4,
         // the 6-DoF one for table1-sixdof, the floor plan's for
