@@ -494,3 +494,25 @@ fn a_manifest_edited_by_hand_is_named() {
     assert!(!o.status.success(), "{text}");
     assert!(text.contains("not a sweep manifest (not text"), "{text}");
 }
+
+/// Two workers on one manifest never compute a run twice: a run another
+/// process holds the lock of is left to it (said, exit 0, no result), and
+/// computed once the lock is free.
+#[test]
+fn a_run_another_process_is_computing_is_left_to_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = plan(dir.path());
+    let ids = ids(&m);
+    let lock_path = result_file(dir.path(), &ids[1]).with_extension("lock");
+    std::fs::create_dir_all(lock_path.parent().unwrap()).unwrap();
+    let lock = std::fs::File::create(&lock_path).unwrap();
+    lock.lock().unwrap();
+    let (o, text) = omcl(&["sweep", "run", &m, "--index", "1"]);
+    assert!(o.status.success(), "{text}");
+    assert!(text.contains("another process is running it"), "{text}");
+    assert!(!result_file(dir.path(), &ids[1]).exists());
+    drop(lock);
+    let (o, text) = omcl(&["sweep", "run", &m, "--index", "1"]);
+    assert!(o.status.success(), "{text}");
+    assert!(result_file(dir.path(), &ids[1]).exists(), "{text}");
+}

@@ -233,6 +233,9 @@ pub fn run_with_progress(
             pb.suspend(|| match r {
                 Ok(RunStatus::Ran) => eprintln!("[{k}/{n}] run {i}{what}"),
                 Ok(RunStatus::Skipped) => eprintln!("[{k}/{n}] run {i}{what} (result there)"),
+                Ok(RunStatus::Busy) => {
+                    eprintln!("[{k}/{n}] run {i}{what} (another process is running it; left to it)")
+                }
                 Err(e) => eprintln!("[{k}/{n}] run {i} failed: {e}"),
             });
         },

@@ -567,6 +567,10 @@ pub enum RunStatus {
     Skipped,
     /// The run was computed and its result written.
     Ran,
+    /// Another process is computing it (it holds the run's lock): left to
+    /// it, so that two workers on one manifest never compute a run twice
+    /// nor measure its speed beside each other.
+    Busy,
 }
 
 /// Executes one run unless its result exists: computes it, writes its
@@ -577,6 +581,22 @@ pub fn run_entry(
     results: &ResultDir,
     cache: &Cache,
 ) -> Result<RunStatus, SweepError> {
+    if let Ok(Some(_)) = results.read(&entry.id) {
+        return Ok(RunStatus::Skipped);
+    }
+    // One process a run: a lock file beside its result (`flock`, released
+    // when the process ends, however it ends).
+    let lock_path = results.result_path(&entry.id).with_extension("lock");
+    if let Some(d) = lock_path.parent() {
+        std::fs::create_dir_all(d).map_err(io_err(d))?;
+    }
+    let lock = File::create(&lock_path).map_err(io_err(&lock_path))?;
+    match lock.try_lock() {
+        Ok(()) => {}
+        Err(std::fs::TryLockError::WouldBlock) => return Ok(RunStatus::Busy),
+        Err(std::fs::TryLockError::Error(e)) => return Err(io_err(&lock_path)(e)),
+    }
+    // Finished by another process while this one waited for its turn.
     if let Ok(Some(_)) = results.read(&entry.id) {
         return Ok(RunStatus::Skipped);
     }
