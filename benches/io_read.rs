@@ -1,5 +1,5 @@
-//! Reader throughput: binary and ASCII PLY of one million synthetic points,
-//! the real KITTI scan and the real Autzen LAZ tile.
+//! Reader throughput: binary PLY of one million synthetic points, ASCII
+//! PLY of 200,000, the real KITTI scan and the real Autzen LAZ tile.
 use std::path::Path;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -28,6 +28,29 @@ fn synthetic(n: usize, dim: usize) -> PointCloud {
     }
 }
 
+/// `cloud` as an ASCII PLY (double xyz, uchar rgb, int label).
+fn ascii_ply(cloud: &PointCloud) -> String {
+    use std::fmt::Write;
+    let mut s = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\n\
+         property double z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n\
+         property int label\nend_header\n",
+        cloud.len()
+    );
+    let (labels, colors) = (
+        cloud.labels.as_ref().unwrap(),
+        cloud.colors.as_ref().unwrap(),
+    );
+    for ((p, c), l) in cloud.points.iter().zip(colors).zip(labels) {
+        let _ = writeln!(
+            s,
+            "{} {} {} {} {} {} {l}",
+            p[0], p[1], p[2], c[0], c[1], c[2]
+        );
+    }
+    s
+}
+
 fn bench(c: &mut Criterion) {
     let dir = tempfile::tempdir().unwrap();
     let mut g = c.benchmark_group("read");
@@ -45,6 +68,14 @@ fn bench(c: &mut Criterion) {
     g.throughput(Throughput::Elements(nf as u64));
     g.bench_function("ply_binary_100k_16_features", |b| {
         b.iter(|| ply::read_ply(&pf).unwrap())
+    });
+    // ASCII (CloudCompare, MeshLab and PCL write it): omcl's own tokenizer.
+    let pa = dir.path().join("ascii.ply");
+    let na = 200_000;
+    std::fs::write(&pa, ascii_ply(&synthetic(na, 0))).unwrap();
+    g.throughput(Throughput::Elements(na as u64));
+    g.bench_function("ply_ascii_200k_xyz_rgb_label", |b| {
+        b.iter(|| ply::read_ply(&pa).unwrap())
     });
     g.throughput(Throughput::Elements(n as u64));
     g.bench_function("ply_write_1M_xyz_rgb_label", |b| {
