@@ -90,7 +90,8 @@ pub struct ServeArgs {
     pub idle_timeout_s: f64,
     /// Deadline of a frame, seconds: a `Localize` call without its pose by
     /// then is answered DEADLINE_EXCEEDED (a client's shorter grpc-timeout
-    /// wins), and a frame, called or streamed, whose turn on the compute
+    /// wins; the step, once running, ends unanswered), as is any other call
+    /// by then, and a frame, called or streamed, whose turn on the compute
     /// pool comes later than this after its arrival is not stepped and is
     /// answered DEADLINE_EXCEEDED (in the stream, for a stream). A frame
     /// whose caller has gone by its turn is not stepped either.

@@ -3,7 +3,7 @@
 //! pool.
 
 use std::sync::Arc;
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use tokio::sync::{mpsc, oneshot};
 use tokio_stream::wrappers::ReceiverStream;
@@ -64,6 +64,30 @@ fn camera(c: Option<&proto::CameraInfo>) -> Result<Intrinsics, Status> {
 }
 
 impl Service {
+    /// DEADLINE_EXCEEDED for a call the server's deadline ended, counted
+    /// as `expired`. (tonic's own timeout layer answered CANCELLED "Timeout
+    /// expired", uncounted; the server sets none.)
+    fn past_deadline(&self, what: &str) -> Status {
+        self.state.metrics.reject("expired");
+        Status::deadline_exceeded(format!(
+            "{what} within the server's deadline of {:.2} s (--deadline-s)",
+            self.state.limits.deadline.as_secs_f64()
+        ))
+    }
+
+    /// `f`'s answer, or DEADLINE_EXCEEDED once the server's deadline has
+    /// passed (a client's shorter grpc-timeout ends the call sooner).
+    async fn within_deadline<T>(
+        &self,
+        what: &str,
+        f: impl std::future::Future<Output = Result<T, Status>>,
+    ) -> Result<T, Status> {
+        match tokio::time::timeout(self.state.limits.deadline, f).await {
+            Ok(r) => r,
+            Err(_) => Err(self.past_deadline(what)),
+        }
+    }
+
     /// Restarts a session's filter from `start`.
     async fn reinitialize(
         &self,
@@ -71,8 +95,10 @@ impl Service {
         start: Start,
     ) -> Result<Response<proto::ReinitializeResponse>, Status> {
         slot.touch();
-        self.state
-            .with_session(slot, move |s| s.reinitialize(&start))
+        let done = self
+            .state
+            .with_session(slot, move |s| s.reinitialize(&start));
+        self.within_deadline("no reinitialization", done)
             .await?
             .map_err(|e| super::state::status_of(&e))?;
         Ok(Response::new(proto::ReinitializeResponse {}))
@@ -186,9 +212,9 @@ impl Localization for Service {
             ground: r.ground,
         };
         let m = map.clone();
+        let made = self.state.on_pool(move || Session::new(m, config, &start));
         let session = self
-            .state
-            .on_pool(move || Session::new(m, config, &start))
+            .within_deadline("no session", made)
             .await?
             .map_err(|e| super::state::status_of(&e))?;
         let frame_id = if r.frame_id.is_empty() {
@@ -249,14 +275,18 @@ impl Localization for Service {
             self.state.metrics.reject("invalid_frame");
         })?;
         let (tx, rx) = oneshot::channel();
-        self.state.submit(slot, input, Reply::Unary(tx));
+        let expired = Arc::new(AtomicBool::new(false));
+        self.state
+            .submit(slot, input, Reply::Unary(tx, expired.clone()));
         match tokio::time::timeout(self.state.limits.deadline, rx).await {
             Ok(Ok(answer)) => answer.map(Response::new),
             Ok(Err(_)) => Err(Status::internal("the step's answer was lost")),
-            Err(_) => Err(Status::deadline_exceeded(format!(
-                "no pose within the server's deadline of {:?}",
-                self.state.limits.deadline
-            ))),
+            Err(_) => {
+                // Before the receiver is dropped: a turn that finds the
+                // call gone then knows it was counted here.
+                expired.store(true, Ordering::SeqCst);
+                Err(self.past_deadline("no pose"))
+            }
         }
     }
 

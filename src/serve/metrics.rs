@@ -17,7 +17,9 @@ pub const REASONS: [&str; 8] = [
     "invalid_frame",
     "unauthenticated",
     "shutting_down",
-    // A frame whose turn came after the server's deadline, not stepped.
+    // A frame whose turn came after the server's deadline, not stepped, or
+    // a call the server's deadline ended (DEADLINE_EXCEEDED; a step already
+    // running goes on to its end).
     "expired",
     // A frame whose caller had gone (call cancelled or timed out, stream
     // closed) when its turn came, not stepped.

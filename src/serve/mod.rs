@@ -196,7 +196,8 @@ const STREAM_WINDOW: u32 = 1 << 20;
 const STREAM_WINDOWS_PER_CONNECTION: u32 = 17;
 
 /// The gRPC server on `listener` (message caps, bearer tokens, TLS,
-/// TCP_NODELAY, flow-control windows, the unary deadline), until `stop`.
+/// TCP_NODELAY, flow-control windows), until `stop`. The server's deadline
+/// is the handlers' (`grpc`): tonic's `timeout` answers CANCELLED.
 fn grpc_server(
     config: &ServeConfig,
     state: &Arc<State>,
@@ -251,7 +252,6 @@ fn grpc_server(
     Ok(builder
         .initial_stream_window_size(STREAM_WINDOW)
         .initial_connection_window_size(STREAM_WINDOW * STREAM_WINDOWS_PER_CONNECTION)
-        .timeout(config.limits.deadline)
         .add_service(svc)
         .serve_with_incoming_shutdown(incoming, stop))
 }

@@ -88,8 +88,21 @@ impl Default for Limits {
 
 /// Where a step's answer goes.
 pub enum Reply {
-    Unary(oneshot::Sender<Result<proto::PoseUpdate, Status>>),
+    /// A `Localize` call, and its flag the call sets when it answers
+    /// DEADLINE_EXCEEDED itself (counted then as `expired`, not again when
+    /// the frame's turn finds it gone).
+    Unary(
+        oneshot::Sender<Result<proto::PoseUpdate, Status>>,
+        Arc<AtomicBool>,
+    ),
     Stream(mpsc::Sender<Result<proto::StreamResponse, Status>>),
+}
+
+impl Reply {
+    /// The caller has already counted this frame as expired.
+    fn expired(&self) -> bool {
+        matches!(self, Reply::Unary(_, e) if e.load(Ordering::SeqCst))
+    }
 }
 
 struct Job {
@@ -392,7 +405,7 @@ impl State {
             if let Some(old) = q.pending.replace(job) {
                 slot.frames_dropped.fetch_add(1, Ordering::Relaxed);
                 self.metrics.frames_dropped.fetch_add(1, Ordering::Relaxed);
-                if let Reply::Unary(tx) = old.reply {
+                if let Reply::Unary(tx, _) = old.reply {
                     let _ = tx.send(Err(Status::resource_exhausted(
                         "dropped: a newer frame of this session arrived before this one ran \
                          (latest frame wins)",
@@ -476,11 +489,13 @@ impl State {
         // motion); on an overloaded server this keeps the pool on frames
         // whose poses are still wanted.
         let gone = match &reply {
-            Reply::Unary(tx) => tx.is_closed(),
+            Reply::Unary(tx, _) => tx.is_closed(),
             Reply::Stream(tx) => tx.is_closed(),
         };
         if gone {
-            self.metrics.reject("abandoned");
+            if !reply.expired() {
+                self.metrics.reject("abandoned");
+            }
             let st = Status::cancelled("the caller had gone before the frame's turn");
             return (reply, Err(st), frame);
         }
@@ -566,7 +581,7 @@ impl State {
 
 fn send(reply: Reply, answer: Result<proto::PoseUpdate, Status>, frame: &FrameInput) {
     match reply {
-        Reply::Unary(tx) => {
+        Reply::Unary(tx, _) => {
             let _ = tx.send(answer);
         }
         Reply::Stream(tx) => {
