@@ -1,10 +1,12 @@
 //! `omcl serve`'s life around the calls, on loopback with the real binary:
-//! deadlines.
+//! deadlines, the drain after SIGTERM (the HTTP plane stays up, a second
+//! signal forces the exit) and its log lines.
 
 mod serve_common;
 
 use std::time::{Duration, Instant};
 
+use omcl::serve::proto;
 use serve_common::*;
 use tonic::Code;
 
@@ -52,4 +54,166 @@ async fn a_step_past_the_deadline_is_deadline_exceeded_and_counted() {
         server.metric("omcl_rejected_total{reason=\"abandoned\"}"),
         "0"
     );
+}
+
+/// A session of `particles` x 2048 pixels whose first frame's step is on
+/// the pool (the server's own gauge says so): its id and the pending call.
+async fn step_in_flight(
+    server: &Server,
+    c: &Client,
+    f: &Fixture,
+) -> (
+    String,
+    tokio::task::JoinHandle<Result<tonic::Response<proto::PoseUpdate>, tonic::Status>>,
+) {
+    let mut c = c.clone();
+    let id = very_slow_session(&mut c, f).await;
+    let frame = f.frame(&id, 0);
+    let call = tokio::spawn(async move { c.localize(frame).await });
+    wait_until("the step on the pool", || {
+        assert!(!call.is_finished(), "the step ended before it was seen");
+        server.metric("omcl_queue_depth") == "1"
+    })
+    .await;
+    (id, call)
+}
+
+fn read(p: &std::path::Path) -> String {
+    std::fs::read_to_string(p).unwrap()
+}
+
+/// The log line that says `what` (none: a panic with the whole log).
+fn log_line(log: &str, what: &str) -> String {
+    let line = log
+        .lines()
+        .find(|l| l.contains(what))
+        .unwrap_or_else(|| panic!("no line with {what:?} in the log:\n{log}"));
+    // Each line starts with its UTC time, 2026-11-28T08:06:02.123Z.
+    let stamp = line.split(' ').next().unwrap();
+    assert!(
+        stamp.len() == 24 && stamp.ends_with('Z') && stamp.as_bytes()[10] == b'T',
+        "{line}"
+    );
+    line.to_string()
+}
+
+/// After SIGTERM the HTTP plane answers until the drain ends (it was
+/// closed at once): /readyz 503 with Retry-After, /healthz and /metrics
+/// 200; the step in flight is answered, the process exits 0. The log has
+/// one line per session opened, closed and expired, and for the shutdown
+/// and the drain's end.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_http_plane_answers_through_the_drain_and_the_log_tells_it() {
+    let f = Fixture::new();
+    let log = f.dir.path().join("serve.log");
+    let mut server = Server::start_logged(
+        &f,
+        &[
+            "--idle-timeout-s",
+            "1",
+            "--drain-timeout-s",
+            "600",
+            "--deadline-s",
+            "600",
+        ],
+        &log,
+    );
+    let mut c = server.client(Auth::good()).await;
+    let a = c.create_session(f.create(0)).await.unwrap().into_inner();
+    c.close_session(proto::CloseSessionRequest {
+        session_id: a.session_id.clone(),
+    })
+    .await
+    .unwrap();
+    let b = c
+        .create_session(f.create(1))
+        .await
+        .unwrap()
+        .into_inner()
+        .session_id;
+    let expired = format!("session {b} expired");
+    wait_until("a session idled out", || read(&log).contains(&expired)).await;
+
+    let (_, call) = step_in_flight(&server, &c, &f).await;
+    server.signal("TERM");
+    // Every GET below panics if the connection is refused.
+    wait_until("/readyz says 503", || server.get("/readyz", &[]).0 == 503).await;
+    let head = server.get_raw("/readyz", &[]).to_ascii_lowercase();
+    assert!(head.contains("\r\nretry-after: "), "{head}");
+    assert!(head.contains("shutting down"), "{head}");
+    assert_eq!(server.get("/healthz", &[]).0, 200);
+    assert_eq!(server.metric("omcl_queue_depth"), "1");
+    assert!(
+        !call.is_finished(),
+        "the step ended before the drain was seen"
+    );
+    let r = call.await.unwrap();
+    assert!(r.is_ok(), "the step in flight was lost: {r:?}");
+    let status = server.wait_exit(Duration::from_secs(120));
+    assert!(status.success(), "{status:?}");
+
+    let text = read(&log);
+    let opened = log_line(&text, &format!("session {} opened", a.session_id));
+    assert!(
+        opened.contains("on map \"room\": pose start at "),
+        "{opened}"
+    );
+    log_line(
+        &text,
+        &format!("session {} closed by its client", a.session_id),
+    );
+    log_line(&text, &expired);
+    let begun = log_line(&text, "shutting down");
+    assert!(begun.contains("1 step running or queued"), "{begun}");
+    log_line(&text, "drain finished");
+    // Nothing per frame: the lines above and the sessions' own.
+    assert!(text.lines().count() <= 8, "{text}");
+}
+
+/// A second signal during the drain ends it at once: a non-zero exit and
+/// a line saying the step was abandoned (the step takes seconds; a drain
+/// that waited for it would exit 0).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_second_signal_ends_the_drain_at_once() {
+    let f = Fixture::new();
+    let log = f.dir.path().join("serve.log");
+    let mut server = Server::start_logged(
+        &f,
+        &["--drain-timeout-s", "600", "--deadline-s", "600"],
+        &log,
+    );
+    let c = server.client(Auth::good()).await;
+    let (_, _call) = step_in_flight(&server, &c, &f).await;
+    server.signal("TERM");
+    wait_until("/readyz says 503", || server.get("/readyz", &[]).0 == 503).await;
+    server.signal("INT");
+    let status = server.wait_exit(Duration::from_secs(120));
+    assert!(!status.success(), "{status:?}");
+    let text = read(&log);
+    let line = log_line(&text, "second signal");
+    assert!(line.contains("1 step abandoned"), "{line}");
+    assert!(text.contains("1 step(s) in flight abandoned"), "{text}");
+    assert!(!text.contains("drain finished"), "{text}");
+}
+
+/// The drain timeout reached with a step running: a non-zero exit and a
+/// line naming --drain-timeout-s and the step abandoned.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_drain_timeout_abandons_the_step_and_says_so() {
+    let f = Fixture::new();
+    let log = f.dir.path().join("serve.log");
+    let mut server = Server::start_logged(
+        &f,
+        &["--drain-timeout-s", "0.05", "--deadline-s", "600"],
+        &log,
+    );
+    let c = server.client(Auth::good()).await;
+    let (_, _call) = step_in_flight(&server, &c, &f).await;
+    server.signal("TERM");
+    let status = server.wait_exit(Duration::from_secs(120));
+    assert!(!status.success(), "{status:?}");
+    let text = read(&log);
+    let line = log_line(&text, "drain timeout");
+    assert!(line.contains("--drain-timeout-s"), "{line}");
+    assert!(line.contains("1 step abandoned"), "{line}");
 }

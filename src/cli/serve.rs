@@ -12,7 +12,7 @@ use clap::Args;
 
 use omcl::io::labels::EmbeddingTable;
 use omcl::map;
-use omcl::serve::{Limits, ServeConfig, TlsFiles, Token};
+use omcl::serve::{Drained, Limits, ServeConfig, TlsFiles, Token};
 use omcl::session::floorplan::{EXIT_WORDS, PlanScene};
 use omcl::session::{LabelTable, SharedMap};
 
@@ -26,7 +26,9 @@ pub const TOKEN_ENV: &str = "OMCL_TOKEN";
     (16+ visible ASCII characters) comes from --token-file or the OMCL_TOKEN \
     environment variable, never from the command line. The server binds to \
     127.0.0.1 unless told otherwise; SIGINT or SIGTERM stops it after the steps \
-    in flight."
+    in flight (the HTTP plane answers until then, /readyz with 503), a second one \
+    at once (exit 1). Sessions opened, closed and expired, and the shutdown, are \
+    logged on stderr, one line each."
 )]
 pub struct ServeArgs {
     /// A map to serve, as NAME=FILE.omcl (or FILE.omcl, named by its file
@@ -115,7 +117,8 @@ pub struct ServeArgs {
     /// PEM private key for TLS on both planes.
     #[arg(long, requires = "tls_cert")]
     pub tls_key: Option<PathBuf>,
-    /// How long shutdown waits for calls and steps in flight, seconds.
+    /// How long shutdown waits for calls and steps in flight, seconds; past
+    /// it the server exits 1, naming the steps abandoned.
     #[arg(long, default_value_t = 10.0)]
     pub drain_timeout_s: f64,
 }
@@ -205,20 +208,54 @@ pub fn run(a: ServeArgs) -> anyhow::Result<()> {
         .enable_all()
         .build()
         .context("starting the async runtime")?;
-    rt.block_on(omcl::serve::serve(
-        config,
-        maps,
-        |b| {
-            println!(
-                "omcl serve: gRPC on {}, HTTP on {} ({n_maps} map(s), {threads} compute threads)",
-                b.grpc, b.http
-            );
-            let _ = std::io::stdout().flush();
-        },
-        shutdown_signal(),
-    ))?;
-    println!("omcl serve: stopped");
-    Ok(())
+    let drained = rt.block_on(async {
+        // The first SIGINT or SIGTERM starts the drain, a second forces the
+        // exit.
+        let (count_tx, count_rx) = tokio::sync::watch::channel(0u32);
+        tokio::spawn(count_signals(count_tx));
+        let nth = |n: u32| {
+            let mut rx = count_rx.clone();
+            async move {
+                let _ = rx.wait_for(|c| *c >= n).await;
+            }
+        };
+        omcl::serve::serve(
+            config,
+            maps,
+            |b| {
+                println!(
+                    "omcl serve: gRPC on {}, HTTP on {} ({n_maps} map(s), {threads} compute \
+                     threads)",
+                    b.grpc, b.http
+                );
+                let _ = std::io::stdout().flush();
+            },
+            nth(1),
+            nth(2),
+        )
+        .await
+    });
+    match &drained {
+        // Steps left running are not waited for (the runtime's blocking
+        // threads included); the server keeps its maps to the end.
+        Ok(Drained::TimedOut { .. } | Drained::Forced { .. }) => rt.shutdown_background(),
+        // Every task is let go of before the process exits: the last
+        // reference to a map may be a task's, and its Embree scene must
+        // not be released while the process exits (the runtime waits).
+        _ => drop(rt),
+    }
+    match drained? {
+        Drained::Finished => {
+            println!("omcl serve: stopped");
+            Ok(())
+        }
+        Drained::TimedOut { steps } => {
+            bail!("the drain timeout was reached: {steps} step(s) in flight abandoned")
+        }
+        Drained::Forced { steps } => {
+            bail!("stopped by a second signal: {steps} step(s) in flight abandoned")
+        }
+    }
 }
 
 /// The bearer token, from --token-file or the environment (never from the
@@ -336,17 +373,22 @@ fn floor_plan_map(
     Ok(SharedMap::floor_plan(name, scene))
 }
 
-async fn shutdown_signal() {
-    let term = async {
-        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-            Ok(mut s) => {
-                s.recv().await;
-            }
-            Err(_) => std::future::pending::<()>().await,
-        }
+/// Counts the SIGINTs and SIGTERMs received into `count`.
+async fn count_signals(count: tokio::sync::watch::Sender<u32>) {
+    use tokio::signal::unix::{SignalKind, signal};
+    let (Ok(mut int), Ok(mut term)) = (
+        signal(SignalKind::interrupt()),
+        signal(SignalKind::terminate()),
+    ) else {
+        eprintln!("warning: cannot listen for SIGINT and SIGTERM: no graceful shutdown");
+        // Holding `count`: a dropped sender would read as a signal.
+        return std::future::pending().await;
     };
-    tokio::select! {
-        _ = tokio::signal::ctrl_c() => {}
-        _ = term => {}
+    loop {
+        tokio::select! {
+            _ = int.recv() => {}
+            _ = term.recv() => {}
+        }
+        count.send_modify(|c| *c += 1);
     }
 }

@@ -105,6 +105,39 @@ impl Service {
     }
 }
 
+/// A session's start for the log: its kind, and where or what.
+fn start_kind(start: Option<&proto::create_session_request::Start>) -> String {
+    use proto::create_session_request::Start as S;
+    match start {
+        Some(S::InitialPose(p)) => {
+            let t = p
+                .pose
+                .as_ref()
+                .and_then(|p| p.pose.as_ref())
+                .and_then(|p| p.position.as_ref());
+            match t {
+                Some(t) => format!("pose start at {:.2} {:.2} {:.2} m", t.x, t.y, t.z),
+                None => "pose start".to_string(),
+            }
+        }
+        Some(S::Global(_)) => "global start".to_string(),
+        Some(S::Prompt(p)) => {
+            const SHOWN: usize = 8;
+            let mut words: Vec<String> = p
+                .words
+                .iter()
+                .take(SHOWN)
+                .map(|w| convert::quoted(w))
+                .collect();
+            if p.words.len() > SHOWN {
+                words.push(format!("and {} more", p.words.len() - SHOWN));
+            }
+            format!("prompt start ({})", words.join(", "))
+        }
+        None => "no start".to_string(),
+    }
+}
+
 #[tonic::async_trait]
 impl Localization for Service {
     async fn list_maps(
@@ -222,7 +255,12 @@ impl Localization for Service {
         } else {
             r.frame_id
         };
-        let id = self.state.add_session(map, session, frame_id)?;
+        let id = self.state.add_session(map.clone(), session, frame_id)?;
+        super::log::event(format_args!(
+            "session {id} opened on map {}: {}, {particles} particles x {rays} rays",
+            convert::quoted(map.name()),
+            start_kind(r.start.as_ref()),
+        ));
         Ok(Response::new(proto::CreateSessionResponse {
             session_id: id,
         }))
@@ -233,6 +271,11 @@ impl Localization for Service {
         req: Request<proto::CloseSessionRequest>,
     ) -> Result<Response<proto::CloseSessionResponse>, Status> {
         let slot = self.state.remove_session(&req.get_ref().session_id)?;
+        super::log::event(format_args!(
+            "session {} closed by its client; {} stepped",
+            slot.id,
+            super::log::count(slot.frames(), "frame")
+        ));
         Ok(Response::new(proto::CloseSessionResponse {
             frames: slot.frames(),
         }))

@@ -18,6 +18,7 @@ pub mod connections;
 pub mod convert;
 pub mod grpc;
 pub mod http;
+pub mod log;
 pub mod metrics;
 pub mod state;
 
@@ -121,15 +122,31 @@ pub fn session_infos(state: &State) -> Vec<proto::SessionInfo> {
         .collect()
 }
 
+/// How the drain after the stop ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Drained {
+    /// Every call and step in flight finished.
+    Finished,
+    /// The drain timeout passed first, with `steps` still queued or
+    /// running.
+    TimedOut { steps: usize },
+    /// `force` (a second signal) came first, with `steps` still queued or
+    /// running.
+    Forced { steps: usize },
+}
+
 /// Runs the server until `shutdown` completes, then stops taking calls,
-/// finishes the steps in flight (at most `drain_timeout`) and returns.
-/// `on_bound` is told the bound addresses once both listen.
+/// finishes the steps in flight (at most `drain_timeout`, or until `force`
+/// completes) and returns how the drain ended. The HTTP plane answers
+/// until then (`/readyz` 503). `on_bound` is told the bound addresses once
+/// both listen.
 pub async fn serve(
     config: ServeConfig,
     maps: Vec<SharedMap>,
     on_bound: impl FnOnce(Bound),
     shutdown: impl Future<Output = ()> + Send + 'static,
-) -> Result<(), ServeError> {
+    force: impl Future<Output = ()>,
+) -> Result<Drained, ServeError> {
     let maps: Vec<Arc<SharedMap>> = maps.into_iter().map(Arc::new).collect();
     let state = State::new(maps, config.limits.clone()).map_err(ServeError::Setup)?;
     let bind = |addr: SocketAddr| async move {
@@ -151,12 +168,23 @@ pub async fn serve(
     let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
     {
         let state = state.clone();
+        let drain_s = config.drain_timeout.as_secs_f64();
         tokio::spawn(async move {
             shutdown.await;
             state.shutting_down.store(true, Ordering::Relaxed);
+            let (steps, waiting) = state.queue_depth();
+            log::event(format_args!(
+                "shutting down: {} running or queued, {} waiting; draining for at most \
+                 {drain_s} s (--drain-timeout-s; a second Ctrl-C or SIGTERM exits at once)",
+                log::count(steps as u64, "step"),
+                log::count(waiting as u64, "frame"),
+            ));
             let _ = stop_tx.send(true);
         });
     }
+    // The HTTP plane stops after the drain, not with the gRPC plane: a
+    // load balancer polls /readyz (503 now) and /metrics through it.
+    let (http_stop_tx, http_stop_rx) = tokio::sync::watch::channel(false);
     let stopped = |mut rx: tokio::sync::watch::Receiver<bool>| async move {
         let _ = rx.wait_for(|s| *s).await;
     };
@@ -169,11 +197,45 @@ pub async fn serve(
         grpc_l,
         stopped(stop_rx.clone()),
     )?);
-    let http_task = spawn_http(&config, &state, http_l, stopped(stop_rx.clone()))?;
+    let http_task = spawn_http(&config, &state, http_l, stopped(http_stop_rx))?;
     on_bound(bound);
 
     stopped(stop_rx).await;
-    drain(&state, config.drain_timeout, grpc_task, http_task).await
+    let drained = tokio::select! {
+        r = drain(&state, config.drain_timeout, grpc_task) => r,
+        () = force => Ok(Drained::Forced { steps: in_flight(&state) }),
+    };
+    log::event(match drained {
+        Ok(Drained::Finished) => "drain finished: every step in flight answered".to_string(),
+        Ok(Drained::TimedOut { steps }) => format!(
+            "drain timeout ({} s, --drain-timeout-s) reached: {} abandoned",
+            config.drain_timeout.as_secs_f64(),
+            log::count(steps as u64, "step")
+        ),
+        Ok(Drained::Forced { steps }) => format!(
+            "second signal: exiting at once, {} abandoned",
+            log::count(steps as u64, "step")
+        ),
+        Err(ref e) => format!("stopped: {e}"),
+    });
+    if !matches!(drained, Ok(Drained::Finished)) {
+        // A pool thread still running a step must never drop the last
+        // reference to a map (its Embree scene would be released while the
+        // process exits): the state is kept to the end.
+        std::mem::forget(state.clone());
+    }
+    let _ = http_stop_tx.send(true);
+    if http_task.is_finished()
+        && let Ok(Err(e)) = http_task.await
+    {
+        return Err(ServeError::Http(e));
+    }
+    drained
+}
+
+/// Steps queued or running, and session set-ups on the pool.
+fn in_flight(state: &State) -> usize {
+    state.queue_depth().0.max(state.pool_running())
 }
 
 /// Expires idle sessions, checking a few times per idle timeout.
@@ -276,29 +338,29 @@ fn spawn_http(
     })
 }
 
-/// Drain after the stop: the calls in flight (bounded by `timeout`), then
-/// the pool's steps; the servers' errors.
+/// Drain after the stop: the gRPC calls in flight (bounded by `timeout`),
+/// then the pool's steps; the gRPC server's error.
 async fn drain(
     state: &State,
     timeout: Duration,
     grpc_task: tokio::task::JoinHandle<Result<(), tonic::transport::Error>>,
-    http_task: tokio::task::JoinHandle<std::io::Result<()>>,
-) -> Result<(), ServeError> {
+) -> Result<Drained, ServeError> {
     let deadline = Instant::now() + timeout;
     let left = || deadline.saturating_duration_since(Instant::now());
     let grpc_res = tokio::time::timeout(left(), grpc_task).await;
-    let http_res = tokio::time::timeout(left(), http_task).await;
     // Until every pool task has finished and dropped what it held: the
     // last reference to a map may be a step's, and the process must not
     // exit while a pool thread releases its Embree scene.
-    while (state.queue_depth().0 > 0 || state.pool_running() > 0) && Instant::now() < deadline {
+    while state.queue_depth().0 > 0 || state.pool_running() > 0 {
+        if Instant::now() >= deadline {
+            return Ok(Drained::TimedOut {
+                steps: in_flight(state),
+            });
+        }
         tokio::time::sleep(Duration::from_millis(10)).await;
     }
     if let Ok(Ok(Err(e))) = grpc_res {
         return Err(ServeError::Grpc(e.to_string()));
     }
-    if let Ok(Ok(Err(e))) = http_res {
-        return Err(ServeError::Http(e));
-    }
-    Ok(())
+    Ok(Drained::Finished)
 }

@@ -345,17 +345,24 @@ impl State {
         let mut all = lock(&self.sessions);
         let mut gone = Vec::new();
         all.retain(|id, s| {
-            let keep = s.busy() || s.idle() < self.limits.idle_timeout;
+            let idle = s.idle();
+            let keep = s.busy() || idle < self.limits.idle_timeout;
             if !keep {
                 s.closed.store(true, Ordering::Relaxed);
-                gone.push(id.clone());
+                gone.push((id.clone(), idle, s.frames()));
             }
             keep
         });
         drop(all);
         let n = gone.len();
         let mut expired = lock(&self.expired);
-        for id in gone {
+        for (id, idle, frames) in gone {
+            super::log::event(format_args!(
+                "session {id} expired: no frame or call for {:.0} s (--idle-timeout-s); {} \
+                 stepped",
+                idle.as_secs_f64(),
+                super::log::count(frames, "frame")
+            ));
             if expired.len() == EXPIRED_REMEMBERED {
                 expired.pop_front();
             }

@@ -284,6 +284,16 @@ pub struct Server {
 impl Server {
     /// With `extra` options (default: 2 compute threads).
     pub fn start(f: &Fixture, extra: &[&str]) -> Server {
+        Server::spawn(f, extra, Stdio::inherit())
+    }
+
+    /// As [`Server::start`], its stderr (the log) written to `log`.
+    pub fn start_logged(f: &Fixture, extra: &[&str], log: &Path) -> Server {
+        let file = std::fs::File::create(log).unwrap();
+        Server::spawn(f, extra, Stdio::from(file))
+    }
+
+    fn spawn(f: &Fixture, extra: &[&str], stderr: Stdio) -> Server {
         let threads: &[&str] = if extra.contains(&"--threads") {
             &[]
         } else {
@@ -307,7 +317,7 @@ impl Server {
             .args(extra)
             .env("OMCL_TOKEN", TOKEN)
             .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
+            .stderr(stderr)
             .spawn()
             .unwrap();
         let mut line = String::new();
@@ -332,6 +342,29 @@ impl Server {
 
     pub fn pid(&self) -> u32 {
         self.child.id()
+    }
+
+    /// Sends `signal` ("TERM", "INT") by the `kill` command (no `unsafe`
+    /// outside the Embree module).
+    pub fn signal(&self, signal: &str) {
+        let st = Command::new("kill")
+            .args([&format!("-{signal}"), &self.pid().to_string()])
+            .status()
+            .unwrap();
+        assert!(st.success(), "kill -{signal}");
+    }
+
+    /// Waits for the process to end (a hang guard of `guard`, not a time
+    /// bound): its exit status.
+    pub fn wait_exit(&mut self, guard: Duration) -> std::process::ExitStatus {
+        let t0 = std::time::Instant::now();
+        loop {
+            if let Some(s) = self.child.try_wait().unwrap() {
+                return s;
+            }
+            assert!(t0.elapsed() < guard, "still running after {guard:?}");
+            std::thread::sleep(Duration::from_millis(20));
+        }
     }
 
     /// CPU time the server has used (user + system), seconds.
@@ -384,7 +417,20 @@ impl Server {
 
     /// A GET on the HTTP port: (status, body).
     pub fn get(&self, path: &str, headers: &[(&str, &str)]) -> (u16, String) {
-        let mut c = TcpStream::connect(self.http).unwrap();
+        let text = self.get_raw(path, headers);
+        let status = text
+            .split_whitespace()
+            .nth(1)
+            .and_then(|c| c.parse().ok())
+            .unwrap_or(0);
+        let body = text.split("\r\n\r\n").nth(1).unwrap_or("").to_string();
+        (status, body)
+    }
+
+    /// A GET on the HTTP port: the whole answer, head and body.
+    pub fn get_raw(&self, path: &str, headers: &[(&str, &str)]) -> String {
+        let mut c = TcpStream::connect(self.http)
+            .unwrap_or_else(|e| panic!("GET {path}: {} refused: {e}", self.http));
         c.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
         let mut req = format!("GET {path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n");
         for (k, v) in headers {
@@ -394,13 +440,7 @@ impl Server {
         c.write_all(req.as_bytes()).unwrap();
         let mut text = String::new();
         c.read_to_string(&mut text).unwrap();
-        let status = text
-            .split_whitespace()
-            .nth(1)
-            .and_then(|c| c.parse().ok())
-            .unwrap_or(0);
-        let body = text.split("\r\n\r\n").nth(1).unwrap_or("").to_string();
-        (status, body)
+        text
     }
 }
 
