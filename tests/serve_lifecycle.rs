@@ -1,6 +1,6 @@
 //! `omcl serve`'s life around the calls, on loopback with the real binary:
 //! deadlines, the drain after SIGTERM (the HTTP plane stays up, a second
-//! signal forces the exit) and its log lines.
+//! signal forces the exit), its log lines and start warnings.
 
 mod serve_common;
 
@@ -120,6 +120,7 @@ async fn the_http_plane_answers_through_the_drain_and_the_log_tells_it() {
     );
     let mut c = server.client(Auth::good()).await;
     let a = c.create_session(f.create(0)).await.unwrap().into_inner();
+    assert!(a.warnings.is_empty(), "{:?}", a.warnings);
     c.close_session(proto::CloseSessionRequest {
         session_id: a.session_id.clone(),
     })
@@ -216,4 +217,67 @@ async fn a_drain_timeout_abandons_the_step_and_says_so() {
     let line = log_line(&text, "drain timeout");
     assert!(line.contains("--drain-timeout-s"), "{line}");
     assert!(line.contains("1 step abandoned"), "{line}");
+}
+
+/// A start pose from which the camera sees nothing of the map (here far
+/// outside it) is warned about in the answer, for CreateSession and
+/// SetInitialPose; a good one is not. A prompt start that matches nothing
+/// names the request's fields to change.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_blind_start_is_warned_and_a_failed_prompt_names_its_fields() {
+    let f = Fixture::new();
+    let server = Server::start(&f, &[]);
+    let mut c = server.client(Auth::good()).await;
+    let far = proto::PoseWithCovarianceStamped {
+        header: Some(header(0.0)),
+        pose: Some(proto::PoseWithCovariance {
+            pose: Some(proto::Pose {
+                position: Some(proto::Point {
+                    x: 100.0,
+                    y: 100.0,
+                    z: 100.0,
+                }),
+                orientation: Some(proto::Quaternion {
+                    x: 0.0,
+                    y: 0.0,
+                    z: 0.0,
+                    w: 1.0,
+                }),
+            }),
+            covariance: vec![],
+        }),
+    };
+    let mut req = f.create(0);
+    req.start = Some(proto::create_session_request::Start::InitialPose(
+        far.clone(),
+    ));
+    let r = c.create_session(req).await.unwrap().into_inner();
+    assert_eq!(r.warnings.len(), 1, "{r:?}");
+    let w = &r.warnings[0];
+    assert!(w.contains("at 100.00 100.00 100.00 m) 0 %"), "{w}");
+    assert!(w.contains("in the map's frame"), "{w}");
+    let good = c.create_session(f.create(0)).await.unwrap().into_inner();
+    assert!(good.warnings.is_empty(), "{good:?}");
+    let re = c
+        .set_initial_pose(proto::SetInitialPoseRequest {
+            session_id: good.session_id.clone(),
+            pose: Some(far),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!(re.warnings.len(), 1, "{re:?}");
+
+    let mut req = f.create(0);
+    req.start = Some(proto::create_session_request::Start::Prompt(
+        proto::PromptStart {
+            words: vec!["floor".into()],
+            k: Some(1e12),
+            ..Default::default()
+        },
+    ));
+    let e = c.create_session(req).await.unwrap_err();
+    assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
+    assert!(e.message().contains("PromptStart.k"), "{e:?}");
+    assert!(!e.message().contains("PromptParams"), "{e:?}");
 }

@@ -943,7 +943,7 @@ fn start_advice(
         _ => 100.0,
     };
     let share = shared.view_share(pose, &config.intrinsics, range);
-    if share < 0.05 {
+    if share < omcl::session::BLIND_START_SHARE {
         let source = if a.init_pose.is_some() {
             "--init-pose"
         } else {

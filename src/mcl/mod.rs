@@ -111,8 +111,7 @@ pub enum MclError {
     )]
     NoFloor { rho: f32 },
     #[error(
-        "no floor voxel has at least {k:.0} voxels matching every prompt word within {radius} m; \
-         fall back to global initialization or relax PromptParams' rho / k"
+        "no floor voxel has at least {k:.0} voxels matching every prompt word within {radius} m"
     )]
     NoPromptMatch { k: f64, radius: f64 },
     #[error("prompt word {index} has dimension {got}, the map's database has {expected}")]

@@ -10,9 +10,9 @@ use tokio_stream::wrappers::ReceiverStream;
 use tonic::metadata::MetadataMap;
 use tonic::{Request, Response, Status, Streaming};
 
-use crate::geometry::Intrinsics;
+use crate::geometry::{Intrinsics, Pose};
 use crate::mcl::{FilterConfig, FilterPreset};
-use crate::session::{Session, SessionConfig, Start};
+use crate::session::{BLIND_START_SHARE, Session, SessionConfig, SharedMap, Start};
 
 use super::auth::{MISPLACED, Token};
 use super::convert;
@@ -95,14 +95,59 @@ impl Service {
         start: Start,
     ) -> Result<Response<proto::ReinitializeResponse>, Status> {
         slot.touch();
-        let done = self
-            .state
-            .with_session(slot, move |s| s.reinitialize(&start));
-        self.within_deadline("no reinitialization", done)
+        let map = slot.map.clone();
+        let done = self.state.with_session(slot, move |s| {
+            let warning = match &start {
+                Start::Pose { pose, .. } => blind_start(&map, pose, s.config()),
+                _ => None,
+            };
+            s.reinitialize(&start).map(|()| warning)
+        });
+        let warning = self
+            .within_deadline("no reinitialization", done)
             .await?
             .map_err(|e| super::state::status_of(&e))?;
-        Ok(Response::new(proto::ReinitializeResponse {}))
+        Ok(Response::new(proto::ReinitializeResponse {
+            warnings: warning.into_iter().collect(),
+        }))
     }
+}
+
+/// The warning for a start pose from which the camera cannot see the map
+/// (under [`BLIND_START_SHARE`] of its view meets it, as `omcl localize`
+/// warns): outside the map, facing away, or in another frame.
+fn blind_start(map: &SharedMap, pose: &Pose, config: &SessionConfig) -> Option<String> {
+    // An unbounded sensor is looked at to 100 m, as `omcl localize` does.
+    let range = match config.filter.sensor.max_range {
+        r if r.is_finite() => f64::from(r),
+        _ => 100.0,
+    };
+    let share = map.view_share(pose, &config.intrinsics, range);
+    if share >= BLIND_START_SHARE {
+        return None;
+    }
+    let bounds = map
+        .map()
+        .world_bounds()
+        .map(|(lo, hi)| {
+            format!(
+                " (its voxels span x {:.1} to {:.1}, y {:.1} to {:.1}, z {:.1} to {:.1} m)",
+                lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
+            )
+        })
+        .unwrap_or_default();
+    let t = pose.translation.vector;
+    Some(format!(
+        "from the start pose (at {:.2} {:.2} {:.2} m) {:.0} % of the camera's view meets map \
+         {} within {range:.0} m{bounds}; every ray that misses scores alike, so the filter \
+         cannot find the camera, and its confidence stays high. Is the pose the camera's, in \
+         the map's frame?",
+        t.x,
+        t.y,
+        t.z,
+        100.0 * share,
+        convert::quoted(map.name()),
+    ))
 }
 
 /// A session's start for the log: its kind, and where or what.
@@ -245,8 +290,14 @@ impl Localization for Service {
             ground: r.ground,
         };
         let m = map.clone();
-        let made = self.state.on_pool(move || Session::new(m, config, &start));
-        let session = self
+        let made = self.state.on_pool(move || {
+            let warning = match &start {
+                Start::Pose { pose, .. } => blind_start(&m, pose, &config),
+                _ => None,
+            };
+            Session::new(m, config, &start).map(|s| (s, warning))
+        });
+        let (session, warning) = self
             .within_deadline("no session", made)
             .await?
             .map_err(|e| super::state::status_of(&e))?;
@@ -257,12 +308,18 @@ impl Localization for Service {
         };
         let id = self.state.add_session(map.clone(), session, frame_id)?;
         super::log::event(format_args!(
-            "session {id} opened on map {}: {}, {particles} particles x {rays} rays",
+            "session {id} opened on map {}: {}, {particles} particles x {rays} rays{}",
             convert::quoted(map.name()),
             start_kind(r.start.as_ref()),
+            if warning.is_some() {
+                " (warned: the camera cannot see the map from the start pose)"
+            } else {
+                ""
+            }
         ));
         Ok(Response::new(proto::CreateSessionResponse {
             session_id: id,
+            warnings: warning.into_iter().collect(),
         }))
     }
 

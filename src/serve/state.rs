@@ -208,6 +208,13 @@ pub fn exhausted(msg: impl Into<String>, retry_after: Duration) -> Status {
 /// The gRPC status of a session error.
 pub fn status_of(e: &SessionError) -> Status {
     match e {
+        // What to change, in the request's own fields.
+        SessionError::Init(crate::mcl::MclError::NoPromptMatch { .. }) => {
+            Status::failed_precondition(format!(
+                "{e}; try fewer or other words, a lower PromptStart.k or PromptStart.rho, a \
+                 larger PromptStart.radius, or a global or initial_pose start"
+            ))
+        }
         SessionError::BadFrame(_) | SessionError::BadOdometry(_) | SessionError::BadStamp(_) => {
             Status::invalid_argument(e.to_string())
         }

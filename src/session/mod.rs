@@ -287,6 +287,11 @@ impl SharedMap {
     }
 }
 
+/// A start pose from which less than this share of the camera's view
+/// meets the map ([`SharedMap::view_share`]) is warned about (`omcl
+/// localize`, `omcl serve`): the filter cannot find the camera from it.
+pub const BLIND_START_SHARE: f64 = 0.05;
+
 /// How a session places its particles.
 #[derive(Debug, Clone)]
 pub enum Start {
