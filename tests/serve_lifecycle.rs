@@ -1,6 +1,6 @@
 //! `omcl serve`'s life around the calls, on loopback with the real binary:
 //! deadlines, the drain after SIGTERM (the HTTP plane stays up, a second
-//! signal forces the exit), its log lines and start warnings.
+//! signal forces the exit), its log lines, addresses and start warnings.
 
 mod serve_common;
 
@@ -217,6 +217,79 @@ async fn a_drain_timeout_abandons_the_step_and_says_so() {
     let line = log_line(&text, "drain timeout");
     assert!(line.contains("--drain-timeout-s"), "{line}");
     assert!(line.contains("1 step abandoned"), "{line}");
+}
+
+/// `omcl serve` with `args` after the map and the token: its output once
+/// it has ended (it is expected to fail at start).
+fn serve_fails(f: &Fixture, args: &[&str]) -> String {
+    let map = format!("room={}", f.map.to_str().unwrap());
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(["serve", "--map", &map])
+        .args(args)
+        .env("OMCL_TOKEN", TOKEN)
+        .output()
+        .unwrap();
+    assert!(!out.status.success(), "{out:?}");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// Host names are resolved (`localhost:0` was "invalid socket address
+/// syntax"); a port in use names the plane and its flag.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn addresses_take_host_names_and_a_busy_port_names_its_plane() {
+    let f = Fixture::new();
+    let map = format!("room={}", f.map.to_str().unwrap());
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args([
+            "serve",
+            "--map",
+            &map,
+            "--grpc",
+            "localhost:0",
+            "--http",
+            "localhost:0",
+        ])
+        .env("OMCL_TOKEN", TOKEN)
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut banner = String::new();
+    std::io::BufRead::read_line(
+        &mut std::io::BufReader::new(child.stdout.as_mut().unwrap()),
+        &mut banner,
+    )
+    .unwrap();
+    let _ = child.kill();
+    let _ = child.wait();
+    assert!(banner.contains("gRPC on "), "{banner}");
+    let grpc: std::net::SocketAddr = banner
+        .split("gRPC on ")
+        .nth(1)
+        .and_then(|r| r.split(',').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(grpc.ip().is_loopback(), "{banner}");
+
+    let server = Server::start(&f, &[]);
+    let http = server.http.to_string();
+    let err = serve_fails(&f, &["--grpc", "127.0.0.1:0", "--http", &http]);
+    assert!(
+        err.contains(&format!(
+            "--http {http} (the HTTP plane): address already in use"
+        )),
+        "{err}"
+    );
+    let grpc = server.grpc.to_string();
+    let err = serve_fails(&f, &["--grpc", &grpc, "--http", "127.0.0.1:0"]);
+    assert!(
+        err.contains(&format!(
+            "--grpc {grpc} (the gRPC plane): address already in use"
+        )),
+        "{err}"
+    );
+    let err = serve_fails(&f, &["--grpc", "localhost"]);
+    assert!(err.contains("expected HOST:PORT"), "{err}");
 }
 
 /// A start pose from which the camera sees nothing of the map (here far

@@ -118,3 +118,49 @@ async fn https_get(
     let body = text.split("\r\n\r\n").nth(1).unwrap_or("").to_string();
     (status, body)
 }
+
+/// The banner says HTTPS for the control plane; a swapped certificate and
+/// key are named as such (it was "--tls-key: no items found").
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn https_is_announced_and_a_swapped_pair_is_named() {
+    let f = Fixture::new();
+    let key = rcgen::generate_simple_self_signed(vec!["localhost".to_string()]).unwrap();
+    let (cert, pkey) = (f.dir.path().join("cert.pem"), f.dir.path().join("key.pem"));
+    std::fs::write(&cert, key.cert.pem()).unwrap();
+    std::fs::write(&pkey, key.signing_key.serialize_pem()).unwrap();
+    let (c, k) = (cert.to_str().unwrap(), pkey.to_str().unwrap());
+    let server = Server::start(&f, &["--tls-cert", c, "--tls-key", k]);
+    assert!(server.banner.contains(", HTTPS on "), "{}", server.banner);
+    drop(server);
+    let map = format!("room={}", f.map.to_str().unwrap());
+    let run = |cert: &str, key: &str| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_omcl"))
+            .args([
+                "serve",
+                "--map",
+                &map,
+                "--grpc",
+                "127.0.0.1:0",
+                "--http",
+                "127.0.0.1:0",
+            ])
+            .args(["--tls-cert", cert, "--tls-key", key])
+            .env("OMCL_TOKEN", TOKEN)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{out:?}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let err = run(k, c);
+    assert!(
+        err.contains("--tls-cert: the file holds no PEM certificate")
+            && err.contains("is it the --tls-key file?"),
+        "{err}"
+    );
+    let err = run(c, c);
+    assert!(
+        err.contains("--tls-key: the file holds no PEM private key")
+            && err.contains("is it the --tls-cert file?"),
+        "{err}"
+    );
+}

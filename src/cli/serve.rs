@@ -59,11 +59,12 @@ pub struct ServeArgs {
     /// .deps/).
     #[arg(long, value_name = "PATH")]
     pub ort_lib: Option<PathBuf>,
-    /// gRPC address.
-    #[arg(long, default_value = "127.0.0.1:50051")]
+    /// gRPC address, HOST:PORT (a host name is resolved and its first
+    /// address taken).
+    #[arg(long, default_value = "127.0.0.1:50051", value_parser = socket_addr)]
     pub grpc: SocketAddr,
-    /// HTTP control-plane address.
-    #[arg(long, default_value = "127.0.0.1:8080")]
+    /// HTTP control-plane address, HOST:PORT (HTTPS with --tls-cert).
+    #[arg(long, default_value = "127.0.0.1:8080", value_parser = socket_addr)]
     pub http: SocketAddr,
     /// File whose first line is the bearer token (default: $OMCL_TOKEN).
     #[arg(long, value_name = "FILE")]
@@ -121,6 +122,27 @@ pub struct ServeArgs {
     /// it the server exits 1, naming the steps abandoned.
     #[arg(long, default_value_t = 10.0)]
     pub drain_timeout_s: f64,
+}
+
+/// HOST:PORT as `std::net::ToSocketAddrs` resolves it: an IP address
+/// with its port, or a host name's first address.
+fn socket_addr(s: &str) -> Result<SocketAddr, String> {
+    use std::net::ToSocketAddrs;
+    if let Ok(a) = s.parse() {
+        return Ok(a);
+    }
+    match s.rsplit_once(':') {
+        Some((host, port)) if !host.is_empty() && port.parse::<u16>().is_ok() => {}
+        _ => {
+            return Err(format!(
+                "expected HOST:PORT (127.0.0.1:50051, localhost:50051), got {s:?}"
+            ));
+        }
+    }
+    s.to_socket_addrs()
+        .map_err(|e| format!("{s:?}: {e}"))?
+        .next()
+        .ok_or_else(|| format!("{s:?}: the host name has no address"))
 }
 
 fn seconds(v: f64, name: &str) -> anyhow::Result<Duration> {
@@ -208,6 +230,11 @@ pub fn run(a: ServeArgs) -> anyhow::Result<()> {
         .enable_all()
         .build()
         .context("starting the async runtime")?;
+    let http = if config.tls.is_some() {
+        "HTTPS"
+    } else {
+        "HTTP"
+    };
     let drained = rt.block_on(async {
         // The first SIGINT or SIGTERM starts the drain, a second forces the
         // exit.
@@ -224,7 +251,7 @@ pub fn run(a: ServeArgs) -> anyhow::Result<()> {
             maps,
             |b| {
                 println!(
-                    "omcl serve: gRPC on {}, HTTP on {} ({n_maps} map(s), {threads} compute \
+                    "omcl serve: gRPC on {}, {http} on {} ({n_maps} map(s), {threads} compute \
                      threads)",
                     b.grpc, b.http
                 );

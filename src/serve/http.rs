@@ -145,6 +145,7 @@ async fn sessions(AxState(ctx): AxState<Ctx>) -> Response {
 pub fn tls_config(
     tls: &super::TlsFiles,
 ) -> Result<std::sync::Arc<tokio_rustls::rustls::ServerConfig>, super::ServeError> {
+    use rustls::pki_types::pem::Error as PemError;
     use rustls::pki_types::pem::PemObject;
     use rustls::pki_types::{CertificateDer, PrivateKeyDer};
     use tokio_rustls::rustls;
@@ -152,8 +153,32 @@ pub fn tls_config(
     let certs = CertificateDer::pem_slice_iter(&tls.cert_pem)
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| bad("--tls-cert", e.to_string()))?;
-    let key =
-        PrivateKeyDer::from_pem_slice(&tls.key_pem).map_err(|e| bad("--tls-key", e.to_string()))?;
+    // A swapped pair is the likely mistake: say which file holds what.
+    if certs.is_empty() {
+        let hint = if PrivateKeyDer::from_pem_slice(&tls.cert_pem).is_ok() {
+            " (it holds a private key: is it the --tls-key file?)"
+        } else {
+            ""
+        };
+        return Err(bad(
+            "--tls-cert",
+            format!("the file holds no PEM certificate (BEGIN CERTIFICATE){hint}"),
+        ));
+    }
+    let key = PrivateKeyDer::from_pem_slice(&tls.key_pem).map_err(|e| match e {
+        PemError::NoItemsFound => {
+            let hint = if CertificateDer::pem_slice_iter(&tls.key_pem).any(|c| c.is_ok()) {
+                " (it holds a certificate: is it the --tls-cert file?)"
+            } else {
+                ""
+            };
+            bad(
+                "--tls-key",
+                format!("the file holds no PEM private key (BEGIN PRIVATE KEY){hint}"),
+            )
+        }
+        e => bad("--tls-key", e.to_string()),
+    })?;
     let provider = std::sync::Arc::new(rustls::crypto::ring::default_provider());
     let mut cfg = rustls::ServerConfig::builder_with_provider(provider)
         .with_safe_default_protocol_versions()

@@ -48,10 +48,12 @@ pub use state::{Limits, State};
 /// Errors that stop the server.
 #[derive(Debug, thiserror::Error)]
 pub enum ServeError {
-    #[error("binding {addr}: {source}")]
+    #[error("{} {addr} ({}): {}", plane.0, plane.1, bind_reason(cause))]
     Bind {
         addr: SocketAddr,
-        source: std::io::Error,
+        /// The plane's flag and name.
+        plane: Plane,
+        cause: std::io::Error,
     },
     #[error("TLS: {0}")]
     Tls(String),
@@ -61,6 +63,24 @@ pub enum ServeError {
     Http(std::io::Error),
     #[error("{0}")]
     Setup(String),
+}
+
+/// A plane's flag and name, for errors.
+type Plane = (&'static str, &'static str);
+const GRPC_PLANE: Plane = ("--grpc", "the gRPC plane");
+const HTTP_PLANE: Plane = ("--http", "the HTTP plane");
+
+/// A bind error in words (the OS's "Address already in use (os error
+/// 98)" as "address already in use").
+fn bind_reason(e: &std::io::Error) -> String {
+    match e.kind() {
+        std::io::ErrorKind::AddrInUse => "address already in use".to_string(),
+        std::io::ErrorKind::AddrNotAvailable => "address not available on this machine".to_string(),
+        std::io::ErrorKind::PermissionDenied => {
+            "permission denied (ports below 1024 need privileges)".to_string()
+        }
+        _ => e.to_string(),
+    }
 }
 
 /// PEM certificate chain and private key for gRPC over TLS.
@@ -149,20 +169,20 @@ pub async fn serve(
 ) -> Result<Drained, ServeError> {
     let maps: Vec<Arc<SharedMap>> = maps.into_iter().map(Arc::new).collect();
     let state = State::new(maps, config.limits.clone()).map_err(ServeError::Setup)?;
-    let bind = |addr: SocketAddr| async move {
+    let bind = |addr: SocketAddr, plane: Plane| async move {
         TcpListener::bind(addr)
             .await
-            .map_err(|source| ServeError::Bind { addr, source })
+            .map_err(|cause| ServeError::Bind { addr, plane, cause })
     };
-    let grpc_l = bind(config.grpc_addr).await?;
-    let http_l = bind(config.http_addr).await?;
-    let local = |l: &TcpListener, addr| {
+    let grpc_l = bind(config.grpc_addr, GRPC_PLANE).await?;
+    let http_l = bind(config.http_addr, HTTP_PLANE).await?;
+    let local = |l: &TcpListener, addr, plane| {
         l.local_addr()
-            .map_err(|source| ServeError::Bind { addr, source })
+            .map_err(|cause| ServeError::Bind { addr, plane, cause })
     };
     let bound = Bound {
-        grpc: local(&grpc_l, config.grpc_addr)?,
-        http: local(&http_l, config.http_addr)?,
+        grpc: local(&grpc_l, config.grpc_addr, GRPC_PLANE)?,
+        http: local(&http_l, config.http_addr, HTTP_PLANE)?,
     };
 
     let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);

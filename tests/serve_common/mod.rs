@@ -279,6 +279,8 @@ pub struct Server {
     pub child: Child,
     pub grpc: SocketAddr,
     pub http: SocketAddr,
+    /// The line the server printed once it listened.
+    pub banner: String,
 }
 
 impl Server {
@@ -324,7 +326,7 @@ impl Server {
         BufReader::new(child.stdout.as_mut().unwrap())
             .read_line(&mut line)
             .unwrap();
-        // "omcl serve: gRPC on A, HTTP on B (...)"
+        // "omcl serve: gRPC on A, HTTP on B (...)" (HTTPS with TLS)
         let addr = |key: &str| -> SocketAddr {
             let rest = line
                 .split(key)
@@ -336,8 +338,18 @@ impl Server {
                 .parse()
                 .unwrap_or_else(|e| panic!("{line:?}: {e}"))
         };
-        let (grpc, http) = (addr("gRPC on "), addr("HTTP on "));
-        Server { child, grpc, http }
+        let http_key = if line.contains("HTTPS on ") {
+            "HTTPS on "
+        } else {
+            "HTTP on "
+        };
+        let (grpc, http) = (addr("gRPC on "), addr(http_key));
+        Server {
+            child,
+            grpc,
+            http,
+            banner: line,
+        }
     }
 
     pub fn pid(&self) -> u32 {
