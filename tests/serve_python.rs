@@ -224,3 +224,121 @@ fn python_client_sends_camera_images_for_the_server_to_encode() {
         "{stderr}"
     );
 }
+
+/// The client run on `f`'s sequence with a session slow enough (20,000
+/// particles x 2048 pixels) to be signalled mid-stream, once its first
+/// pose line is out: the process and a thread reading the rest of its
+/// stdout (a full pipe must not stop the client).
+fn client_mid_stream(
+    server: &Server,
+    f: &Fixture,
+) -> (std::process::Child, std::thread::JoinHandle<String>) {
+    use std::io::{BufRead, Read};
+    let client = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/omcl_client.py");
+    let mut child = Command::new("python3")
+        .arg(&client)
+        .args(["--target", &server.grpc.to_string(), "--map", "room"])
+        .args(["--sequence", s(&f.seq), "--particles", "20000"])
+        .env("OMCL_TOKEN", TOKEN)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut first = String::new();
+    out.read_line(&mut first).unwrap();
+    assert!(first.starts_with("frame 000000 "), "{first:?}");
+    let rest = std::thread::spawn(move || {
+        let mut s = first;
+        let _ = out.read_to_string(&mut s);
+        s
+    });
+    (child, rest)
+}
+
+/// SIGINT or SIGTERM by the `kill` command.
+fn kill(pid: u32, signal: &str) {
+    let st = Command::new("kill")
+        .args([&format!("-{signal}"), &pid.to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+}
+
+/// Ctrl-C (SIGINT) and SIGTERM end the client quietly, 130 and 143 (a
+/// KeyboardInterrupt traceback before), its session closed first; when
+/// the server shuts down, the client says so with the poses it received.
+#[test]
+fn python_client_closes_its_session_on_signals_and_counts_poses_at_shutdown() {
+    let f = Fixture::with_features();
+    let mut server = Server::start(&f, &[]);
+    for (signal, code) in [("INT", 130), ("TERM", 143)] {
+        let (child, rest) = client_mid_stream(&server, &f);
+        kill(child.id(), signal);
+        let r = child.wait_with_output().unwrap();
+        let (stdout, stderr) = (rest.join().unwrap(), String::from_utf8_lossy(&r.stderr));
+        assert_eq!(r.status.code(), Some(code), "{stdout}\n{stderr}");
+        assert!(!stderr.contains("Traceback"), "{stderr}");
+        // Closed by the client before it exited (it idles out in 300 s).
+        assert_eq!(server.metric("omcl_sessions"), "0", "SIG{signal}");
+    }
+    let (child, rest) = client_mid_stream(&server, &f);
+    server.signal("TERM");
+    let r = child.wait_with_output().unwrap();
+    let (stdout, stderr) = (rest.join().unwrap(), String::from_utf8_lossy(&r.stderr));
+    assert_eq!(r.status.code(), Some(1), "{stdout}\n{stderr}");
+    let poses = stdout.lines().filter(|l| l.starts_with("frame ")).count();
+    assert!(
+        stderr.contains("UNAVAILABLE: the server is shutting down")
+            && stderr.contains(&format!("after {poses} poses from session")),
+        "{stdout}\n{stderr}"
+    );
+    assert!(!stderr.contains("Traceback"), "{stderr}");
+    assert!(
+        server
+            .wait_exit(std::time::Duration::from_secs(120))
+            .success()
+    );
+}
+
+/// Where .deps/pyproto cannot be made (here .deps is a file), the stubs
+/// go to $XDG_CACHE_HOME/omcl/pyproto/, one folder per .proto content, and
+/// the client runs.
+#[test]
+fn python_client_writes_its_stubs_to_the_user_cache_when_deps_is_not_writable() {
+    let f = Fixture::with_features();
+    let server = Server::start(&f, &[]);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let copy = f.dir.path().join("checkout");
+    std::fs::create_dir_all(copy.join("tools")).unwrap();
+    std::fs::create_dir_all(copy.join("proto")).unwrap();
+    std::fs::copy(
+        root.join("tools/omcl_client.py"),
+        copy.join("tools/omcl_client.py"),
+    )
+    .unwrap();
+    std::fs::copy(root.join("proto/omcl.proto"), copy.join("proto/omcl.proto")).unwrap();
+    std::fs::write(copy.join(".deps"), "not a folder").unwrap();
+    let cache = f.dir.path().join("cache");
+    let r = Command::new("python3")
+        .arg(copy.join("tools/omcl_client.py"))
+        .args(["--target", &server.grpc.to_string(), "--map", "room"])
+        .args(["--sequence", s(&f.seq), "--frames", "1"])
+        .env("OMCL_TOKEN", TOKEN)
+        .env("XDG_CACHE_HOME", &cache)
+        .env("PYTHONPATH", root.join(".deps/python"))
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&r.stdout),
+        String::from_utf8_lossy(&r.stderr),
+    );
+    assert!(r.status.success(), "{stdout}\n{stderr}");
+    assert_eq!(client_poses(&stdout).len(), 1, "{stdout}");
+    let dirs: Vec<_> = std::fs::read_dir(cache.join("omcl/pyproto"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(dirs.len(), 1, "{dirs:?}");
+    assert!(dirs[0].join("omcl_pb2_grpc.py").exists(), "{dirs:?}");
+}

@@ -3,13 +3,15 @@
 
 The gRPC stubs are generated from the project's proto/omcl.proto with
 grpcio-tools the first time they are needed (into .deps/pyproto/, never
-committed). grpcio and grpcio-tools come from PyPI: `make deps`
+committed, or $XDG_CACHE_HOME/omcl/pyproto/ when that cannot be written). grpcio and grpcio-tools come from PyPI: `make deps`
 (tools/setup.sh) installs them into .deps/python/.
 
 As a library:
 
     client = OmclClient("127.0.0.1:50051", token)
     sid = client.create_session("room", camera, initial_pose=(t, q))
+    # or, with the server's warnings about the start (a pose outside the map):
+    r = client.open_session("room", camera, initial_pose=(t, q)); r.warnings
     for update in client.stream(frames):  # dicts, see frame()
         print(update.pose.pose.pose.position)
 
@@ -33,6 +35,7 @@ import array
 import ast
 import os
 import queue
+import signal
 import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -41,36 +44,65 @@ DEPS = os.path.join(ROOT, ".deps", "python")
 STUBS = os.path.join(ROOT, ".deps", "pyproto")
 
 
+def stubs_fresh(d, proto):
+    out = os.path.join(d, "omcl_pb2_grpc.py")
+    return os.path.exists(out) and os.path.getmtime(out) >= os.path.getmtime(proto)
+
+
+def user_stubs_dir(proto):
+    """A per-user cache for the stubs ($XDG_CACHE_HOME/omcl/pyproto, else
+    ~/.cache/...), one folder per .proto content so that checkouts of
+    different versions do not share stubs."""
+    import hashlib
+
+    with open(proto, "rb") as f:
+        digest = hashlib.sha256(f.read()).hexdigest()[:16]
+    cache = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(cache, "omcl", "pyproto", digest)
+
+
+def writable_dir(d):
+    try:
+        os.makedirs(d, exist_ok=True)
+    except OSError:
+        return False
+    return os.access(d, os.W_OK)
+
+
 def load_stubs():
     """Imports omcl_pb2 and omcl_pb2_grpc, generating them when missing or
-    older than the .proto."""
+    older than the .proto: into .deps/pyproto/, or into a per-user cache
+    when that cannot be written (a read-only checkout or install)."""
     if os.path.isdir(DEPS) and DEPS not in sys.path:
         sys.path.insert(0, DEPS)
     proto = os.path.join(PROTO_DIR, "omcl.proto")
-    out = os.path.join(STUBS, "omcl_pb2_grpc.py")
-    if not os.path.exists(out) or os.path.getmtime(out) < os.path.getmtime(proto):
+    stubs = STUBS
+    if not stubs_fresh(stubs, proto) and not writable_dir(stubs):
+        stubs = user_stubs_dir(proto)
+    if not stubs_fresh(stubs, proto):
         try:
             from grpc_tools import protoc
         except ImportError:
             sys.exit("omcl_client: grpcio-tools is missing: run `make deps` (tools/setup.sh)")
         import importlib.resources
 
-        os.makedirs(STUBS, exist_ok=True)
+        if not writable_dir(stubs):
+            sys.exit(f"omcl_client: cannot write the generated stubs into {STUBS} nor {stubs}")
         well_known = str(importlib.resources.files("grpc_tools") / "_proto")
         rc = protoc.main(
             [
                 "protoc",
                 f"-I{PROTO_DIR}",
                 f"-I{well_known}",
-                f"--python_out={STUBS}",
-                f"--grpc_python_out={STUBS}",
+                f"--python_out={stubs}",
+                f"--grpc_python_out={stubs}",
                 proto,
             ]
         )
         if rc != 0:
             sys.exit(f"omcl_client: protoc failed on {proto} ({rc})")
-    if STUBS not in sys.path:
-        sys.path.insert(0, STUBS)
+    if stubs not in sys.path:
+        sys.path.insert(0, stubs)
     import omcl_pb2
     import omcl_pb2_grpc
 
@@ -112,10 +144,16 @@ class OmclClient:
     def list_sessions(self):
         return self.stub.ListSessions(pb.ListSessionsRequest(), metadata=self.metadata).sessions
 
-    def create_session(self, map_name, camera, initial_pose=None, prompt=None,
-                       particles=None, rays=None, seed=0, recovery=False,
-                       early_reject=False, ground=False, filter_name=""):
-        """camera: (fx, fy, cx, cy, width, height); initial_pose: (t, q);
+    def create_session(self, map_name, camera, **kw):
+        """The new session's id; see open_session."""
+        return self.open_session(map_name, camera, **kw).session_id
+
+    def open_session(self, map_name, camera, initial_pose=None, prompt=None,
+                     particles=None, rays=None, seed=0, recovery=False,
+                     early_reject=False, ground=False, filter_name=""):
+        """A CreateSessionResponse: session_id, and warnings about the
+        start (a pose from which the camera cannot see the map).
+        camera: (fx, fy, cx, cy, width, height); initial_pose: (t, q);
         prompt: words; neither: global localization. early_reject: two-pass
         likelihoods (omcl localize --early-reject); ground: the camera held
         at its start's height and tilt (omcl localize --ground); filter_name:
@@ -141,7 +179,7 @@ class OmclClient:
             req.prompt.words.extend(prompt)
         else:
             getattr(req, "global").SetInParent()  # `global` is a Python keyword
-        return self.stub.CreateSession(req, metadata=self.metadata).session_id
+        return self.stub.CreateSession(req, metadata=self.metadata)
 
     def close_session(self, session_id):
         return self.stub.CloseSession(
@@ -259,6 +297,8 @@ def main():
     a = ap.parse_args()
     if a.frames is not None and a.frames < 1:
         ap.error(f"--frames {a.frames}: give at least 1 (leave it out for every frame)")
+    # SIGTERM ends the run as Ctrl-C does: the session is closed first.
+    signal.signal(signal.SIGTERM, terminated)
     # One line for what went wrong, not a traceback: the server's status,
     # or the file that could not be read.
     try:
@@ -267,6 +307,19 @@ def main():
         sys.exit(f"omcl_client: {e.code().name}: {e.details()} (server {a.target})")
     except (OSError, ValueError) as e:
         sys.exit(f"omcl_client: {e}")
+    except KeyboardInterrupt:
+        sys.exit(130)
+    except Terminated:
+        sys.exit(143)
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised in the main thread (as KeyboardInterrupt is for
+    Ctrl-C) so that the session is closed on the way out."""
+
+
+def terminated(signum, frame):
+    raise Terminated()
 
 
 def run(a):
@@ -288,10 +341,13 @@ def run(a):
     n = min(len(gt), len(odom), a.frames if a.frames is not None else len(gt))
     camera = read_camera(a.sequence)
     init = None if a.global_ else (gt[0][1], gt[0][2])
-    sid = client.create_session(a.map, camera, initial_pose=init,
-                                particles=a.particles, rays=a.rays, seed=a.seed,
-                                early_reject=a.early_reject, ground=a.ground,
-                                filter_name=a.filter)
+    created = client.open_session(a.map, camera, initial_pose=init,
+                                  particles=a.particles, rays=a.rays, seed=a.seed,
+                                  early_reject=a.early_reject, ground=a.ground,
+                                  filter_name=a.filter)
+    sid = created.session_id
+    for w in created.warnings:
+        print(f"omcl_client: warning from the server: {w}", file=sys.stderr)
 
     # One frame at a time through the stream: the next frame is sent once
     # the previous one is answered, so none is dropped (a camera sending at
@@ -324,8 +380,9 @@ def run(a):
             answered.get()
 
     count, refused = 0, 0
+    call = client.stream(frames())
     try:
-        for r in client.stream(frames()):
+        for r in call:
             i, path = sent.get()
             answered.put(True)
             if r.HasField("error"):
@@ -339,9 +396,16 @@ def run(a):
                   f"{t.x!r} {t.y!r} {t.z!r} {q.x!r} {q.y!r} {q.z!r} {q.w!r} "
                   f"confidence {r.pose.confidence:.3f} step_ms {r.pose.step_ms:.1f}", flush=True)
             count += 1
+    except grpc.RpcError as e:
+        if e.code() == grpc.StatusCode.UNAVAILABLE:
+            sys.exit(f"omcl_client: UNAVAILABLE: {e.details()} (server {a.target}), after "
+                     f"{count} poses from session {sid}")
+        raise
     finally:
-        # The session is the server's to expire if it has gone meanwhile
-        # (the stream's own error is the one to report).
+        # Also on Ctrl-C and SIGTERM. The session is the server's to expire
+        # if it has gone meanwhile (the stream's own error is the one to
+        # report).
+        call.cancel()
         try:
             client.close_session(sid)
         except grpc.RpcError:
