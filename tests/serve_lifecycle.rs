@@ -20,12 +20,22 @@ async fn wait_until(what: &str, mut cond: impl FnMut() -> bool) {
     }
 }
 
-/// A session whose steps take seconds on any host (65,000 particles x
-/// 2048 pixels, just under the default --max-rays-per-step).
+/// A sequence of 320 x 240 frames, so that a session may sample 65,536
+/// pixels.
+fn wide_fixture() -> Fixture {
+    Fixture::sized(320, 240, 2, 2, "0.1", &[])
+}
+
+/// A session of `wide_fixture` whose steps are long (2048 particles x
+/// 65,536 pixels, the default --max-rays-per-step: 0.4 s on one core of
+/// the 2026 Xeon this was written on) while it starts at once (2.5 ms: its
+/// cost is the particles'): with `--threads 1` its step outlasts a deadline
+/// or drain timeout of 0.05 s eightfold, which its CreateSession is far
+/// from.
 async fn very_slow_session(c: &mut Client, f: &Fixture) -> String {
     let mut req = f.create(0);
-    req.particles = Some(65_000);
-    req.rays = Some(2048);
+    req.particles = Some(2048);
+    req.rays = Some(65_536);
     c.create_session(req).await.unwrap().into_inner().session_id
 }
 
@@ -35,8 +45,8 @@ async fn very_slow_session(c: &mut Client, f: &Fixture) -> String {
 /// as `abandoned` when the step, which cannot be stopped, ends.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_step_past_the_deadline_is_deadline_exceeded_and_counted() {
-    let f = Fixture::new();
-    let server = Server::start(&f, &["--deadline-s", "0.2"]);
+    let f = wide_fixture();
+    let server = Server::start(&f, &["--deadline-s", "0.05", "--threads", "1"]);
     let mut c = server.client(Auth::good()).await;
     let id = very_slow_session(&mut c, &f).await;
     let e = c.localize(f.frame(&id, 0)).await.unwrap_err();
@@ -104,7 +114,7 @@ fn log_line(log: &str, what: &str) -> String {
 /// and the drain's end.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_http_plane_answers_through_the_drain_and_the_log_tells_it() {
-    let f = Fixture::new();
+    let f = wide_fixture();
     let log = f.dir.path().join("serve.log");
     let mut server = Server::start_logged(
         &f,
@@ -115,6 +125,8 @@ async fn the_http_plane_answers_through_the_drain_and_the_log_tells_it() {
             "600",
             "--deadline-s",
             "600",
+            "--threads",
+            "1",
         ],
         &log,
     );
@@ -172,15 +184,22 @@ async fn the_http_plane_answers_through_the_drain_and_the_log_tells_it() {
 }
 
 /// A second signal during the drain ends it at once: a non-zero exit and
-/// a line saying the step was abandoned (the step takes seconds; a drain
-/// that waited for it would exit 0).
+/// a line saying the step was abandoned (a drain that waited for the step
+/// would exit 0).
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_second_signal_ends_the_drain_at_once() {
-    let f = Fixture::new();
+    let f = wide_fixture();
     let log = f.dir.path().join("serve.log");
     let mut server = Server::start_logged(
         &f,
-        &["--drain-timeout-s", "600", "--deadline-s", "600"],
+        &[
+            "--drain-timeout-s",
+            "600",
+            "--deadline-s",
+            "600",
+            "--threads",
+            "1",
+        ],
         &log,
     );
     let c = server.client(Auth::good()).await;
@@ -201,11 +220,18 @@ async fn a_second_signal_ends_the_drain_at_once() {
 /// line naming --drain-timeout-s and the step abandoned.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_drain_timeout_abandons_the_step_and_says_so() {
-    let f = Fixture::new();
+    let f = wide_fixture();
     let log = f.dir.path().join("serve.log");
     let mut server = Server::start_logged(
         &f,
-        &["--drain-timeout-s", "0.05", "--deadline-s", "600"],
+        &[
+            "--drain-timeout-s",
+            "0.05",
+            "--deadline-s",
+            "600",
+            "--threads",
+            "1",
+        ],
         &log,
     );
     let c = server.client(Auth::good()).await;
