@@ -392,7 +392,7 @@ fn a_kitti_sequence_without_poses_localizes_from_odometry_and_a_start() {
     );
     assert!(r.ok(), "{}", r.text());
     for needle in [
-        "warning: from the start pose",
+        "warning: --init-pose: from the start pose (at",
         "of the camera's view meets the map",
         "--init-pose-frame poses",
     ] {

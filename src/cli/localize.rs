@@ -938,36 +938,15 @@ fn start_advice(
             );
         }
     }
-    let range = match config.filter.sensor.max_range {
-        r if r.is_finite() => r as f64,
-        _ => 100.0,
-    };
-    let share = shared.view_share(pose, &config.intrinsics, range);
-    if share < omcl::session::BLIND_START_SHARE {
+    if let Some(b) = omcl::session::blind_start(shared, pose, config) {
         let source = if a.init_pose.is_some() {
             "--init-pose"
         } else {
             "the first ground-truth pose"
         };
-        let bounds = shared
-            .map()
-            .world_bounds()
-            .map(|(lo, hi)| {
-                format!(
-                    " (its voxels span x {:.1} to {:.1}, y {:.1} to {:.1}, z {:.1} to {:.1} m)",
-                    lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
-                )
-            })
-            .unwrap_or_default();
-        let t = pose.translation.vector;
         eprintln!(
-            "warning: from the start pose ({source}, at {:.2} {:.2} {:.2} m) {:.0} % of the \
-             camera's view meets the map within {range:.0} m{bounds}; every ray that misses \
-             scores alike, so the filter cannot find the camera. Is the pose {frame}?",
-            t.x,
-            t.y,
-            t.z,
-            100.0 * share
+            "warning: {source}: {b}; every ray that misses scores alike, so the filter cannot \
+             find the camera. Is the pose {frame}?"
         );
     }
 }

@@ -12,7 +12,7 @@ use tonic::{Request, Response, Status, Streaming};
 
 use crate::geometry::{Intrinsics, Pose};
 use crate::mcl::{FilterConfig, FilterPreset};
-use crate::session::{BLIND_START_SHARE, Session, SessionConfig, SharedMap, Start};
+use crate::session::{Session, SessionConfig, SharedMap, Start};
 
 use super::auth::{MISPLACED, Token};
 use super::convert;
@@ -114,40 +114,16 @@ impl Service {
 }
 
 /// The warning for a start pose from which the camera cannot see the map
-/// (under [`BLIND_START_SHARE`] of its view meets it, as `omcl localize`
-/// warns): outside the map, facing away, or in another frame.
+/// ([`crate::session::blind_start`], as `omcl localize` warns).
 fn blind_start(map: &SharedMap, pose: &Pose, config: &SessionConfig) -> Option<String> {
-    // An unbounded sensor is looked at to 100 m, as `omcl localize` does.
-    let range = match config.filter.sensor.max_range {
-        r if r.is_finite() => f64::from(r),
-        _ => 100.0,
-    };
-    let share = map.view_share(pose, &config.intrinsics, range);
-    if share >= BLIND_START_SHARE {
-        return None;
-    }
-    let bounds = map
-        .map()
-        .world_bounds()
-        .map(|(lo, hi)| {
-            format!(
-                " (its voxels span x {:.1} to {:.1}, y {:.1} to {:.1}, z {:.1} to {:.1} m)",
-                lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
-            )
-        })
-        .unwrap_or_default();
-    let t = pose.translation.vector;
-    Some(format!(
-        "from the start pose (at {:.2} {:.2} {:.2} m) {:.0} % of the camera's view meets map \
-         {} within {range:.0} m{bounds}; every ray that misses scores alike, so the filter \
-         cannot find the camera, and its confidence stays high. Is the pose the camera's, in \
-         the map's frame?",
-        t.x,
-        t.y,
-        t.z,
-        100.0 * share,
-        convert::quoted(map.name()),
-    ))
+    crate::session::blind_start(map, pose, config).map(|b| {
+        format!(
+            "map {}: {b}; every ray that misses scores alike, so the filter cannot find the \
+             camera, and its confidence stays high. Is the pose the camera's, in the map's \
+             frame?",
+            convert::quoted(map.name()),
+        )
+    })
 }
 
 /// A session's start for the log: its kind, and where or what.

@@ -292,6 +292,63 @@ impl SharedMap {
 /// localize`, `omcl serve`): the filter cannot find the camera from it.
 pub const BLIND_START_SHARE: f64 = 0.05;
 
+/// The start of a session whose camera sees almost none of the map
+/// ([`blind_start`]): what it sees and where the map is, for a warning.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BlindStart {
+    /// The share of its view that meets the map.
+    pub share: f64,
+    /// How far it was looked, metres.
+    pub range_m: f64,
+    /// The start's position.
+    pub at: [f64; 3],
+    /// The box of the map's voxels ([`LanguageMap::world_bounds`]).
+    pub bounds: Option<([f64; 3], [f64; 3])>,
+}
+
+impl std::fmt::Display for BlindStart {
+    /// `from the start pose (at x y z m) N % of the camera's view meets
+    /// the map within R m (its voxels span ...)`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let [x, y, z] = self.at;
+        write!(
+            f,
+            "from the start pose (at {x:.2} {y:.2} {z:.2} m) {:.0} % of the camera's view meets \
+             the map within {:.0} m",
+            100.0 * self.share,
+            self.range_m
+        )?;
+        if let Some((lo, hi)) = self.bounds {
+            write!(
+                f,
+                " (its voxels span x {:.1} to {:.1}, y {:.1} to {:.1}, z {:.1} to {:.1} m)",
+                lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// Whether a start at `pose` leaves the camera blind to `map` (under
+/// [`BLIND_START_SHARE`] of its view meets it, looked at to the sensor's
+/// range or, unbounded, 100 m): outside the map, facing away from it, or
+/// given in another frame. Every ray then misses and scores alike, so
+/// the filter cannot find the camera, and its confidence stays high.
+pub fn blind_start(map: &SharedMap, pose: &Pose, config: &SessionConfig) -> Option<BlindStart> {
+    let range_m = match config.filter.sensor.max_range {
+        r if r.is_finite() => f64::from(r),
+        _ => 100.0,
+    };
+    let share = map.view_share(pose, &config.intrinsics, range_m);
+    let t = pose.translation.vector;
+    (share < BLIND_START_SHARE).then(|| BlindStart {
+        share,
+        range_m,
+        at: [t.x, t.y, t.z],
+        bounds: map.map().world_bounds(),
+    })
+}
+
 /// How a session places its particles.
 #[derive(Debug, Clone)]
 pub enum Start {
