@@ -864,12 +864,13 @@ fn open_session(
                 .map_err(|e| {
                     if is_kitti {
                         // A street's class table has no floor (its ground
-                        // is road, sidewalk, parking, ...).
-                        e.context(
+                        // is road, sidewalk, parking, ...): the reason is
+                        // the idea, not the missing word.
+                        anyhow::anyhow!(
                             "--init global, --init prompt and --recovery place cameras on the \
-                             map's floor, an indoor idea; on a KITTI sequence start from a pose \
-                             (--init local, the default: the first ground-truth pose or \
-                             --init-pose)",
+                             map's floor, an indoor idea (a street's classes have no \"floor\"); \
+                             on a KITTI sequence start from a pose (--init local, the default: \
+                             the first ground-truth pose or --init-pose)"
                         )
                     } else {
                         e
