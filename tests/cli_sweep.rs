@@ -459,6 +459,16 @@ fn a_manifest_edited_by_hand_is_named() {
             "{cmd}: {text}"
         );
     }
+    // A count edited to a billion is refused without planning it.
+    let mut ls: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+    ls[0] = lines[0].replace("\"sequences\":3", "\"sequences\":1000000000");
+    write(&ls);
+    let (o, text) = omcl(&["sweep", "status", e]);
+    assert!(!o.status.success(), "{text}");
+    assert!(
+        text.contains("names 1000000000 sequences, more than the 3 run lines"),
+        "{text}"
+    );
     // Fewer particles in the header than the runs were planned with: each
     // run line is then not one the header plans.
     let mut ls: Vec<String> = lines.iter().map(|l| l.to_string()).collect();

@@ -183,6 +183,19 @@ async fn the_http_plane_answers_through_the_drain_and_the_log_tells_it() {
     assert!(text.lines().count() <= 8, "{text}");
 }
 
+/// A server on one thread whose drain waits `timeout_s` and whose calls
+/// never meet the deadline.
+fn drain_args(timeout_s: &str) -> [&str; 6] {
+    [
+        "--drain-timeout-s",
+        timeout_s,
+        "--deadline-s",
+        "600",
+        "--threads",
+        "1",
+    ]
+}
+
 /// A second signal during the drain ends it at once: a non-zero exit and
 /// a line saying the step was abandoned (a drain that waited for the step
 /// would exit 0).
@@ -190,18 +203,7 @@ async fn the_http_plane_answers_through_the_drain_and_the_log_tells_it() {
 async fn a_second_signal_ends_the_drain_at_once() {
     let f = wide_fixture();
     let log = f.dir.path().join("serve.log");
-    let mut server = Server::start_logged(
-        &f,
-        &[
-            "--drain-timeout-s",
-            "600",
-            "--deadline-s",
-            "600",
-            "--threads",
-            "1",
-        ],
-        &log,
-    );
+    let mut server = Server::start_logged(&f, &drain_args("600"), &log);
     let c = server.client(Auth::good()).await;
     let (_, _call) = step_in_flight(&server, &c, &f).await;
     server.signal("TERM");
@@ -222,18 +224,7 @@ async fn a_second_signal_ends_the_drain_at_once() {
 async fn a_drain_timeout_abandons_the_step_and_says_so() {
     let f = wide_fixture();
     let log = f.dir.path().join("serve.log");
-    let mut server = Server::start_logged(
-        &f,
-        &[
-            "--drain-timeout-s",
-            "0.05",
-            "--deadline-s",
-            "600",
-            "--threads",
-            "1",
-        ],
-        &log,
-    );
+    let mut server = Server::start_logged(&f, &drain_args("0.05"), &log);
     let c = server.client(Auth::good()).await;
     let (_, _call) = step_in_flight(&server, &c, &f).await;
     server.signal("TERM");

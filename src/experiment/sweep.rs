@@ -243,6 +243,20 @@ fn check_against_header(
     lines: &mut [ManifestLine],
 ) -> Result<(), (usize, String)> {
     let again = "plan the sweep again (`omcl sweep plan`)";
+    // Every sequence is at least one run: a header that names more
+    // sequences than the file has lines cannot be the lines' (and is not
+    // planned: a count edited to a billion would plan a billion runs).
+    if header.bench.sequences > lines.len() as u64 {
+        return Err((
+            1,
+            format!(
+                "the header names {} sequences, more than the {} run lines below it: the \
+                 header or the lines were edited; {again}",
+                header.bench.sequences,
+                lines.len()
+            ),
+        ));
+    }
     let planned = plan(&header.bench).map_err(|e| (1, format!("its header plans no runs: {e}")))?;
     let planned: HashMap<&str, &RunEntry> = planned.iter().map(|e| (e.id.as_str(), e)).collect();
     let mut seen: HashMap<String, usize> = HashMap::new();
