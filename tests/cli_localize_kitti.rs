@@ -156,6 +156,8 @@ fn a_short_street_localizes_in_kitti_layout() {
     let r = f.localize(&f.map, &f.seq, &out, &["--metrics", s(&metrics)]);
     assert!(r.ok(), "{}", r.text());
     assert!(r.stdout.contains("rotation error mean"), "{}", r.text());
+    // The map is this drive's: no warning about the first LiDAR scan.
+    assert!(!r.stderr.contains("LiDAR scan"), "{}", r.text());
     // The estimate is written as KITTI camera-0 poses in poses.txt's frame.
     let est = kitti_rows(&out);
     let gt = kitti_rows(&f.seq.join("poses.txt"));
@@ -569,4 +571,54 @@ fn odometry_that_does_not_fit_the_frames_is_noted() {
     let out = f.dir.path().join("no_times.est");
     let r = f.localize(&f.map, &f.seq, &out, &[]);
     assert!(r.ok() && r.stderr.contains("no times.txt"), "{}", r.text());
+}
+
+/// Another street's map (another seed of the simulator, the same layout
+/// along the same path): the run goes on, with a warning that the first
+/// LiDAR scan does not fit the map, naming it (see
+/// `omcl::session::scan_fit`; the right map is checked in
+/// `a_short_street_localizes_in_kitti_layout`).
+#[test]
+fn another_streets_map_is_warned_about_from_the_first_lidar_scan() {
+    let f = Street::new(3);
+    let other = f.dir.path().join("other");
+    let r = omcl(&[
+        "sim",
+        "outdoor",
+        "--out",
+        s(&other),
+        "--seed",
+        "4",
+        "--frames",
+        "3",
+        "--resolution",
+        "0.2",
+        "--azimuth-steps",
+        "512",
+    ]);
+    assert!(r.ok(), "{}", r.text());
+    let out = f.dir.path().join("est.txt");
+    let seq = other.join("sequences/00");
+    let r = f.localize(&f.map, &seq, &out, &[]);
+    assert!(r.ok(), "{}", r.text());
+    let warning = r
+        .stderr
+        .lines()
+        .find(|l| l.contains("first LiDAR scan"))
+        .unwrap_or_else(|| panic!("no warning:\n{}", r.text()));
+    assert!(warning.starts_with("warning: "), "{warning}");
+    assert!(warning.contains(s(&f.map)), "{warning}");
+    assert!(warning.contains("this sequence's map"), "{warning}");
+    // Its share is printed: below the 50 % a map must reach.
+    let pct: f64 = warning
+        .split(" % of its")
+        .next()
+        .and_then(|a| a.rsplit(' ').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{warning}"));
+    assert!(pct < 50.0, "{warning}");
+    // The same street's own map: no warning.
+    let r = f.localize(&f.map, &f.seq, &out, &[]);
+    assert!(r.ok(), "{}", r.text());
+    assert!(!r.stderr.contains("LiDAR scan"), "{}", r.text());
 }

@@ -888,7 +888,7 @@ fn open_session(
         ground: a.ground,
     };
     if let Start::Pose { pose, .. } = &start {
-        start_advice(a, &shared, pose, &config, gt, is_kitti);
+        start_advice(a, &shared, pose, &config, inputs)?;
     }
     Session::new(shared, config, &start).map_err(|e| match e {
         SessionError::Init(e) => match &a.prompt {
@@ -914,9 +914,9 @@ fn start_advice(
     shared: &SharedMap,
     pose: &Pose,
     config: &SessionConfig,
-    gt: Option<&Trajectory>,
-    is_kitti: bool,
-) {
+    inputs: &CameraSequence,
+) -> anyhow::Result<()> {
+    let (gt, is_kitti) = (inputs.ground_truth.as_ref(), inputs.kitti.is_some());
     let frame = match (is_kitti, a.init_pose_frame) {
         (true, PoseFrameArg::Map) => {
             "camera 2 in the map's frame, the first scan's LiDAR's (--init-pose-frame poses \
@@ -949,7 +949,29 @@ fn start_advice(
             "warning: {source}: {b}; every ray that misses scores alike, so the filter cannot \
              find the camera. Is the pose {frame}?"
         );
+    } else if let Some(fit) = match shared.is_level() {
+        // A floor plan has no 3-D voxels to meet.
+        true => None,
+        false => inputs.first_scan_fit(shared.map(), pose)?,
+    } && fit.misfit()
+    {
+        let (source, question) = match a.init_pose {
+            Some(_) => ("--init-pose", format!(", and is the pose {frame}")),
+            None => ("the first ground-truth pose", String::new()),
+        };
+        eprintln!(
+            "warning: the first LiDAR scan (velodyne/000000.bin) placed at {source}: {:.0} % \
+             of its {} points {} m and more above the road lie in or next to the map's voxels \
+             ({:.1} m nodes), where a map of this drive holds 90 % and more. Is {} this \
+             sequence's map{question}?",
+            100.0 * fit.share,
+            fit.points,
+            omcl::session::scan_fit::FIT_ABOVE_GROUND_M,
+            fit.cell_m,
+            a.map.display(),
+        );
     }
+    Ok(())
 }
 
 /// The estimates, the `--diagnostics` CSV, and the filter's and the

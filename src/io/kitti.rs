@@ -214,6 +214,10 @@ pub fn parse_calib(text: &str, path: &Path) -> Result<KittiCalib, CloudError> {
     })
 }
 
+/// Height of the KITTI car's Velodyne above the road, metres (the
+/// dataset's set-up description: 1.73 m).
+pub const VELODYNE_HEIGHT_M: f64 = 1.73;
+
 /// Image size of KITTI odometry sequences 00 to 02 (camera 2), pixels.
 pub const KITTI_IMAGE_SIZE: (u32, u32) = (1241, 376);
 

@@ -26,6 +26,7 @@
 pub mod floorplan;
 pub mod frames;
 pub mod ground;
+pub mod scan_fit;
 pub mod sequence;
 
 use std::path::Path;

@@ -432,6 +432,34 @@ impl CameraSequence {
         Ok(remarks)
     }
 
+    /// How the first frame's LiDAR scan, placed where `start` (camera 2 of
+    /// frame 0 in the map's frame) puts it, meets `map`
+    /// ([`super::scan_fit`]): `Ok(None)` for a folder that is not KITTI's,
+    /// has no `velodyne/000000.bin`, or whose scan has too few points to
+    /// tell. A scan that cannot be read is an error naming it.
+    pub fn first_scan_fit(
+        &self,
+        map: &crate::map::LanguageMap,
+        start: &Pose,
+    ) -> Result<Option<super::scan_fit::ScanFit>, SequenceError> {
+        let Some(k) = &self.kitti else {
+            return Ok(None);
+        };
+        let path = k.dir.join("velodyne").join("000000.bin");
+        if !path.is_file() {
+            return Ok(None);
+        }
+        let scan = crate::io::kitti::read_velodyne_bin(&path)?;
+        // Camera 2 from the LiDAR: camera 2 from camera 0, then Tr.
+        let camera_from_lidar = k.camera.camera0_from_camera.inverse() * k.calib.camera_from_lidar;
+        Ok(super::scan_fit::scan_fit(
+            map,
+            &(start * camera_from_lidar),
+            &scan.points,
+            crate::io::kitti::VELODYNE_HEIGHT_M,
+        ))
+    }
+
     /// The stamps of the first `n` frames (ground truth's, else indices).
     pub fn stamps(&self, n: usize) -> Vec<f64> {
         match &self.ground_truth {
