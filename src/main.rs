@@ -25,6 +25,8 @@ fn main() -> ExitCode {
             eprintln!("error: {}", chain_message(&e));
             if e.downcast_ref::<cli::CannotSucceed>().is_some() {
                 ExitCode::from(cli::EXIT_CANNOT_SUCCEED)
+            } else if e.downcast_ref::<cli::NotYet>().is_some() {
+                ExitCode::from(cli::EXIT_NOT_YET)
             } else {
                 ExitCode::FAILURE
             }

@@ -61,6 +61,13 @@ fn runs_are_idempotent_and_bad_input_names_the_run_and_file() {
         "{text}"
     );
     assert!(text.contains("missing runs: 0-2"), "{text}");
+    // A script that must not collect before the sweep is whole.
+    let (o, text) = omcl(&["sweep", "status", &m, "--complete"]);
+    assert_eq!(o.status.code(), Some(2), "{text}");
+    assert!(
+        text.contains("error: the sweep is not complete: 3 of 3 runs missing"),
+        "{text}"
+    );
     // A results folder that is not there (a typo) is named.
     let nowhere = dir.path().join("no_such_results");
     let (o, text) = omcl(&[
@@ -107,7 +114,8 @@ fn runs_are_idempotent_and_bad_input_names_the_run_and_file() {
         std::fs::read(result_file(dir.path(), &ids[1])).unwrap(),
         first
     );
-    let (_, text) = omcl(&["sweep", "status", &m]);
+    let (o, text) = omcl(&["sweep", "status", &m, "--complete"]);
+    assert!(o.status.success(), "{text}");
     assert!(
         text.contains("3 runs: 3 done, 0 failed, 0 missing"),
         "{text}"

@@ -147,6 +147,22 @@ impl std::error::Error for CannotSucceed {}
 /// The exit code of [`CannotSucceed`].
 pub const EXIT_CANNOT_SUCCEED: u8 = 3;
 
+/// Work not finished yet (`omcl sweep status --complete` with runs
+/// missing): the process exits 2, which a script tells from a failure (1).
+#[derive(Debug)]
+pub struct NotYet(pub String);
+
+impl std::fmt::Display for NotYet {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for NotYet {}
+
+/// The exit code of [`NotYet`].
+pub const EXIT_NOT_YET: u8 = 2;
+
 impl Cli {
     /// The command handles SIGINT and SIGTERM itself (`omcl serve`: a
     /// graceful shutdown).

@@ -104,6 +104,12 @@ pub struct StatusCmd {
     /// Result folder [default: MANIFEST's folder/results].
     #[arg(long)]
     pub results: Option<PathBuf>,
+    /// Exit non-zero (2) while runs are missing too (not run yet, or still
+    /// running), not only when runs failed (1): for a script or a Slurm
+    /// job that must not go on to `omcl sweep collect` before the sweep is
+    /// whole.
+    #[arg(long)]
+    pub complete: bool,
 }
 
 #[derive(Debug, Args)]
@@ -329,6 +335,15 @@ fn status(c: StatusCmd) -> anyhow::Result<()> {
         s.failed.len(),
         manifest.len()
     );
+    if c.complete && !s.missing.is_empty() {
+        return Err(super::NotYet(format!(
+            "the sweep is not complete: {} of {} runs missing (not run yet, or still running; \
+             `omcl sweep run` or `omcl sweep slurm` runs them)",
+            s.missing.len(),
+            manifest.len()
+        ))
+        .into());
+    }
     Ok(())
 }
 
