@@ -1069,9 +1069,9 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     let table = class_table(&a, &inputs, image.is_some(), m)?;
     let words = Words::new(&a, table.as_ref(), classes, m.db().dim())?;
     let source = odometry_source(&a, &inputs)?;
-    let odom = inputs.odometry(&source)?;
+    let read = inputs.odometry(&source)?;
     let n = inputs
-        .frames(odom.len(), a.frames)
+        .frames(read.poses.len(), a.frames)
         .map_err(|e| match &source {
             // Which file gave too few poses, and from where it was read.
             Odometry::File { path, first } => anyhow::Error::new(e).context(format!(
@@ -1080,7 +1080,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             )),
             Odometry::FromTruth(_) => anyhow::Error::new(e),
         })?;
-    for r in inputs.odometry_remarks(&source, n)? {
+    for r in inputs.odometry_remarks(&source, &read, n) {
         eprintln!("note: {r}");
     }
     if inputs.kitti.as_ref().is_some_and(|k| !k.times_in_file) {
@@ -1121,7 +1121,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         &mut session,
         &inputs,
         &mut source,
-        &odom[..n],
+        &read.poses[..n],
         &stamps,
         &mut |_| pb.inc(1),
     )?;

@@ -120,6 +120,16 @@ pub struct CameraSequence {
     pub sevenscenes: Option<SevenScenesFrames>,
 }
 
+/// Odometry poses of a sequence's frames ([`CameraSequence::odometry`]).
+#[derive(Debug, Clone)]
+pub struct OdometryPoses {
+    /// From the first frame on, in the map frame (camera 2 on KITTI).
+    pub poses: Vec<Pose>,
+    /// The pose file they were read from, whole (`None`: made from ground
+    /// truth).
+    pub file: Option<poses::PoseFile>,
+}
+
 impl CameraSequence {
     /// The folder `dir` in the layout it is in; on KITTI, `input` picks
     /// the camera-2 folder read; on 7-Scenes, `pick` the frames (the other
@@ -284,22 +294,28 @@ impl CameraSequence {
     }
 
     /// The odometry poses of the frames, in the map frame (camera 2 on
-    /// KITTI).
-    pub fn odometry(&self, odometry: &Odometry) -> Result<Vec<Pose>, SequenceError> {
+    /// KITTI), with the file they were read from (read once: its stamps
+    /// are [`CameraSequence::odometry_remarks`]' too).
+    pub fn odometry(&self, odometry: &Odometry) -> Result<OdometryPoses, SequenceError> {
         match odometry {
             Odometry::File { path, first } => {
-                let poses = poses::read_poses(path)?.trajectory.poses().to_vec();
-                if *first >= poses.len() {
+                let file = poses::read_poses(path)?;
+                let all = file.trajectory.poses();
+                if *first >= all.len() {
                     return Err(SequenceError::Input(format!(
                         "{}: --odom-first {first} is past its {} poses",
                         path.display(),
-                        poses.len()
+                        all.len()
                     )));
                 }
-                let poses = &poses[*first..];
-                Ok(match &self.kitti {
-                    Some(seq) => seq.camera2_in_map(poses),
-                    None => poses.to_vec(),
+                let own = &all[*first..];
+                let poses = match &self.kitti {
+                    Some(seq) => seq.camera2_in_map(own),
+                    None => own.to_vec(),
+                };
+                Ok(OdometryPoses {
+                    poses,
+                    file: Some(file),
                 })
             }
             Odometry::FromTruth(cfg) => {
@@ -319,7 +335,10 @@ impl CameraSequence {
                         self.dir.display()
                     ))
                 })?;
-                Ok(crate::sim::paths::odometry(g.poses(), &[], cfg))
+                Ok(OdometryPoses {
+                    poses: crate::sim::paths::odometry(g.poses(), &[], cfg),
+                    file: None,
+                })
             }
         }
     }
@@ -377,15 +396,16 @@ impl CameraSequence {
     /// from `first` on (a sequence cut from a longer drive needs
     /// `--odom-first`), and a TUM file whose stamps are not the frames'
     /// (rows are paired with frames by order, never by time).
+    /// `read` is what [`CameraSequence::odometry`] read for `odometry`.
     pub fn odometry_remarks(
         &self,
         odometry: &Odometry,
+        read: &OdometryPoses,
         n: usize,
-    ) -> Result<Vec<String>, SequenceError> {
-        let Odometry::File { path, first } = odometry else {
-            return Ok(Vec::new());
+    ) -> Vec<String> {
+        let (Odometry::File { path, first }, Some(file)) = (odometry, &read.file) else {
+            return Vec::new();
         };
-        let file = poses::read_poses(path)?;
         let rows = file.trajectory.len();
         let held = [
             self.kitti.as_ref().map(|s| s.len()),
@@ -429,7 +449,7 @@ impl CameraSequence {
                 ));
             }
         }
-        Ok(remarks)
+        remarks
     }
 
     /// How the first frame's LiDAR scan, placed where `start` (camera 2 of
