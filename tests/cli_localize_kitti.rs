@@ -621,4 +621,21 @@ fn another_streets_map_is_warned_about_from_the_first_lidar_scan() {
     let r = f.localize(&f.map, &f.seq, &out, &[]);
     assert!(r.ok(), "{}", r.text());
     assert!(!r.stderr.contains("LiDAR scan"), "{}", r.text());
+    // A damaged scan skips the check, not the run (the camera never
+    // reads it): a note names the file and the problem.
+    let scan = seq.join("velodyne/000000.bin");
+    let bytes = std::fs::read(&scan).unwrap();
+    std::fs::write(&scan, &bytes[..bytes.len() - 1]).unwrap();
+    std::fs::remove_file(&out).unwrap();
+    let r = f.localize(&f.map, &seq, &out, &[]);
+    assert!(r.ok(), "{}", r.text());
+    assert!(out.exists());
+    assert!(
+        r.stderr
+            .contains("note: the map was not checked against the first LiDAR scan")
+            && r.stderr.contains("000000.bin")
+            && r.stderr.contains("not a multiple of 16"),
+        "{}",
+        r.text()
+    );
 }

@@ -888,7 +888,7 @@ fn open_session(
         ground: a.ground,
     };
     if let Start::Pose { pose, .. } = &start {
-        start_advice(a, &shared, pose, &config, inputs)?;
+        start_advice(a, &shared, pose, &config, inputs);
     }
     Session::new(shared, config, &start).map_err(|e| match e {
         SessionError::Init(e) => match &a.prompt {
@@ -908,14 +908,16 @@ fn open_session(
 /// from the sequence's own first ground-truth pose, or a start from which
 /// the camera sees almost none of the map (outside it, or in another
 /// frame: every ray misses, all particles score alike, and the run goes
-/// nowhere while looking confident). Advice only; the run goes on.
+/// nowhere while looking confident), or on a KITTI sequence a map its
+/// first LiDAR scan does not fit there (another drive's map). Advice only;
+/// the run goes on.
 fn start_advice(
     a: &LocalizeArgs,
     shared: &SharedMap,
     pose: &Pose,
     config: &SessionConfig,
     inputs: &CameraSequence,
-) -> anyhow::Result<()> {
+) {
     let (gt, is_kitti) = (inputs.ground_truth.as_ref(), inputs.kitti.is_some());
     let frame = match (is_kitti, a.init_pose_frame) {
         (true, PoseFrameArg::Map) => {
@@ -952,7 +954,14 @@ fn start_advice(
     } else if let Some(fit) = match shared.is_level() {
         // A floor plan has no 3-D voxels to meet.
         true => None,
-        false => inputs.first_scan_fit(shared.map(), pose)?,
+        // The camera never uses the scan: one that cannot be read skips
+        // the check, not the run.
+        false => inputs
+            .first_scan_fit(shared.map(), pose)
+            .unwrap_or_else(|e| {
+                eprintln!("note: the map was not checked against the first LiDAR scan: {e}");
+                None
+            }),
     } && fit.misfit()
     {
         let (source, question) = match a.init_pose {
@@ -962,8 +971,9 @@ fn start_advice(
         eprintln!(
             "warning: the first LiDAR scan (velodyne/000000.bin) placed at {source}: {:.0} % \
              of its {} points {} m and more above the road lie in or next to the map's voxels \
-             ({:.1} m nodes), where a map of this drive holds 90 % and more. Is {} this \
-             sequence's map{question}?",
+             ({:.1} m nodes); in a map of this drive it is 90 % and more at the scan's true \
+             pose, over half within a metre or five degrees of it. Is {} this sequence's \
+             map{question}?",
             100.0 * fit.share,
             fit.points,
             omcl::session::scan_fit::FIT_ABOVE_GROUND_M,
@@ -971,7 +981,6 @@ fn start_advice(
             a.map.display(),
         );
     }
-    Ok(())
 }
 
 /// The estimates, the `--diagnostics` CSV, and the filter's and the
