@@ -63,7 +63,7 @@ fn runs_are_idempotent_and_bad_input_names_the_run_and_file() {
     assert!(text.contains("missing runs: 0-2"), "{text}");
     // A script that must not collect before the sweep is whole.
     let (o, text) = omcl(&["sweep", "status", &m, "--complete"]);
-    assert_eq!(o.status.code(), Some(2), "{text}");
+    assert_eq!(o.status.code(), Some(4), "{text}");
     assert!(
         text.contains("error: the sweep is not complete: 3 of 3 runs missing"),
         "{text}"
@@ -477,6 +477,47 @@ fn a_manifest_edited_by_hand_is_named() {
         text.contains("names 1000000000 sequences, more than the 3 run lines"),
         "{text}"
     );
+    // The ablations run on --ablation-sequences, whatever --sequences
+    // says: a plan of them alone with more sequences than runs is the
+    // planner's own (it was refused as edited), and an edited ablation
+    // count is refused as the sequences are.
+    let abl = dir.path().join("ablation.jsonl");
+    let a = abl.to_str().unwrap();
+    let (o, text) = omcl(&[
+        "sweep",
+        "plan",
+        "sampling",
+        "--sequences",
+        "30",
+        "--frames",
+        "4",
+        "-o",
+        a,
+    ]);
+    assert!(o.status.success(), "{text}");
+    let planned: usize = text
+        .split("planned ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{text}"));
+    assert!(planned < 30, "{text}");
+    let (o, text) = omcl(&["sweep", "status", a]);
+    assert!(o.status.success(), "{text}");
+    assert!(text.contains(&format!("{planned} runs: 0 done")), "{text}");
+    let abl_text = std::fs::read_to_string(&abl).unwrap();
+    let abl_header = abl_text.lines().next().unwrap();
+    let edited_abl = abl_header.replace("\"ablation_sequences\":3", "\"ablation_sequences\":100");
+    assert_ne!(edited_abl, abl_header, "{abl_header}");
+    std::fs::write(&abl, abl_text.replacen(abl_header, &edited_abl, 1)).unwrap();
+    let (o, text) = omcl(&["sweep", "status", a]);
+    assert!(!o.status.success(), "{text}");
+    assert!(
+        text.contains(&format!(
+            "names 100 ablation sequences, more than the {planned} run lines"
+        )),
+        "{text}"
+    );
     // Fewer particles in the header than the runs were planned with: each
     // run line is then not one the header plans.
     let mut ls: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
@@ -490,15 +531,20 @@ fn a_manifest_edited_by_hand_is_named() {
         text.contains("line 2") && text.contains("not a run the header (line 1) plans"),
         "{text}"
     );
-    // A line written twice.
+    // A line written twice, after two blank lines: the file's own line
+    // numbers are named (header 1, blanks 2 and 3, runs 4 to 6, the
+    // second copy of the second run 7).
     let mut ls: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+    ls.insert(1, String::new());
+    ls.insert(1, "  ".to_string());
     ls.push(lines[2].to_string());
     write(&ls);
     let (o, text) = omcl(&["sweep", "status", e]);
     assert_eq!(o.status.code(), Some(1), "{text}");
     assert!(
         text.contains("4 runs: 0 done, 1 failed, 3 missing")
-            && text.contains("a line written twice")
+            && text.contains("again (its line is 5): a line written twice")
+            && text.contains("line 7")
             && text.contains("it is a manifest line omcl cannot run: plan the sweep again"),
         "{text}"
     );

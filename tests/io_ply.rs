@@ -134,6 +134,13 @@ fn corrupt_header_and_garbage_name_file() {
     assert_err_names(read_ply(&p).unwrap_err(), &p, "vertex 1");
     let missing = d.path().join("missing.ply");
     assert_err_names(read_ply(&missing).unwrap_err(), &missing, "");
+    // An element without properties before the vertices takes no bytes in
+    // a binary file, whatever count it declares (2^64 - 1 looped for ever).
+    let p = d.path().join("empty_element.ply");
+    let header = "element junk 18446744073709551615\nelement vertex 1\nproperty float x\n\
+                  property float y\nproperty float z\n";
+    std::fs::write(&p, binary_ply(header, &le(&[1.0, 2.0, 3.0]))).unwrap();
+    assert_eq!(read_ply(&p).unwrap().points, vec![[1.0, 2.0, 3.0]]);
 }
 
 /// A binary little-endian PLY: `header` lines between `ply`/`format` and
@@ -183,6 +190,18 @@ fn non_finite_points_are_left_out_with_their_rows_and_a_note() {
         "{:?}",
         c.notes
     );
+    // Where they were, so that a `--features` file made for the whole file
+    // (a row a vertex) skips their rows as it does for withheld LAS points.
+    assert_eq!(c.left_out, vec![1, 2, 4, 5]);
+    let mut c = PointCloud {
+        features: None,
+        ..c
+    };
+    let npy = d.path().join("f.npy");
+    let rows: Vec<f32> = (0..6).flat_map(|i| [i as f32, 10.0 * i as f32]).collect();
+    omcl::io::npy::write_npy(&npy, &[6, 2], &rows).unwrap();
+    c.attach_features_npy(&npy).unwrap();
+    assert_eq!(c.features, Some((2, vec![0.0, 0.0, 3.0, 30.0])));
     // Binary, fixed records (the bulk decoder) and with a list property
     // (record by record): NaN and infinity alike.
     for with_list in [false, true] {
@@ -221,6 +240,7 @@ fn non_finite_points_are_left_out_with_their_rows_and_a_note() {
             "list {with_list}"
         );
         assert_eq!(c.labels, Some(vec![0, 30]), "list {with_list}");
+        assert_eq!(c.left_out, vec![1, 2], "list {with_list}");
         assert_eq!(note_count(&c, &p, &["2 of 4 vertices"]), 1, "{:?}", c.notes);
     }
     // Nothing but invalid points: empty, and said why.

@@ -148,7 +148,8 @@ impl std::error::Error for CannotSucceed {}
 pub const EXIT_CANNOT_SUCCEED: u8 = 3;
 
 /// Work not finished yet (`omcl sweep status --complete` with runs
-/// missing): the process exits 2, which a script tells from a failure (1).
+/// missing): the process exits 4, which a script tells from a failure (1),
+/// a run that cannot succeed (3) and a usage error (2, clap's).
 #[derive(Debug)]
 pub struct NotYet(pub String);
 
@@ -161,7 +162,7 @@ impl std::fmt::Display for NotYet {
 impl std::error::Error for NotYet {}
 
 /// The exit code of [`NotYet`].
-pub const EXIT_NOT_YET: u8 = 2;
+pub const EXIT_NOT_YET: u8 = 4;
 
 impl Cli {
     /// The command handles SIGINT and SIGTERM itself (`omcl serve`: a

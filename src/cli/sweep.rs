@@ -104,7 +104,7 @@ pub struct StatusCmd {
     /// Result folder [default: MANIFEST's folder/results].
     #[arg(long)]
     pub results: Option<PathBuf>,
-    /// Exit non-zero (2) while runs are missing too (not run yet, or still
+    /// Exit non-zero (4) while runs are missing too (not run yet, or still
     /// running), not only when runs failed (1): for a script or a Slurm
     /// job that must not go on to `omcl sweep collect` before the sweep is
     /// whole.

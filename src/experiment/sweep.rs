@@ -189,15 +189,16 @@ impl Manifest {
                 ),
             ));
         }
-        let mut out = Vec::new();
+        let (mut out, mut at) = (Vec::new(), Vec::new());
         for (i, l) in lines.enumerate() {
             let l = l.map_err(not_text)?;
             if l.trim().is_empty() {
                 continue;
             }
             out.push(parse_line(&l, i + 2));
+            at.push(i + 2);
         }
-        check_against_header(&header, &mut out).map_err(|(line, reason)| bad(line, reason))?;
+        check_against_header(&header, &mut out, &at).map_err(|(line, reason)| bad(line, reason))?;
         Ok(Manifest {
             path: path.to_path_buf(),
             header,
@@ -237,32 +238,43 @@ impl Manifest {
 /// collected under the header's title, so the two must agree): a second
 /// line of one run becomes a bad line; a run the header does not plan as
 /// written, or a planned run with no line, is an error (`(line, reason)`):
-/// the header or the lines were edited by hand.
+/// the header or the lines were edited by hand. `at` is each line's
+/// number in the file (blank lines are skipped).
 fn check_against_header(
     header: &SweepHeader,
     lines: &mut [ManifestLine],
+    at: &[usize],
 ) -> Result<(), (usize, String)> {
     let again = "plan the sweep again (`omcl sweep plan`)";
-    // Every sequence is at least one run: a header that names more
-    // sequences than the file has lines cannot be the lines' (and is not
-    // planned: a count edited to a billion would plan a billion runs).
-    if header.bench.sequences > lines.len() as u64 {
-        return Err((
-            1,
-            format!(
-                "the header names {} sequences, more than the {} run lines below it: the \
-                 header or the lines were edited; {again}",
-                header.bench.sequences,
-                lines.len()
-            ),
-        ));
+    // Every sequence of an experiment that runs on it is at least one run
+    // (the tables on `sequences`, the ablations on `ablation_sequences`):
+    // a header that names more than the file has lines cannot be the
+    // lines' (and is not planned: a count edited to a billion would plan a
+    // billion runs).
+    let b = &header.bench;
+    let tables = [Experiment::Table1, Experiment::Table2, Experiment::Table5];
+    let ablations = [Experiment::ParticlesRays, Experiment::Sampling];
+    let counts = [
+        (&tables[..], b.sequences, "sequences"),
+        (&ablations[..], b.ablation_sequences, "ablation sequences"),
+    ];
+    for (experiments, count, what) in counts {
+        if experiments.iter().any(|&e| b.wants(e)) && count > lines.len() as u64 {
+            return Err((
+                1,
+                format!(
+                    "the header names {count} {what}, more than the {} run lines below it: \
+                     the header or the lines were edited; {again}",
+                    lines.len()
+                ),
+            ));
+        }
     }
     let planned = plan(&header.bench).map_err(|e| (1, format!("its header plans no runs: {e}")))?;
     let planned: HashMap<&str, &RunEntry> = planned.iter().map(|e| (e.id.as_str(), e)).collect();
     let mut seen: HashMap<String, usize> = HashMap::new();
     let mut bad_lines = 0;
-    for (k, l) in lines.iter_mut().enumerate() {
-        let at = k + 2;
+    for (l, &at) in lines.iter_mut().zip(at) {
         let entry = match l {
             ManifestLine::Run(e) => e,
             // A bad line (an edited id, say) stands for one planned run.

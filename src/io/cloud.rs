@@ -90,7 +90,7 @@ pub struct PointCloud {
     /// these to the user.
     pub notes: Vec<String>,
     /// Where in the file the points the reader left out were (withheld
-    /// LAS points), ascending: per-point data made for the whole file (a
+    /// LAS points, PLY vertices with a non-finite coordinate), ascending: per-point data made for the whole file (a
     /// `--features` `.npy` with a row a point of the file) skips their
     /// rows ([`Self::attach_features_npy`]). Empty when none were.
     pub left_out: Vec<usize>,

@@ -396,8 +396,5 @@ fn is_withheld(record: &[u8], extended: bool) -> bool {
     }
 }
 
-/// The linear units of a LAS file's coordinates, from the coordinate
-/// reference system its records state: OGC WKT (`LASF_Projection` record
-/// 2112) or, without one, GeoTIFF keys (record 34735, doubles in 34736).
-/// Parsing only: no EPSG database, so a unit must be stated by the file.
+/// The units of a LAS file's coordinates (see the module's own page).
 mod crs;

@@ -385,6 +385,11 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, CloudError> {
     for (pos, (_, def)) in header.elements.iter().enumerate() {
         if pos < vertex_pos {
             // Elements before the vertices must be consumed to reach them.
+            // A binary element without properties takes no bytes, however
+            // many it declares (a count of 2^64 - 1 spun for ever here).
+            if def.properties.is_empty() && header.encoding != Encoding::Ascii {
+                continue;
+            }
             for i in 0..def.count {
                 read_one(&skip, &mut reader, def, header.encoding).map_err(|e| {
                     CloudError::format(path, format!("element '{}' {i}: {e}", def.name))
@@ -657,6 +662,8 @@ struct Columns {
     dim: usize,
     feats: Option<Vec<f32>>,
     tally: Tally,
+    /// File indices of the vertices left out ([`PointCloud::left_out`]).
+    left_out: Vec<usize>,
 }
 
 impl Columns {
@@ -673,14 +680,19 @@ impl Columns {
             dim,
             feats: (dim > 0).then(|| Vec::with_capacity(cap.saturating_mul(dim))),
             tally: Tally::default(),
+            left_out: Vec::new(),
         }
     }
 
-    /// Counts a vertex with a non-finite coordinate, which is left out;
-    /// true when `xyz` is to be kept.
+    /// Counts a vertex with a non-finite coordinate, which is left out
+    /// (its index in the file noted); true when `xyz` is to be kept.
+    /// Called once a vertex, in file order, before a kept one is pushed.
     fn keep(&mut self, xyz: &[f64; 3]) -> bool {
         let finite = xyz.iter().all(|c| c.is_finite());
-        self.tally.non_finite += usize::from(!finite);
+        if !finite {
+            self.left_out.push(self.points.len() + self.left_out.len());
+            self.tally.non_finite += 1;
+        }
         finite
     }
 
@@ -702,7 +714,7 @@ impl Columns {
             colors,
             features: self.feats.map(|f| (self.dim, f)),
             notes: Vec::new(),
-            left_out: Vec::new(),
+            left_out: self.left_out,
         };
         (cloud, self.tally)
     }
