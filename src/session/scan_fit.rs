@@ -77,7 +77,13 @@ pub fn scan_fit(
     let levels = (FIT_CELL_M / grid.resolution).log2().floor().max(0.0) as u32;
     let levels = levels.min(key::AXIS_BITS);
     let shift = 3 * levels;
-    let nodes = map.coarse_codes(levels);
+    // The leaves under a node are a contiguous run of the sorted codes: no
+    // copy of them (a full drive's map holds 10^8 leaves).
+    let codes = map.codes();
+    let occupied = |node: u64| {
+        let first = codes.partition_point(|&c| c >> shift < node);
+        codes.get(first).is_some_and(|&c| c >> shift == node)
+    };
     let z_min = FIT_ABOVE_GROUND_M - mount_height_m;
     let (r_lo, r_hi) = (FIT_RANGE_M[0].powi(2), FIT_RANGE_M[1].powi(2));
     let (mut counted, mut inside) = (0usize, 0usize);
@@ -99,7 +105,7 @@ pub fn scan_fit(
                 node[1] + k / 3 % 3 - 1,
                 node[2] + k / 9 - 1,
             ];
-            key::in_range(n) && nodes.binary_search(&key::encode(n)).is_ok()
+            key::in_range(n) && occupied(key::encode(n))
         });
         inside += usize::from(near);
     }
