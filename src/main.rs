@@ -23,12 +23,9 @@ fn main() -> ExitCode {
                 }
             }
             eprintln!("error: {}", chain_message(&e));
-            if e.downcast_ref::<cli::CannotSucceed>().is_some() {
-                ExitCode::from(cli::EXIT_CANNOT_SUCCEED)
-            } else if e.downcast_ref::<cli::NotYet>().is_some() {
-                ExitCode::from(cli::EXIT_NOT_YET)
-            } else {
-                ExitCode::FAILURE
+            match e.downcast_ref::<cli::Exit>() {
+                Some(exit) => ExitCode::from(exit.code),
+                None => ExitCode::FAILURE,
             }
         }
     }

@@ -131,38 +131,35 @@ pub const MAX_FRAMES: usize = 100_000;
 /// from `omcl serve`'s clients.
 pub use omcl::mcl::MAX_COUNT;
 
-/// An error no retry can mend (a sweep run's manifest line is unusable):
-/// the process exits 3, which a Slurm task does not requeue.
+/// An error with an exit code of its own, for scripts and batch systems
+/// to tell apart from a failure (1) and a usage error (2, clap's).
 #[derive(Debug)]
-pub struct CannotSucceed(pub String);
+pub struct Exit {
+    pub code: u8,
+    pub message: String,
+}
 
-impl std::fmt::Display for CannotSucceed {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
+impl Exit {
+    /// No retry can mend it (a sweep run's manifest line is unusable):
+    /// exit 3, which a Slurm task does not requeue.
+    pub fn cannot_succeed(message: String) -> Self {
+        Exit { code: 3, message }
+    }
+
+    /// Work not finished yet (`omcl sweep status --complete` with runs
+    /// missing): exit 4.
+    pub fn not_yet(message: String) -> Self {
+        Exit { code: 4, message }
     }
 }
 
-impl std::error::Error for CannotSucceed {}
-
-/// The exit code of [`CannotSucceed`].
-pub const EXIT_CANNOT_SUCCEED: u8 = 3;
-
-/// Work not finished yet (`omcl sweep status --complete` with runs
-/// missing): the process exits 4, which a script tells from a failure (1),
-/// a run that cannot succeed (3) and a usage error (2, clap's).
-#[derive(Debug)]
-pub struct NotYet(pub String);
-
-impl std::fmt::Display for NotYet {
+impl std::fmt::Display for Exit {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
+        f.write_str(&self.message)
     }
 }
 
-impl std::error::Error for NotYet {}
-
-/// The exit code of [`NotYet`].
-pub const EXIT_NOT_YET: u8 = 4;
+impl std::error::Error for Exit {}
 
 impl Cli {
     /// The command handles SIGINT and SIGTERM itself (`omcl serve`: a

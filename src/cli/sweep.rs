@@ -274,7 +274,7 @@ fn run_entries(c: RunCmd) -> anyhow::Result<()> {
     };
     if !failures.is_empty() && failures.iter().all(|(_, e)| hopeless(e)) {
         let (i, e) = &failures[0];
-        return Err(super::CannotSucceed(format!(
+        return Err(super::Exit::cannot_succeed(format!(
             "{} of {} runs cannot run (their manifest lines; a retry cannot mend them); the \
              first, run {i}: {e}",
             failures.len(),
@@ -336,7 +336,7 @@ fn status(c: StatusCmd) -> anyhow::Result<()> {
         manifest.len()
     );
     if c.complete && !s.missing.is_empty() {
-        return Err(super::NotYet(format!(
+        return Err(super::Exit::not_yet(format!(
             "the sweep is not complete: {} of {} runs missing (not run yet, or still running; \
              `omcl sweep run` or `omcl sweep slurm` runs them)",
             s.missing.len(),
