@@ -490,7 +490,16 @@ async fn caps_overload_idle_expiry_and_shutdown() {
         !stepping.is_finished(),
         "the close waited for the step to end"
     );
-    stepping.await.unwrap().unwrap();
+    // The gauge counts a step from its submission: on a loaded host the
+    // close can come before the pool's thread has begun it, and the frame
+    // is then answered NOT_FOUND at its turn, as CloseSession says.
+    match stepping.await.unwrap() {
+        Ok(_) => {}
+        Err(e) => assert!(
+            e.code() == Code::NotFound && e.message().contains("was closed"),
+            "{e:?}"
+        ),
+    }
 
     // Graceful shutdown: a step in flight is answered, then the process
     // exits by itself with status 0.
