@@ -359,6 +359,163 @@ async fn malformed_input_is_named_and_the_session_lives_on() {
     assert!(d < 0.6, "{d} m from the pose given");
 }
 
+/// Fixture frame `i`'s stamp as the server writes it.
+fn stamp_text(f: &Fixture, i: usize) -> String {
+    let (stamps, _) = f.poses("poses.txt");
+    let msg = header(stamps[i]).stamp.unwrap();
+    omcl::serve::stamp::Stamp::from_msg(&msg)
+        .unwrap()
+        .to_string()
+}
+
+/// The next answer of a stream within two minutes (a hang guard).
+async fn next_answer(
+    answers: &mut tonic::Streaming<proto::StreamResponse>,
+) -> proto::stream_response::Result {
+    tokio::time::timeout(Duration::from_secs(120), answers.message())
+        .await
+        .expect("an answer within 2 minutes")
+        .unwrap()
+        .unwrap()
+        .result
+        .unwrap()
+}
+
+/// A session's stamps move forward. A frame stamped earlier than the last
+/// frame stepped, or the same, is INVALID_ARGUMENT naming both stamps and
+/// the session (in a stream, in the stream, which goes on) and is not
+/// stepped; a frame refused may come again; a frame earlier than the one
+/// waiting behind a step is refused instead of replacing it, and one sent
+/// again while its first copy steps is refused at its turn; a stamp of
+/// 10^9 nanoseconds is refused; a frame without a stamp is not ordered;
+/// a reinitialization starts the stamps afresh.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn stamps_move_forward_within_a_session() {
+    use proto::stream_response::Result::{Error, Pose};
+    let f = Fixture::new();
+    let server = Server::start(&f, &[]);
+    let mut c = server.client(Auth::good()).await;
+    let t = |i: usize| stamp_text(&f, i);
+    let id = c
+        .create_session(f.create(0))
+        .await
+        .unwrap()
+        .into_inner()
+        .session_id;
+    assert_eq!(
+        c.localize(f.frame(&id, 2))
+            .await
+            .unwrap()
+            .into_inner()
+            .frame,
+        1
+    );
+    let e = c.localize(f.frame(&id, 1)).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    let want = format!(
+        "session {id:?}: frame stamped {} is earlier than {}, the stamp of the last frame stepped",
+        t(1),
+        t(2)
+    );
+    assert!(e.message().contains(&want), "{want:?} not in {e:?}");
+    let e = c.localize(f.frame(&id, 2)).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    let want = format!("frame stamped {} repeats {}", t(2), t(2));
+    assert!(e.message().contains(&want), "{want:?} not in {e:?}");
+
+    let (tx, mut answers) = open_stream(&c).await;
+    tx.send(f.frame(&id, 0)).await.unwrap();
+    match next_answer(&mut answers).await {
+        Error(e) => {
+            assert_eq!(e.code, "INVALID_ARGUMENT", "{e:?}");
+            let want = format!("frame stamped {} is earlier than {}", t(0), t(2));
+            assert!(e.message.contains(&want), "{want:?} not in {e:?}");
+        }
+        other => panic!("a frame from the past was stepped: {other:?}"),
+    }
+    tx.send(f.frame(&id, 3)).await.unwrap();
+    match next_answer(&mut answers).await {
+        // The refused frames were not stepped.
+        Pose(p) => assert_eq!(p.frame, 2, "{p:?}"),
+        other => panic!("expected a pose, got {other:?}"),
+    }
+
+    let mut fr = f.frame(&id, 4);
+    fr.header.as_mut().unwrap().stamp.as_mut().unwrap().nanosec = 1_000_000_000;
+    let e = c.localize(fr).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    assert!(e.message().contains("nanosec 1000000000"), "{e:?}");
+    // Without a stamp: stepped, and the order stays frame 3's.
+    let mut fr = f.frame(&id, 4);
+    fr.header = None;
+    assert_eq!(c.localize(fr).await.unwrap().into_inner().frame, 3);
+    let e = c.localize(f.frame(&id, 3)).await.unwrap_err();
+    assert!(e.message().contains("repeats"), "{e:?}");
+    // A new initial pose starts a new track, at any stamp.
+    let Some(proto::create_session_request::Start::InitialPose(start)) = f.create(0).start else {
+        unreachable!("the fixture starts from a pose")
+    };
+    c.set_initial_pose(proto::SetInitialPoseRequest {
+        session_id: id.clone(),
+        pose: Some(start),
+    })
+    .await
+    .unwrap();
+    assert_eq!(
+        c.localize(f.frame(&id, 0))
+            .await
+            .unwrap()
+            .into_inner()
+            .frame,
+        4
+    );
+
+    // Frame 0 steps (a second or more), frame 5 waits behind it: frame 4,
+    // older, is refused rather than taking frame 5's place.
+    let slow = slow_session(&mut c, &f).await;
+    let (tx, mut answers) = open_stream(&c).await;
+    tx.send(f.frame(&slow, 0)).await.unwrap();
+    tx.send(f.frame(&slow, 5)).await.unwrap();
+    let t0 = Instant::now();
+    while server.metric("omcl_frames_waiting") != "1" {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "frame 5 never waited"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let e = c.localize(f.frame(&slow, 4)).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    let want = format!("frame stamped {} is earlier than {}", t(4), t(5));
+    assert!(e.message().contains(&want), "{want:?} not in {e:?}");
+    for (n, i) in [(1, 0), (2, 5)] {
+        match next_answer(&mut answers).await {
+            Pose(p) => {
+                assert_eq!((p.frame, p.frames_dropped), (n, 0), "{p:?}");
+                let stamp = p.pose.unwrap().header.unwrap().stamp;
+                assert_eq!(stamp, f.frame(&slow, i).header.unwrap().stamp);
+            }
+            other => panic!("frame {i}: expected a pose, got {other:?}"),
+        }
+    }
+    // Frame 6 sent again while its first copy steps: let in beside it, and
+    // refused at its turn, once the first has been stepped.
+    tx.send(f.frame(&slow, 6)).await.unwrap();
+    let t0 = Instant::now();
+    while server.metric("omcl_queue_depth") != "1" {
+        assert!(t0.elapsed() < Duration::from_secs(60), "frame 6 never ran");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let e = c.localize(f.frame(&slow, 6)).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    let want = format!("frame stamped {} repeats {}", t(6), t(6));
+    assert!(e.message().contains(&want), "{want:?} not in {e:?}");
+    match next_answer(&mut answers).await {
+        Pose(p) => assert_eq!(p.frame, 3, "{p:?}"),
+        other => panic!("frame 6: expected a pose, got {other:?}"),
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn caps_overload_idle_expiry_and_shutdown() {
     let f = Fixture::new();
@@ -396,7 +553,7 @@ async fn caps_overload_idle_expiry_and_shutdown() {
     assert!(e.metadata().get("retry-after-ms").is_some(), "{e:?}");
 
     let mut exhausted = None;
-    for i in 0..20 {
+    for i in 0..16 {
         let mut ca = c.clone();
         let fa = f.frame(&a, i);
         let slow = tokio::spawn(async move { ca.localize(fa).await });
@@ -404,17 +561,19 @@ async fn caps_overload_idle_expiry_and_shutdown() {
         let r = c.localize(f.frame(&b, i)).await;
         slow.await.unwrap().unwrap();
         if let Err(e) = r {
-            exhausted = Some(e);
+            exhausted = Some((i, e));
             break;
         }
     }
-    let e = exhausted.expect("a frame behind a full queue is refused");
+    // b's frames go on from the one refused (b's stamps must increase;
+    // the refused frame was not stepped, so it may come again).
+    let (next, e) = exhausted.expect("a frame behind a full queue is refused");
     assert_eq!(e.code(), Code::ResourceExhausted, "{e:?}");
     assert!(e.message().contains("overloaded"), "{e:?}");
     assert!(e.metadata().get("retry-after-ms").is_some(), "{e:?}");
 
     // A message over the size limit (1 MiB) is refused, the session lives.
-    let mut fr = f.frame(&b, 0);
+    let mut fr = f.frame(&b, next);
     fr.features = Some(proto::frame::Features::Grid(proto::FeatureGrid {
         height: 24,
         width: 32,
@@ -423,10 +582,15 @@ async fn caps_overload_idle_expiry_and_shutdown() {
     }));
     let e = c.localize(fr.clone()).await.unwrap_err();
     assert_eq!(e.code(), Code::OutOfRange, "{e:?}");
-    c.localize(f.frame(&b, 1)).await.unwrap();
+    c.localize(f.frame(&b, next)).await.unwrap();
     // In a stream, the stream ends with that status, not with OK and the
     // frames after it silently unread.
-    let frames = vec![f.frame(&b, 2), fr, f.frame(&b, 3), f.frame(&b, 4)];
+    let frames = vec![
+        f.frame(&b, next + 1),
+        fr,
+        f.frame(&b, next + 2),
+        f.frame(&b, next + 3),
+    ];
     let mut answers = c
         .stream(tokio_stream::iter(frames))
         .await
@@ -445,7 +609,7 @@ async fn caps_overload_idle_expiry_and_shutdown() {
     assert_eq!(poses, 1, "{e:?}");
     assert_eq!(e.code(), Code::OutOfRange, "{e:?}");
     assert!(e.message().contains("too large"), "{e:?}");
-    c.localize(f.frame(&b, 5)).await.unwrap();
+    c.localize(f.frame(&b, next + 4)).await.unwrap();
     // A session whose step would cast more rays than --max-rays-per-step
     // (here 2^27) is refused up front: a running step cannot be stopped.
     let mut huge = f.create(0);

@@ -11,6 +11,7 @@ use crate::mcl::{Particle, PromptParams};
 use crate::session::{PoseReport, SessionError, SharedMap, Start};
 
 use super::proto;
+use super::stamp::Stamp;
 
 /// The paper's initial spread when a covariance does not give one.
 pub const DEFAULT_INIT_SIGMA_M: f64 = 0.3;
@@ -61,10 +62,6 @@ pub fn pose_from_msg(p: Option<&proto::Pose>, what: &str) -> Result<Pose, Status
         Translation3::new(t.x, t.y, t.z),
         UnitQuaternion::from_quaternion(quat),
     ))
-}
-
-pub fn seconds(t: Option<&proto::Time>) -> f64 {
-    t.map_or(0.0, |t| t.sec as f64 + 1e-9 * t.nanosec as f64)
 }
 
 /// The status code's name as gRPC spells it.
@@ -239,7 +236,9 @@ pub fn prompt(p: &proto::PromptStart, map: &SharedMap) -> Result<Start, Status> 
 /// A frame checked against its session, ready for the pool.
 pub struct FrameInput {
     pub odom: Pose,
-    pub stamp: f64,
+    /// `None`: the frame has no stamp (no header, or none in it); it is
+    /// not ordered ([`super::stamp`]) and steps at 0 s.
+    pub stamp: Option<Stamp>,
     pub stamp_msg: Option<proto::Time>,
     pub features: Features,
     pub want_particles: bool,
@@ -263,6 +262,13 @@ pub enum Features {
     Compressed(Vec<u8>),
 }
 
+impl FrameInput {
+    /// The stamp in seconds, as the session takes it (0 without one).
+    pub fn seconds(&self) -> f64 {
+        self.stamp.map_or(0.0, Stamp::seconds)
+    }
+}
+
 /// How errors name a [`Features::Compressed`] frame's bytes.
 const COMPRESSED: &str = "compressed image";
 
@@ -279,11 +285,14 @@ impl Features {
     }
 }
 
-/// A frame checked against its session: sizes, dimensions, odometry.
+/// A frame checked against its session: stamp, sizes, dimensions,
+/// odometry. (Its stamp's order among the session's frames is the
+/// queue's to check, [`super::stamp::follows`].)
 pub fn frame_input(f: proto::Frame, k: &Intrinsics, map: &SharedMap) -> Result<FrameInput, Status> {
     let received = Instant::now();
-    let odom = pose_from_msg(f.odometry.as_ref(), "odometry")?;
     let stamp_msg = f.header.as_ref().and_then(|h| h.stamp);
+    let stamp = stamp_msg.as_ref().map(Stamp::from_msg).transpose()?;
+    let odom = pose_from_msg(f.odometry.as_ref(), "odometry")?;
     let features = match f.features {
         Some(proto::frame::Features::Grid(g)) => grid_features(g, map)?,
         Some(proto::frame::Features::Labels(l)) => label_features(l, k, map)?,
@@ -293,7 +302,7 @@ pub fn frame_input(f: proto::Frame, k: &Intrinsics, map: &SharedMap) -> Result<F
     };
     Ok(FrameInput {
         odom,
-        stamp: seconds(stamp_msg.as_ref()),
+        stamp,
         stamp_msg,
         features,
         want_particles: f.want_particles,

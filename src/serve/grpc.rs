@@ -96,12 +96,16 @@ impl Service {
     ) -> Result<Response<proto::ReinitializeResponse>, Status> {
         slot.touch();
         let map = slot.map.clone();
+        let restarted = slot.clone();
         let done = self.state.with_session(slot, move |s| {
             let warning = match &start {
                 Start::Pose { pose, .. } => blind_start(&map, pose, s.config()),
                 _ => None,
             };
-            s.reinitialize(&start).map(|()| warning)
+            // A new track: its frames' stamps need not follow the old's.
+            s.reinitialize(&start)
+                .map(|()| restarted.restart_stamps())
+                .map(|()| warning)
         });
         let warning = self
             .within_deadline("no reinitialization", done)

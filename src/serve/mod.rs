@@ -7,6 +7,7 @@
 //!   `/v1/sessions`;
 //! - [`state`]: sessions, the bounded compute pool, latest-frame-wins
 //!   queues, caps and idle expiry;
+//! - [`stamp`]: frame stamps, which move forward within a session;
 //! - [`auth`]: bearer tokens on every call but the health checks.
 //!
 //! Filter steps and initializations run on a dedicated rayon pool, never
@@ -20,6 +21,7 @@ pub mod grpc;
 pub mod http;
 pub mod log;
 pub mod metrics;
+pub mod stamp;
 pub mod state;
 
 /// Messages and the client and server stubs generated from

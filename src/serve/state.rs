@@ -33,6 +33,7 @@ use crate::session::{Session, SessionError, SharedMap, feature_grid, label_frame
 use super::convert::{Features, FrameInput};
 use super::metrics::Metrics;
 use super::proto;
+use super::stamp::{Seen, Stamp};
 
 /// Limits and sizes of a server.
 #[derive(Debug, Clone)]
@@ -114,8 +115,25 @@ struct Job {
 struct Queue {
     /// A step of this session is queued or running on the pool.
     busy: bool,
+    /// The stamp of that step's frame.
+    on_pool: Option<Stamp>,
     /// The frame waiting behind it.
     pending: Option<Job>,
+    /// The stamp of the last frame the session stepped since it started or
+    /// was last reinitialized (written under the session's lock too, so a
+    /// reinitialization and a step agree on it).
+    stepped: Option<Stamp>,
+}
+
+impl Queue {
+    /// What a new frame's stamp must follow ([`super::stamp::follows`]).
+    fn seen(&self) -> Seen {
+        Seen {
+            stepped: self.stepped,
+            on_pool: self.on_pool,
+            waiting: self.pending.as_ref().and_then(|j| j.frame.stamp),
+        }
+    }
 }
 
 /// One open session.
@@ -165,6 +183,12 @@ impl Slot {
     }
     fn busy(&self) -> bool {
         lock(&self.queue).busy
+    }
+    /// Forgets the stamp of the last frame stepped: after a
+    /// reinitialization, under the session's lock, the next frame may
+    /// have any stamp (the session starts a new track).
+    pub fn restart_stamps(&self) {
+        lock(&self.queue).stepped = None;
     }
 }
 
@@ -410,11 +434,22 @@ impl State {
             .map_err(|e| Status::internal(format!("reinitialization failed: {e}")))
     }
 
-    /// Hands a frame to its session (see the module's scheduling notes).
+    /// Hands a frame to its session (see the module's scheduling notes),
+    /// or refuses it when its stamp does not follow the session's frames
+    /// ([`super::stamp`]; checked under the queue's lock, so two streams of
+    /// one session cannot both pass with the same stamp).
     pub fn submit(self: &Arc<Self>, slot: Arc<Slot>, frame: FrameInput, reply: Reply) {
         slot.touch();
         let job = Job { frame, reply };
         let mut q = lock(&slot.queue);
+        if let Some(stamp) = job.frame.stamp
+            && let Err(st) = super::stamp::follows(stamp, &q.seen(), &slot.id)
+        {
+            drop(q);
+            self.metrics.reject("invalid_frame");
+            send(job.reply, Err(st), &job.frame);
+            return;
+        }
         if q.busy {
             if let Some(old) = q.pending.replace(job) {
                 slot.frames_dropped.fetch_add(1, Ordering::Relaxed);
@@ -442,6 +477,7 @@ impl State {
             return;
         }
         q.busy = true;
+        q.on_pool = job.frame.stamp;
         drop(q);
         self.queued.fetch_add(1, Ordering::Relaxed);
         self.spawn_step(slot, job);
@@ -456,8 +492,10 @@ impl State {
             if next.is_some() {
                 slot.taken.send_modify(|n| *n += 1);
             }
+            q.on_pool = next.as_ref().and_then(|j| j.frame.stamp);
             if state.shutting_down.load(Ordering::Relaxed) || next.is_none() {
                 q.busy = false;
+                q.on_pool = None;
                 drop(q);
                 state.queued.fetch_sub(1, Ordering::Relaxed);
                 // The answer only once the step has left the queue: a
@@ -531,12 +569,26 @@ impl State {
             return (reply, Err(status_of(&e)), frame);
         }
         let mut session = lock(&slot.session);
+        // The frame's turn may come after a frame of the same stamp it was
+        // let in beside (a frame sent again while its first copy ran).
+        let seen = Seen {
+            stepped: lock(&slot.queue).stepped,
+            ..Seen::default()
+        };
+        if let Some(stamp) = frame.stamp
+            && let Err(st) = super::stamp::follows(stamp, &seen, &slot.id)
+        {
+            drop(session);
+            self.metrics.reject("invalid_frame");
+            return (reply, Err(st), frame);
+        }
         let classes = slot.map.classes();
+        let seconds = frame.seconds();
         let result = match &frame.features {
             Features::Grid { shape, data } => {
                 let k = session.config().intrinsics;
                 feature_grid(k.width, k.height, *shape, data)
-                    .and_then(|f| session.step(&frame.odom, frame.stamp, &f))
+                    .and_then(|f| session.step(&frame.odom, seconds, &f))
             }
             Features::Labels {
                 width,
@@ -544,7 +596,7 @@ impl State {
                 labels,
             } => match classes {
                 Some(t) => label_frame(*width, *height, labels, t)
-                    .and_then(|f| session.step(&frame.odom, frame.stamp, &f)),
+                    .and_then(|f| session.step(&frame.odom, seconds, &f)),
                 None => Err(SessionError::BadFrame(format!(
                     "map {:?} has no class table for label images",
                     slot.map.name()
@@ -561,12 +613,15 @@ impl State {
                         width: k.width,
                         height: k.height,
                     };
-                    session.step(&frame.odom, frame.stamp, &f)
+                    session.step(&frame.odom, seconds, &f)
                 })
             }
         };
         let answer = match result {
             Ok(r) => {
+                if frame.stamp.is_some() {
+                    lock(&slot.queue).stepped = frame.stamp;
+                }
                 let latency = frame.received.elapsed();
                 self.metrics.observe_step(latency);
                 let particles = frame.want_particles.then(|| {

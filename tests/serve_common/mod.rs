@@ -545,7 +545,8 @@ pub fn read_tum(p: &Path) -> Vec<[f64; 7]> {
 
 /// A session flooding the server: one `Stream` call sending `frames` round
 /// and round as fast as the transport takes them, until stopped or `limit`
-/// frames are sent, its answers read and counted.
+/// frames are sent, its answers read and counted. Each is stamped with its
+/// count (0 s, 1 s, ...): a session's stamps must increase.
 pub struct Flood {
     stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
     writer: tokio::task::JoinHandle<usize>,
@@ -574,7 +575,9 @@ impl Flood {
         let writer = tokio::spawn(async move {
             let mut sent = 0usize;
             while sent < limit && !halt.load(Ordering::Relaxed) {
-                if tx.send(frames[sent % frames.len()].clone()).await.is_err() {
+                let mut frame = frames[sent % frames.len()].clone();
+                frame.header = Some(header(sent as f64));
+                if tx.send(frame).await.is_err() {
                     break;
                 }
                 sent += 1;
