@@ -275,6 +275,33 @@ async fn malformed_input_is_named_and_the_session_lives_on() {
     let mut fr = f.frame(&id, 0);
     fr.features = None;
     cases.push((fr, Code::InvalidArgument, "without features"));
+    // A grid of zero vectors: every cosine 0, no evidence for the filter.
+    let mut fr = f.frame(&id, 0);
+    fr.features = Some(proto::frame::Features::Grid(proto::FeatureGrid {
+        height: 4,
+        width: 4,
+        dim: 512,
+        data: vec![0.0; 4 * 4 * 512],
+    }));
+    cases.push((
+        fr,
+        Code::InvalidArgument,
+        "feature grid of 4x4x512 is all zero: none of its 16 cells",
+    ));
+    let mut fr = f.frame(&id, 0);
+    let mut data = vec![0.1; 4 * 4 * 512];
+    data[(4 + 3) * 512 + 7] = f32::NAN;
+    fr.features = Some(proto::frame::Features::Grid(proto::FeatureGrid {
+        height: 4,
+        width: 4,
+        dim: 512,
+        data,
+    }));
+    cases.push((
+        fr,
+        Code::InvalidArgument,
+        "feature grid value 3591 (row 1, column 3, feature 7) is not finite: NaN",
+    ));
     cases.push((
         f.frame("no-such-session", 0),
         Code::NotFound,
@@ -357,6 +384,18 @@ async fn malformed_input_is_named_and_the_session_lives_on() {
     let t = gt[5].translation.vector;
     let d = ((p[0] - t.x).powi(2) + (p[1] - t.y).powi(2)).sqrt();
     assert!(d < 0.6, "{d} m from the pose given");
+    // Zero cells beside others (a mask, padding) are stepped: only a grid
+    // with no direction anywhere is refused.
+    let mut fr = f.frame(&id, 6);
+    let mut data = vec![0.0; 4 * 4 * 512];
+    data[..512].fill(0.1);
+    fr.features = Some(proto::frame::Features::Grid(proto::FeatureGrid {
+        height: 4,
+        width: 4,
+        dim: 512,
+        data,
+    }));
+    assert_eq!(c.localize(fr).await.unwrap().into_inner().frame, 7);
 }
 
 /// Fixture frame `i`'s stamp as the server writes it.

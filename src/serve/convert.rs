@@ -310,7 +310,8 @@ pub fn frame_input(f: proto::Frame, k: &Intrinsics, map: &SharedMap) -> Result<F
     })
 }
 
-/// A feature grid of the map's dimension, every value finite.
+/// A feature grid of the map's dimension, every value finite, some cell
+/// with a direction.
 fn grid_features(g: proto::FeatureGrid, map: &SharedMap) -> Result<Features, Status> {
     let dim = map.map().db().dim();
     let shape = [g.height as usize, g.width as usize, g.dim as usize];
@@ -338,14 +339,41 @@ fn grid_features(g: proto::FeatureGrid, map: &SharedMap) -> Result<Features, Sta
         )));
     }
     if let Some(i) = g.data.iter().position(|x| !x.is_finite()) {
+        let (cell, k) = (i / shape[2], i % shape[2]);
         return Err(Status::invalid_argument(format!(
-            "feature grid value {i} is not finite"
+            "feature grid value {i} (row {}, column {}, feature {k}) is not finite: {}",
+            cell / shape[1],
+            cell % shape[1],
+            g.data[i]
+        )));
+    }
+    // A cell without a direction scores 0 against every map row, hit or
+    // miss (the sensor model's rule: a zero norm, or one that overflows
+    // f32): it adds nothing to any particle's weight. A few such cells
+    // (a mask, padding) are harmless; a grid of nothing else would step
+    // the filter on odometry alone while it looks as sure as before.
+    if !g.data.chunks_exact(shape[2]).any(has_direction) {
+        return Err(Status::invalid_argument(format!(
+            "feature grid of {}x{}x{} is all zero: none of its {} cells has a feature with a \
+             direction, so every cosine would be 0 and the frame would tell the filter nothing \
+             (an encoder that failed, or a buffer never filled?)",
+            g.height,
+            g.width,
+            g.dim,
+            shape[0] * shape[1]
         )));
     }
     Ok(Features::Grid {
         shape,
         data: g.data,
     })
+}
+
+/// Whether a cell's feature has a direction as the sensor model sees it:
+/// its norm in `f32` above 0 and finite.
+fn has_direction(f: &[f32]) -> bool {
+    let n: f32 = f.iter().map(|x| x * x).sum();
+    n > 0.0 && n.is_finite()
 }
 
 /// A label image of the camera's size, for a map with a class table.
