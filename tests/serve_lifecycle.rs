@@ -183,6 +183,106 @@ async fn the_http_plane_answers_through_the_drain_and_the_log_tells_it() {
     assert!(text.lines().count() <= 8, "{text}");
 }
 
+/// The gRPC plane's standard health service, without a token: SERVING
+/// for the server ("") and for omcl.v1.Localization while up, NOT_FOUND
+/// for another name; after SIGTERM, while the step in flight runs,
+/// NOT_SERVING, to a `Check` on a new connection and to a `Watch` begun
+/// before, and other calls UNAVAILABLE; the step is answered, the watch
+/// ends and the process exits 0 (a watch that held the gRPC plane open
+/// would keep it for the 600 s drain timeout).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn grpc_health_is_serving_then_not_serving_through_the_drain() {
+    use tonic_health::pb::health_check_response::ServingStatus;
+    use tonic_health::pb::{HealthCheckRequest, health_client::HealthClient};
+    let f = wide_fixture();
+    // Steps four times very_slow_session's (8192 particles), so that the
+    // checks below meet the drain with the step still running.
+    let args = [
+        &drain_args("600")[..],
+        &["--max-rays-per-step", "1073741824"],
+    ]
+    .concat();
+    let mut server = Server::start(&f, &args);
+    let health = || async {
+        let ch = tonic::transport::Channel::from_shared(format!("http://{}", server.grpc))
+            .unwrap()
+            .connect()
+            .await
+            .unwrap();
+        HealthClient::new(ch)
+    };
+    let check = |mut h: HealthClient<tonic::transport::Channel>, service: &str| {
+        let service = service.to_string();
+        async move { h.check(HealthCheckRequest { service }).await }
+    };
+    let status = |r: Result<tonic::Response<_>, tonic::Status>| {
+        let r: tonic_health::pb::HealthCheckResponse = r.unwrap().into_inner();
+        r.status()
+    };
+    let h = health().await;
+    assert_eq!(status(check(h.clone(), "").await), ServingStatus::Serving);
+    let named = check(h.clone(), "omcl.v1.Localization").await;
+    assert_eq!(status(named), ServingStatus::Serving);
+    let e = check(h.clone(), "omcl.v1.Nothing").await.unwrap_err();
+    assert_eq!(e.code(), Code::NotFound, "{e:?}");
+    let mut watch = h
+        .clone()
+        .watch(HealthCheckRequest {
+            service: String::new(),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    let first = watch.message().await.unwrap().unwrap();
+    assert_eq!(first.status(), ServingStatus::Serving);
+
+    let mut c = server.client(Auth::good()).await;
+    let mut req = f.create(0);
+    req.particles = Some(8192);
+    req.rays = Some(65_536);
+    let id = c.create_session(req).await.unwrap().into_inner().session_id;
+    let frame = f.frame(&id, 0);
+    let call = tokio::spawn(async move { c.localize(frame).await });
+    wait_until("the step on the pool", || {
+        assert!(!call.is_finished(), "the step ended before it was seen");
+        server.metric("omcl_queue_depth") == "1"
+    })
+    .await;
+    server.signal("TERM");
+    let t0 = Instant::now();
+    loop {
+        // A new connection each time, as a probe makes.
+        match status(check(health().await, "").await) {
+            ServingStatus::NotServing => break,
+            s => assert_eq!(s, ServingStatus::Serving),
+        }
+        assert!(t0.elapsed() < Duration::from_secs(60), "never NOT_SERVING");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    let named = check(health().await, "omcl.v1.Localization").await;
+    assert_eq!(status(named), ServingStatus::NotServing);
+    let told = watch.message().await.unwrap().unwrap();
+    assert_eq!(told.status(), ServingStatus::NotServing);
+    let e = server
+        .client(Auth::good())
+        .await
+        .list_maps(proto::ListMapsRequest {})
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::Unavailable, "{e:?}");
+    assert!(e.message().contains("shutting down"), "{e:?}");
+    assert!(
+        !call.is_finished(),
+        "the step ended before the drain was seen"
+    );
+    let r = call.await.unwrap();
+    assert!(r.is_ok(), "the step in flight was lost: {r:?}");
+    let end = watch.message().await;
+    assert!(matches!(end, Ok(None)), "the watch did not end: {end:?}");
+    let status = server.wait_exit(Duration::from_secs(120));
+    assert!(status.success(), "{status:?}");
+}
+
 /// A server on one thread whose drain waits `timeout_s` and whose calls
 /// never meet the deadline.
 fn drain_args(timeout_s: &str) -> [&str; 6] {

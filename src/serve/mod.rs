@@ -5,6 +5,8 @@
 //!   poses out) per session, nav2 AMCL's conventions;
 //! - HTTP ([`http`]): `/healthz`, `/readyz`, `/metrics`, `/v1/maps`,
 //!   `/v1/sessions`;
+//! - [`health`]: `grpc.health.v1.Health` on the gRPC port, NOT_SERVING
+//!   through the drain;
 //! - [`state`]: sessions, the bounded compute pool, latest-frame-wins
 //!   queues, caps and idle expiry;
 //! - [`stamp`]: frame stamps, which move forward within a session;
@@ -18,6 +20,7 @@ pub mod compute;
 pub mod connections;
 pub mod convert;
 pub mod grpc;
+pub mod health;
 pub mod http;
 pub mod log;
 pub mod metrics;
@@ -159,9 +162,10 @@ pub enum Drained {
 
 /// Runs the server until `shutdown` completes, then stops taking calls,
 /// finishes the steps in flight (at most `drain_timeout`, or until `force`
-/// completes) and returns how the drain ended. The HTTP plane answers
-/// until then (`/readyz` 503). `on_bound` is told the bound addresses once
-/// both listen.
+/// completes) and returns how the drain ended. Both planes answer until
+/// then: the HTTP plane's `/readyz` 503, the gRPC plane's health service
+/// NOT_SERVING and its other calls UNAVAILABLE. `on_bound` is told the
+/// bound addresses once both listen.
 pub async fn serve(
     config: ServeConfig,
     maps: Vec<SharedMap>,
@@ -187,13 +191,16 @@ pub async fn serve(
         http: local(&http_l, config.http_addr, HTTP_PLANE)?,
     };
 
+    let (health, health_service) = health::Health::serving().await;
     let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
     {
         let state = state.clone();
+        let health = health.clone();
         let drain_s = config.drain_timeout.as_secs_f64();
         tokio::spawn(async move {
             shutdown.await;
             state.shutting_down.store(true, Ordering::Relaxed);
+            health.draining().await;
             let (steps, waiting) = state.queue_depth();
             log::event(format_args!(
                 "shutting down: {} running or queued, {} waiting; draining for at most \
@@ -204,8 +211,12 @@ pub async fn serve(
             let _ = stop_tx.send(true);
         });
     }
-    // The HTTP plane stops after the drain, not with the gRPC plane: a
-    // load balancer polls /readyz (503 now) and /metrics through it.
+    // Neither plane stops when the drain begins: a load balancer polls
+    // /readyz (503 now), /metrics and the gRPC health service (NOT_SERVING
+    // now) through it, and a gRPC client gets UNAVAILABLE, not a refused
+    // connection. The gRPC plane stops once the steps in flight are
+    // answered, the HTTP plane after the drain.
+    let (grpc_stop_tx, grpc_stop_rx) = tokio::sync::watch::channel(false);
     let (http_stop_tx, http_stop_rx) = tokio::sync::watch::channel(false);
     let stopped = |mut rx: tokio::sync::watch::Receiver<bool>| async move {
         let _ = rx.wait_for(|s| *s).await;
@@ -216,17 +227,19 @@ pub async fn serve(
     let grpc_task = tokio::spawn(grpc_server(
         &config,
         &state,
+        health_service,
         grpc_l,
-        stopped(stop_rx.clone()),
+        stopped(grpc_stop_rx),
     )?);
     let http_task = spawn_http(&config, &state, http_l, stopped(http_stop_rx))?;
     on_bound(bound);
 
     stopped(stop_rx).await;
     let drained = tokio::select! {
-        r = drain(&state, config.drain_timeout, grpc_task) => r,
+        r = drain(&state, config.drain_timeout, health, &grpc_stop_tx, grpc_task) => r,
         () = force => Ok(Drained::Forced { steps: in_flight(&state) }),
     };
+    let _ = grpc_stop_tx.send(true);
     log::event(match drained {
         Ok(Drained::Finished) => "drain finished: every step in flight answered".to_string(),
         Ok(Drained::TimedOut { steps }) => format!(
@@ -280,11 +293,13 @@ const STREAM_WINDOW: u32 = 1 << 20;
 const STREAM_WINDOWS_PER_CONNECTION: u32 = 17;
 
 /// The gRPC server on `listener` (message caps, bearer tokens, TLS,
-/// TCP_NODELAY, flow-control windows), until `stop`. The server's deadline
+/// TCP_NODELAY, flow-control windows) with `health` beside the
+/// localization service (no token), until `stop`. The server's deadline
 /// is the handlers' (`grpc`): tonic's `timeout` answers CANCELLED.
 fn grpc_server(
     config: &ServeConfig,
     state: &Arc<State>,
+    health: tonic_health::pb::health_server::HealthServer<tonic_health::server::HealthService>,
     listener: TcpListener,
     stop: impl Future<Output = ()> + Send + 'static,
 ) -> Result<impl Future<Output = Result<(), tonic::transport::Error>> + Send + 'static, ServeError>
@@ -337,6 +352,7 @@ fn grpc_server(
         .initial_stream_window_size(STREAM_WINDOW)
         .initial_connection_window_size(STREAM_WINDOW * STREAM_WINDOWS_PER_CONNECTION)
         .add_service(svc)
+        .add_service(health)
         .serve_with_incoming_shutdown(incoming, stop))
 }
 
@@ -360,29 +376,49 @@ fn spawn_http(
     })
 }
 
-/// Drain after the stop: the gRPC calls in flight (bounded by `timeout`),
-/// then the pool's steps; the gRPC server's error.
+/// Drain after the stop (bounded by `timeout`): the pool's steps, whose
+/// answers go out while the gRPC plane still answers (new calls
+/// UNAVAILABLE, `health` NOT_SERVING); then the gRPC plane's graceful stop
+/// (`grpc_stop`), which waits for the calls in flight, and the pool again
+/// for a step a call queued meanwhile; the gRPC server's error.
 async fn drain(
     state: &State,
     timeout: Duration,
+    health: health::Health,
+    grpc_stop: &tokio::sync::watch::Sender<bool>,
     grpc_task: tokio::task::JoinHandle<Result<(), tonic::transport::Error>>,
 ) -> Result<Drained, ServeError> {
     let deadline = Instant::now() + timeout;
     let left = || deadline.saturating_duration_since(Instant::now());
+    if let Some(timed_out) = pool_idle(state, deadline).await {
+        return Ok(timed_out);
+    }
+    let _ = grpc_stop.send(true);
+    // After the stop's GOAWAY, so that no Check meets the health service
+    // without its names.
+    health.stop().await;
     let grpc_res = tokio::time::timeout(left(), grpc_task).await;
-    // Until every pool task has finished and dropped what it held: the
-    // last reference to a map may be a step's, and the process must not
-    // exit while a pool thread releases its Embree scene.
-    while state.queue_depth().0 > 0 || state.pool_running() > 0 {
-        if Instant::now() >= deadline {
-            return Ok(Drained::TimedOut {
-                steps: in_flight(state),
-            });
-        }
-        tokio::time::sleep(Duration::from_millis(10)).await;
+    if let Some(timed_out) = pool_idle(state, deadline).await {
+        return Ok(timed_out);
     }
     if let Ok(Ok(Err(e))) = grpc_res {
         return Err(ServeError::Grpc(e.to_string()));
     }
     Ok(Drained::Finished)
+}
+
+/// Waits until every pool task has finished and dropped what it held (the
+/// last reference to a map may be a step's, and the process must not exit
+/// while a pool thread releases its Embree scene): `None`, or the time out
+/// at `deadline` with the steps left.
+async fn pool_idle(state: &State, deadline: Instant) -> Option<Drained> {
+    while state.queue_depth().0 > 0 || state.pool_running() > 0 {
+        if Instant::now() >= deadline {
+            return Some(Drained::TimedOut {
+                steps: in_flight(state),
+            });
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    None
 }
