@@ -142,9 +142,12 @@ fn main() {
                 let id = id.clone();
                 let frames = frames.clone();
                 warm.push(tokio::spawn(async move {
-                    for f in frames.iter().take(WARMUP) {
+                    for (i, f) in frames.iter().take(WARMUP).enumerate() {
                         let mut fr = f.clone();
                         fr.session_id = id.clone();
+                        // Stamps move forward (the server refuses one that
+                        // goes back) while the walk turns round.
+                        fr.header = Some(header(i as f64));
                         c.localize(fr).await.unwrap();
                     }
                 }));
@@ -166,6 +169,7 @@ fn main() {
                     while Instant::now() < stop {
                         let mut fr = frames[ping_pong(i, frames.len())].clone();
                         fr.session_id = id.clone();
+                        fr.header = Some(header(i as f64));
                         let t = Instant::now();
                         let u = c.localize(fr).await.unwrap().into_inner();
                         lat.push((t.elapsed().as_secs_f64() * 1e3, u.step_ms));

@@ -684,6 +684,10 @@ fn serve_names_unreadable_tls_files_and_one_port_for_both_planes() {
     refused(&r, 1, &["--tls-cert", "--tls-key", s(&pem)]);
     let r = serve(&["--grpc", "127.0.0.1:50999", "--http", "127.0.0.1:50999"]);
     refused(&r, 1, &["--grpc and --http", "two ports"]);
+    // A drain timeout past what a clock can add panicked at shutdown; it
+    // is refused as the other durations are.
+    let r = serve(&["--drain-timeout-s", "1.5e19"]);
+    refused(&r, 2, &["--drain-timeout-s", "not a finite number in 0..="]);
 }
 
 /// A point's feature is a direction: an all-zero row of `--features` for

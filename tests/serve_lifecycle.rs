@@ -66,6 +66,46 @@ async fn a_step_past_the_deadline_is_deadline_exceeded_and_counted() {
     );
 }
 
+/// A `SetInitialPose` that waits for its session past `--deadline-s` (a
+/// step holds the session) is answered DEADLINE_EXCEEDED and is then not
+/// applied when the step lets go (it was, a moment after its answer: the
+/// waiting task could not be stopped). A reinitialization resets the
+/// session's stamps, so the frame stepped before it being refused again as
+/// a repeat shows that none happened.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_reinitialization_past_the_deadline_is_not_applied() {
+    let f = wide_fixture();
+    let server = Server::start(&f, &["--deadline-s", "0.05", "--threads", "1"]);
+    let mut c = server.client(Auth::good()).await;
+    let id = very_slow_session(&mut c, &f).await;
+    let e = c.localize(f.frame(&id, 0)).await.unwrap_err();
+    assert_eq!(e.code(), Code::DeadlineExceeded, "{e:?}");
+    let (_, gt) = f.poses("poses.txt");
+    let e = c
+        .set_initial_pose(proto::SetInitialPoseRequest {
+            session_id: id.clone(),
+            pose: Some(proto::PoseWithCovarianceStamped {
+                header: None,
+                pose: Some(proto::PoseWithCovariance {
+                    pose: Some(pose_msg(&gt[1])),
+                    covariance: vec![],
+                }),
+            }),
+        })
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::DeadlineExceeded, "{e:?}");
+    assert!(e.message().contains("no reinitialization"), "{e:?}");
+    wait_until("the step ended", || {
+        server.metric("omcl_queue_depth") == "0" && server.metric("omcl_frames_total") == "1"
+    })
+    .await;
+    // Time for a reinitialization still waiting to take the lock.
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let e = c.localize(f.frame(&id, 0)).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+}
+
 /// A session of `particles` x 2048 pixels whose first frame's step is on
 /// the pool (the server's own gauge says so): its id and the pending call.
 async fn step_in_flight(

@@ -21,12 +21,14 @@ pub const TOKEN_ENV: &str = "OMCL_TOKEN";
 
 #[derive(Debug, Args)]
 #[command(
-    after_help = "Every call but GET /healthz and /readyz needs the header \
+    after_help = "Every call but GET /healthz and /readyz and gRPC's standard health \
+    service (grpc.health.v1.Health) needs the header \
     `authorization: Bearer <token>` (gRPC metadata of the same name). The token \
     (16+ visible ASCII characters) comes from --token-file or the OMCL_TOKEN \
     environment variable, never from the command line. The server binds to \
     127.0.0.1 unless told otherwise; SIGINT or SIGTERM stops it after the steps \
-    in flight (the HTTP plane answers until then, /readyz with 503), a second one \
+    in flight (both planes answer until then, /readyz with 503 and gRPC health \
+    NOT_SERVING), a second one \
     at once (exit 1). Sessions opened, closed and expired, and the shutdown, are \
     logged on stderr, one line each."
 )]
@@ -120,7 +122,7 @@ pub struct ServeArgs {
     pub tls_key: Option<PathBuf>,
     /// How long shutdown waits for calls and steps in flight, seconds; past
     /// it the server exits 1, naming the steps abandoned.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, value_parser = super::seconds)]
     pub drain_timeout_s: f64,
 }
 

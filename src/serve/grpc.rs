@@ -97,19 +97,35 @@ impl Service {
         slot.touch();
         let map = slot.map.clone();
         let restarted = slot.clone();
+        // The call gives up (its deadline, or its client gone) only while
+        // the reinitialization still waits for the session's lock: an
+        // answer of DEADLINE_EXCEEDED means the filter was not touched.
+        let claim = Claim::default();
+        let run = claim.clone();
         let done = self.state.with_session(slot, move |s| {
+            if !run.start() {
+                return None;
+            }
             let warning = match &start {
                 Start::Pose { pose, .. } => blind_start(&map, pose, s.config()),
                 _ => None,
             };
             // A new track: its frames' stamps need not follow the old's.
-            s.reinitialize(&start)
-                .map(|()| restarted.restart_stamps())
-                .map(|()| warning)
+            Some(
+                s.reinitialize(&start)
+                    .map(|()| restarted.restart_stamps())
+                    .map(|()| warning),
+            )
         });
-        let warning = self
-            .within_deadline("no reinitialization", done)
-            .await?
+        tokio::pin!(done);
+        let ran = match tokio::time::timeout(self.state.limits.deadline, &mut done).await {
+            Ok(r) => r?,
+            Err(_) if claim.abandon() => return Err(self.past_deadline("no reinitialization")),
+            // Begun before the deadline: its answer, a moment later.
+            Err(_) => done.await?,
+        };
+        let warning = ran
+            .ok_or_else(|| Status::internal("reinitialization abandoned"))?
             .map_err(|e| super::state::status_of(&e))?;
         Ok(Response::new(proto::ReinitializeResponse {
             warnings: warning.into_iter().collect(),
@@ -128,6 +144,44 @@ fn blind_start(map: &SharedMap, pose: &Pose, config: &SessionConfig) -> Option<S
             convert::quoted(map.name()),
         )
     })
+}
+
+/// Who settles a reinitialization waiting for its session's lock: the
+/// task that runs it ([`Claim::start`]) or the call that asked for it,
+/// giving up ([`Claim::abandon`]; also when the call is dropped, its
+/// client gone). Whichever comes first wins; the other learns it.
+#[derive(Clone, Default)]
+struct Claim(Arc<std::sync::atomic::AtomicU8>);
+
+impl Claim {
+    const WAITING: u8 = 0;
+    const STARTED: u8 = 1;
+    const ABANDONED: u8 = 2;
+
+    fn settle(&self, to: u8) -> bool {
+        self.0
+            .compare_exchange(Self::WAITING, to, Ordering::AcqRel, Ordering::Acquire)
+            .is_ok()
+    }
+
+    /// Whether the reinitialization may run (the call has not given up).
+    fn start(&self) -> bool {
+        self.settle(Self::STARTED)
+    }
+
+    /// Whether the call gave up in time (the reinitialization had not
+    /// started, and now will not).
+    fn abandon(&self) -> bool {
+        self.settle(Self::ABANDONED)
+    }
+}
+
+impl Drop for Claim {
+    fn drop(&mut self) {
+        // The call's own copy going (the call dropped): give up if still
+        // waiting. The running task's copy finds it settled already.
+        self.abandon();
+    }
 }
 
 /// A session's start for the log: its kind, and where or what.

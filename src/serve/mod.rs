@@ -388,7 +388,11 @@ async fn drain(
     grpc_stop: &tokio::sync::watch::Sender<bool>,
     grpc_task: tokio::task::JoinHandle<Result<(), tonic::transport::Error>>,
 ) -> Result<Drained, ServeError> {
-    let deadline = Instant::now() + timeout;
+    // A timeout past what an `Instant` can hold waits for ever.
+    let now = Instant::now();
+    let deadline = now
+        .checked_add(timeout)
+        .unwrap_or_else(|| now + Duration::from_secs(1 << 40));
     let left = || deadline.saturating_duration_since(Instant::now());
     if let Some(timed_out) = pool_idle(state, deadline).await {
         return Ok(timed_out);
