@@ -106,6 +106,58 @@ async fn a_reinitialization_past_the_deadline_is_not_applied() {
     assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
 }
 
+/// After `SetInitialPose` the session starts a new track: a frame of the
+/// old one still waiting behind the running step is not stepped on the new
+/// track (ABORTED, counted `reinitialized`) or, if it took the session
+/// first, was stepped before the reinitialization; either way its stamp
+/// no longer orders the new track's frames, so the sequence replays from
+/// its first stamp (it was refused as "earlier than the frame being
+/// stepped").
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_reinitialization_starts_a_track_the_old_frames_do_not_block() {
+    let f = wide_fixture();
+    let server = Server::start(&f, &["--threads", "1"]);
+    let c = server.client(Auth::good()).await;
+    let (id, running) = step_in_flight(&server, &c, &f).await;
+    let waiting = {
+        let (mut c, frame) = (c.clone(), f.frame(&id, 1));
+        tokio::spawn(async move { c.localize(frame).await })
+    };
+    wait_until("the frame waiting", || {
+        server.metric("omcl_frames_waiting") == "1"
+    })
+    .await;
+    let (_, gt) = f.poses("poses.txt");
+    let mut c2 = c.clone();
+    c2.set_initial_pose(proto::SetInitialPoseRequest {
+        session_id: id.clone(),
+        pose: Some(proto::PoseWithCovarianceStamped {
+            header: None,
+            pose: Some(proto::PoseWithCovariance {
+                pose: Some(pose_msg(&gt[0])),
+                covariance: vec![],
+            }),
+        }),
+    })
+    .await
+    .unwrap();
+    // The replay's first frame: accepted, and stepped in its turn.
+    let replay = c2.localize(f.frame(&id, 0)).await;
+    assert!(replay.is_ok(), "{replay:?}");
+    assert!(running.await.unwrap().is_ok());
+    match waiting.await.unwrap() {
+        Ok(_) => {}
+        Err(e) => {
+            assert_eq!(e.code(), Code::Aborted, "{e:?}");
+            assert!(e.message().contains("reinitialized"), "{e:?}");
+            assert_eq!(
+                server.metric("omcl_rejected_total{reason=\"reinitialized\"}"),
+                "1"
+            );
+        }
+    }
+}
+
 /// A session of `particles` x 2048 pixels whose first frame's step is on
 /// the pool (the server's own gauge says so): its id and the pending call.
 async fn step_in_flight(
@@ -334,6 +386,42 @@ fn drain_args(timeout_s: &str) -> [&str; 6] {
         "--threads",
         "1",
     ]
+}
+
+/// A `Stream` open but idle (the client sends nothing) at SIGTERM is
+/// ended with UNAVAILABLE after its answers, and the drain finishes at
+/// once (exit 0); it waited for the stream to the drain timeout, and then
+/// logged "drain finished" and exited 0 with the call cut.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_idle_stream_is_ended_at_shutdown_and_does_not_hold_the_drain() {
+    let f = wide_fixture();
+    let log = f.dir.path().join("serve.log");
+    let mut server = Server::start_logged(&f, &drain_args("600"), &log);
+    let mut c = server.client(Auth::good()).await;
+    let id = c
+        .create_session(f.create(0))
+        .await
+        .unwrap()
+        .into_inner()
+        .session_id;
+    let (frames, mut answers) = open_stream(&c).await;
+    frames.send(f.frame(&id, 0)).await.unwrap();
+    let first = answers.message().await.unwrap().unwrap();
+    assert!(
+        matches!(first.result, Some(proto::stream_response::Result::Pose(_))),
+        "{first:?}"
+    );
+    let t0 = Instant::now();
+    server.signal("TERM");
+    let end = answers.message().await.unwrap_err();
+    assert_eq!(end.code(), Code::Unavailable, "{end:?}");
+    assert!(end.message().contains("shutting down"), "{end:?}");
+    let status = server.wait_exit(Duration::from_secs(120));
+    assert!(status.success(), "{status:?}");
+    assert!(t0.elapsed() < Duration::from_secs(60), "{:?}", t0.elapsed());
+    let text = read(&log);
+    log_line(&text, "drain finished");
+    drop(frames);
 }
 
 /// A second signal during the drain ends it at once: a non-zero exit and

@@ -278,8 +278,13 @@ pub fn run(a: ServeArgs) -> anyhow::Result<()> {
             println!("omcl serve: stopped");
             Ok(())
         }
-        Drained::TimedOut { steps } => {
-            bail!("the drain timeout was reached: {steps} step(s) in flight abandoned")
+        Drained::TimedOut { steps, calls_open } => {
+            let calls = if calls_open {
+                ", gRPC calls still open cut"
+            } else {
+                ""
+            };
+            bail!("the drain timeout was reached: {steps} step(s) in flight abandoned{calls}")
         }
         Drained::Forced { steps } => {
             bail!("stopped by a second signal: {steps} step(s) in flight abandoned")

@@ -467,7 +467,16 @@ impl Localization for Service {
                             continue;
                         }
                         budget = super::STREAM_WINDOW as usize;
-                        inbound.message().await
+                        tokio::select! {
+                            m = inbound.message() => m,
+                            // Shutdown while the client sends nothing: the
+                            // stream ends (UNAVAILABLE, after the answers
+                            // of its frames on the pool), else the drain
+                            // would wait for it to its timeout.
+                            () = state.shutdown_begun() => {
+                                Err(Status::unavailable("the server is shutting down"))
+                            }
+                        }
                     }
                 };
                 let f = match next {

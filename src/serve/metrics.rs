@@ -11,7 +11,7 @@ pub const BUCKETS: [f64; 14] = [
 ];
 
 /// Rejection reasons counted (label `reason`).
-pub const REASONS: [&str; 8] = [
+pub const REASONS: [&str; 9] = [
     "overload",
     "session_cap",
     "invalid_frame",
@@ -26,6 +26,9 @@ pub const REASONS: [&str; 8] = [
     "abandoned",
     // A gRPC connection past --max-connections, closed at once.
     "connection_cap",
+    // A frame that arrived before its session was reinitialized, answered
+    // ABORTED at its turn, not stepped.
+    "reinitialized",
 ];
 
 #[derive(Default)]

@@ -153,8 +153,8 @@ pub enum Drained {
     /// Every call and step in flight finished.
     Finished,
     /// The drain timeout passed first, with `steps` still queued or
-    /// running.
-    TimedOut { steps: usize },
+    /// running, and gRPC calls still open if `calls_open`.
+    TimedOut { steps: usize, calls_open: bool },
     /// `force` (a second signal) came first, with `steps` still queued or
     /// running.
     Forced { steps: usize },
@@ -199,7 +199,7 @@ pub async fn serve(
         let drain_s = config.drain_timeout.as_secs_f64();
         tokio::spawn(async move {
             shutdown.await;
-            state.shutting_down.store(true, Ordering::Relaxed);
+            state.begin_shutdown();
             health.draining().await;
             let (steps, waiting) = state.queue_depth();
             log::event(format_args!(
@@ -242,10 +242,15 @@ pub async fn serve(
     let _ = grpc_stop_tx.send(true);
     log::event(match drained {
         Ok(Drained::Finished) => "drain finished: every step in flight answered".to_string(),
-        Ok(Drained::TimedOut { steps }) => format!(
-            "drain timeout ({} s, --drain-timeout-s) reached: {} abandoned",
+        Ok(Drained::TimedOut { steps, calls_open }) => format!(
+            "drain timeout ({} s, --drain-timeout-s) reached: {} abandoned{}",
             config.drain_timeout.as_secs_f64(),
-            log::count(steps as u64, "step")
+            log::count(steps as u64, "step"),
+            if calls_open {
+                ", gRPC calls still open cut"
+            } else {
+                ""
+            }
         ),
         Ok(Drained::Forced { steps }) => format!(
             "second signal: exiting at once, {} abandoned",
@@ -398,12 +403,22 @@ async fn drain(
         return Ok(timed_out);
     }
     let _ = grpc_stop.send(true);
-    // After the stop's GOAWAY, so that no Check meets the health service
-    // without its names.
+    // Watch calls end (the graceful stop would wait for them). The stop
+    // is only signalled above, not yet sent as GOAWAY: a Check on an open
+    // connection in between is answered NOT_FOUND, which a probe takes
+    // as not serving too.
     health.stop().await;
     let grpc_res = tokio::time::timeout(left(), grpc_task).await;
     if let Some(timed_out) = pool_idle(state, deadline).await {
         return Ok(timed_out);
+    }
+    if grpc_res.is_err() {
+        // Calls still open at the timeout (a client's call that does not
+        // end): cut, which is no clean drain.
+        return Ok(Drained::TimedOut {
+            steps: in_flight(state),
+            calls_open: true,
+        });
     }
     if let Ok(Ok(Err(e))) = grpc_res {
         return Err(ServeError::Grpc(e.to_string()));
@@ -420,6 +435,7 @@ async fn pool_idle(state: &State, deadline: Instant) -> Option<Drained> {
         if Instant::now() >= deadline {
             return Some(Drained::TimedOut {
                 steps: in_flight(state),
+                calls_open: false,
             });
         }
         tokio::time::sleep(Duration::from_millis(10)).await;

@@ -109,6 +109,8 @@ impl Reply {
 struct Job {
     frame: FrameInput,
     reply: Reply,
+    /// The session's track when the frame arrived ([`Queue::track`]).
+    track: u64,
 }
 
 #[derive(Default)]
@@ -123,6 +125,10 @@ struct Queue {
     /// was last reinitialized (written under the session's lock too, so a
     /// reinitialization and a step agree on it).
     stepped: Option<Stamp>,
+    /// How many times the session was reinitialized: a frame that arrived
+    /// on an earlier track (its odometry and stamp are the old track's) is
+    /// not stepped on the new one, and its stamp orders nothing.
+    track: u64,
 }
 
 impl Queue {
@@ -131,7 +137,11 @@ impl Queue {
         Seen {
             stepped: self.stepped,
             on_pool: self.on_pool,
-            waiting: self.pending.as_ref().and_then(|j| j.frame.stamp),
+            waiting: self
+                .pending
+                .as_ref()
+                .filter(|j| j.track == self.track)
+                .and_then(|j| j.frame.stamp),
         }
     }
 }
@@ -184,11 +194,15 @@ impl Slot {
     fn busy(&self) -> bool {
         lock(&self.queue).busy
     }
-    /// Forgets the stamp of the last frame stepped: after a
-    /// reinitialization, under the session's lock, the next frame may
-    /// have any stamp (the session starts a new track).
+    /// Starts a new track: after a reinitialization, under the session's
+    /// lock, the next frame may have any stamp, and the frames still on
+    /// the pool or waiting (the old track's) are answered ABORTED at their
+    /// turn instead of being stepped.
     pub fn restart_stamps(&self) {
-        lock(&self.queue).stepped = None;
+        let mut q = lock(&self.queue);
+        q.stepped = None;
+        q.on_pool = None;
+        q.track += 1;
     }
 }
 
@@ -214,6 +228,9 @@ pub struct State {
     queued: AtomicUsize,
     next_id: AtomicU64,
     pub shutting_down: AtomicBool,
+    /// Turns `true` with `shutting_down` ([`State::begin_shutdown`]):
+    /// stream readers waiting for a client's next frame end their streams.
+    shutdown: tokio::sync::watch::Sender<bool>,
 }
 
 /// Idled-out session ids remembered for their message (ids are about 20
@@ -268,7 +285,23 @@ impl State {
             queued: AtomicUsize::new(0),
             next_id: AtomicU64::new(1),
             shutting_down: AtomicBool::new(false),
+            shutdown: tokio::sync::watch::Sender::new(false),
         }))
+    }
+
+    /// Marks the server as shutting down (new calls UNAVAILABLE, waiting
+    /// frames not stepped) and tells the streams' readers.
+    pub fn begin_shutdown(&self) {
+        self.shutting_down.store(true, Ordering::Relaxed);
+        self.shutdown.send_replace(true);
+    }
+
+    /// Resolves once [`State::begin_shutdown`] has been called.
+    pub fn shutdown_begun(&self) -> impl std::future::Future<Output = ()> + Send + 'static {
+        let mut rx = self.shutdown.subscribe();
+        async move {
+            let _ = rx.wait_for(|s| *s).await;
+        }
     }
 
     pub fn map(&self, name: &str) -> Result<&Arc<SharedMap>, Status> {
@@ -440,8 +473,12 @@ impl State {
     /// one session cannot both pass with the same stamp).
     pub fn submit(self: &Arc<Self>, slot: Arc<Slot>, frame: FrameInput, reply: Reply) {
         slot.touch();
-        let job = Job { frame, reply };
         let mut q = lock(&slot.queue);
+        let job = Job {
+            frame,
+            reply,
+            track: q.track,
+        };
         if let Some(stamp) = job.frame.stamp
             && let Err(st) = super::stamp::follows(stamp, &q.seen(), &slot.id)
         {
@@ -492,7 +529,10 @@ impl State {
             if next.is_some() {
                 slot.taken.send_modify(|n| *n += 1);
             }
-            q.on_pool = next.as_ref().and_then(|j| j.frame.stamp);
+            q.on_pool = next
+                .as_ref()
+                .filter(|j| j.track == q.track)
+                .and_then(|j| j.frame.stamp);
             if state.shutting_down.load(Ordering::Relaxed) || next.is_none() {
                 q.busy = false;
                 q.on_pool = None;
@@ -531,7 +571,11 @@ impl State {
         slot: &Slot,
         job: Job,
     ) -> (Reply, Result<proto::PoseUpdate, Status>, FrameInput) {
-        let Job { mut frame, reply } = job;
+        let Job {
+            mut frame,
+            reply,
+            track,
+        } = job;
         if slot.closed.load(Ordering::Relaxed) {
             let st = Status::not_found(format!("session {:?} was closed", slot.id));
             return (reply, Err(st), frame);
@@ -571,8 +615,22 @@ impl State {
         let mut session = lock(&slot.session);
         // The frame's turn may come after a frame of the same stamp it was
         // let in beside (a frame sent again while its first copy ran).
+        let (stepped, now_track) = {
+            let q = lock(&slot.queue);
+            (q.stepped, q.track)
+        };
+        if track != now_track {
+            drop(session);
+            self.metrics.reject("reinitialized");
+            let st = Status::aborted(format!(
+                "session {:?} was reinitialized after this frame arrived: not stepped (its \
+                 odometry and stamp belong to the track before)",
+                slot.id
+            ));
+            return (reply, Err(st), frame);
+        }
         let seen = Seen {
-            stepped: lock(&slot.queue).stepped,
+            stepped,
             ..Seen::default()
         };
         if let Some(stamp) = frame.stamp
