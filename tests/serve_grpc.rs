@@ -367,18 +367,7 @@ async fn malformed_input_is_named_and_the_session_lives_on() {
     let u = c.localize(f.frame(&id, 4)).await.unwrap().into_inner();
     assert_eq!(u.frame, 5, "{u:?}");
     let (_, gt) = f.poses("poses.txt");
-    c.set_initial_pose(proto::SetInitialPoseRequest {
-        session_id: id.clone(),
-        pose: Some(proto::PoseWithCovarianceStamped {
-            header: None,
-            pose: Some(proto::PoseWithCovariance {
-                pose: Some(pose_msg(&gt[5])),
-                covariance: vec![],
-            }),
-        }),
-    })
-    .await
-    .unwrap();
+    c.set_initial_pose(initial_pose(&id, &gt[5])).await.unwrap();
     let u = c.localize(f.frame(&id, 5)).await.unwrap().into_inner();
     let p = pose_of(&u);
     let t = gt[5].translation.vector;

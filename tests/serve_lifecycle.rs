@@ -82,16 +82,7 @@ async fn a_reinitialization_past_the_deadline_is_not_applied() {
     assert_eq!(e.code(), Code::DeadlineExceeded, "{e:?}");
     let (_, gt) = f.poses("poses.txt");
     let e = c
-        .set_initial_pose(proto::SetInitialPoseRequest {
-            session_id: id.clone(),
-            pose: Some(proto::PoseWithCovarianceStamped {
-                header: None,
-                pose: Some(proto::PoseWithCovariance {
-                    pose: Some(pose_msg(&gt[1])),
-                    covariance: vec![],
-                }),
-            }),
-        })
+        .set_initial_pose(initial_pose(&id, &gt[1]))
         .await
         .unwrap_err();
     assert_eq!(e.code(), Code::DeadlineExceeded, "{e:?}");
@@ -129,18 +120,9 @@ async fn a_reinitialization_starts_a_track_the_old_frames_do_not_block() {
     .await;
     let (_, gt) = f.poses("poses.txt");
     let mut c2 = c.clone();
-    c2.set_initial_pose(proto::SetInitialPoseRequest {
-        session_id: id.clone(),
-        pose: Some(proto::PoseWithCovarianceStamped {
-            header: None,
-            pose: Some(proto::PoseWithCovariance {
-                pose: Some(pose_msg(&gt[0])),
-                covariance: vec![],
-            }),
-        }),
-    })
-    .await
-    .unwrap();
+    c2.set_initial_pose(initial_pose(&id, &gt[0]))
+        .await
+        .unwrap();
     // The replay's first frame: accepted, and stepped in its turn.
     let replay = c2.localize(f.frame(&id, 0)).await;
     assert!(replay.is_ok(), "{replay:?}");

@@ -270,6 +270,21 @@ pub fn header(t: f64) -> proto::Header {
     }
 }
 
+/// `SetInitialPose` of `session` at `pose`, no covariance (the server's
+/// default spread).
+pub fn initial_pose(session: &str, pose: &Pose) -> proto::SetInitialPoseRequest {
+    proto::SetInitialPoseRequest {
+        session_id: session.into(),
+        pose: Some(proto::PoseWithCovarianceStamped {
+            header: None,
+            pose: Some(proto::PoseWithCovariance {
+                pose: Some(pose_msg(pose)),
+                covariance: vec![],
+            }),
+        }),
+    }
+}
+
 pub fn pose_msg(p: &Pose) -> proto::Pose {
     omcl::serve::convert::pose_msg(p)
 }
