@@ -819,7 +819,11 @@ fn map_cloud_names_near_misses_and_options_that_do_not_apply() {
         (
             shared("las"),
             &["--classes", "asprs"],
-            &["point-cloud files", "give one file", "pdal merge"],
+            &[
+                "its tiles state different coordinate reference systems",
+                "32-1-472-150-76.laz",
+                "autzen_trim.laz",
+            ],
         ),
     ];
     for (input, extra, needles) in cases {
@@ -831,10 +835,13 @@ fn map_cloud_names_near_misses_and_options_that_do_not_apply() {
     }
     let las = shared("las/simple.las");
     for (extra, needle) in [
-        (&["--frames", "2"][..], "--frames is for a sequence folder"),
+        (
+            &["--frames", "2"][..],
+            "--frames is for a KITTI sequence folder",
+        ),
         (
             &["--max-range", "30"][..],
-            "--max-range is for a sequence folder",
+            "--max-range is for a KITTI sequence folder",
         ),
         (&["--frames", "0"][..], "0 is less than 1"),
     ] {

@@ -199,8 +199,11 @@ pub enum FormatArg {
 #[derive(Debug, Args)]
 pub struct CloudArgs {
     /// A point-cloud file (.ply, .las, .laz, KITTI .bin with --format kitti,
-    /// ScanNet .bin with --format scannet) or a SemanticKITTI sequence
-    /// folder (velodyne/, labels/, calib.txt, poses.txt).
+    /// ScanNet .bin with --format scannet), a SemanticKITTI sequence
+    /// folder (velodyne/, labels/, calib.txt, poses.txt), or a folder of
+    /// LAS/LAZ tiles of one CRS, mapped together. LAS/LAZ with --classes
+    /// are read a batch at a time (any size, two passes); other files are
+    /// read whole (about 60 bytes a point).
     pub input: PathBuf,
     #[command(flatten)]
     pub build: BuildOptions,
@@ -248,7 +251,11 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     ));
     inputs.extend(a.ort_lib.clone().map(|p| ("the --ort-lib".to_string(), p)));
     super::outputs::refuse_overlaps(&[("--out", &a.build.out)], &inputs)?;
-    if a.input.is_dir() {
+    // A folder of LAS/LAZ tiles, mapped together a batch at a time.
+    let tiles = omcl::mapping::tiles::las_tiles(&a.input);
+    if let Some(files) = &tiles {
+        refuse_tile_name(&a.build.out, &a.input, files)?;
+    } else if a.input.is_dir() {
         // A sequence folder: its scans, labels, poses and calibration.
         super::outputs::refuse_inside_sequence(&[("--out", &a.build.out)], &a.input)?;
     }
@@ -259,7 +266,12 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         "{}: no such file or folder",
         a.input.display()
     );
-    if !a.input.is_dir() {
+    if !a.input.is_dir() || tiles.is_some() {
+        let what_it_is = if tiles.is_some() {
+            "a folder of LAS/LAZ tiles"
+        } else {
+            "a file"
+        };
         for (given, what) in [
             (a.frames.is_some(), "--frames"),
             (a.max_range.is_some(), "--max-range"),
@@ -267,7 +279,23 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         ] {
             ensure!(
                 !given,
-                "{what} is for a sequence folder (scan by scan); {} is a file",
+                "{what} is for a KITTI sequence folder (scan by scan); {} is {what_it_is}",
+                a.input.display()
+            );
+        }
+    }
+    if tiles.is_some() {
+        for (given, what) in [
+            (a.features.is_some(), "--features"),
+            (a.point_model.is_some(), "--point-model"),
+            (a.labels.is_some(), "--labels"),
+            (a.format.is_some(), "--format"),
+        ] {
+            ensure!(
+                !given,
+                "{what} is for one cloud file; {} is a folder of LAS/LAZ tiles, mapped from \
+                 their classification codes (--classes asprs or a class list); merge the \
+                 tiles into one file (e.g. `pdal merge`) for {what}",
                 a.input.display()
             );
         }
@@ -295,6 +323,16 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     };
     let (table, text_encoder) = a.build.table(a.ort_lib.as_deref())?.unzip();
     let text_encoder = text_encoder.flatten();
+    let las_file = !a.input.is_dir()
+        && match a.format {
+            Some(f) => matches!(f, FormatArg::Las),
+            None => CloudFormat::from_path(&a.input) == Some(CloudFormat::Las),
+        };
+    if tiles.is_some() || (las_file && a.features.is_none() && a.point_model.is_none()) {
+        // LAS/LAZ labels through the class table: a batch at a time,
+        // never the whole cloud in memory.
+        return las(a, table.as_ref(), text_encoder.as_deref());
+    }
     if a.input.is_dir() && a.point_model.is_none() {
         // A sequence folder: scan by scan, never the merged cloud in memory.
         // Two passes over the scans, each its own bar length and ETA, named
@@ -365,6 +403,94 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     save(&m, &a.build, &stats)?;
     let labelled = table.is_some() && !own_features && a.point_model.is_none();
     warn_labels(&m, &a.build, &stats, labelled);
+    Ok(())
+}
+
+/// Maps a LAS/LAZ file or a folder of tiles a batch at a time
+/// (`omcl::mapping::tiles`): two passes over the points, each a bar.
+fn las(
+    a: &CloudArgs,
+    table: Option<&EmbeddingTable>,
+    text_encoder: Option<&str>,
+) -> anyhow::Result<()> {
+    use omcl::mapping::tiles::{LasOptions, LasSource, map_from_las};
+    let pb = super::progress::spinner(&format!("reading the headers of {}", a.input.display()));
+    let src = LasSource::open(&a.input)?;
+    super::progress::finish(&pb);
+    for n in src.notes() {
+        eprintln!("note: {n}");
+    }
+    let what = if src.files().len() > 1 {
+        format!("points of {} tiles", src.files().len())
+    } else {
+        "points".to_string()
+    };
+    let pb = super::progress::bar_of(src.declared(), "pass 1 of 2, the grid's centre", &what);
+    let mut finishing = None;
+    let mut pass = pipeline::SequencePass::Bounds;
+    let (m, stats, notes) = map_from_las(
+        &src,
+        &LasOptions {
+            keep_all: a.keep_all,
+            ..Default::default()
+        },
+        &a.build.params(text_encoder),
+        table,
+        &mut |now, done, total| {
+            if now != pass {
+                pass = now;
+                pb.set_prefix("pass 2 of 2, mapping");
+                // The ETA from this pass's rate; elapsed counts both.
+                pb.reset_eta();
+            }
+            pb.set_position(done);
+            if now == pipeline::SequencePass::Mapping && done == total {
+                super::progress::finish(&pb);
+                finishing = Some(super::progress::spinner("finishing the map"));
+            }
+        },
+    )?;
+    super::progress::finish(&pb);
+    if let Some(s) = finishing {
+        super::progress::finish(&s);
+    }
+    for n in &notes {
+        eprintln!("note: {n}");
+    }
+    save(&m, &a.build, &stats)?;
+    warn_labels(&m, &a.build, &stats, true);
+    Ok(())
+}
+
+/// Refuses an `--out` that the next run over the tile folder `dir` would
+/// read as one of its tiles (a `.las`/`.laz` name in it).
+fn refuse_tile_name(out: &Path, dir: &Path, files: &[PathBuf]) -> anyhow::Result<()> {
+    let ext = out
+        .extension()
+        .and_then(|x| x.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    let (Ok(d), Some(parent)) = (
+        std::fs::canonicalize(dir),
+        out.parent().map(|p| {
+            if p.as_os_str().is_empty() {
+                Path::new(".")
+            } else {
+                p
+            }
+        }),
+    ) else {
+        return Ok(());
+    };
+    let inside = std::fs::canonicalize(parent).is_ok_and(|p| p == d);
+    ensure!(
+        !(inside && (ext == "las" || ext == "laz")),
+        "{}: --out would be read as a tile of {} ({} tiles there now); write the map \
+         elsewhere or name it .omcl",
+        out.display(),
+        dir.display(),
+        files.len()
+    );
     Ok(())
 }
 

@@ -150,26 +150,7 @@ impl PointCloud {
                 )));
             }
         }
-        // One pass: a NaN or an infinity is not within the bound either.
-        let far = crate::geometry::MAX_COORDINATE_M;
-        if let Some(i) = self
-            .points
-            .iter()
-            .position(|p| p.iter().any(|&v| !(v.is_finite() && v.abs() <= far)))
-        {
-            let p = self.points[i];
-            let why = if p.iter().all(|v| v.is_finite()) {
-                format!(
-                    "lies at ({}, {}, {}), farther than {far:e} m from 0 in a coordinate, \
-                     beyond what a map can hold (a LAS file's scale or offset wrong?)",
-                    p[0], p[1], p[2]
-                )
-            } else {
-                format!("is not finite: ({}, {}, {})", p[0], p[1], p[2])
-            };
-            return Err(invalid(format!("point {i} {why}")));
-        }
-        Ok(())
+        check_points(source, &self.points, 0)
     }
 
     /// Maps every point through `target_from_source` (for example
@@ -333,6 +314,34 @@ impl PointCloud {
             Ok(self)
         }
     }
+}
+
+/// Checks that every coordinate of `points` is finite and within
+/// [`crate::geometry::MAX_COORDINATE_M`] of 0; `first` is the index of
+/// `points[0]` in its cloud (for the error, which names `source`).
+pub fn check_points(source: &str, points: &[[f64; 3]], first: u64) -> Result<(), CloudError> {
+    // One pass: a NaN or an infinity is not within the bound either.
+    let far = crate::geometry::MAX_COORDINATE_M;
+    let Some(i) = points
+        .iter()
+        .position(|p| p.iter().any(|&v| !(v.is_finite() && v.abs() <= far)))
+    else {
+        return Ok(());
+    };
+    let p = points[i];
+    let why = if p.iter().all(|v| v.is_finite()) {
+        format!(
+            "lies at ({}, {}, {}), farther than {far:e} m from 0 in a coordinate, \
+             beyond what a map can hold (a LAS file's scale or offset wrong?)",
+            p[0], p[1], p[2]
+        )
+    } else {
+        format!("is not finite: ({}, {}, {})", p[0], p[1], p[2])
+    };
+    Err(CloudError::Invalid {
+        source_name: source.to_string(),
+        reason: format!("point {} {why}", first + i as u64),
+    })
 }
 
 /// Voxel down-sampling: keeps the first point of every cubic cell of edge

@@ -685,7 +685,8 @@ fn check_near_misses(dir: &Path) -> Result<(), CloudError> {
             dir,
             format!(
                 "a folder of {clouds} point-cloud files, not a KITTI sequence (no calib.txt): \
-                 give one file; merge tiles first (e.g. `pdal merge`) to map them together"
+                 a folder of LAS/LAZ tiles alone is mapped together, PLY files one at a time \
+                 (give one file, or merge them first, e.g. with `pdal merge`)"
             ),
         ));
     }

@@ -14,7 +14,7 @@
 //! 8-bit, otherwise the high byte is kept.
 
 use std::io::{Seek, SeekFrom};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use las::{PointDataBuilder, Reader};
 
@@ -244,108 +244,21 @@ fn check_laz_chunk_table(
 /// Reads every point of a `.las` or `.laz` file that is not withheld, in
 /// metres ([`PointCloud::notes`] says what was converted or left out).
 pub fn read_las(path: &Path) -> Result<PointCloud, CloudError> {
-    // Open ourselves so a missing file is an I/O error, not a format error.
-    let mut file = std::fs::File::open(path).map_err(|e| CloudError::io(path, e))?;
-    let (size, compressed) = check_raw_header(path, &mut file)?;
-    // The `laz` decoder asserts (panics) on some corrupt streams instead of
-    // returning an error; such a file is reported like any other corrupt one.
-    // The binary's panic hook keeps the decoder's message off the terminal.
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        decode(path, file, size, compressed)
-    }))
-    .unwrap_or_else(|panic| {
-        let why = panic
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| panic.downcast_ref::<String>().cloned())
-            .unwrap_or_default();
-        Err(CloudError::format(
-            path,
-            format!("corrupt LAZ point data (the decoder stopped: {why})"),
-        ))
-    })
-}
-
-/// Decodes the points of a file whose header passed [`check_raw_header`].
-fn decode(
-    path: &Path,
-    file: std::fs::File,
-    size: u64,
-    compressed: bool,
-) -> Result<PointCloud, CloudError> {
-    let mut reader = Reader::new(std::io::BufReader::with_capacity(1 << 20, file))
-        .map_err(|e| las_err(path, e))?;
+    let mut chunks = LasChunks::open(path)?;
     let name = path.display().to_string();
-    let units = crs::units(reader.header()).map_err(|reason| CloudError::Invalid {
-        source_name: name.clone(),
-        reason,
-    })?;
-    let ([xy_to_m, z_to_m], mut notes) = crs::to_metres(&name, &units);
-    let n = reader.header().number_of_points();
-    let has_color = reader.header().point_format().has_color;
-    let extended = reader.header().point_format().is_extended;
-    let record = reader.header().point_format().len().max(1) as u64;
-    // The header's count was checked against the file's size above; cap the
-    // up-front reservation all the same (the points still arrive in full).
-    let cap = n.min(1 << 20) as usize;
-    let batch_points = BATCH.min(BATCH_BYTES / record).max(1);
-    // The crate's count (legacy or 64-bit field, by version) against the
-    // size once more: it is the one the loop below trusts.
-    let limit = if compressed {
-        size.saturating_mul(LAZ_POINTS_PER_BYTE)
-    } else {
-        size / record
-    };
-    if n > limit {
-        return Err(CloudError::format(
-            path,
-            format!(
-                "corrupt header: {n} points declared, the {size}-byte file holds at most {limit}"
-            ),
-        ));
-    }
+    let cap = chunks.declared().min(1 << 20) as usize;
     let mut points = Vec::with_capacity(cap);
     let mut labels = Vec::with_capacity(cap);
-    let mut rgb16: Vec<[u16; 3]> = Vec::with_capacity(if has_color { cap } else { 0 });
-    let mut batch = PointDataBuilder::new().for_header(reader.header()).build();
-    let mut read = 0u64;
+    let mut rgb16: Vec<[u16; 3]> = Vec::with_capacity(if chunks.has_color() { cap } else { 0 });
     let mut left_out = Vec::new();
-    while read < n {
-        let got = reader
-            .fill_points(batch_points.min(n - read), &mut batch)
-            .map_err(|e| las_err(path, e))?;
-        if got == 0 {
-            return Err(CloudError::format(
-                path,
-                format!("truncated: header declares {n} points, file holds {read}"),
-            ));
-        }
-        read += got;
-        let mut rgb = batch.rgb();
-        let kept = batch
-            .raw_bytes()
-            .chunks_exact(batch.record_len().max(1))
-            .map(|r| !is_withheld(r, extended));
-        let columns = batch
-            .x()
-            .zip(batch.y())
-            .zip(batch.z())
-            .zip(batch.classification())
-            .zip(kept);
-        let first = (read - got) as usize;
-        for (i, ((((x, y), z), class), keep)) in columns.enumerate() {
-            let colour = rgb.as_mut().and_then(Iterator::next);
-            if !keep {
-                left_out.push(first + i);
-                continue;
-            }
-            points.push([x * xy_to_m, y * xy_to_m, z * z_to_m]);
-            labels.push(u32::from(class));
-            if let Some((r, g, b)) = colour {
-                rgb16.push([r, g, b]);
-            }
-        }
+    while let Some(c) = chunks.next_chunk()? {
+        points.extend_from_slice(&c.points);
+        labels.extend_from_slice(&c.labels);
+        rgb16.extend_from_slice(&c.rgb16);
+        left_out.extend_from_slice(&c.withheld);
     }
+    let n = chunks.declared();
+    let mut notes = chunks.notes().to_vec();
     let withheld = left_out.len();
     if withheld > 0 {
         if points.is_empty() {
@@ -354,12 +267,9 @@ fn decode(
                 reason: format!("all {n} points are flagged withheld (deleted)"),
             });
         }
-        notes.push(format!(
-            "{name}: {withheld} of {n} points are flagged withheld (deleted by the \
-             producer) and were left out"
-        ));
+        notes.push(withheld_note(&name, withheld as u64, n));
     }
-    let colors = has_color.then(|| {
+    let colors = chunks.has_color().then(|| {
         let eight_bit = rgb16.iter().all(|c| c.iter().all(|&v| v <= 255));
         rgb16
             .iter()
@@ -382,6 +292,237 @@ fn decode(
     };
     cloud.validate(&name)?;
     cloud.non_empty(&name, "the file holds no points")
+}
+
+/// ASPRS classes 7 (low point, noise) and 18 (high noise): outliers, left
+/// out unless asked for (`--keep-all`).
+pub fn is_asprs_noise(class: u32) -> bool {
+    matches!(class, 7 | 18)
+}
+
+/// The note on points flagged withheld.
+pub fn withheld_note(name: &str, withheld: u64, of: u64) -> String {
+    format!(
+        "{name}: {withheld} of {of} points are flagged withheld (deleted by the \
+         producer) and were left out"
+    )
+}
+
+/// A LAS/LAZ file read a batch of points at a time, so that a file of
+/// any size can be mapped in the memory of one batch ([`read_las`] reads
+/// it whole). Its header is checked against the file's size on
+/// [`LasChunks::open`], as for [`read_las`].
+pub struct LasChunks {
+    path: PathBuf,
+    reader: Reader,
+    batch: las::PointData,
+    batch_points: u64,
+    declared: u64,
+    read: u64,
+    kept: u64,
+    to_metres: [f64; 2],
+    extended: bool,
+    has_color: bool,
+    notes: Vec<String>,
+    crs: CrsRecords,
+}
+
+/// A LAS file's `LASF_Projection` records (its coordinate reference
+/// system as stated): record id and bytes, sorted by id.
+pub type CrsRecords = Vec<(u16, Vec<u8>)>;
+
+/// One batch of a [`LasChunks`] file: the points not withheld, in metres,
+/// with their classification codes and (when the format has colour) their
+/// 16-bit colours, in the file's order.
+#[derive(Debug, Default)]
+pub struct LasChunk {
+    /// Index of the chunk's first kept point among the file's kept points.
+    pub first_kept: u64,
+    /// Coordinates, metres.
+    pub points: Vec<[f64; 3]>,
+    /// Classification codes.
+    pub labels: Vec<u32>,
+    /// Colours as stored (16 bits a channel; empty without colour).
+    pub rgb16: Vec<[u16; 3]>,
+    /// Record indices (in the file) of the points flagged withheld.
+    pub withheld: Vec<usize>,
+}
+
+impl LasChunks {
+    /// Opens `path`, checks its header and reads its CRS.
+    pub fn open(path: &Path) -> Result<Self, CloudError> {
+        // Open ourselves so a missing file is an I/O error, not a format error.
+        let mut file = std::fs::File::open(path).map_err(|e| CloudError::io(path, e))?;
+        let (size, compressed) = check_raw_header(path, &mut file)?;
+        contain_decoder_panic(path, || Self::open_checked(path, file, size, compressed))
+    }
+
+    fn open_checked(
+        path: &Path,
+        file: std::fs::File,
+        size: u64,
+        compressed: bool,
+    ) -> Result<Self, CloudError> {
+        let reader = Reader::new(std::io::BufReader::with_capacity(1 << 20, file))
+            .map_err(|e| las_err(path, e))?;
+        let name = path.display().to_string();
+        let units = crs::units(reader.header()).map_err(|reason| CloudError::Invalid {
+            source_name: name.clone(),
+            reason,
+        })?;
+        let (to_metres, notes) = crs::to_metres(&name, &units);
+        let n = reader.header().number_of_points();
+        let format = reader.header().point_format();
+        let record = format.len().max(1) as u64;
+        // The crate's count (legacy or 64-bit field, by version) against the
+        // size once more: it is the one the reading trusts.
+        let limit = if compressed {
+            size.saturating_mul(LAZ_POINTS_PER_BYTE)
+        } else {
+            size / record
+        };
+        if n > limit {
+            return Err(CloudError::format(
+                path,
+                format!(
+                    "corrupt header: {n} points declared, the {size}-byte file holds at most {limit}"
+                ),
+            ));
+        }
+        Ok(Self {
+            path: path.to_path_buf(),
+            batch: PointDataBuilder::new().for_header(reader.header()).build(),
+            batch_points: BATCH.min(BATCH_BYTES / record).max(1),
+            declared: n,
+            read: 0,
+            kept: 0,
+            to_metres,
+            extended: format.is_extended,
+            has_color: format.has_color,
+            notes,
+            crs: crs::records(reader.header()),
+            reader,
+        })
+    }
+
+    /// Decodes at most `points` records a batch (at least 1; the default
+    /// is 262,144, fewer for long records): the memory a batch takes.
+    pub fn with_batch_points(mut self, points: u64) -> Self {
+        self.batch_points = self.batch_points.min(points.max(1));
+        self
+    }
+
+    /// Point records the header declares (withheld ones included).
+    pub fn declared(&self) -> u64 {
+        self.declared
+    }
+
+    /// Point records read so far.
+    pub fn read(&self) -> u64 {
+        self.read
+    }
+
+    /// Whether the point format carries colour.
+    pub fn has_color(&self) -> bool {
+        self.has_color
+    }
+
+    /// What was converted on the way (units), one line each.
+    pub fn notes(&self) -> &[String] {
+        &self.notes
+    }
+
+    /// The CRS records, to compare tiles' (`LASF_Projection` records,
+    /// sorted by id, with their bytes; empty without).
+    pub fn crs_records(&self) -> &[(u16, Vec<u8>)] {
+        &self.crs
+    }
+
+    /// The next batch, `None` after the last point; an error names the
+    /// file (a truncated or corrupt one included) and ends the reading.
+    pub fn next_chunk(&mut self) -> Result<Option<LasChunk>, CloudError> {
+        if self.read >= self.declared {
+            return Ok(None);
+        }
+        let path = self.path.clone();
+        contain_decoder_panic(&path, || self.decode_batch().map(Some))
+    }
+
+    fn decode_batch(&mut self) -> Result<LasChunk, CloudError> {
+        let path = &self.path;
+        let n = self.declared;
+        let got = self
+            .reader
+            .fill_points(self.batch_points.min(n - self.read), &mut self.batch)
+            .map_err(|e| las_err(path, e))?;
+        if got == 0 {
+            return Err(CloudError::format(
+                path,
+                format!(
+                    "truncated: header declares {n} points, file holds {}",
+                    self.read
+                ),
+            ));
+        }
+        let first = self.read as usize;
+        self.read += got;
+        let batch = &self.batch;
+        let [xy_to_m, z_to_m] = self.to_metres;
+        let extended = self.extended;
+        let mut chunk = LasChunk {
+            first_kept: self.kept,
+            points: Vec::with_capacity(got as usize),
+            labels: Vec::with_capacity(got as usize),
+            rgb16: Vec::with_capacity(if self.has_color { got as usize } else { 0 }),
+            withheld: Vec::new(),
+        };
+        let mut rgb = batch.rgb();
+        let kept = batch
+            .raw_bytes()
+            .chunks_exact(batch.record_len().max(1))
+            .map(|r| !is_withheld(r, extended));
+        let columns = batch
+            .x()
+            .zip(batch.y())
+            .zip(batch.z())
+            .zip(batch.classification())
+            .zip(kept);
+        for (i, ((((x, y), z), class), keep)) in columns.enumerate() {
+            let colour = rgb.as_mut().and_then(Iterator::next);
+            if !keep {
+                chunk.withheld.push(first + i);
+                continue;
+            }
+            chunk.points.push([x * xy_to_m, y * xy_to_m, z * z_to_m]);
+            chunk.labels.push(u32::from(class));
+            if let Some((r, g, b)) = colour {
+                chunk.rgb16.push([r, g, b]);
+            }
+        }
+        self.kept += chunk.points.len() as u64;
+        Ok(chunk)
+    }
+}
+
+/// Runs `f`, reporting a panic of the `laz` decoder (which asserts on some
+/// corrupt streams instead of returning an error) like any other corrupt
+/// file. The binary's panic hook keeps the decoder's message off the
+/// terminal.
+fn contain_decoder_panic<T>(
+    path: &Path,
+    f: impl FnOnce() -> Result<T, CloudError>,
+) -> Result<T, CloudError> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|panic| {
+        let why = panic
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| panic.downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        Err(CloudError::format(
+            path,
+            format!("corrupt LAZ point data (the decoder stopped: {why})"),
+        ))
+    })
 }
 
 /// The withheld flag of a raw point record: bit 7 of byte 15 (the

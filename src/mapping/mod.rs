@@ -7,6 +7,10 @@
 //! - Option 2, point clouds ([`cloud`]): each point's feature (or label row)
 //!   added to its voxel.
 //!
+//! The pipelines users run read the inputs: [`pipeline`] (a cloud read
+//! whole, a SemanticKITTI sequence scan by scan, RGB-D frames) and
+//! [`tiles`] (LAS/LAZ files and folders of tiles a batch at a time).
+//!
 //! Frames give features through [`FrameFeatures`], points one [`Feature`] each: a row of
 //! a fixed table (labels with an embedding table: the ground-truth mode) or
 //! a feature vector (feature files, encoders). No I/O here.
@@ -16,6 +20,7 @@ pub mod colors;
 pub mod pipeline;
 pub mod projection;
 pub mod rgbd;
+pub mod tiles;
 
 /// Errors of the mapping front doors: inputs whose sizes disagree, and the
 /// feature database's own errors.

@@ -110,7 +110,7 @@ pub fn load_cloud(input: &CloudInput) -> Result<PointCloud, PipelineError> {
         // ASPRS classes 7 (low point, noise) and 18 (high noise) are outliers.
         if let Some(labels) = c.labels.clone() {
             let before = c.len();
-            c.retain_indices(|i| !matches!(labels[i], 7 | 18));
+            c.retain_indices(|i| !crate::io::las::is_asprs_noise(labels[i]));
             note_dropped(&mut c, path, before, "noise (ASPRS classes 7 and 18)");
         }
     }
@@ -184,7 +184,8 @@ fn open_sequence(
     Ok((seq, frames, opts))
 }
 
-/// The two passes of [`map_from_sequence`].
+/// The two passes of [`map_from_sequence`] (and of
+/// [`super::tiles::map_from_las`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SequencePass {
     /// Reading every scan for the bounds of the kept points.

@@ -542,6 +542,22 @@ fn wkt_units(data: &[u8]) -> Result<Units, String> {
     Ok(Units::Stated { xy, z, remarks })
 }
 
+/// The file's coordinate reference system as stated: every
+/// `LASF_Projection` record (WKT, GeoTIFF keys, doubles and strings, in
+/// VLRs or EVLRs), sorted by record id, with its bytes. Tiles of one
+/// survey carry the same records; tiles whose records differ may count
+/// their coordinates from different origins or in different units, and
+/// are not merged.
+pub(super) fn records(header: &Header) -> super::CrsRecords {
+    let mut r: super::CrsRecords = header
+        .all_vlrs()
+        .filter(|v| v.user_id.eq_ignore_ascii_case("LASF_Projection"))
+        .map(|v| (v.record_id, v.data.clone()))
+        .collect();
+    r.sort();
+    r
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

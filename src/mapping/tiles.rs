@@ -1,0 +1,326 @@
+//! LAS/LAZ clouds mapped a batch of points at a time (`omcl map cloud
+//! FILE.laz` or `omcl map cloud TILES/`): one file of any size, or a
+//! folder of tiles of one survey, in the memory of the map being built and
+//! one batch, never the whole cloud (read whole, a cloud takes about 60
+//! bytes a point: 10^9 points would not fit).
+//!
+//! As for a SemanticKITTI sequence ([`super::pipeline::map_from_sequence`]),
+//! two passes: the first reads every point for the centre of the kept
+//! points (the grid's origin, [`OriginEstimate`]), the second integrates
+//! them batch by batch. The points, their order and the grid are those of
+//! the whole-file path (`map_from_cloud(load_cloud(..))`) on the same file,
+//! or on the tiles merged in file-name order, so the map is the same.
+//! Labels become rows through the class table (LAS classification codes);
+//! per-point features (`--features`) and point encoders need the whole
+//! cloud and take the whole-file path.
+
+use std::path::{Path, PathBuf};
+
+use super::IntegrationStats;
+use super::pipeline::{BuildParams, OriginEstimate, PipelineError, SequencePass};
+use crate::io::cloud::{CloudError, check_points};
+use crate::io::labels::EmbeddingTable;
+use crate::io::las::{CrsRecords, LasChunk, LasChunks, is_asprs_noise, withheld_note};
+use crate::map::{FeatureDb, Integrator, LanguageMap};
+
+/// One LAS/LAZ file or a folder of tiles, their headers checked.
+#[derive(Debug, Clone)]
+pub struct LasSource {
+    name: String,
+    files: Vec<PathBuf>,
+    declared: u64,
+    notes: Vec<String>,
+}
+
+/// The `.las` and `.laz` files of folder `dir` in name order, when it
+/// holds such files and no other point-cloud files (`.ply`) and is not a
+/// KITTI sequence (`calib.txt`); `None` otherwise.
+pub fn las_tiles(dir: &Path) -> Option<Vec<PathBuf>> {
+    if !dir.is_dir() || dir.join("calib.txt").exists() {
+        return None;
+    }
+    let mut las = Vec::new();
+    for e in std::fs::read_dir(dir).ok()?.flatten() {
+        let p = e.path();
+        let ext = p
+            .extension()
+            .and_then(|x| x.to_str())
+            .unwrap_or("")
+            .to_ascii_lowercase();
+        match ext.as_str() {
+            "las" | "laz" if p.is_file() => las.push(p),
+            "ply" => return None,
+            _ => {}
+        }
+    }
+    las.sort();
+    (!las.is_empty()).then_some(las)
+}
+
+impl LasSource {
+    /// A `.las`/`.laz` file, or a folder of them ([`las_tiles`]): every
+    /// header is checked against its file's size and read for its units,
+    /// and tiles must state the same coordinate reference system (the same
+    /// `LASF_Projection` records), since each counts its coordinates in
+    /// that system.
+    pub fn open(path: &Path) -> Result<Self, PipelineError> {
+        let name = path.display().to_string();
+        let files = if path.is_dir() {
+            las_tiles(path).ok_or_else(|| {
+                PipelineError::Input(format!("{name}: no .las or .laz tiles in this folder"))
+            })?
+        } else {
+            vec![path.to_path_buf()]
+        };
+        let mut declared = 0u64;
+        let mut notes = Vec::new();
+        let mut first: Option<(PathBuf, CrsRecords)> = None;
+        for f in &files {
+            let r = LasChunks::open(f)?;
+            declared = declared.saturating_add(r.declared());
+            match &first {
+                None => {
+                    notes.extend(r.notes().iter().cloned());
+                    first = Some((f.clone(), r.crs_records().to_vec()));
+                }
+                Some((f0, crs)) if crs.as_slice() != r.crs_records() => {
+                    let stated = |c: &[(u16, Vec<u8>)]| {
+                        if c.is_empty() {
+                            "none".to_string()
+                        } else {
+                            c.iter()
+                                .map(|(id, _)| id.to_string())
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        }
+                    };
+                    return Err(PipelineError::Input(format!(
+                        "{name}: its tiles state different coordinate reference systems: {} \
+                         (projection records {}) and {} (records {}) differ; map the tiles of \
+                         one CRS together (reproject the others first, e.g. with PDAL or \
+                         LAStools)",
+                        f0.display(),
+                        stated(crs),
+                        f.display(),
+                        stated(r.crs_records())
+                    )));
+                }
+                Some(_) => {}
+            }
+        }
+        if files.len() > 1 && !notes.is_empty() {
+            notes.push(format!(
+                "{name}: its other {} tiles state the same CRS and were converted the same way",
+                files.len() - 1
+            ));
+        }
+        Ok(Self {
+            name,
+            files,
+            declared,
+            notes,
+        })
+    }
+
+    /// The files, in the order their points are read.
+    pub fn files(&self) -> &[PathBuf] {
+        &self.files
+    }
+
+    /// Point records the headers declare, withheld ones included.
+    pub fn declared(&self) -> u64 {
+        self.declared
+    }
+
+    /// What was converted on the way (units), one line each.
+    pub fn notes(&self) -> &[String] {
+        &self.notes
+    }
+}
+
+/// How the points of a [`LasSource`] are read.
+#[derive(Debug, Clone, Copy)]
+pub struct LasOptions {
+    /// Keep ASPRS noise (classes 7 and 18).
+    pub keep_all: bool,
+    /// Points decoded a batch, at most ([`LasChunks::with_batch_points`]).
+    pub batch_points: u64,
+}
+
+impl Default for LasOptions {
+    fn default() -> Self {
+        Self {
+            keep_all: false,
+            batch_points: u64::MAX,
+        }
+    }
+}
+
+/// What a pass left out, for the notes.
+#[derive(Debug, Default)]
+struct LeftOut {
+    withheld: u64,
+    withheld_files: usize,
+    noise: u64,
+    /// Per file, the points kept before noise (an empty file is named).
+    kept: Vec<u64>,
+}
+
+/// Reads every batch of `src`, the kept points (withheld and, unless
+/// `keep_all`, noise left out) handed to `each` with their labels, in the
+/// file order; `progress(records read, declared)` after each batch.
+fn each_batch(
+    src: &LasSource,
+    opts: &LasOptions,
+    mut progress: impl FnMut(u64, u64),
+    mut each: impl FnMut(&[[f64; 3]], &[u32]),
+) -> Result<LeftOut, PipelineError> {
+    let mut left = LeftOut::default();
+    let mut done = 0u64;
+    let (mut pts, mut labels) = (Vec::new(), Vec::new());
+    for f in &src.files {
+        let mut r = LasChunks::open(f)?.with_batch_points(opts.batch_points);
+        let name = f.display().to_string();
+        let withheld_before = left.withheld;
+        let mut kept = 0u64;
+        while let Some(c) = r.next_chunk()? {
+            let LasChunk {
+                first_kept,
+                points,
+                labels: classes,
+                withheld,
+                ..
+            } = c;
+            check_points(&name, &points, first_kept)?;
+            left.withheld += withheld.len() as u64;
+            kept += points.len() as u64;
+            pts.clear();
+            labels.clear();
+            for (p, &l) in points.iter().zip(&classes) {
+                if opts.keep_all || !is_asprs_noise(l) {
+                    pts.push(*p);
+                    labels.push(l);
+                }
+            }
+            left.noise += (points.len() - pts.len()) as u64;
+            each(&pts, &labels);
+            progress(done + r.read(), src.declared);
+        }
+        done += r.declared();
+        if left.withheld > withheld_before {
+            left.withheld_files += 1;
+        }
+        left.kept.push(kept);
+    }
+    Ok(left)
+}
+
+/// Builds the map of `src` (module page): labels through `table` (a
+/// class table is required: LAS points carry classification codes).
+/// `progress(pass, records read, records declared)` after every batch.
+/// Returns the map, the integration's counts and notes on what was left
+/// out.
+pub fn map_from_las(
+    src: &LasSource,
+    opts: &LasOptions,
+    params: &BuildParams,
+    table: Option<&EmbeddingTable>,
+    progress: &mut dyn FnMut(SequencePass, u64, u64),
+) -> Result<(LanguageMap, IntegrationStats, Vec<String>), PipelineError> {
+    let name = &src.name;
+    let Some(table) = table else {
+        return Err(PipelineError::Input(format!(
+            "{name}: points carry labels but no class table was given: pass --classes asprs \
+             (LAS codes), or a class list file with --embeddings NPY or --text-model ONNX"
+        )));
+    };
+    let mut origin = OriginEstimate::default();
+    let left = each_batch(
+        src,
+        opts,
+        |done, total| progress(SequencePass::Bounds, done, total),
+        |pts, _| origin.add(pts),
+    )?;
+    let notes = left_out_notes(src, &left)?;
+    let grid = origin.grid(params.resolution).ok_or_else(|| {
+        PipelineError::Input(format!(
+            "{name}: empty result: no points left to map; no map written"
+        ))
+    })?;
+    let mut integ = Integrator::new(
+        grid,
+        FeatureDb::from_rows(table.dim, params.tau, table.data.clone())?,
+    )?;
+    let mut stats = IntegrationStats::default();
+    let mut rows = Vec::new();
+    each_batch(
+        src,
+        opts,
+        |done, total| progress(SequencePass::Mapping, done, total),
+        |pts, labels| {
+            rows.clear();
+            rows.extend(labels.iter().map(|&l| table.row_index(l).map(|r| r as u32)));
+            let s = super::cloud::integrate_point_rows(&mut integ, pts, &rows);
+            stats.offered += s.offered;
+            stats.integrated += s.integrated;
+            stats.skipped += s.skipped;
+            stats.rejected += s.rejected;
+        },
+    )?;
+    let map = super::pipeline::finish(integ, &params.encoder, params.tau, &stats)?;
+    Ok((map, stats, notes))
+}
+
+/// The notes on withheld and noise points, or the error of a single file
+/// with no point left (as the whole-file reader words it).
+fn left_out_notes(src: &LasSource, left: &LeftOut) -> Result<Vec<String>, PipelineError> {
+    let name = &src.name;
+    let tiles = src.files.len();
+    let kept: u64 = left.kept.iter().sum();
+    if tiles == 1 && kept == 0 {
+        let reason = if left.withheld > 0 {
+            format!("all {} points are flagged withheld (deleted)", src.declared)
+        } else {
+            "the file holds no points".to_string()
+        };
+        return Err(CloudError::Empty {
+            source_name: name.clone(),
+            reason,
+        }
+        .into());
+    }
+    let mut notes = Vec::new();
+    if left.withheld > 0 {
+        let mut n = withheld_note(name, left.withheld, src.declared);
+        if tiles > 1 {
+            n.push_str(&format!(
+                " ({} of its {tiles} tiles have some)",
+                left.withheld_files
+            ));
+        }
+        notes.push(n);
+    }
+    if tiles > 1 {
+        let empty: Vec<String> = src
+            .files
+            .iter()
+            .zip(&left.kept)
+            .filter(|(_, k)| **k == 0)
+            .map(|(f, _)| f.display().to_string())
+            .collect();
+        if !empty.is_empty() {
+            notes.push(format!(
+                "{name}: {} of its {tiles} tiles hold no point to map: {}",
+                empty.len(),
+                empty.join(", ")
+            ));
+        }
+    }
+    if left.noise > 0 {
+        notes.push(format!(
+            "{name}: {} noise (ASPRS classes 7 and 18) points left out (--keep-all keeps them)",
+            left.noise
+        ));
+    }
+    Ok(notes)
+}

@@ -1,0 +1,327 @@
+//! LAS/LAZ mapped a batch at a time (`omcl::mapping::tiles`): one real
+//! file, and folders of tiles cut from it, give the map of the file read
+//! whole; tiles that cannot be merged are refused by name.
+
+mod common;
+
+use common::shared;
+
+use std::path::Path;
+
+use omcl::io::labels::{BuiltinClasses, EmbeddingTable};
+use omcl::map::LanguageMap;
+use omcl::mapping::pipeline::{self, BuildParams, CloudInput, SequencePass};
+use omcl::mapping::tiles::{LasOptions, LasSource, las_tiles, map_from_las};
+
+fn asprs() -> EmbeddingTable {
+    let sim = omcl::sim::files::builtin_table().unwrap();
+    omcl::sim::embeddings::builtin_label_table(BuiltinClasses::Asprs, &sim).unwrap()
+}
+
+fn params(resolution: f64) -> BuildParams {
+    BuildParams {
+        resolution,
+        tau: 0.02,
+        max_rows: 4096,
+        encoder: "clip-vit-b32".into(),
+    }
+}
+
+/// The map of `path` read whole (`load_cloud` then `map_from_cloud`).
+fn whole(path: &Path, keep_all: bool, resolution: f64) -> (LanguageMap, [usize; 4]) {
+    let input = CloudInput {
+        path: path.to_path_buf(),
+        keep_all,
+        ..Default::default()
+    };
+    let c = pipeline::load_cloud(&input).unwrap();
+    let (m, s) =
+        pipeline::map_from_cloud(c, "whole", &params(resolution), Some(&asprs()), None).unwrap();
+    (m, [s.offered, s.integrated, s.skipped, s.rejected])
+}
+
+/// A progress call: pass, records read, records declared.
+type Call = (SequencePass, u64, u64);
+
+/// The map of `path` (a file or a folder of tiles) batch by batch, with
+/// its counts, notes and progress calls.
+fn batched(
+    path: &Path,
+    keep_all: bool,
+    batch_points: u64,
+    resolution: f64,
+) -> (LanguageMap, [usize; 4], Vec<String>, Vec<Call>) {
+    let src = LasSource::open(path).unwrap();
+    let mut calls = Vec::new();
+    let (m, s, notes) = map_from_las(
+        &src,
+        &LasOptions {
+            keep_all,
+            batch_points,
+        },
+        &params(resolution),
+        Some(&asprs()),
+        &mut |p, d, t| calls.push((p, d, t)),
+    )
+    .unwrap();
+    (
+        m,
+        [s.offered, s.integrated, s.skipped, s.rejected],
+        notes,
+        calls,
+    )
+}
+
+/// The same grid, voxels and rows (label rows counted the same way give
+/// the same features, bit for bit).
+fn assert_same_map(a: &LanguageMap, b: &LanguageMap) {
+    assert_eq!(a.grid(), b.grid());
+    assert_eq!(a.codes(), b.codes());
+    assert_eq!(a.db().len(), b.db().len());
+    for (i, (&ra, &rb)) in a.rows().iter().zip(b.rows()).enumerate() {
+        assert_eq!(
+            a.db().row(ra as usize),
+            b.db().row(rb as usize),
+            "voxel {i}: features differ"
+        );
+    }
+}
+
+/// Progress: one pass then the other, records read growing to the count
+/// declared.
+fn assert_progress(calls: &[Call], declared: u64, batches: usize) {
+    let bounds: Vec<_> = calls
+        .iter()
+        .filter(|c| c.0 == SequencePass::Bounds)
+        .collect();
+    assert_eq!(bounds.len(), batches, "{calls:?}");
+    assert_eq!(calls.len(), 2 * batches);
+    assert!(calls[..batches].iter().all(|c| c.0 == SequencePass::Bounds));
+    for pass in calls.chunks(batches) {
+        assert!(pass.windows(2).all(|w| w[0].1 < w[1].1), "{calls:?}");
+        assert_eq!(pass.last().unwrap().1, declared);
+        assert!(pass.iter().all(|c| c.2 == declared));
+    }
+}
+
+/// Two real aerial files (autzen: 110,000 points in international feet,
+/// colour; 32-1-472-150-76: classes 1, 2, 7 noise and 9) mapped in
+/// batches of 1,000 points give the map of the file read whole, with and
+/// without the noise class, with the same counts and notes.
+#[test]
+fn a_laz_mapped_batch_by_batch_equals_the_file_read_whole() {
+    for (file, resolution) in [
+        ("las/autzen_trim.laz", 1.0),
+        ("las/32-1-472-150-76.laz", 0.5),
+    ] {
+        let path = shared(file);
+        for keep_all in [false, true] {
+            let (a, sa) = whole(&path, keep_all, resolution);
+            let (b, sb, notes, calls) = batched(&path, keep_all, 1000, resolution);
+            assert_eq!(sa, sb, "{file}");
+            assert_same_map(&a, &b);
+            let declared = LasSource::open(&path).unwrap().declared();
+            assert_progress(&calls, declared, declared.div_ceil(1000) as usize);
+            // The whole-file path's notes on what was left out.
+            let input = CloudInput {
+                path: path.clone(),
+                keep_all,
+                ..Default::default()
+            };
+            let c = pipeline::load_cloud(&input).unwrap();
+            let src = LasSource::open(&path).unwrap();
+            let mut all: Vec<String> = src.notes().to_vec();
+            all.extend(notes);
+            assert_eq!(all, c.notes, "{file} keep_all {keep_all}");
+        }
+    }
+    // The noise file's note is there (the loop compared it).
+    let path = shared("las/32-1-472-150-76.laz");
+    let (_, _, notes, _) = batched(&path, false, 1 << 20, 0.5);
+    assert!(
+        notes
+            .iter()
+            .any(|n| n.contains("noise (ASPRS classes 7 and 18)")),
+        "{notes:?}"
+    );
+}
+
+/// Writes the points `range` of the LAS/LAZ `src` as an uncompressed LAS
+/// `out` with `src`'s header (scale, offset, CRS records).
+fn cut(src: &Path, out: &Path, range: std::ops::Range<usize>) {
+    let mut r = las::Reader::from_path(src).unwrap();
+    let mut b = las::Builder::from(r.header().clone());
+    b.point_format.is_compressed = false;
+    let header = b.into_header().unwrap();
+    let data = r.read_all().unwrap();
+    let mut w = las::Writer::from_path(out, header).unwrap();
+    for p in data.points().skip(range.start).take(range.len()) {
+        w.write_point(p.unwrap()).unwrap();
+    }
+    w.close().unwrap();
+}
+
+/// autzen cut into three tiles (the last one empty of points to map
+/// would be a note): the folder maps to the file's map, through the
+/// library and the command line (the same map file, byte for byte).
+#[test]
+fn tiles_cut_from_a_file_map_like_the_file() {
+    let src = shared("las/autzen_trim.laz");
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = dir.path().join("tiles");
+    std::fs::create_dir(&tiles).unwrap();
+    let n = LasSource::open(&src).unwrap().declared() as usize;
+    // Name order is read order.
+    cut(&src, &tiles.join("a.las"), 0..40_000);
+    cut(&src, &tiles.join("b.LAS"), 40_000..75_000);
+    cut(&src, &tiles.join("c.las"), 75_000..n);
+    std::fs::write(tiles.join("README.txt"), "not a tile").unwrap();
+    assert_eq!(
+        las_tiles(&tiles).unwrap(),
+        ["a.las", "b.LAS", "c.las"].map(|f| tiles.join(f))
+    );
+    let (a, sa) = whole(&src, false, 1.0);
+    let (b, sb, notes, calls) = batched(&tiles, false, 1 << 20, 1.0);
+    assert_eq!(sa, sb);
+    assert_same_map(&a, &b);
+    assert_eq!(calls.len(), 6, "{calls:?}");
+    assert!(notes.is_empty(), "{notes:?}");
+    let open = LasSource::open(&tiles).unwrap();
+    assert_eq!(open.declared() as usize, n);
+    // Units: the first tile's note and one line for the others.
+    assert_eq!(open.notes().len(), 2, "{:?}", open.notes());
+    assert!(open.notes()[0].contains("international feet"));
+    assert!(open.notes()[1].contains("other 2 tiles state the same CRS"));
+
+    // The command line: the file and the folder give the same map file.
+    let map = |input: &Path, out: &Path| {
+        let r = common::omcl(&[
+            "map",
+            "cloud",
+            input.to_str().unwrap(),
+            "--classes",
+            "asprs",
+            "--resolution",
+            "1",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(r.ok(), "{}", r.output());
+        r.output()
+    };
+    let (m1, m2) = (dir.path().join("file.omcl"), dir.path().join("tiles.omcl"));
+    map(&src, &m1);
+    let text = map(&tiles, &m2);
+    assert!(text.contains("other 2 tiles state the same CRS"), "{text}");
+    assert_eq!(std::fs::read(&m1).unwrap(), std::fs::read(&m2).unwrap());
+}
+
+/// A folder whose tiles state different CRS records is refused naming
+/// both tiles; a truncated tile is named; options that need one file are
+/// refused; an output that would become a tile is refused; a folder with
+/// PLY files is not taken for tiles. Nothing is written.
+#[test]
+fn tiles_that_cannot_be_merged_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("m.omcl");
+    let run = |args: &[&str]| {
+        let r = common::omcl(args);
+        assert!(!r.ok(), "{}", r.output());
+        assert_eq!(r.code, Some(1), "{}", r.output());
+        assert!(!out.exists());
+        r.output()
+    };
+    let map = |input: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "map",
+            "cloud",
+            input.to_str().unwrap(),
+            "--classes",
+            "asprs",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        run(&args)
+    };
+    // autzen (international feet, GeoTIFF keys) beside test1_4 (US feet).
+    let mixed = dir.path().join("mixed");
+    std::fs::create_dir(&mixed).unwrap();
+    cut(&shared("las/autzen_trim.laz"), &mixed.join("1.las"), 0..100);
+    std::fs::copy(shared("las/test1_4.las"), mixed.join("2.las")).unwrap();
+    let text = map(&mixed, &[]);
+    assert!(
+        text.contains("different coordinate reference systems")
+            && text.contains("1.las")
+            && text.contains("2.las"),
+        "{text}"
+    );
+    // A truncated tile.
+    let broken = dir.path().join("broken");
+    std::fs::create_dir(&broken).unwrap();
+    cut(
+        &shared("las/autzen_trim.laz"),
+        &broken.join("1.las"),
+        0..100,
+    );
+    cut(
+        &shared("las/autzen_trim.laz"),
+        &broken.join("2.las"),
+        100..200,
+    );
+    let bytes = std::fs::read(broken.join("2.las")).unwrap();
+    std::fs::write(broken.join("2.las"), &bytes[..bytes.len() - 500]).unwrap();
+    let text = map(&broken, &[]);
+    assert!(
+        text.contains("2.las") && text.contains("truncated"),
+        "{text}"
+    );
+    // Options for one file.
+    let good = dir.path().join("good");
+    std::fs::create_dir(&good).unwrap();
+    cut(&shared("las/autzen_trim.laz"), &good.join("1.las"), 0..100);
+    for extra in [
+        &["--format", "las"][..],
+        &["--frames", "2"][..],
+        &["--labels", "x.label"][..],
+    ] {
+        let text = map(&good, extra);
+        assert!(
+            text.contains(extra[0]) && text.contains("folder of LAS/LAZ tiles"),
+            "{extra:?}: {text}"
+        );
+    }
+    // --features conflicts with --classes at parsing; alone it is refused.
+    let text = run(&[
+        "map",
+        "cloud",
+        good.to_str().unwrap(),
+        "--features",
+        "f.npy",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(text.contains("--features is for one cloud file"), "{text}");
+    // An output named like a tile in the folder.
+    let inside = good.join("map.laz");
+    let r = common::omcl(&[
+        "map",
+        "cloud",
+        good.to_str().unwrap(),
+        "--classes",
+        "asprs",
+        "-o",
+        inside.to_str().unwrap(),
+    ]);
+    assert!(
+        !r.ok() && r.output().contains("read as a tile"),
+        "{}",
+        r.output()
+    );
+    assert!(!inside.exists());
+    // PLY beside LAS: not tiles, and said so.
+    std::fs::write(good.join("x.ply"), "ply\n").unwrap();
+    assert!(las_tiles(&good).is_none());
+    let text = map(&good, &[]);
+    assert!(text.contains("PLY files one at a time"), "{text}");
+}
