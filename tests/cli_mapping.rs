@@ -280,7 +280,7 @@ fn bad_input_fails_clearly_and_writes_nothing() {
     // Labels but no table.
     let (ok, text) = omcl(&["map", "cloud", las.to_str().unwrap(), "-o", o]);
     assert!(!ok && text.contains("--classes"), "{text}");
-    // A table none of whose classes occur: empty result.
+    // A table none of whose classes occur: both sides named.
     let (c, e) = one_hot_table(dir.path(), &[(77, "nothing")]);
     let (ok, text) = omcl(&[
         "map",
@@ -293,7 +293,49 @@ fn bad_input_fails_clearly_and_writes_nothing() {
         "--embeddings",
         e.to_str().unwrap(),
     ]);
-    assert!(!ok && text.contains("empty result"), "{text}");
+    assert!(
+        !ok && text.contains("none of the 1065 points' labels is a class of the table")
+            && text.contains("the points carry 1, 2;")
+            && text.contains("the table's ids are 77 nothing.")
+            && !out.exists(),
+        "{text}"
+    );
+    // The same through a PLY read whole and a sequence read scan by scan.
+    let ply_path = dir.path().join("labelled.ply");
+    labelled_ply(&ply_path, &[([0.0, 0.0, 0.0], 2), ([1.0, 0.0, 0.0], 5)]);
+    let seq = shared("semantickitti/sequences/00");
+    for input in [&ply_path, &seq] {
+        let (ok, text) = omcl(&[
+            "map",
+            "cloud",
+            input.to_str().unwrap(),
+            "-o",
+            o,
+            "--classes",
+            c.to_str().unwrap(),
+            "--embeddings",
+            e.to_str().unwrap(),
+        ]);
+        assert!(
+            !ok && text.contains("labels is a class of the table: the points carry ")
+                && text.contains("the table's ids are 77 nothing.")
+                && !out.exists(),
+            "{}: {text}",
+            input.display()
+        );
+    }
+    let (_, text) = omcl(&[
+        "map",
+        "cloud",
+        ply_path.to_str().unwrap(),
+        "-o",
+        o,
+        "--classes",
+        c.to_str().unwrap(),
+        "--embeddings",
+        e.to_str().unwrap(),
+    ]);
+    assert!(text.contains("the points carry 2, 5;"), "{text}");
     // A truncated PLY.
     let bad = dir.path().join("bad.ply");
     std::fs::write(&bad, "ply\nformat binary_little_endian 1.0\nelement vertex 10\nproperty float x\nproperty float y\nproperty float z\nend_header\n\x00\x00").unwrap();

@@ -223,6 +223,7 @@ pub fn map_from_sequence(
     })?;
     let mut integ: Option<Integrator> = None;
     let mut stats = IntegrationStats::default();
+    let mut label_rows: Option<LabelRows> = None;
     for (done, &f) in frames.iter().enumerate() {
         let scan = seq.filtered_scan(f, &opts)?;
         let s = match (&scan.features, &scan.labels, table) {
@@ -252,11 +253,8 @@ pub fn map_from_sequence(
                         FeatureDb::from_rows(t.dim, params.tau, t.data.clone())?,
                     )?),
                 };
-                let rows: Vec<Option<u32>> = labels
-                    .iter()
-                    .map(|&l| t.row_index(l).map(|r| r as u32))
-                    .collect();
-                super::cloud::integrate_point_rows(integ, &scan.points, &rows)
+                let rows = label_rows.get_or_insert_with(|| LabelRows::new(t));
+                super::cloud::integrate_point_rows(integ, &scan.points, rows.rows(labels))
             }
             (None, Some(_), None) => return Err(no_table(&name)),
             (None, None, _) => return Err(no_features(&name)),
@@ -270,7 +268,77 @@ pub fn map_from_sequence(
     let integ = integ.ok_or_else(|| {
         PipelineError::Input(format!("{name}: empty result: no points left to map"))
     })?;
+    if let Some(rows) = &label_rows {
+        rows.check(&name, &stats)?;
+    }
     Ok((finish(integ, &params.encoder, params.tau, &stats)?, stats))
+}
+
+/// Labels made rows through a class table, remembering the labels the
+/// table lacks: when no point's label is in the table (the table of
+/// another dataset, or a list numbered from 0 for a cloud with its
+/// dataset's ids), the error names both sides instead of an empty map.
+pub struct LabelRows<'a> {
+    table: &'a EmbeddingTable,
+    missing: std::collections::BTreeSet<u32>,
+    rows: Vec<Option<u32>>,
+}
+
+/// Labels the table lacks that [`LabelRows`] keeps, at most.
+const MISSING_KEPT: usize = 1 << 12;
+
+impl<'a> LabelRows<'a> {
+    /// Rows through `table`.
+    pub fn new(table: &'a EmbeddingTable) -> Self {
+        Self {
+            table,
+            missing: Default::default(),
+            rows: Vec::new(),
+        }
+    }
+
+    /// The rows of `labels` (`None` for a label the table lacks).
+    pub fn rows(&mut self, labels: &[u32]) -> &[Option<u32>] {
+        self.rows.clear();
+        for &l in labels {
+            let r = self.table.row_index(l).map(|r| r as u32);
+            if r.is_none() && self.missing.len() < MISSING_KEPT {
+                self.missing.insert(l);
+            }
+            self.rows.push(r);
+        }
+        &self.rows
+    }
+
+    /// An error naming the labels seen and the table's ids when every
+    /// point offered was skipped for its label.
+    pub fn check(&self, input: &str, stats: &IntegrationStats) -> Result<(), PipelineError> {
+        if stats.offered == 0 || stats.skipped < stats.offered || self.missing.is_empty() {
+            return Ok(());
+        }
+        let list = |v: Vec<String>, total: usize| {
+            let shown = v.len();
+            let mut s = v.join(", ");
+            if total > shown {
+                s.push_str(&format!(", ... ({total} in all)"));
+            }
+            s
+        };
+        let seen: Vec<String> = self.missing.iter().take(12).map(u32::to_string).collect();
+        let ids: Vec<String> = (self.table.ids.iter().zip(&self.table.names))
+            .take(12)
+            .map(|(i, n)| format!("{i} {n}"))
+            .collect();
+        Err(PipelineError::Input(format!(
+            "{input}: none of the {} points' labels is a class of the table: the points carry \
+             {}; the table's ids are {}. Give the class table of the cloud's dataset (`<id> \
+             <name>` lines with the labels' ids; a list of bare names numbers them from 0) or a \
+             built-in list (--classes semantickitti, asprs); no map written",
+            stats.offered,
+            list(seen, self.missing.len()),
+            list(ids, self.table.ids.len()),
+        )))
+    }
 }
 
 fn no_table(input: &str) -> PipelineError {
@@ -442,11 +510,9 @@ pub fn map_from_cloud(
     } else if let (Some(labels), Some(t)) = (&cloud.labels, table) {
         let db = FeatureDb::from_rows(t.dim, params.tau, t.data.clone())?;
         let mut integ = Integrator::new(grid, db)?;
-        let rows: Vec<Option<u32>> = labels
-            .iter()
-            .map(|&l| t.row_index(l).map(|r| r as u32))
-            .collect();
-        let s = super::cloud::integrate_point_rows(&mut integ, &cloud.points, &rows);
+        let mut rows = LabelRows::new(t);
+        let s = super::cloud::integrate_point_rows(&mut integ, &cloud.points, rows.rows(labels));
+        rows.check(input, &s)?;
         (integ, s)
     } else if cloud.labels.is_some() {
         return Err(no_table(input));

@@ -17,7 +17,7 @@
 use std::path::{Path, PathBuf};
 
 use super::IntegrationStats;
-use super::pipeline::{BuildParams, OriginEstimate, PipelineError, SequencePass};
+use super::pipeline::{BuildParams, LabelRows, OriginEstimate, PipelineError, SequencePass};
 use crate::io::cloud::{CloudError, check_points};
 use crate::io::labels::EmbeddingTable;
 use crate::io::las::{CrsRecords, LasChunk, LasChunks, is_asprs_noise, withheld_note};
@@ -252,21 +252,20 @@ pub fn map_from_las(
         FeatureDb::from_rows(table.dim, params.tau, table.data.clone())?,
     )?;
     let mut stats = IntegrationStats::default();
-    let mut rows = Vec::new();
+    let mut rows = LabelRows::new(table);
     each_batch(
         src,
         opts,
         |done, total| progress(SequencePass::Mapping, done, total),
         |pts, labels| {
-            rows.clear();
-            rows.extend(labels.iter().map(|&l| table.row_index(l).map(|r| r as u32)));
-            let s = super::cloud::integrate_point_rows(&mut integ, pts, &rows);
+            let s = super::cloud::integrate_point_rows(&mut integ, pts, rows.rows(labels));
             stats.offered += s.offered;
             stats.integrated += s.integrated;
             stats.skipped += s.skipped;
             stats.rejected += s.rejected;
         },
     )?;
+    rows.check(name, &stats)?;
     let map = super::pipeline::finish(integ, &params.encoder, params.tau, &stats)?;
     Ok((map, stats, notes))
 }
