@@ -919,3 +919,60 @@ fn map_cloud_names_near_misses_and_options_that_do_not_apply() {
     );
     assert!(!out.exists());
 }
+
+/// `--label-property` from the command line: a DALES-like PLY whose labels
+/// are `sem_class` maps through the ASPRS table with it (without it, the
+/// points carry no labels and the map is refused); it is refused for a LAS
+/// file and a folder.
+#[test]
+fn map_cloud_reads_labels_from_a_named_ply_property() {
+    let dir = tempfile::tempdir().unwrap();
+    let ply_path = dir.path().join("dales.ply");
+    let mut text = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty double x\nproperty double y\n\
+         property double z\nproperty int sem_class\nend_header\n",
+    );
+    for (x, c) in [(0.0, 2), (0.1, 2), (5.0, 6), (5.1, 6)] {
+        text += &format!("{x} 0 0 {c}\n");
+    }
+    std::fs::write(&ply_path, text).unwrap();
+    let out = dir.path().join("m.omcl");
+    let run = |input: &Path, extra: &[&str]| {
+        let args = [
+            &[
+                "map",
+                "cloud",
+                input.to_str().unwrap(),
+                "--classes",
+                "asprs",
+                "--resolution",
+                "1",
+                "-o",
+                out.to_str().unwrap(),
+            ][..],
+            extra,
+        ]
+        .concat();
+        omcl(&args)
+    };
+    let (ok, text) = run(&ply_path, &[]);
+    assert!(
+        !ok && text.contains("neither features nor labels"),
+        "{text}"
+    );
+    let (ok, text) = run(&ply_path, &["--label-property", "sem_class"]);
+    assert!(ok, "{text}");
+    let m = map::load(&out).unwrap();
+    // Ground (2) and building (6): two voxels, two rows.
+    assert_eq!(m.len(), 2);
+    let rows: std::collections::BTreeSet<u32> = m.rows().iter().copied().collect();
+    assert_eq!(rows.len(), 2);
+    std::fs::remove_file(&out).unwrap();
+    for input in [shared("las/simple.las"), shared("las")] {
+        let (ok, text) = run(&input, &["--label-property", "sem_class"]);
+        assert!(
+            !ok && text.contains("--label-property is for PLY files") && !out.exists(),
+            "{text}"
+        );
+    }
+}

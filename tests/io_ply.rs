@@ -4,7 +4,7 @@ mod common;
 
 use common::{assert_err_names, expected_rows, local, truncated_copy};
 use omcl::io::cloud::PointCloud;
-use omcl::io::ply::{read_ply, write_ply};
+use omcl::io::ply::{PlyOptions, read_ply, read_ply_with, write_ply};
 
 fn check_xyz_rgb_label(file: &str) {
     let path = local(file);
@@ -306,6 +306,72 @@ fn label_properties_in_cloudcompare_and_other_spellings() {
     body.push(1);
     std::fs::write(&p, binary_ply(header, &body)).unwrap();
     assert_err_names(read_ply(&p).unwrap_err(), &p, "several label properties");
+    assert!(
+        read_ply(&p)
+            .unwrap_err()
+            .to_string()
+            .contains("--label-property")
+    );
+    // Named, either is read and the other ignored.
+    let with = |name: &str| {
+        let opts = PlyOptions {
+            label_property: Some(name.into()),
+        };
+        read_ply_with(&p, &opts)
+    };
+    assert_eq!(with("scalar_Classification").unwrap().labels, Some(vec![9]));
+    assert_eq!(with("label").unwrap().labels, Some(vec![1]));
+    // A name matches in any letter case when only one property has it.
+    assert_eq!(with("LABEL").unwrap().labels, Some(vec![1]));
+}
+
+/// `--label-property`: a property of another name (DALES's `sem_class`,
+/// beside its `ins_class`) read as the labels, ASCII and binary; a name
+/// the vertex lacks is refused listing what it has; coordinates are not
+/// labels.
+#[test]
+fn a_named_label_property_is_read_as_the_labels() {
+    let d = tempfile::tempdir().unwrap();
+    let header = "element vertex 2\nproperty float x\nproperty float y\nproperty float z\n\
+                  property float intensity\nproperty int sem_class\nproperty int ins_class\n";
+    let ascii = d.path().join("dales_ascii.ply");
+    std::fs::write(
+        &ascii,
+        format!("ply\nformat ascii 1.0\n{header}end_header\n0 0 0 0.5 4 17\n1 2 3 0.25 8 18\n"),
+    )
+    .unwrap();
+    let binary = d.path().join("dales_binary.ply");
+    let mut body = Vec::new();
+    for (xyz, i, sem, ins) in [
+        ([0.0f32, 0.0, 0.0], 0.5f32, 4i32, 17i32),
+        ([1.0, 2.0, 3.0], 0.25, 8, 18),
+    ] {
+        body.extend(le(&[xyz[0], xyz[1], xyz[2], i]));
+        body.extend(sem.to_le_bytes());
+        body.extend(ins.to_le_bytes());
+    }
+    std::fs::write(&binary, binary_ply(header, &body)).unwrap();
+    let opts = |n: &str| PlyOptions {
+        label_property: Some(n.into()),
+    };
+    for p in [&ascii, &binary] {
+        // Without the option, no labels: sem_class is not a known name.
+        assert_eq!(read_ply(p).unwrap().labels, None);
+        let c = read_ply_with(p, &opts("sem_class")).unwrap();
+        assert_eq!(c.labels, Some(vec![4, 8]), "{}", p.display());
+        assert_eq!(c.points[1], [1.0, 2.0, 3.0]);
+        let c = read_ply_with(p, &opts("ins_class")).unwrap();
+        assert_eq!(c.labels, Some(vec![17, 18]));
+        let e = read_ply_with(p, &opts("semantic")).unwrap_err();
+        assert_err_names(&e, p, "no vertex property 'semantic'");
+        assert!(
+            e.to_string()
+                .contains("x, y, z, intensity, sem_class, ins_class"),
+            "{e}"
+        );
+        let e = read_ply_with(p, &opts("z")).unwrap_err();
+        assert_err_names(e, p, "not labels");
+    }
 }
 
 #[test]

@@ -231,6 +231,11 @@ pub struct CloudArgs {
     /// Sequence folders: ignore points farther than this from the sensor (m).
     #[arg(long)]
     pub max_range: Option<f64>,
+    /// PLY files: the vertex property holding the labels, when it has
+    /// another name than label, class, classification, semantic or
+    /// semantic_label (DALES: sem_class), or to choose one of several.
+    #[arg(long, value_name = "NAME")]
+    pub label_property: Option<String>,
     /// Point encoder (`.onnx` with its `.card.json`, points and colours to
     /// per-point features), for clouds without labels or feature files.
     #[arg(long, value_name = "ONNX", conflicts_with = "features")]
@@ -284,6 +289,16 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
             );
         }
     }
+    ensure!(
+        a.label_property.is_none() || (!a.input.is_dir() && !las_file_given(a)),
+        "--label-property is for PLY files; {} is {}",
+        a.input.display(),
+        if a.input.is_dir() {
+            "a folder"
+        } else {
+            "a LAS/LAZ file (its labels are its classification codes)"
+        }
+    );
     if tiles.is_some() {
         for (given, what) in [
             (a.features.is_some(), "--features"),
@@ -320,14 +335,11 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         features_dir: a.features_dir.clone(),
         keep_all: a.keep_all,
         max_range: a.max_range,
+        label_property: a.label_property.clone(),
     };
     let (table, text_encoder) = a.build.table(a.ort_lib.as_deref())?.unzip();
     let text_encoder = text_encoder.flatten();
-    let las_file = !a.input.is_dir()
-        && match a.format {
-            Some(f) => matches!(f, FormatArg::Las),
-            None => CloudFormat::from_path(&a.input) == Some(CloudFormat::Las),
-        };
+    let las_file = las_file_given(a);
     if tiles.is_some() || (las_file && a.features.is_none() && a.point_model.is_none()) {
         // LAS/LAZ labels through the class table: a batch at a time,
         // never the whole cloud in memory.
@@ -404,6 +416,15 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     let labelled = table.is_some() && !own_features && a.point_model.is_none();
     warn_labels(&m, &a.build, &stats, labelled);
     Ok(())
+}
+
+/// Whether `a`'s input is a LAS/LAZ file (by `--format` or extension).
+fn las_file_given(a: &CloudArgs) -> bool {
+    !a.input.is_dir()
+        && match a.format {
+            Some(f) => matches!(f, FormatArg::Las),
+            None => CloudFormat::from_path(&a.input) == Some(CloudFormat::Las),
+        }
 }
 
 /// Maps a LAS/LAZ file or a folder of tiles a batch at a time

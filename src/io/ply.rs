@@ -17,7 +17,9 @@
 //!   CloudCompare's `scalar_` prefix (`scalar_Label`,
 //!   `scalar_Classification`): any integer type, or a float type holding
 //!   whole numbers (CloudCompare stores scalar fields as float);
-//!   non-negative (optional);
+//!   non-negative (optional). A property of another name (DALES's
+//!   `sem_class`) is read as the labels when named in
+//!   [`PlyOptions::label_property`], which also picks one of several;
 //! - features `f0 f1 ...` or `feat_0 feat_1 ...` (also `feature_0 ...`):
 //!   `float` or `double`, numbered consecutively from 0 in header order
 //!   (optional).
@@ -281,7 +283,8 @@ fn check_vertex_layout(path: &Path, def: &ElementDef) -> Result<Layout, CloudErr
         .collect();
     if labels.len() > 1 {
         return Err(fmt(format!(
-            "vertex has several label properties {labels:?}; keep one"
+            "vertex has several label properties {labels:?}: choose one with \
+             --label-property NAME"
         )));
     }
     if let Some(n) = labels.first()
@@ -362,6 +365,71 @@ struct Tally {
 /// are left out, and [`PointCloud::notes`] says how many; so does it when
 /// float colours had to be clamped to 0-1.
 pub fn read_ply(path: &Path) -> Result<PointCloud, CloudError> {
+    read_ply_with(path, &PlyOptions::default())
+}
+
+/// How [`read_ply_with`] reads a file.
+#[derive(Debug, Clone, Default)]
+pub struct PlyOptions {
+    /// The vertex property that holds the labels (any name, e.g. DALES's
+    /// `sem_class`), instead of the one of the recognised names; the other
+    /// label-like properties are then ignored.
+    pub label_property: Option<String>,
+}
+
+/// Makes `choice` the vertex element's label property: renamed `label`,
+/// every other property with a label-like name renamed out of the way.
+fn choose_label(path: &Path, def: &mut ElementDef, choice: &str) -> Result<(), CloudError> {
+    let names: Vec<&str> = def.properties.keys().map(String::as_str).collect();
+    let found = names
+        .iter()
+        .find(|n| **n == choice)
+        .or_else(|| {
+            let mut ci = names.iter().filter(|n| n.eq_ignore_ascii_case(choice));
+            ci.next().filter(|_| ci.next().is_none())
+        })
+        .map(|n| n.to_string());
+    let Some(found) = found else {
+        return Err(CloudError::format(
+            path,
+            format!(
+                "no vertex property '{choice}' (--label-property); the vertex has {}",
+                names.join(", ")
+            ),
+        ));
+    };
+    let reserved = ["x", "y", "z"]
+        .iter()
+        .chain(COLOR_NAMES.iter())
+        .any(|n| *n == found)
+        || feature_index(&found).is_some();
+    if reserved {
+        return Err(CloudError::format(
+            path,
+            format!("vertex property '{found}' is a coordinate, colour or feature, not labels"),
+        ));
+    }
+    let props = std::mem::take(&mut def.properties);
+    def.properties = props
+        .into_iter()
+        .map(|(k, mut p)| {
+            let name = if k == found {
+                "label".to_string()
+            } else if is_label_name(&k) {
+                // Not a PLY name (no spaces in those): matches nothing.
+                format!("{k} (not the labels)")
+            } else {
+                k
+            };
+            p.name = name.clone();
+            (name, p)
+        })
+        .collect();
+    Ok(())
+}
+
+/// [`read_ply`] with `opts`.
+pub fn read_ply_with(path: &Path, opts: &PlyOptions) -> Result<PointCloud, CloudError> {
     let file = File::open(path).map_err(|e| CloudError::io(path, e))?;
     let file_len = file.metadata().map_err(|e| CloudError::io(path, e))?.len();
     let mut buffered = BufReader::with_capacity(1 << 20, file);
@@ -371,12 +439,15 @@ pub fn read_ply(path: &Path) -> Result<PointCloud, CloudError> {
     }
     let mut reader = Reader::new(buffered);
     let parser = Parser::<Vertex>::new();
-    let header = parser
+    let mut header = parser
         .read_header(&mut reader)
         .map_err(|e| CloudError::format(path, format!("bad PLY header: {e}")))?;
     let Some(vertex_pos) = header.elements.get_index_of("vertex") else {
         return Err(CloudError::format(path, "no 'vertex' element in header"));
     };
+    if let (Some(choice), Some(def)) = (&opts.label_property, header.elements.get_mut("vertex")) {
+        choose_label(path, def, choice)?;
+    }
     let skip = Parser::<Skip>::new();
     let mut cloud = PointCloud::default();
     let mut tally = Tally::default();

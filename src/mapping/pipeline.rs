@@ -67,6 +67,9 @@ pub struct CloudInput {
     pub keep_all: bool,
     /// Sequence folders: ignore points farther than this from the sensor.
     pub max_range: Option<f64>,
+    /// PLY files: the vertex property holding the labels
+    /// ([`crate::io::ply::PlyOptions::label_property`]).
+    pub label_property: Option<String>,
 }
 
 /// Reads the cloud of `input`, features attached and dropped points gone,
@@ -84,8 +87,20 @@ pub fn load_cloud(input: &CloudInput) -> Result<PointCloud, PipelineError> {
                 .into(),
         ));
     }
+    let format = input.format.or_else(|| CloudFormat::from_path(path));
+    if input.label_property.is_some() && format != Some(CloudFormat::Ply) {
+        return Err(PipelineError::Input(format!(
+            "{}: --label-property is for PLY files (the others' labels have their place)",
+            path.display()
+        )));
+    }
     let mut c = if kitti_scan {
         crate::io::kitti::read_labelled_scan(path, input.labels.as_deref())?
+    } else if let Some(label) = &input.label_property {
+        let opts = crate::io::ply::PlyOptions {
+            label_property: Some(label.clone()),
+        };
+        crate::io::ply::read_ply_with(path, &opts)?
     } else {
         read_point_cloud(path, input.format)?
     };
