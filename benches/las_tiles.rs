@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use omcl::io::labels::BuiltinClasses;
 use omcl::mapping::pipeline::{self, BuildParams, CloudInput};
-use omcl::mapping::tiles::{LasOptions, LasSource, map_from_las};
+use omcl::mapping::tiles::{TileOptions, TileSource, map_from_tiles};
 
 /// Voxel edge, metres: `OMCL_BENCH_LAS_RESOLUTION`, default 2 (aerial
 /// LiDAR at 0.5 m is about a voxel a point, and the map, not the cloud,
@@ -63,10 +63,10 @@ fn child(mode: &str, input: &Path) {
             m.len()
         }
         _ => {
-            let src = LasSource::open(input).unwrap();
-            let (m, _, _) = map_from_las(
+            let src = TileSource::open(input).unwrap();
+            let (m, _, _) = map_from_tiles(
                 &src,
-                &LasOptions::default(),
+                &TileOptions::default(),
                 &params(),
                 Some(&table),
                 &mut |_, _, _| {},

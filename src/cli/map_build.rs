@@ -12,6 +12,7 @@ use omcl::io::labels::EmbeddingTable;
 use omcl::io::{ply, poses};
 use omcl::map::{self, FeatureDb, LanguageMap};
 use omcl::mapping::pipeline::{self, CloudInput};
+use omcl::mapping::tiles::TileKind;
 use omcl::mapping::{IntegrationStats, colors};
 
 /// Options shared by the commands that build a map.
@@ -201,9 +202,10 @@ pub struct CloudArgs {
     /// A point-cloud file (.ply, .las, .laz, KITTI .bin with --format kitti,
     /// ScanNet .bin with --format scannet), a SemanticKITTI sequence
     /// folder (velodyne/, labels/, calib.txt, poses.txt), or a folder of
-    /// LAS/LAZ tiles of one CRS, mapped together. LAS/LAZ with --classes
-    /// are read a batch at a time (any size, two passes); other files are
-    /// read whole (about 60 bytes a point).
+    /// LAS/LAZ tiles of one CRS or of PLY tiles, mapped together through
+    /// --classes. LAS/LAZ are read a batch at a time (any size, two
+    /// passes), PLY tiles one at a time; other files are read whole (about
+    /// 60 bytes a point).
     pub input: PathBuf,
     #[command(flatten)]
     pub build: BuildOptions,
@@ -256,9 +258,10 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     ));
     inputs.extend(a.ort_lib.clone().map(|p| ("the --ort-lib".to_string(), p)));
     super::outputs::refuse_overlaps(&[("--out", &a.build.out)], &inputs)?;
-    // A folder of LAS/LAZ tiles, mapped together a batch at a time.
-    let tiles = omcl::mapping::tiles::las_tiles(&a.input);
-    if let Some(files) = &tiles {
+    // A folder of LAS/LAZ or PLY tiles, mapped together a batch at a time.
+    let tiles = omcl::mapping::tiles::cloud_tiles(&a.input);
+    let ply_tiles = matches!(tiles, Some((TileKind::Ply, _)));
+    if let Some((_, files)) = &tiles {
         refuse_tile_name(&a.build.out, &a.input, files)?;
     } else if a.input.is_dir() {
         // A sequence folder: its scans, labels, poses and calibration.
@@ -273,7 +276,7 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     );
     if !a.input.is_dir() || tiles.is_some() {
         let what_it_is = if tiles.is_some() {
-            "a folder of LAS/LAZ tiles"
+            "a folder of tiles"
         } else {
             "a file"
         };
@@ -290,11 +293,11 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         }
     }
     ensure!(
-        a.label_property.is_none() || (!a.input.is_dir() && !las_file_given(a)),
+        a.label_property.is_none() || ply_tiles || (!a.input.is_dir() && !las_file_given(a)),
         "--label-property is for PLY files; {} is {}",
         a.input.display(),
         if a.input.is_dir() {
-            "a folder"
+            "a folder without PLY tiles"
         } else {
             "a LAS/LAZ file (its labels are its classification codes)"
         }
@@ -308,9 +311,9 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         ] {
             ensure!(
                 !given,
-                "{what} is for one cloud file; {} is a folder of LAS/LAZ tiles, mapped from \
-                 their classification codes (--classes asprs or a class list); merge the \
-                 tiles into one file (e.g. `pdal merge`) for {what}",
+                "{what} is for one cloud file; {} is a folder of tiles, mapped from their \
+                 labels through a class table (--classes); merge the tiles into one file \
+                 (e.g. `pdal merge`) for {what}",
                 a.input.display()
             );
         }
@@ -343,7 +346,7 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     if tiles.is_some() || (las_file && a.features.is_none() && a.point_model.is_none()) {
         // LAS/LAZ labels through the class table: a batch at a time,
         // never the whole cloud in memory.
-        return las(a, table.as_ref(), text_encoder.as_deref());
+        return map_tiles(a, table.as_ref(), text_encoder.as_deref());
     }
     if a.input.is_dir() && a.point_model.is_none() {
         // A sequence folder: scan by scan, never the merged cloud in memory.
@@ -429,30 +432,30 @@ fn las_file_given(a: &CloudArgs) -> bool {
 
 /// Maps a LAS/LAZ file or a folder of tiles a batch at a time
 /// (`omcl::mapping::tiles`): two passes over the points, each a bar.
-fn las(
+fn map_tiles(
     a: &CloudArgs,
     table: Option<&EmbeddingTable>,
     text_encoder: Option<&str>,
 ) -> anyhow::Result<()> {
-    use omcl::mapping::tiles::{LasOptions, LasSource, map_from_las};
+    use omcl::mapping::tiles::{TileOptions, TileSource, map_from_tiles};
     let pb = super::progress::spinner(&format!("reading the headers of {}", a.input.display()));
-    let src = LasSource::open(&a.input)?;
+    let src = TileSource::open(&a.input)?;
     super::progress::finish(&pb);
     for n in src.notes() {
         eprintln!("note: {n}");
     }
-    let what = if src.files().len() > 1 {
-        format!("points of {} tiles", src.files().len())
-    } else {
-        "points".to_string()
+    let what = match (src.kind(), src.files().len()) {
+        (TileKind::Las, n) if n > 1 => format!("points of {n} tiles"),
+        _ => src.unit().to_string(),
     };
     let pb = super::progress::bar_of(src.declared(), "pass 1 of 2, the grid's centre", &what);
     let mut finishing = None;
     let mut pass = pipeline::SequencePass::Bounds;
-    let (m, stats, notes) = map_from_las(
+    let (m, stats, notes) = map_from_tiles(
         &src,
-        &LasOptions {
+        &TileOptions {
             keep_all: a.keep_all,
+            label_property: a.label_property.clone(),
             ..Default::default()
         },
         &a.build.params(text_encoder),
@@ -484,7 +487,7 @@ fn las(
 }
 
 /// Refuses an `--out` that the next run over the tile folder `dir` would
-/// read as one of its tiles (a `.las`/`.laz` name in it).
+/// read as one of its tiles (a `.las`, `.laz` or `.ply` name in it).
 fn refuse_tile_name(out: &Path, dir: &Path, files: &[PathBuf]) -> anyhow::Result<()> {
     let ext = out
         .extension()
@@ -505,7 +508,7 @@ fn refuse_tile_name(out: &Path, dir: &Path, files: &[PathBuf]) -> anyhow::Result
     };
     let inside = std::fs::canonicalize(parent).is_ok_and(|p| p == d);
     ensure!(
-        !(inside && (ext == "las" || ext == "laz")),
+        !(inside && (ext == "las" || ext == "laz" || ext == "ply")),
         "{}: --out would be read as a tile of {} ({} tiles there now); write the map \
          elsewhere or name it .omcl",
         out.display(),

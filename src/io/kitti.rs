@@ -685,8 +685,8 @@ fn check_near_misses(dir: &Path) -> Result<(), CloudError> {
             dir,
             format!(
                 "a folder of {clouds} point-cloud files, not a KITTI sequence (no calib.txt): \
-                 a folder of LAS/LAZ tiles alone is mapped together, PLY files one at a time \
-                 (give one file, or merge them first, e.g. with `pdal merge`)"
+                 a folder of tiles is mapped together when they are all LAS/LAZ or all PLY, \
+                 not both (give one kind, or one file)"
             ),
         ));
     }

@@ -200,7 +200,7 @@ fn open_sequence(
 }
 
 /// The two passes of [`map_from_sequence`] (and of
-/// [`super::tiles::map_from_las`]).
+/// [`super::tiles::map_from_tiles`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SequencePass {
     /// Reading every scan for the bounds of the kept points.

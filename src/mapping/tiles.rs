@@ -1,8 +1,9 @@
-//! LAS/LAZ clouds mapped a batch of points at a time (`omcl map cloud
-//! FILE.laz` or `omcl map cloud TILES/`): one file of any size, or a
-//! folder of tiles of one survey, in the memory of the map being built and
-//! one batch, never the whole cloud (read whole, a cloud takes about 60
-//! bytes a point: 10^9 points would not fit).
+//! Clouds mapped a batch of points at a time (`omcl map cloud FILE.laz`
+//! or `omcl map cloud TILES/`): a LAS/LAZ file of any size, or a folder of
+//! LAS/LAZ or PLY tiles of one survey, in the memory of the map being
+//! built and one batch (a LAS batch, or one PLY tile read whole), never the
+//! whole cloud (read whole, a cloud takes about 60 bytes a point: 10^9
+//! points would not fit).
 //!
 //! As for a SemanticKITTI sequence ([`super::pipeline::map_from_sequence`]),
 //! two passes: the first reads every point for the centre of the kept
@@ -10,9 +11,10 @@
 //! them batch by batch. The points, their order and the grid are those of
 //! the whole-file path (`map_from_cloud(load_cloud(..))`) on the same file,
 //! or on the tiles merged in file-name order, so the map is the same.
-//! Labels become rows through the class table (LAS classification codes);
-//! per-point features (`--features`) and point encoders need the whole
-//! cloud and take the whole-file path.
+//! Labels become rows through the class table (LAS classification codes,
+//! PLY label properties); per-point features (`--features`, PLY feature
+//! properties) and point encoders need the whole cloud and take the
+//! whole-file path.
 
 use std::path::{Path, PathBuf};
 
@@ -21,25 +23,36 @@ use super::pipeline::{BuildParams, LabelRows, OriginEstimate, PipelineError, Seq
 use crate::io::cloud::{CloudError, check_points};
 use crate::io::labels::EmbeddingTable;
 use crate::io::las::{CrsRecords, LasChunk, LasChunks, is_asprs_noise, withheld_note};
+use crate::io::ply::{PlyOptions, read_ply_with};
 use crate::map::{FeatureDb, Integrator, LanguageMap};
+
+/// The kind of files a [`TileSource`] reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TileKind {
+    /// LAS/LAZ, read a batch of points at a time.
+    Las,
+    /// PLY, a tile read whole at a time.
+    Ply,
+}
 
 /// One LAS/LAZ file or a folder of tiles, their headers checked.
 #[derive(Debug, Clone)]
-pub struct LasSource {
+pub struct TileSource {
     name: String,
+    kind: TileKind,
     files: Vec<PathBuf>,
     declared: u64,
     notes: Vec<String>,
 }
 
-/// The `.las` and `.laz` files of folder `dir` in name order, when it
-/// holds such files and no other point-cloud files (`.ply`) and is not a
-/// KITTI sequence (`calib.txt`); `None` otherwise.
-pub fn las_tiles(dir: &Path) -> Option<Vec<PathBuf>> {
+/// The point-cloud files of folder `dir` in name order, when they are all
+/// LAS/LAZ (`.las`, `.laz`) or all PLY, and `dir` is not a KITTI sequence
+/// (`calib.txt`); `None` otherwise (no such files, or both kinds).
+pub fn cloud_tiles(dir: &Path) -> Option<(TileKind, Vec<PathBuf>)> {
     if !dir.is_dir() || dir.join("calib.txt").exists() {
         return None;
     }
-    let mut las = Vec::new();
+    let (mut las, mut ply) = (Vec::new(), Vec::new());
     for e in std::fs::read_dir(dir).ok()?.flatten() {
         let p = e.path();
         let ext = p
@@ -49,29 +62,47 @@ pub fn las_tiles(dir: &Path) -> Option<Vec<PathBuf>> {
             .to_ascii_lowercase();
         match ext.as_str() {
             "las" | "laz" if p.is_file() => las.push(p),
-            "ply" => return None,
+            "ply" if p.is_file() => ply.push(p),
             _ => {}
         }
     }
     las.sort();
-    (!las.is_empty()).then_some(las)
+    ply.sort();
+    match (las.is_empty(), ply.is_empty()) {
+        (false, true) => Some((TileKind::Las, las)),
+        (true, false) => Some((TileKind::Ply, ply)),
+        _ => None,
+    }
 }
 
-impl LasSource {
-    /// A `.las`/`.laz` file, or a folder of them ([`las_tiles`]): every
-    /// header is checked against its file's size and read for its units,
-    /// and tiles must state the same coordinate reference system (the same
-    /// `LASF_Projection` records), since each counts its coordinates in
-    /// that system.
+impl TileSource {
+    /// A `.las`/`.laz` file, or a folder of tiles ([`cloud_tiles`]). LAS
+    /// headers are checked against their file's size and read for their
+    /// units, and LAS tiles must state the same coordinate reference
+    /// system (the same `LASF_Projection` records), since each counts its
+    /// coordinates in that system. PLY tiles state none: they are taken to
+    /// share one frame, in metres.
     pub fn open(path: &Path) -> Result<Self, PipelineError> {
         let name = path.display().to_string();
-        let files = if path.is_dir() {
-            las_tiles(path).ok_or_else(|| {
-                PipelineError::Input(format!("{name}: no .las or .laz tiles in this folder"))
+        let (kind, files) = if path.is_dir() {
+            cloud_tiles(path).ok_or_else(|| {
+                PipelineError::Input(format!(
+                    "{name}: no tiles in this folder (.las and .laz, or .ply, not both)"
+                ))
             })?
         } else {
-            vec![path.to_path_buf()]
+            (TileKind::Las, vec![path.to_path_buf()])
         };
+        if kind == TileKind::Ply {
+            // Read in the passes; a tile a batch.
+            return Ok(Self {
+                name,
+                kind,
+                declared: files.len() as u64,
+                files,
+                notes: Vec::new(),
+            });
+        }
         let mut declared = 0u64;
         let mut notes = Vec::new();
         let mut first: Option<(PathBuf, CrsRecords)> = None;
@@ -116,10 +147,24 @@ impl LasSource {
         }
         Ok(Self {
             name,
+            kind,
             files,
             declared,
             notes,
         })
+    }
+
+    /// The kind of its files.
+    pub fn kind(&self) -> TileKind {
+        self.kind
+    }
+
+    /// What progress counts: LAS point records, or PLY tiles.
+    pub fn unit(&self) -> &'static str {
+        match self.kind {
+            TileKind::Las => "points",
+            TileKind::Ply => "tiles",
+        }
     }
 
     /// The files, in the order their points are read.
@@ -127,7 +172,8 @@ impl LasSource {
         &self.files
     }
 
-    /// Point records the headers declare, withheld ones included.
+    /// The length of the passes: point records the LAS headers declare
+    /// (withheld ones included), or PLY tiles.
     pub fn declared(&self) -> u64 {
         self.declared
     }
@@ -138,20 +184,25 @@ impl LasSource {
     }
 }
 
-/// How the points of a [`LasSource`] are read.
-#[derive(Debug, Clone, Copy)]
-pub struct LasOptions {
-    /// Keep ASPRS noise (classes 7 and 18).
+/// How the points of a [`TileSource`] are read.
+#[derive(Debug, Clone)]
+pub struct TileOptions {
+    /// LAS: keep ASPRS noise (classes 7 and 18).
     pub keep_all: bool,
-    /// Points decoded a batch, at most ([`LasChunks::with_batch_points`]).
+    /// LAS: points decoded a batch, at most
+    /// ([`LasChunks::with_batch_points`]).
     pub batch_points: u64,
+    /// PLY: the vertex property holding the labels
+    /// ([`PlyOptions::label_property`]).
+    pub label_property: Option<String>,
 }
 
-impl Default for LasOptions {
+impl Default for TileOptions {
     fn default() -> Self {
         Self {
             keep_all: false,
             batch_points: u64::MAX,
+            label_property: None,
         }
     }
 }
@@ -164,17 +215,22 @@ struct LeftOut {
     noise: u64,
     /// Per file, the points kept before noise (an empty file is named).
     kept: Vec<u64>,
+    /// The PLY readers' notes (vertices left out, float precision).
+    read: Vec<String>,
 }
 
 /// Reads every batch of `src`, the kept points (withheld and, unless
 /// `keep_all`, noise left out) handed to `each` with their labels, in the
 /// file order; `progress(records read, declared)` after each batch.
 fn each_batch(
-    src: &LasSource,
-    opts: &LasOptions,
+    src: &TileSource,
+    opts: &TileOptions,
     mut progress: impl FnMut(u64, u64),
     mut each: impl FnMut(&[[f64; 3]], &[u32]),
 ) -> Result<LeftOut, PipelineError> {
+    if src.kind == TileKind::Ply {
+        return each_ply_tile(src, opts, progress, each);
+    }
     let mut left = LeftOut::default();
     let mut done = 0u64;
     let (mut pts, mut labels) = (Vec::new(), Vec::new());
@@ -215,14 +271,55 @@ fn each_batch(
     Ok(left)
 }
 
+/// [`each_batch`] of PLY tiles: a tile read whole at a time, its labels
+/// required (and no feature properties: those are mapped from the whole
+/// file).
+fn each_ply_tile(
+    src: &TileSource,
+    opts: &TileOptions,
+    mut progress: impl FnMut(u64, u64),
+    mut each: impl FnMut(&[[f64; 3]], &[u32]),
+) -> Result<LeftOut, PipelineError> {
+    let mut left = LeftOut::default();
+    let ply = PlyOptions {
+        label_property: opts.label_property.clone(),
+    };
+    for (i, f) in src.files.iter().enumerate() {
+        let c = read_ply_with(f, &ply)?;
+        let why = if c.features.is_some() {
+            Some("carries feature properties (f0, ...), which are mapped from one file")
+        } else if c.labels.is_none() {
+            Some(
+                "carries no labels (a property label, class, classification, semantic or \
+                 semantic_label, or another one named with --label-property)",
+            )
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            return Err(PipelineError::Input(format!(
+                "{}: this tile {why}; a folder of tiles is mapped from its labels through the \
+                 class table (map the tile alone, or merge the tiles first)",
+                f.display()
+            )));
+        }
+        let labels = c.labels.as_deref().unwrap_or_default();
+        left.kept.push(c.len() as u64);
+        left.read.extend(c.notes.iter().cloned());
+        each(&c.points, labels);
+        progress(i as u64 + 1, src.declared);
+    }
+    Ok(left)
+}
+
 /// Builds the map of `src` (module page): labels through `table` (a
-/// class table is required: LAS points carry classification codes).
+/// class table is required: the points carry class codes).
 /// `progress(pass, records read, records declared)` after every batch.
 /// Returns the map, the integration's counts and notes on what was left
 /// out.
-pub fn map_from_las(
-    src: &LasSource,
-    opts: &LasOptions,
+pub fn map_from_tiles(
+    src: &TileSource,
+    opts: &TileOptions,
     params: &BuildParams,
     table: Option<&EmbeddingTable>,
     progress: &mut dyn FnMut(SequencePass, u64, u64),
@@ -231,7 +328,8 @@ pub fn map_from_las(
     let Some(table) = table else {
         return Err(PipelineError::Input(format!(
             "{name}: points carry labels but no class table was given: pass --classes asprs \
-             (LAS codes), or a class list file with --embeddings NPY or --text-model ONNX"
+             (LAS codes) or semantickitti, or a class list file with --embeddings NPY or \
+             --text-model ONNX"
         )));
     };
     let mut origin = OriginEstimate::default();
@@ -272,7 +370,7 @@ pub fn map_from_las(
 
 /// The notes on withheld and noise points, or the error of a single file
 /// with no point left (as the whole-file reader words it).
-fn left_out_notes(src: &LasSource, left: &LeftOut) -> Result<Vec<String>, PipelineError> {
+fn left_out_notes(src: &TileSource, left: &LeftOut) -> Result<Vec<String>, PipelineError> {
     let name = &src.name;
     let tiles = src.files.len();
     let kept: u64 = left.kept.iter().sum();
@@ -288,7 +386,7 @@ fn left_out_notes(src: &LasSource, left: &LeftOut) -> Result<Vec<String>, Pipeli
         }
         .into());
     }
-    let mut notes = Vec::new();
+    let mut notes = left.read.clone();
     if left.withheld > 0 {
         let mut n = withheld_note(name, left.withheld, src.declared);
         if tiles > 1 {

@@ -1,6 +1,6 @@
-//! LAS/LAZ mapped a batch at a time (`omcl::mapping::tiles`): one real
-//! file, and folders of tiles cut from it, give the map of the file read
-//! whole; tiles that cannot be merged are refused by name.
+//! Clouds mapped a batch at a time (`omcl::mapping::tiles`): a real LAZ,
+//! and folders of LAS or PLY tiles cut from real data, give the map of the
+//! file read whole; tiles that cannot be merged are refused by name.
 
 mod common;
 
@@ -11,7 +11,7 @@ use std::path::Path;
 use omcl::io::labels::{BuiltinClasses, EmbeddingTable};
 use omcl::map::LanguageMap;
 use omcl::mapping::pipeline::{self, BuildParams, CloudInput, SequencePass};
-use omcl::mapping::tiles::{LasOptions, LasSource, las_tiles, map_from_las};
+use omcl::mapping::tiles::{TileKind, TileOptions, TileSource, cloud_tiles, map_from_tiles};
 
 fn asprs() -> EmbeddingTable {
     let sim = omcl::sim::files::builtin_table().unwrap();
@@ -51,13 +51,14 @@ fn batched(
     batch_points: u64,
     resolution: f64,
 ) -> (LanguageMap, [usize; 4], Vec<String>, Vec<Call>) {
-    let src = LasSource::open(path).unwrap();
+    let src = TileSource::open(path).unwrap();
     let mut calls = Vec::new();
-    let (m, s, notes) = map_from_las(
+    let (m, s, notes) = map_from_tiles(
         &src,
-        &LasOptions {
+        &TileOptions {
             keep_all,
             batch_points,
+            ..Default::default()
         },
         &params(resolution),
         Some(&asprs()),
@@ -120,7 +121,7 @@ fn a_laz_mapped_batch_by_batch_equals_the_file_read_whole() {
             let (b, sb, notes, calls) = batched(&path, keep_all, 1000, resolution);
             assert_eq!(sa, sb, "{file}");
             assert_same_map(&a, &b);
-            let declared = LasSource::open(&path).unwrap().declared();
+            let declared = TileSource::open(&path).unwrap().declared();
             assert_progress(&calls, declared, declared.div_ceil(1000) as usize);
             // The whole-file path's notes on what was left out.
             let input = CloudInput {
@@ -129,7 +130,7 @@ fn a_laz_mapped_batch_by_batch_equals_the_file_read_whole() {
                 ..Default::default()
             };
             let c = pipeline::load_cloud(&input).unwrap();
-            let src = LasSource::open(&path).unwrap();
+            let src = TileSource::open(&path).unwrap();
             let mut all: Vec<String> = src.notes().to_vec();
             all.extend(notes);
             assert_eq!(all, c.notes, "{file} keep_all {keep_all}");
@@ -170,15 +171,18 @@ fn tiles_cut_from_a_file_map_like_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let tiles = dir.path().join("tiles");
     std::fs::create_dir(&tiles).unwrap();
-    let n = LasSource::open(&src).unwrap().declared() as usize;
+    let n = TileSource::open(&src).unwrap().declared() as usize;
     // Name order is read order.
     cut(&src, &tiles.join("a.las"), 0..40_000);
     cut(&src, &tiles.join("b.LAS"), 40_000..75_000);
     cut(&src, &tiles.join("c.las"), 75_000..n);
     std::fs::write(tiles.join("README.txt"), "not a tile").unwrap();
     assert_eq!(
-        las_tiles(&tiles).unwrap(),
-        ["a.las", "b.LAS", "c.las"].map(|f| tiles.join(f))
+        cloud_tiles(&tiles).unwrap(),
+        (
+            TileKind::Las,
+            ["a.las", "b.LAS", "c.las"].map(|f| tiles.join(f)).to_vec()
+        )
     );
     let (a, sa) = whole(&src, false, 1.0);
     let (b, sb, notes, calls) = batched(&tiles, false, 1 << 20, 1.0);
@@ -186,7 +190,7 @@ fn tiles_cut_from_a_file_map_like_the_file() {
     assert_same_map(&a, &b);
     assert_eq!(calls.len(), 6, "{calls:?}");
     assert!(notes.is_empty(), "{notes:?}");
-    let open = LasSource::open(&tiles).unwrap();
+    let open = TileSource::open(&tiles).unwrap();
     assert_eq!(open.declared() as usize, n);
     // Units: the first tile's note and one line for the others.
     assert_eq!(open.notes().len(), 2, "{:?}", open.notes());
@@ -287,7 +291,7 @@ fn tiles_that_cannot_be_merged_are_refused_by_name() {
     ] {
         let text = map(&good, extra);
         assert!(
-            text.contains(extra[0]) && text.contains("folder of LAS/LAZ tiles"),
+            text.contains(extra[0]) && text.contains("is a folder of tiles"),
             "{extra:?}: {text}"
         );
     }
@@ -321,7 +325,144 @@ fn tiles_that_cannot_be_merged_are_refused_by_name() {
     assert!(!inside.exists());
     // PLY beside LAS: not tiles, and said so.
     std::fs::write(good.join("x.ply"), "ply\n").unwrap();
-    assert!(las_tiles(&good).is_none());
+    assert!(cloud_tiles(&good).is_none());
     let text = map(&good, &[]);
-    assert!(text.contains("PLY files one at a time"), "{text}");
+    assert!(text.contains("all LAS/LAZ or all PLY, not both"), "{text}");
+}
+
+/// The real SemanticKITTI scan 0 (124,668 labelled points) written as one
+/// PLY and cut into three PLY tiles: the folder maps to the file's map.
+#[test]
+fn ply_tiles_map_like_the_merged_file() {
+    let scan = shared("semantickitti/sequences/00/velodyne/000000.bin");
+    let c = omcl::io::kitti::read_labelled_scan(&scan, None).unwrap();
+    let labels = c.labels.clone().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = dir.path().join("tiles");
+    std::fs::create_dir(&tiles).unwrap();
+    let n = c.len();
+    let cuts = [0, n / 3, n / 2, n];
+    for (k, w) in cuts.windows(2).enumerate() {
+        let part = omcl::io::cloud::PointCloud {
+            points: c.points[w[0]..w[1]].to_vec(),
+            labels: Some(labels[w[0]..w[1]].to_vec()),
+            ..Default::default()
+        };
+        omcl::io::ply::write_ply(&tiles.join(format!("{k}.ply")), &part).unwrap();
+    }
+    let merged = dir.path().join("merged.ply");
+    let whole_cloud = omcl::io::cloud::PointCloud {
+        points: c.points.clone(),
+        labels: Some(labels),
+        ..Default::default()
+    };
+    omcl::io::ply::write_ply(&merged, &whole_cloud).unwrap();
+    let sim = omcl::sim::files::builtin_table().unwrap();
+    let table =
+        omcl::sim::embeddings::builtin_label_table(BuiltinClasses::SemanticKitti, &sim).unwrap();
+    let input = CloudInput {
+        path: merged,
+        ..Default::default()
+    };
+    let cloud = pipeline::load_cloud(&input).unwrap();
+    let (a, sa) =
+        pipeline::map_from_cloud(cloud, "merged", &params(0.2), Some(&table), None).unwrap();
+    let src = TileSource::open(&tiles).unwrap();
+    assert_eq!(
+        (src.kind(), src.declared(), src.unit()),
+        (TileKind::Ply, 3, "tiles")
+    );
+    let mut calls = Vec::new();
+    let (b, sb, notes) = map_from_tiles(
+        &src,
+        &TileOptions::default(),
+        &params(0.2),
+        Some(&table),
+        &mut |p, d, t| calls.push((p, d, t)),
+    )
+    .unwrap();
+    assert_same_map(&a, &b);
+    assert_eq!(
+        [sa.offered, sa.integrated, sa.skipped, sa.rejected],
+        [sb.offered, sb.integrated, sb.skipped, sb.rejected]
+    );
+    assert_eq!(sb.offered, n);
+    assert!(notes.is_empty(), "{notes:?}");
+    assert_progress(&calls, 3, 3);
+}
+
+/// PLY tiles from the command line: labels under another name with
+/// `--label-property`; a tile without labels, or with features, refused
+/// naming the tile; nothing written.
+#[test]
+fn ply_tiles_need_labels_and_take_a_label_property() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = dir.path().join("dales");
+    std::fs::create_dir(&tiles).unwrap();
+    let tile = |name: &str, extra: &str, rows: &[&str]| {
+        let mut t = format!(
+            "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\n\
+             property double z\n{extra}end_header\n",
+            rows.len()
+        );
+        for r in rows {
+            t += r;
+            t += "\n";
+        }
+        std::fs::write(tiles.join(name), t).unwrap();
+    };
+    tile(
+        "a.ply",
+        "property int sem_class\n",
+        &["0 0 0 2", "0.2 0 0 2"],
+    );
+    tile(
+        "b.ply",
+        "property int sem_class\n",
+        &["5 0 0 6", "5.2 0 0 6"],
+    );
+    let out = dir.path().join("m.omcl");
+    let run = |extra: &[&str]| {
+        let args = [
+            &[
+                "map",
+                "cloud",
+                tiles.to_str().unwrap(),
+                "--classes",
+                "asprs",
+                "--resolution",
+                "1",
+                "-o",
+                out.to_str().unwrap(),
+            ][..],
+            extra,
+        ]
+        .concat();
+        common::omcl(&args)
+    };
+    let r = run(&[]);
+    assert!(
+        !r.ok() && r.output().contains("a.ply: this tile carries no labels") && !out.exists(),
+        "{}",
+        r.output()
+    );
+    let r = run(&["--label-property", "sem_class"]);
+    assert!(r.ok(), "{}", r.output());
+    let m = omcl::map::load(&out).unwrap();
+    assert_eq!(m.len(), 2);
+    std::fs::remove_file(&out).unwrap();
+    tile(
+        "c.ply",
+        "property int sem_class\nproperty float f0\n",
+        &["9 0 0 2 1.0"],
+    );
+    let r = run(&["--label-property", "sem_class"]);
+    assert!(
+        !r.ok()
+            && r.output()
+                .contains("c.ply: this tile carries feature properties")
+            && !out.exists(),
+        "{}",
+        r.output()
+    );
 }
