@@ -80,8 +80,9 @@ fn beside(manifest: &Path, name: &str) -> PathBuf {
 pub struct RunCmd {
     /// The manifest `omcl sweep plan` wrote (`.jsonl`: one run a line).
     pub manifest: PathBuf,
-    /// Run this entry (0-based; line INDEX + 2 of the manifest); with
-    /// --stride, the entries INDEX, INDEX + STRIDE, ... [default: all].
+    /// Run this entry (0-based: the INDEX-th run line after the header,
+    /// blank lines not counted; line INDEX + 2 as `sweep plan` writes it);
+    /// with --stride, the entries INDEX, INDEX + STRIDE, ... [default: all].
     #[arg(long)]
     pub index: Option<usize>,
     /// Step between the entries run (with --index).

@@ -8,7 +8,8 @@
 //!
 //! The manifest: line 1 is the sweep's header ([`SweepHeader`]: what was
 //! asked for, which omcl planned it), every further line one run
-//! ([`RunEntry`]); run `i` (0-based, as `--index` counts) is line `i + 2`.
+//! ([`RunEntry`]); run `i` (0-based, as `--index` counts) is the `i`-th
+//! run line, blank lines not counted (line `i + 2` as `plan` writes it).
 //! A run's id hashes the omcl version and everything the run computes
 //! ([`Task`]); what it is used for ([`Use`]) is not part of it, so a run
 //! two tables share is planned (and computed) once.
