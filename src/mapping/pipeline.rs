@@ -274,10 +274,7 @@ pub fn map_from_sequence(
             (None, Some(_), None) => return Err(no_table(&name)),
             (None, None, _) => return Err(no_features(&name)),
         };
-        stats.offered += s.offered;
-        stats.integrated += s.integrated;
-        stats.skipped += s.skipped;
-        stats.rejected += s.rejected;
+        stats += s;
         progress(SequencePass::Mapping, done + 1, frames.len());
     }
     let integ = integ.ok_or_else(|| {
@@ -298,6 +295,9 @@ pub struct LabelRows<'a> {
     missing: std::collections::BTreeSet<u32>,
     rows: Vec<Option<u32>>,
 }
+
+/// Points integrated a batch from a cloud held whole.
+const ROW_BATCH: usize = 1 << 20;
 
 /// Labels the table lacks that [`LabelRows`] keeps, at most.
 const MISSING_KEPT: usize = 1 << 12;
@@ -525,8 +525,14 @@ pub fn map_from_cloud(
     } else if let (Some(labels), Some(t)) = (&cloud.labels, table) {
         let db = FeatureDb::from_rows(t.dim, params.tau, t.data.clone())?;
         let mut integ = Integrator::new(grid, db)?;
+        // In batches: the rows and the integrator's sort keys take 24
+        // bytes a point, which for the whole cloud at once came on top of
+        // the cloud.
         let mut rows = LabelRows::new(t);
-        let s = super::cloud::integrate_point_rows(&mut integ, &cloud.points, rows.rows(labels));
+        let mut s = IntegrationStats::default();
+        for (p, l) in cloud.points.chunks(ROW_BATCH).zip(labels.chunks(ROW_BATCH)) {
+            s += super::cloud::integrate_point_rows(&mut integ, p, rows.rows(l));
+        }
         rows.check(input, &s)?;
         (integ, s)
     } else if cloud.labels.is_some() {

@@ -356,11 +356,7 @@ pub fn map_from_tiles(
         opts,
         |done, total| progress(SequencePass::Mapping, done, total),
         |pts, labels| {
-            let s = super::cloud::integrate_point_rows(&mut integ, pts, rows.rows(labels));
-            stats.offered += s.offered;
-            stats.integrated += s.integrated;
-            stats.skipped += s.skipped;
-            stats.rejected += s.rejected;
+            stats += super::cloud::integrate_point_rows(&mut integ, pts, rows.rows(labels));
         },
     )?;
     rows.check(name, &stats)?;
