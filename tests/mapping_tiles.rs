@@ -150,20 +150,36 @@ fn a_laz_mapped_batch_by_batch_equals_the_file_read_whole() {
 /// Writes the points `range` of the LAS/LAZ `src` as an uncompressed LAS
 /// `out` with `src`'s header (scale, offset, CRS records).
 fn cut(src: &Path, out: &Path, range: std::ops::Range<usize>) {
+    cut_with(src, out, range, |_, _| {});
+}
+
+/// [`cut`], each point `i` (index in `src`) changed by `edit` first.
+fn cut_with(
+    src: &Path,
+    out: &Path,
+    range: std::ops::Range<usize>,
+    mut edit: impl FnMut(usize, &mut las::Point),
+) {
     let mut r = las::Reader::from_path(src).unwrap();
     let mut b = las::Builder::from(r.header().clone());
     b.point_format.is_compressed = false;
     let header = b.into_header().unwrap();
     let data = r.read_all().unwrap();
     let mut w = las::Writer::from_path(out, header).unwrap();
-    for p in data.points().skip(range.start).take(range.len()) {
-        w.write_point(p.unwrap()).unwrap();
+    for (i, p) in data
+        .points()
+        .enumerate()
+        .skip(range.start)
+        .take(range.len())
+    {
+        let mut p = p.unwrap();
+        edit(i, &mut p);
+        w.write_point(p).unwrap();
     }
     w.close().unwrap();
 }
 
-/// autzen cut into three tiles (the last one empty of points to map
-/// would be a note): the folder maps to the file's map, through the
+/// autzen cut into three tiles: the folder maps to the file's map, through the
 /// library and the command line (the same map file, byte for byte).
 #[test]
 fn tiles_cut_from_a_file_map_like_the_file() {
@@ -318,7 +334,7 @@ fn tiles_that_cannot_be_merged_are_refused_by_name() {
         inside.to_str().unwrap(),
     ]);
     assert!(
-        !r.ok() && r.output().contains("read as a tile"),
+        !r.ok() && r.output().contains("a map is an .omcl file"),
         "{}",
         r.output()
     );
@@ -462,6 +478,152 @@ fn ply_tiles_need_labels_and_take_a_label_property() {
             && r.output()
                 .contains("c.ply: this tile carries feature properties")
             && !out.exists(),
+        "{}",
+        r.output()
+    );
+}
+
+/// Withheld and noise points through both paths: a LAS with every 7th
+/// point withheld and every 5th made noise gives, read whole and in
+/// batches, the same map and the same notes; as tiles, a tile of noise
+/// alone is named as holding no point to map, the notes count the
+/// withheld points over the tiles, and an output beside them is fine.
+#[test]
+fn withheld_and_noise_points_agree_between_the_paths() {
+    let src = shared("las/autzen_trim.laz");
+    let dir = tempfile::tempdir().unwrap();
+    let edit = |i: usize, p: &mut las::Point| {
+        p.is_withheld = i % 7 == 0;
+        if i % 5 == 0 {
+            p.classification = las::point::Classification::new(7).unwrap();
+        }
+    };
+    let one = dir.path().join("one.las");
+    cut_with(&src, &one, 0..20_000, edit);
+    let (a, sa) = whole(&one, false, 1.0);
+    let (b, sb, notes, _) = batched(&one, false, 3000, 1.0);
+    assert_eq!(sa, sb);
+    assert_same_map(&a, &b);
+    let c = pipeline::load_cloud(&CloudInput {
+        path: one.clone(),
+        ..Default::default()
+    })
+    .unwrap();
+    let mut all = TileSource::open(&one).unwrap().notes().to_vec();
+    all.extend(notes.iter().cloned());
+    assert_eq!(all, c.notes);
+    assert!(
+        notes[0].contains("2858 of 20000 points are flagged withheld"),
+        "{notes:?}"
+    );
+    // Multiples of 5 below 20,000 (4,000) but not of 7 (withheld: 572 of 35).
+    assert!(notes[1].contains("3428 noise"), "{notes:?}");
+
+    let tiles = dir.path().join("tiles");
+    std::fs::create_dir(&tiles).unwrap();
+    cut_with(&src, &tiles.join("a.las"), 0..10_000, edit);
+    cut_with(&src, &tiles.join("b.las"), 10_000..10_100, |_, p| {
+        p.classification = las::point::Classification::new(7).unwrap();
+    });
+    cut_with(&src, &tiles.join("c.las"), 10_100..20_000, edit);
+    let (_, _, notes, _) = batched(&tiles, false, 1 << 20, 1.0);
+    let text = notes.join("\n");
+    assert!(text.contains("of its 3 tiles have some"), "{text}");
+    assert!(
+        text.contains("1 of its 3 tiles hold no point to map") && text.contains("b.las"),
+        "{text}"
+    );
+    // Every point noise: the error keeps the notes.
+    let noise = dir.path().join("noise");
+    std::fs::create_dir(&noise).unwrap();
+    cut_with(&src, &noise.join("n.las"), 0..100, |_, p| {
+        p.classification = las::point::Classification::new(18).unwrap();
+    });
+    let e = map_from_tiles(
+        &TileSource::open(&noise).unwrap(),
+        &TileOptions::default(),
+        &params(1.0),
+        Some(&asprs()),
+        &mut |_, _, _| {},
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("empty result") && e.contains("100 noise"), "{e}");
+}
+
+/// Tile folders as users keep them: macOS's `._` files and other hidden
+/// files, a subfolder and a link to nothing are not read, and a note says
+/// so; GeoTIFF citations that differ do not split one CRS; a folder with
+/// nothing to read says what it is not; `--labels` on one LAS file is
+/// refused, not ignored.
+#[test]
+fn tile_folders_as_users_keep_them() {
+    let src = shared("las/autzen_trim.laz");
+    let dir = tempfile::tempdir().unwrap();
+    let tiles = dir.path().join("tiles");
+    std::fs::create_dir_all(tiles.join("more")).unwrap();
+    cut(&src, &tiles.join("a.las"), 0..1000);
+    cut(&src, &tiles.join("more/b.las"), 1000..2000);
+    std::fs::write(tiles.join("._a.las"), [0u8, 5, 22, 7]).unwrap();
+    std::fs::write(tiles.join(".hidden.las"), b"junk").unwrap();
+    std::os::unix::fs::symlink(dir.path().join("gone.las"), tiles.join("gone.las")).unwrap();
+    // The same GeoTIFF keys, another citation text (record 34737).
+    let mut r = las::Reader::from_path(&src).unwrap();
+    let mut b = las::Builder::from(r.header().clone());
+    b.point_format.is_compressed = false;
+    for v in b.vlrs.iter_mut().filter(|v| v.record_id == 34737) {
+        v.data = b"another citation|\0".to_vec();
+    }
+    let data = r.read_all().unwrap();
+    let mut w = las::Writer::from_path(tiles.join("c.las"), b.into_header().unwrap()).unwrap();
+    for p in data.points().skip(2000).take(1000) {
+        w.write_point(p.unwrap()).unwrap();
+    }
+    w.close().unwrap();
+    let open = TileSource::open(&tiles).unwrap();
+    assert_eq!(open.files(), [tiles.join("a.las"), tiles.join("c.las")]);
+    let skipped = open.notes().join("\n");
+    for n in [
+        "._a.las, .hidden.las (hidden files)",
+        "more/ (subfolders are not read)",
+        "gone.las (links to nothing)",
+    ] {
+        assert!(skipped.contains(n), "{n}: {skipped}");
+    }
+    let out = dir.path().join("m.omcl");
+    let run = |input: &Path, extra: &[&str]| {
+        let args = [
+            &[
+                "map",
+                "cloud",
+                input.to_str().unwrap(),
+                "--classes",
+                "asprs",
+                "-o",
+                out.to_str().unwrap(),
+            ][..],
+            extra,
+        ]
+        .concat();
+        common::omcl(&args)
+    };
+    let r = run(&tiles, &[]);
+    assert!(r.ok(), "{}", r.output());
+    std::fs::remove_file(&out).unwrap();
+    // Nothing to read.
+    let empty = dir.path().join("empty");
+    std::fs::create_dir_all(empty.join("2019")).unwrap();
+    let r = run(&empty, &[]);
+    assert!(
+        !r.ok()
+            && r.output().contains("neither a KITTI sequence")
+            && r.output().contains("subfolders"),
+        "{}",
+        r.output()
+    );
+    let r = run(&shared("las/simple.las"), &["--labels", "x.label"]);
+    assert!(
+        !r.ok() && r.output().contains("--labels is for a single KITTI scan") && !out.exists(),
         "{}",
         r.output()
     );

@@ -242,7 +242,7 @@ pub struct CloudArgs {
     /// per-point features), for clouds without labels or feature files.
     #[arg(long, value_name = "ONNX", conflicts_with = "features")]
     pub point_model: Option<PathBuf>,
-    /// ONNX Runtime library for --point-model.
+    /// ONNX Runtime library for --point-model or --text-model.
     #[arg(long, value_name = "PATH")]
     pub ort_lib: Option<PathBuf>,
 }
@@ -261,9 +261,8 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     // A folder of LAS/LAZ or PLY tiles, mapped together a batch at a time.
     let tiles = omcl::mapping::tiles::cloud_tiles(&a.input);
     let ply_tiles = matches!(tiles, Some((TileKind::Ply, _)));
-    if let Some((_, files)) = &tiles {
-        refuse_tile_name(&a.build.out, &a.input, files)?;
-    } else if a.input.is_dir() {
+    // (An output named like a tile is refused as any non-.omcl name is.)
+    if tiles.is_none() && a.input.is_dir() {
         // A sequence folder: its scans, labels, poses and calibration.
         super::outputs::refuse_inside_sequence(&[("--out", &a.build.out)], &a.input)?;
     }
@@ -301,6 +300,21 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         } else {
             "a LAS/LAZ file (its labels are its classification codes)"
         }
+    );
+    ensure!(
+        a.ort_lib.is_none() || a.point_model.is_some() || a.build.text_model.is_some(),
+        "--ort-lib is for --point-model or --text-model, and neither is given"
+    );
+    let ply_file = !a.input.is_dir()
+        && match a.format {
+            Some(f) => matches!(f, FormatArg::Ply | FormatArg::Scannet),
+            None => CloudFormat::from_path(&a.input) == Some(CloudFormat::Ply),
+        };
+    ensure!(
+        !(a.keep_all && (ply_tiles || ply_file)),
+        "--keep-all is for KITTI scans and sequences (unlabeled, outlier and moving points) and \
+         LAS/LAZ (noise classes 7 and 18); from {} nothing is dropped by class",
+        a.input.display()
     );
     if tiles.is_some() {
         for (given, what) in [
@@ -343,6 +357,12 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     let (table, text_encoder) = a.build.table(a.ort_lib.as_deref())?.unzip();
     let text_encoder = text_encoder.flatten();
     let las_file = las_file_given(a);
+    ensure!(
+        !(las_file && a.labels.is_some()),
+        "--labels is for a single KITTI scan (--format kitti); {} is a LAS/LAZ file, whose labels \
+         are its classification codes",
+        a.input.display()
+    );
     if tiles.is_some() || (las_file && a.features.is_none() && a.point_model.is_none()) {
         // LAS/LAZ labels through the class table: a batch at a time,
         // never the whole cloud in memory.
@@ -486,38 +506,6 @@ fn map_tiles(
     Ok(())
 }
 
-/// Refuses an `--out` that the next run over the tile folder `dir` would
-/// read as one of its tiles (a `.las`, `.laz` or `.ply` name in it).
-fn refuse_tile_name(out: &Path, dir: &Path, files: &[PathBuf]) -> anyhow::Result<()> {
-    let ext = out
-        .extension()
-        .and_then(|x| x.to_str())
-        .unwrap_or("")
-        .to_ascii_lowercase();
-    let (Ok(d), Some(parent)) = (
-        std::fs::canonicalize(dir),
-        out.parent().map(|p| {
-            if p.as_os_str().is_empty() {
-                Path::new(".")
-            } else {
-                p
-            }
-        }),
-    ) else {
-        return Ok(());
-    };
-    let inside = std::fs::canonicalize(parent).is_ok_and(|p| p == d);
-    ensure!(
-        !(inside && (ext == "las" || ext == "laz" || ext == "ply")),
-        "{}: --out would be read as a tile of {} ({} tiles there now); write the map \
-         elsewhere or name it .omcl",
-        out.display(),
-        dir.display(),
-        files.len()
-    );
-    Ok(())
-}
-
 /// Warns when a map made from labels through a class table says little:
 /// most points' labels are not in the table (the table of another
 /// dataset), or every point has the same class (a LAS file never
@@ -539,9 +527,10 @@ fn warn_labels(m: &LanguageMap, b: &BuildOptions, stats: &IntegrationStats, labe
     let used: std::collections::BTreeSet<u32> = m.rows().iter().copied().collect();
     if used.len() == 1 && m.len() > 1 {
         eprintln!(
-            "warning: every mapped point has the same class, so the map holds one feature and \
-             cannot tell places apart by meaning (a LAS file whose points were never \
-             classified has only class 0)"
+            "warning: the map holds one feature, so it cannot tell places apart by meaning: \
+             every mapped point has the same class (a LAS file whose points were never \
+             classified has only class 0), or --tau ({}) merged the classes' features into one",
+            b.tau
         );
     }
 }

@@ -673,13 +673,22 @@ fn check_near_misses(dir: &Path) -> Result<(), CloudError> {
                 .filter(|e| {
                     let p = e.path();
                     let ext = p.extension().and_then(|x| x.to_str()).unwrap_or("");
-                    ["las", "laz", "ply"]
-                        .iter()
-                        .any(|k| ext.eq_ignore_ascii_case(k))
+                    let hidden = e.file_name().to_string_lossy().starts_with('.');
+                    !hidden
+                        && ["las", "laz", "ply"]
+                            .iter()
+                            .any(|k| ext.eq_ignore_ascii_case(k))
                 })
                 .count()
         })
         .unwrap_or(0);
+    if clouds == 0 && !dir.join("velodyne").is_dir() {
+        return Err(CloudError::format(
+            dir,
+            "neither a KITTI sequence (no calib.txt, no velodyne/) nor a folder of LAS/LAZ or \
+             PLY tiles (none in it; subfolders and hidden files are not read)",
+        ));
+    }
     if clouds > 0 {
         return Err(CloudError::format(
             dir,

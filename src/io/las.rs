@@ -432,8 +432,9 @@ impl LasChunks {
         &self.notes
     }
 
-    /// The CRS records, to compare tiles' (`LASF_Projection` records,
-    /// sorted by id, with their bytes; empty without).
+    /// The CRS records that govern, to compare tiles' (the WKT record or
+    /// the GeoTIFF ones, as the units are read; sorted by id, with their
+    /// bytes; empty without).
     pub fn crs_records(&self) -> &[(u16, Vec<u8>)] {
         &self.crs
     }

@@ -10,7 +10,11 @@
 //! points (the grid's origin, [`OriginEstimate`]), the second integrates
 //! them batch by batch. The points, their order and the grid are those of
 //! the whole-file path (`map_from_cloud(load_cloud(..))`) on the same file,
-//! or on the tiles merged in file-name order, so the map is the same.
+//! or on the tiles merged in file-name order, so the map is the same, bit
+//! for bit, wherever a voxel sees at most [`crate::map::integrate::SLOTS`] classes; a
+//! voxel that sees more keeps its heaviest rows by the integrator's
+//! space-saving sketch, whose pick may depend on where the batches are cut
+//! (as for a sequence read scan by scan).
 //! Labels become rows through the class table (LAS classification codes,
 //! PLY label properties); per-point features (`--features`, PLY feature
 //! properties) and point encoders need the whole cloud and take the
@@ -47,32 +51,76 @@ pub struct TileSource {
 
 /// The point-cloud files of folder `dir` in name order, when they are all
 /// LAS/LAZ (`.las`, `.laz`) or all PLY, and `dir` is not a KITTI sequence
-/// (`calib.txt`); `None` otherwise (no such files, or both kinds).
+/// (`calib.txt`); `None` otherwise (no such files, or both kinds). Hidden
+/// files (a name starting with a dot, such as macOS's `._tile.las`),
+/// subfolders and links to nothing are not tiles ([`TileSource::open`]
+/// names them in a note).
 pub fn cloud_tiles(dir: &Path) -> Option<(TileKind, Vec<PathBuf>)> {
+    let s = scan(dir)?;
+    match (s.las.is_empty(), s.ply.is_empty()) {
+        (false, true) => Some((TileKind::Las, s.las)),
+        (true, false) => Some((TileKind::Ply, s.ply)),
+        _ => None,
+    }
+}
+
+/// What a tile folder holds.
+struct Scan {
+    las: Vec<PathBuf>,
+    ply: Vec<PathBuf>,
+    /// Entries not read, each with why.
+    skipped: Vec<String>,
+}
+
+fn scan(dir: &Path) -> Option<Scan> {
     if !dir.is_dir() || dir.join("calib.txt").exists() {
         return None;
     }
     let (mut las, mut ply) = (Vec::new(), Vec::new());
+    let (mut hidden, mut folders, mut dangling) = (Vec::new(), Vec::new(), Vec::new());
     for e in std::fs::read_dir(dir).ok()?.flatten() {
         let p = e.path();
+        let name = e.file_name().to_string_lossy().into_owned();
         let ext = p
             .extension()
             .and_then(|x| x.to_str())
             .unwrap_or("")
             .to_ascii_lowercase();
-        match ext.as_str() {
-            "las" | "laz" if p.is_file() => las.push(p),
-            "ply" if p.is_file() => ply.push(p),
-            _ => {}
+        let cloud = matches!(ext.as_str(), "las" | "laz" | "ply");
+        if p.is_dir() {
+            folders.push(format!("{name}/"));
+        } else if !cloud {
+        } else if name.starts_with('.') {
+            hidden.push(name);
+        } else if !p.is_file() {
+            dangling.push(name);
+        } else if ext == "ply" {
+            ply.push(p);
+        } else {
+            las.push(p);
         }
     }
     las.sort();
     ply.sort();
-    match (las.is_empty(), ply.is_empty()) {
-        (false, true) => Some((TileKind::Las, las)),
-        (true, false) => Some((TileKind::Ply, ply)),
-        _ => None,
+    let mut skipped = Vec::new();
+    for (mut v, why) in [
+        (hidden, "hidden files"),
+        (folders, "subfolders are not read"),
+        (dangling, "links to nothing"),
+    ] {
+        if !v.is_empty() {
+            v.sort();
+            let n = v.len();
+            v.truncate(5);
+            let more = if n > 5 {
+                format!(" and {} more", n - 5)
+            } else {
+                String::new()
+            };
+            skipped.push(format!("{}{more} ({why})", v.join(", ")));
+        }
     }
+    Some(Scan { las, ply, skipped })
 }
 
 impl TileSource {
@@ -93,6 +141,11 @@ impl TileSource {
         } else {
             (TileKind::Las, vec![path.to_path_buf()])
         };
+        let skipped = scan(path).map(|s| s.skipped).unwrap_or_default();
+        let mut notes: Vec<String> = skipped
+            .iter()
+            .map(|s| format!("{name}: not read as tiles: {s}"))
+            .collect();
         if kind == TileKind::Ply {
             // Read in the passes; a tile a batch.
             return Ok(Self {
@@ -100,46 +153,35 @@ impl TileSource {
                 kind,
                 declared: files.len() as u64,
                 files,
-                notes: Vec::new(),
+                notes,
             });
         }
         let mut declared = 0u64;
-        let mut notes = Vec::new();
+        let mut converted = false;
         let mut first: Option<(PathBuf, CrsRecords)> = None;
         for f in &files {
             let r = LasChunks::open(f)?;
             declared = declared.saturating_add(r.declared());
             match &first {
                 None => {
+                    converted = !r.notes().is_empty();
                     notes.extend(r.notes().iter().cloned());
                     first = Some((f.clone(), r.crs_records().to_vec()));
                 }
                 Some((f0, crs)) if crs.as_slice() != r.crs_records() => {
-                    let stated = |c: &[(u16, Vec<u8>)]| {
-                        if c.is_empty() {
-                            "none".to_string()
-                        } else {
-                            c.iter()
-                                .map(|(id, _)| id.to_string())
-                                .collect::<Vec<_>>()
-                                .join(", ")
-                        }
-                    };
                     return Err(PipelineError::Input(format!(
                         "{name}: its tiles state different coordinate reference systems: {} \
-                         (projection records {}) and {} (records {}) differ; map the tiles of \
-                         one CRS together (reproject the others first, e.g. with PDAL or \
-                         LAStools)",
+                         and {} ({}); map the tiles of one CRS together (reproject the others \
+                         first, e.g. with PDAL or LAStools)",
                         f0.display(),
-                        stated(crs),
                         f.display(),
-                        stated(r.crs_records())
+                        crs_difference(crs, r.crs_records())
                     )));
                 }
                 Some(_) => {}
             }
         }
-        if files.len() > 1 && !notes.is_empty() {
+        if files.len() > 1 && converted {
             notes.push(format!(
                 "{name}: its other {} tiles state the same CRS and were converted the same way",
                 files.len() - 1
@@ -184,6 +226,32 @@ impl TileSource {
     }
 }
 
+/// Which projection record differs between two tiles' (their governing
+/// records, [`LasChunks::crs_records`]), in words.
+fn crs_difference(a: &[(u16, Vec<u8>)], b: &[(u16, Vec<u8>)]) -> String {
+    let what = |id: u16| match id {
+        2112 => "the WKT record 2112",
+        34735 => "the GeoTIFF keys (record 34735)",
+        34736 => "the GeoTIFF doubles (record 34736)",
+        _ => "a projection record",
+    };
+    let ids = |c: &[(u16, Vec<u8>)]| c.iter().map(|(id, _)| *id).collect::<Vec<_>>();
+    if ids(a) != ids(b) {
+        let name = |c: &[(u16, Vec<u8>)]| match ids(c).first() {
+            None => "no CRS record".to_string(),
+            Some(2112) => "a WKT record".to_string(),
+            Some(_) => "GeoTIFF keys".to_string(),
+        };
+        return format!("the first states {}, the second {}", name(a), name(b));
+    }
+    let id = a
+        .iter()
+        .zip(b)
+        .find(|(x, y)| x != y)
+        .map_or(0, |(x, _)| x.0);
+    format!("{} differs", what(id))
+}
+
 /// How the points of a [`TileSource`] are read.
 #[derive(Debug, Clone)]
 pub struct TileOptions {
@@ -213,8 +281,12 @@ struct LeftOut {
     withheld: u64,
     withheld_files: usize,
     noise: u64,
-    /// Per file, the points kept before noise (an empty file is named).
+    /// Per file, the points kept before noise (a single file without any
+    /// is an error, as read whole).
     kept: Vec<u64>,
+    /// Per file, the points mapped (after noise; a tile without any is
+    /// named in a note).
+    mapped: Vec<u64>,
     /// The PLY readers' notes (vertices left out, float precision).
     read: Vec<String>,
 }
@@ -238,7 +310,7 @@ fn each_batch(
         let mut r = LasChunks::open(f)?.with_batch_points(opts.batch_points);
         let name = f.display().to_string();
         let withheld_before = left.withheld;
-        let mut kept = 0u64;
+        let (mut kept, mut mapped) = (0u64, 0u64);
         while let Some(c) = r.next_chunk()? {
             let LasChunk {
                 first_kept,
@@ -259,6 +331,7 @@ fn each_batch(
                 }
             }
             left.noise += (points.len() - pts.len()) as u64;
+            mapped += pts.len() as u64;
             each(&pts, &labels);
             progress(done + r.read(), src.declared);
         }
@@ -267,6 +340,7 @@ fn each_batch(
             left.withheld_files += 1;
         }
         left.kept.push(kept);
+        left.mapped.push(mapped);
     }
     Ok(left)
 }
@@ -285,9 +359,26 @@ fn each_ply_tile(
         label_property: opts.label_property.clone(),
     };
     for (i, f) in src.files.iter().enumerate() {
-        let c = read_ply_with(f, &ply)?;
+        let c = match read_ply_with(f, &ply) {
+            Ok(c) => c,
+            // A tile with no point to map is noted, as an empty LAS tile.
+            Err(CloudError::Empty {
+                source_name,
+                reason,
+            }) => {
+                left.kept.push(0);
+                left.mapped.push(0);
+                left.read.push(format!("{source_name}: {reason}"));
+                progress(i as u64 + 1, src.declared);
+                continue;
+            }
+            Err(e) => return Err(e.into()),
+        };
         let why = if c.features.is_some() {
-            Some("carries feature properties (f0, ...), which are mapped from one file")
+            Some(
+                "carries feature properties (f0 or feat_0, ...), which are mapped from one \
+                 file",
+            )
         } else if c.labels.is_none() {
             Some(
                 "carries no labels (a property label, class, classification, semantic or \
@@ -305,6 +396,7 @@ fn each_ply_tile(
         }
         let labels = c.labels.as_deref().unwrap_or_default();
         left.kept.push(c.len() as u64);
+        left.mapped.push(c.len() as u64);
         left.read.extend(c.notes.iter().cloned());
         each(&c.points, labels);
         progress(i as u64 + 1, src.declared);
@@ -341,8 +433,13 @@ pub fn map_from_tiles(
     )?;
     let notes = left_out_notes(src, &left)?;
     let grid = origin.grid(params.resolution).ok_or_else(|| {
+        let why = if notes.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", notes.join("; "))
+        };
         PipelineError::Input(format!(
-            "{name}: empty result: no points left to map; no map written"
+            "{name}: empty result: no points left to map{why}; no map written"
         ))
     })?;
     let mut integ = Integrator::new(
@@ -397,7 +494,7 @@ fn left_out_notes(src: &TileSource, left: &LeftOut) -> Result<Vec<String>, Pipel
         let empty: Vec<String> = src
             .files
             .iter()
-            .zip(&left.kept)
+            .zip(&left.mapped)
             .filter(|(_, k)| **k == 0)
             .map(|(f, _)| f.display().to_string())
             .collect();

@@ -542,16 +542,27 @@ fn wkt_units(data: &[u8]) -> Result<Units, String> {
     Ok(Units::Stated { xy, z, remarks })
 }
 
-/// The file's coordinate reference system as stated: every
-/// `LASF_Projection` record (WKT, GeoTIFF keys, doubles and strings, in
-/// VLRs or EVLRs), sorted by record id, with its bytes. Tiles of one
-/// survey carry the same records; tiles whose records differ may count
-/// their coordinates from different origins or in different units, and
-/// are not merged.
+/// The records that state the file's coordinate reference system, as
+/// [`units`] chooses them: the WKT record (2112) when the header's WKT bit
+/// is set or there are no GeoTIFF keys, else the GeoTIFF keys (34735) and
+/// doubles (34736), not the free-text strings (34737, citations); each
+/// with its bytes, sorted by id; empty without. Tiles of one survey carry
+/// the same; the other kind of record, which the file's readers ignore,
+/// and the citations may differ between writers.
 pub(super) fn records(header: &Header) -> super::CrsRecords {
-    let mut r: super::CrsRecords = header
+    let all: Vec<&Vlr> = header
         .all_vlrs()
         .filter(|v| v.user_id.eq_ignore_ascii_case("LASF_Projection"))
+        .collect();
+    let has = |id: u16| all.iter().any(|v| v.record_id == id);
+    let governing: &[u16] = if has(2112) && (header.has_wkt_crs() || !has(34735)) {
+        &[2112]
+    } else {
+        &[34735, 34736]
+    };
+    let mut r: super::CrsRecords = all
+        .iter()
+        .filter(|v| governing.contains(&v.record_id))
         .map(|v| (v.record_id, v.data.clone()))
         .collect();
     r.sort();
