@@ -493,8 +493,8 @@ fn withheld_and_noise_points_agree_between_the_paths() {
     let src = shared("las/autzen_trim.laz");
     let dir = tempfile::tempdir().unwrap();
     let edit = |i: usize, p: &mut las::Point| {
-        p.is_withheld = i % 7 == 0;
-        if i % 5 == 0 {
+        p.is_withheld = i.is_multiple_of(7);
+        if i.is_multiple_of(5) {
             p.classification = las::point::Classification::new(7).unwrap();
         }
     };
