@@ -32,6 +32,7 @@ fn params() -> BuildParams {
         tau: 0.02,
         max_rows: 4096,
         encoder: "clip-vit-b32".into(),
+        keep_strays: false,
     }
 }
 

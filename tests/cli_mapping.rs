@@ -652,6 +652,7 @@ fn a_sequence_mapped_scan_by_scan_equals_the_merged_cloud() {
         tau: 0.02,
         max_rows: 4096,
         encoder: "clip-vit-b32".into(),
+        keep_strays: false,
     };
     for (keep_all, max_range) in [(false, None), (true, Some(30.0))] {
         let input = CloudInput {
@@ -755,6 +756,25 @@ fn map_cloud_warns_about_strays_and_tables_and_guards_its_output() {
         m.grid().origin
     );
     assert!(!text.contains("skipped: their labels"), "{text}");
+    // At 10 m the stray is within the grid's reach (2^20 cells): the
+    // data's box leaves it out all the same (the map spanned 4,830 km);
+    // --keep-all keeps it.
+    for (extra, voxels) in [(&[][..], 1), (&["--keep-all"][..], 2)] {
+        let (ok, text) = asprs(
+            "utm.ply",
+            &p("coarse.omcl"),
+            &[&["--resolution", "10"][..], extra].concat(),
+        );
+        assert!(ok, "{text}");
+        assert_eq!(
+            text.contains("warning: 1 of 2001 points were left out")
+                && text.contains("strays far outside the rest of the data"),
+            voxels == 1,
+            "{text}"
+        );
+        let m = map::load(Path::new(&p("coarse.omcl"))).unwrap();
+        assert_eq!(m.len(), voxels, "{extra:?}");
+    }
     // A third of the points of a class the table does not have (ASPRS
     // codes end at 22 here): warned, with the table named.
     let half: Vec<_> = pts[1..]

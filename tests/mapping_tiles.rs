@@ -24,6 +24,7 @@ fn params(resolution: f64) -> BuildParams {
         tau: 0.02,
         max_rows: 4096,
         encoder: "clip-vit-b32".into(),
+        keep_strays: false,
     }
 }
 

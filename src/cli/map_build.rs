@@ -122,6 +122,7 @@ impl BuildOptions {
             tau: self.tau,
             max_rows: self.max_rows,
             encoder,
+            keep_strays: false,
         }
     }
 
@@ -167,10 +168,11 @@ fn save(m: &LanguageMap, b: &BuildOptions, stats: &IntegrationStats) -> anyhow::
         let g = m.grid();
         let reach = f64::from(omcl::map::key::CELL_MAX) * g.resolution;
         eprintln!(
-            "warning: {} of {} points were left out: not finite, or beyond the grid's reach \
-             ({:.0} m each way of its origin ({:.2}, {:.2}, {:.2}) at {} m): \
-             strays far from the data (such as points at 0, 0, 0 in georeferenced \
-             coordinates), or a cloud wider than that (a coarser --resolution reaches farther)",
+            "warning: {} of {} points were left out: not finite; strays far outside the rest \
+             of the data (such as points at 0, 0, 0 in georeferenced coordinates: farther out \
+             of the box of the bulk of the points than its own size or 100 m; `map cloud \
+             --keep-all` keeps them); or beyond the grid's reach ({:.0} m each way of its \
+             origin ({:.2}, {:.2}, {:.2}) at {} m: a coarser --resolution reaches farther)",
             stats.rejected, stats.offered, reach, g.origin.x, g.origin.y, g.origin.z, g.resolution
         );
     }
@@ -227,7 +229,8 @@ pub struct CloudArgs {
     #[arg(long)]
     pub features_dir: Option<PathBuf>,
     /// Keep points the authors drop: SemanticKITTI unlabeled, outlier and
-    /// moving classes; LAS noise classes 7 and 18.
+    /// moving classes; LAS noise classes 7 and 18; and strays far outside
+    /// the rest of the data (a point at 0, 0, 0 in UTM coordinates).
     #[arg(long)]
     pub keep_all: bool,
     /// Sequence folders: ignore points farther than this from the sensor (m).
@@ -305,17 +308,6 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         a.ort_lib.is_none() || a.point_model.is_some() || a.build.text_model.is_some(),
         "--ort-lib is for --point-model or --text-model, and neither is given"
     );
-    let ply_file = !a.input.is_dir()
-        && match a.format {
-            Some(f) => matches!(f, FormatArg::Ply | FormatArg::Scannet),
-            None => CloudFormat::from_path(&a.input) == Some(CloudFormat::Ply),
-        };
-    ensure!(
-        !(a.keep_all && (ply_tiles || ply_file)),
-        "--keep-all is for KITTI scans and sequences (unlabeled, outlier and moving points) and \
-         LAS/LAZ (noise classes 7 and 18); from {} nothing is dropped by class",
-        a.input.display()
-    );
     if tiles.is_some() {
         for (given, what) in [
             (a.features.is_some(), "--features"),
@@ -378,7 +370,7 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         let mut finishing = None;
         let (m, stats) = pipeline::map_from_sequence(
             &input,
-            &a.build.params(text_encoder.as_deref()),
+            &cloud_params(a, text_encoder.as_deref()),
             table.as_ref(),
             &mut |pass, done, total| {
                 if done == 1 {
@@ -430,7 +422,7 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     let (m, stats) = pipeline::map_from_cloud(
         c,
         &a.input.display().to_string(),
-        &a.build.params(text_encoder.as_deref()),
+        &cloud_params(a, text_encoder.as_deref()),
         table.as_ref(),
         encoder.as_mut(),
     )?;
@@ -439,6 +431,15 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     let labelled = table.is_some() && !own_features && a.point_model.is_none();
     warn_labels(&m, &a.build, &stats, labelled);
     Ok(())
+}
+
+/// How `map cloud` builds: the shared options, and `--keep-all` keeping
+/// strays far from the data too.
+fn cloud_params(a: &CloudArgs, text_encoder: Option<&str>) -> pipeline::BuildParams {
+    pipeline::BuildParams {
+        keep_strays: a.keep_all,
+        ..a.build.params(text_encoder)
+    }
 }
 
 /// Whether `a`'s input is a LAS/LAZ file (by `--format` or extension).
@@ -478,7 +479,7 @@ fn map_tiles(
             label_property: a.label_property.clone(),
             ..Default::default()
         },
-        &a.build.params(text_encoder),
+        &cloud_params(a, text_encoder),
         table,
         &mut |now, done, total| {
             if now != pass {
@@ -526,11 +527,17 @@ fn warn_labels(m: &LanguageMap, b: &BuildOptions, stats: &IntegrationStats, labe
     }
     let used: std::collections::BTreeSet<u32> = m.rows().iter().copied().collect();
     if used.len() == 1 && m.len() > 1 {
+        // Class texts' CLIP features lie at cosine distances of 0.05 and
+        // more from each other: below that, --tau merges none of them.
+        let merged = if b.tau > 0.05 {
+            format!(", or --tau {} merged the classes' features into one", b.tau)
+        } else {
+            String::new()
+        };
         eprintln!(
             "warning: the map holds one feature, so it cannot tell places apart by meaning: \
              every mapped point has the same class (a LAS file whose points were never \
-             classified has only class 0), or --tau ({}) merged the classes' features into one",
-            b.tau
+             classified has only class 0){merged}"
         );
     }
 }

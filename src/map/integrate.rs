@@ -22,7 +22,7 @@ use nalgebra::Vector3;
 use rustc_hash::FxHashMap;
 
 use super::features::{FeatureDb, FeatureDbError, normalize};
-use super::key::{self, GridSpec};
+use super::key::{self, Cell, GridSpec};
 use super::octree::{LanguageMap, MapError};
 
 /// Distinct rows remembered per voxel.
@@ -60,6 +60,43 @@ impl Slots {
     }
 }
 
+/// An axis-aligned box of world points, metres: where a cloud's points are
+/// expected (`crate::mapping::pipeline::OriginEstimate`); an integrator
+/// given one ([`Integrator::keeping`]) rejects points outside it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KeepBox {
+    /// Lowest corner.
+    pub lo: [f64; 3],
+    /// Highest corner.
+    pub hi: [f64; 3],
+}
+
+impl KeepBox {
+    /// Whether `p` lies inside (a NaN does not).
+    pub fn contains(&self, p: &[f64; 3]) -> bool {
+        (0..3).all(|a| p[a] >= self.lo[a] && p[a] <= self.hi[a])
+    }
+
+    /// The box holding both.
+    pub fn union(&self, o: &KeepBox) -> KeepBox {
+        KeepBox {
+            lo: std::array::from_fn(|a| self.lo[a].min(o.lo[a])),
+            hi: std::array::from_fn(|a| self.hi[a].max(o.hi[a])),
+        }
+    }
+
+    /// The box grown on every side by its largest extent, or by `at_least`
+    /// metres when that is more.
+    pub fn grown(&self, at_least: f64) -> KeepBox {
+        let extent = (0..3).map(|a| self.hi[a] - self.lo[a]).fold(0.0, f64::max);
+        let m = extent.max(at_least);
+        KeepBox {
+            lo: self.lo.map(|v| v - m),
+            hi: self.hi.map(|v| v + m),
+        }
+    }
+}
+
 /// Accumulates features into voxels.
 #[derive(Debug, Clone)]
 pub struct Integrator {
@@ -67,6 +104,7 @@ pub struct Integrator {
     obs: FeatureDb,
     voxels: FxHashMap<u64, Slots>,
     rejected: usize,
+    keep: Option<KeepBox>,
 }
 
 impl Integrator {
@@ -80,7 +118,24 @@ impl Integrator {
             obs,
             voxels: FxHashMap::default(),
             rejected: 0,
+            keep: None,
         })
+    }
+
+    /// Rejects the points outside `keep` from now on (strays), as points
+    /// out of the grid's reach are.
+    pub fn keeping(mut self, keep: Option<KeepBox>) -> Self {
+        self.keep = keep;
+        self
+    }
+
+    /// The cell of `p`: `None` when out of the grid's reach or outside the
+    /// kept box.
+    fn cell_of(grid: &GridSpec, keep: Option<&KeepBox>, p: &Vector3<f64>) -> Option<Cell> {
+        if keep.is_some_and(|k| !k.contains(&[p.x, p.y, p.z])) {
+            return None;
+        }
+        grid.cell_of(p)
     }
 
     /// Adds a feature observed at world point `p`. Returns `false` (and
@@ -90,7 +145,7 @@ impl Integrator {
         p: &Vector3<f64>,
         feature: &[f32],
     ) -> Result<bool, FeatureDbError> {
-        let Some(cell) = self.grid.cell_of(p) else {
+        let Some(cell) = Self::cell_of(&self.grid, self.keep.as_ref(), p) else {
             self.rejected += 1;
             return Ok(false);
         };
@@ -106,7 +161,7 @@ impl Integrator {
     /// sources that already know the row, such as labels with an embedding
     /// table). Returns `false` when `p` is rejected or `row` does not exist.
     pub fn add_row(&mut self, p: &Vector3<f64>, row: u32) -> bool {
-        match self.grid.cell_of(p) {
+        match Self::cell_of(&self.grid, self.keep.as_ref(), p) {
             Some(cell) if (row as usize) < self.obs.len() => {
                 self.voxels
                     .entry(key::encode(cell))
@@ -129,13 +184,13 @@ impl Integrator {
     pub fn add_rows_batch(&mut self, points: &[[f64; 3]], rows: &[Option<u32>]) -> usize {
         use rayon::prelude::*;
         let k = self.obs.len();
-        let grid = self.grid;
+        let (grid, keep) = (self.grid, self.keep);
         let mut keyed: Vec<(u64, u32)> = points
             .par_iter()
             .zip(rows.par_iter())
             .filter_map(|(p, r)| {
                 let r = (*r).filter(|&r| (r as usize) < k)?;
-                let cell = grid.cell_of(&Vector3::from(*p))?;
+                let cell = Self::cell_of(&grid, keep.as_ref(), &Vector3::from(*p))?;
                 Some((key::encode(cell), r))
             })
             .collect();

@@ -19,6 +19,7 @@ use crate::io::cloud::{CloudError, PointCloud};
 use crate::io::formats::{CloudFormat, read_point_cloud};
 use crate::io::kitti::{AggregateOptions, KittiSequence};
 use crate::io::labels::EmbeddingTable;
+use crate::map::integrate::KeepBox;
 use crate::map::{FeatureDb, FeatureDbError, GridSpec, Integrator, LanguageMap, MapError};
 
 /// Errors of the pipeline; each names its input.
@@ -231,11 +232,12 @@ pub fn map_from_sequence(
         origin.add(&scan.points);
         progress(SequencePass::Bounds, done + 1, frames.len());
     }
-    let grid = origin.grid(params.resolution).ok_or_else(|| {
+    let centre = origin.finish(params.resolution).ok_or_else(|| {
         PipelineError::Input(format!(
             "{name}: empty result: no points left to map; no map written"
         ))
     })?;
+    let (grid, keep) = (centre.grid, params.keep(&centre));
     let mut integ: Option<Integrator> = None;
     let mut stats = IntegrationStats::default();
     let mut label_rows: Option<LabelRows> = None;
@@ -245,10 +247,13 @@ pub fn map_from_sequence(
             (Some((dim, feats)), _, _) => {
                 let integ = match &mut integ {
                     Some(i) => i,
-                    None => integ.insert(Integrator::new(
-                        grid,
-                        FeatureDb::new(*dim, params.tau)?.with_max_rows(params.max_rows),
-                    )?),
+                    None => integ.insert(
+                        Integrator::new(
+                            grid,
+                            FeatureDb::new(*dim, params.tau)?.with_max_rows(params.max_rows),
+                        )?
+                        .keeping(keep),
+                    ),
                 };
                 if integ.observation_db().dim() != *dim {
                     return Err(PipelineError::Input(format!(
@@ -263,10 +268,13 @@ pub fn map_from_sequence(
             (None, Some(labels), Some(t)) => {
                 let integ = match &mut integ {
                     Some(i) => i,
-                    None => integ.insert(Integrator::new(
-                        grid,
-                        FeatureDb::from_rows(t.dim, params.tau, t.data.clone())?,
-                    )?),
+                    None => integ.insert(
+                        Integrator::new(
+                            grid,
+                            FeatureDb::from_rows(t.dim, params.tau, t.data.clone())?,
+                        )?
+                        .keeping(keep),
+                    ),
                 };
                 let rows = label_rows.get_or_insert_with(|| LabelRows::new(t));
                 super::cloud::integrate_point_rows(integ, &scan.points, rows.rows(labels))
@@ -377,16 +385,42 @@ fn no_features(input: &str) -> PipelineError {
 /// (so a sequence fed scan by scan gets the origin of its merged cloud).
 /// A median, not the lower corner: one stray point far from the data (a
 /// point at 0, 0, 0 in UTM coordinates, common in real LAS files) cannot
-/// move the grid away from the data; it falls out of the grid's reach and
-/// is counted as rejected.
+/// move the grid away from the data.
+///
+/// And where the data is ([`Centre::keep`]): the union of the blocks'
+/// boxes from the 1st to the 99th percentile of each axis (blocks of at
+/// least [`STRAY_MIN_BLOCK`] points), grown on every side by its own
+/// largest extent or [`STRAY_MARGIN_M`], whichever is more. A point
+/// outside is a stray (a few points far from all others, under 1 % of
+/// their block) and is left out as rejected; without this, at the coarse
+/// voxels aerial LiDAR wants, a stray at 0, 0, 0 was within the grid's
+/// reach and made the map span the distance.
 #[derive(Debug, Default)]
 pub struct OriginEstimate {
     block: Vec<[f64; 3]>,
     medians: Vec<[f64; 3]>,
+    bulk: Option<KeepBox>,
 }
 
 /// Points a block of [`OriginEstimate`].
 pub const ORIGIN_BLOCK: usize = 1 << 16;
+
+/// Blocks of fewer points do not place the data's box (their 1st
+/// percentile would be their lowest point).
+pub const STRAY_MIN_BLOCK: usize = 100;
+
+/// The least a stray lies outside the data's box, metres.
+pub const STRAY_MARGIN_M: f64 = 100.0;
+
+/// A cloud's grid and where its points are expected ([`OriginEstimate`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Centre {
+    /// The grid, centred on the cloud.
+    pub grid: GridSpec,
+    /// Points outside are strays; `None` when the cloud is too small to
+    /// tell (no block of [`STRAY_MIN_BLOCK`] points).
+    pub keep: Option<KeepBox>,
+}
 
 impl OriginEstimate {
     /// Feeds the next points of the cloud.
@@ -394,25 +428,54 @@ impl OriginEstimate {
         for p in points {
             self.block.push(*p);
             if self.block.len() == ORIGIN_BLOCK {
-                let m = median3(&mut self.block);
-                self.medians.push(m);
-                self.block.clear();
+                self.close_block();
             }
         }
+    }
+
+    fn close_block(&mut self) {
+        let m = median3(&mut self.block);
+        self.medians.push(m);
+        let n = self.block.len();
+        if n >= STRAY_MIN_BLOCK {
+            let (lo, hi) = (n / 100, n - 1 - n / 100);
+            let at = |v: &mut [[f64; 3]], k: usize| -> [f64; 3] {
+                std::array::from_fn(|a| {
+                    v.select_nth_unstable_by(k, |x, y| x[a].total_cmp(&y[a])).1[a]
+                })
+            };
+            let b = KeepBox {
+                lo: at(&mut self.block, lo),
+                hi: at(&mut self.block, hi),
+            };
+            self.bulk = Some(match self.bulk {
+                Some(u) => u.union(&b),
+                None => b,
+            });
+        }
+        self.block.clear();
     }
 
     /// The grid of resolution `resolution` centred on the points fed
     /// (the origin snapped to the resolution, so the voxels are those of
     /// any other snapped origin); `None` before any point.
-    pub fn grid(mut self, resolution: f64) -> Option<GridSpec> {
+    pub fn grid(self, resolution: f64) -> Option<GridSpec> {
+        self.finish(resolution).map(|c| c.grid)
+    }
+
+    /// The grid ([`OriginEstimate::grid`]) and the box outside which a
+    /// point is a stray; `None` before any point.
+    pub fn finish(mut self, resolution: f64) -> Option<Centre> {
         if !self.block.is_empty() {
-            let m = median3(&mut self.block);
-            self.medians.push(m);
+            self.close_block();
         }
         if self.medians.is_empty() {
             return None;
         }
-        Some(grid_at(median3(&mut self.medians), resolution))
+        Some(Centre {
+            grid: grid_at(median3(&mut self.medians), resolution),
+            keep: self.bulk.map(|b| b.grown(STRAY_MARGIN_M)),
+        })
     }
 }
 
@@ -465,6 +528,16 @@ pub struct BuildParams {
     /// Name of the feature space stored in the map (a point encoder's own
     /// name replaces it).
     pub encoder: String,
+    /// Keep the points far outside the rest of the data ([`Centre::keep`])
+    /// instead of leaving them out as strays.
+    pub keep_strays: bool,
+}
+
+impl BuildParams {
+    /// The box outside which points are left out, if any.
+    pub fn keep(&self, centre: &Centre) -> Option<KeepBox> {
+        if self.keep_strays { None } else { centre.keep }
+    }
 }
 
 /// Builds the map of `cloud` (named `input` in errors): per-point
@@ -483,14 +556,24 @@ pub fn map_from_cloud(
             "{input}: empty result: no points left to map; no map written"
         )));
     }
-    let grid = grid_for(&cloud.points, params.resolution);
+    let mut origin = OriginEstimate::default();
+    origin.add(&cloud.points);
+    let centre = origin
+        .finish(params.resolution)
+        .expect("a cloud with points has a centre");
+    let (grid, keep) = (centre.grid, params.keep(&centre));
     let mut name = params.encoder.clone();
     if let Some(enc) = encoder {
         // Points relative to the cloud's lower corner (snapped to the
-        // resolution) keep f32 precision (UTM) and stay non-negative, as
-        // the encoder contract (`crate::encode::point`) states.
+        // resolution; strays, which are left out, not counted) keep f32
+        // precision (UTM) and stay non-negative, as the encoder contract
+        // (`crate::encode::point`) states.
         let mut lo = [f64::INFINITY; 3];
-        for p in &cloud.points {
+        for p in cloud
+            .points
+            .iter()
+            .filter(|p| keep.is_none_or(|k| k.contains(p)))
+        {
             for a in 0..3 {
                 lo[a] = lo[a].min(p[a]);
             }
@@ -517,14 +600,14 @@ pub fn map_from_cloud(
     }
     let (integ, stats) = if let Some((dim, feats)) = &cloud.features {
         let db = FeatureDb::new(*dim, params.tau)?.with_max_rows(params.max_rows);
-        let mut integ = Integrator::new(grid, db)?;
+        let mut integ = Integrator::new(grid, db)?.keeping(keep);
         let s = super::cloud::integrate_points(&mut integ, &cloud.points, |i| {
             Feature::Vector(&feats[i * dim..(i + 1) * dim])
         })?;
         (integ, s)
     } else if let (Some(labels), Some(t)) = (&cloud.labels, table) {
         let db = FeatureDb::from_rows(t.dim, params.tau, t.data.clone())?;
-        let mut integ = Integrator::new(grid, db)?;
+        let mut integ = Integrator::new(grid, db)?.keeping(keep);
         // In batches: the rows and the integrator's sort keys take 24
         // bytes a point, which for the whole cloud at once came on top of
         // the cloud.
@@ -982,6 +1065,62 @@ mod tests {
         }
     }
 
+    /// At the coarse voxels aerial LiDAR wants the stray is within the
+    /// grid's reach: it is the data's box that leaves it out (it made a
+    /// map 6,400 km wide); `keep_strays` keeps it.
+    #[test]
+    fn a_stray_point_is_left_out_at_every_resolution_unless_kept() {
+        for resolution in [0.05, 1.0, 10.0] {
+            for keep_strays in [false, true] {
+                let params = BuildParams {
+                    resolution,
+                    tau: 0.02,
+                    max_rows: 16,
+                    encoder: "test".into(),
+                    keep_strays,
+                };
+                let (m, stats) =
+                    map_from_cloud(utm_with_a_stray_point(), "utm", &params, None, None).unwrap();
+                // Within the grid's reach (2^20 cells) only at 10 m: 4,830
+                // km from the data.
+                let kept = keep_strays && resolution == 10.0;
+                assert_eq!(
+                    (stats.integrated, stats.rejected),
+                    if kept { (20_001, 0) } else { (20_000, 1) },
+                    "{resolution} m, keep {keep_strays}"
+                );
+                let g = m.grid();
+                let lowest = m
+                    .codes()
+                    .iter()
+                    .map(|&c| g.center(crate::map::key::decode(c)).x)
+                    .fold(f64::INFINITY, f64::min);
+                assert_eq!(lowest < 600_000.0, kept, "{resolution} m");
+            }
+        }
+    }
+
+    /// The data's box: the blocks' 1st-99th percentiles grown by the
+    /// box's size or 100 m; a cloud of fewer than 100 points has none.
+    #[test]
+    fn the_data_box_is_the_bulk_grown() {
+        let mut o = OriginEstimate::default();
+        // 1000 points on x in 0..999 m, one stray at x = 5000.
+        let mut pts: Vec<[f64; 3]> = (0..1000).map(|i| [i as f64, 0.0, 0.0]).collect();
+        pts.push([5000.0, 0.0, 0.0]);
+        o.add(&pts);
+        let c = o.finish(1.0).unwrap();
+        let k = c.keep.unwrap();
+        // 1001 points: the 10th lowest (x = 10) and the 10th highest
+        // (x = 990) bound the bulk; grown by its size, 980 m.
+        assert_eq!((k.lo[0], k.hi[0]), (10.0 - 980.0, 990.0 + 980.0));
+        assert_eq!((k.lo[1], k.hi[1]), (-980.0, 980.0));
+        assert!(!k.contains(&[5000.0, 0.0, 0.0]) && k.contains(&[1900.0, 0.0, 0.0]));
+        let mut small = OriginEstimate::default();
+        small.add(&pts[..99]);
+        assert_eq!(small.finish(1.0).unwrap().keep, None);
+    }
+
     #[test]
     fn a_stray_point_far_from_the_data_is_rejected_not_the_data() {
         let params = BuildParams {
@@ -989,6 +1128,7 @@ mod tests {
             tau: 0.02,
             max_rows: 16,
             encoder: "test".into(),
+            keep_strays: false,
         };
         let (m, stats) =
             map_from_cloud(utm_with_a_stray_point(), "utm", &params, None, None).unwrap();

@@ -432,7 +432,7 @@ pub fn map_from_tiles(
         |pts, _| origin.add(pts),
     )?;
     let notes = left_out_notes(src, &left)?;
-    let grid = origin.grid(params.resolution).ok_or_else(|| {
+    let centre = origin.finish(params.resolution).ok_or_else(|| {
         let why = if notes.is_empty() {
             String::new()
         } else {
@@ -443,9 +443,10 @@ pub fn map_from_tiles(
         ))
     })?;
     let mut integ = Integrator::new(
-        grid,
+        centre.grid,
         FeatureDb::from_rows(table.dim, params.tau, table.data.clone())?,
-    )?;
+    )?
+    .keeping(params.keep(&centre));
     let mut stats = IntegrationStats::default();
     let mut rows = LabelRows::new(table);
     each_batch(
