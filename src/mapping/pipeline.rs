@@ -448,10 +448,14 @@ impl OriginEstimate {
                 lo: at(&mut self.block, lo),
                 hi: at(&mut self.block, hi),
             };
-            self.bulk = Some(match self.bulk {
-                Some(u) => u.union(&b),
-                None => b,
-            });
+            // A non-finite coordinate (which the readers leave out) places
+            // nothing.
+            if b.lo.iter().chain(&b.hi).all(|v| v.is_finite()) {
+                self.bulk = Some(match self.bulk {
+                    Some(u) => u.union(&b),
+                    None => b,
+                });
+            }
         }
         self.block.clear();
     }
