@@ -977,7 +977,7 @@ fn map_cloud_reads_labels_from_a_named_ply_property() {
     };
     let (ok, text) = run(&ply_path, &[]);
     assert!(
-        !ok && text.contains("neither features nor labels"),
+        !ok && text.contains("neither features nor labels") && text.contains("--label-property"),
         "{text}"
     );
     let (ok, text) = run(&ply_path, &["--label-property", "sem_class"]);

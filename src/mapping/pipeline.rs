@@ -376,7 +376,9 @@ fn no_features(input: &str) -> PipelineError {
     PipelineError::Input(format!(
         "{input}: points carry neither features nor labels (a class table maps labels, \
          which these points lack): pass --features (N x F .npy; --features-dir for a \
-         sequence) or --point-model, or use a labelled cloud with --classes"
+         sequence) or --point-model, or use a labelled cloud with --classes (a PLY's labels \
+         are read from a vertex property named label, class, classification, semantic or \
+         semantic_label, or from the one --label-property names, such as DALES's sem_class)"
     ))
 }
 
