@@ -622,10 +622,26 @@ fn tile_folders_as_users_keep_them() {
         "{}",
         r.output()
     );
-    let r = run(&shared("las/simple.las"), &["--labels", "x.label"]);
-    assert!(
-        !r.ok() && r.output().contains("--labels is for a single KITTI scan") && !out.exists(),
-        "{}",
-        r.output()
-    );
+    // Options that would be ignored are refused.
+    for (extra, says) in [
+        (
+            &["--labels", "x.label"][..],
+            "--labels is for a single KITTI scan",
+        ),
+        (
+            &["--max-rows", "2"][..],
+            "with --classes the rows are the class table's",
+        ),
+        (
+            &["--ort-lib", "/no/such.so"][..],
+            "--ort-lib is for --point-model or --text-model",
+        ),
+    ] {
+        let r = run(&shared("las/simple.las"), extra);
+        assert!(
+            !r.ok() && r.output().contains(says) && !out.exists(),
+            "{extra:?}: {}",
+            r.output()
+        );
+    }
 }

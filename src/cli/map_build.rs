@@ -28,9 +28,11 @@ pub struct BuildOptions {
     /// authors' code uses 0.1 for LSeg, 0.05 for OpenScene).
     #[arg(long, default_value_t = 0.02)]
     pub tau: f32,
-    /// Cap on observation rows for raw features (memory and time bound).
-    #[arg(long, default_value_t = 4096, value_parser = super::count_in::<1, { usize::MAX }>)]
-    pub max_rows: usize,
+    /// Cap on observation rows for raw features (memory and time bound)
+    /// [default: 4096]; with a class table (--classes) the rows are the
+    /// table's, and `map cloud` refuses it.
+    #[arg(long, value_parser = super::count_in::<1, { usize::MAX }>)]
+    pub max_rows: Option<usize>,
     /// The class list that turns labels into features (ground-truth mode):
     /// a file (`<id> <name>` lines, or one name a line) or a built-in list,
     /// `semantickitti` (all 34 SemanticKITTI classes, `.label` ids) or
@@ -61,6 +63,9 @@ pub struct BuildOptions {
 }
 
 const DEFAULT_ENCODER: &str = "clip-vit-b32";
+
+/// `--max-rows` when not given.
+const DEFAULT_MAX_ROWS: usize = 4096;
 
 /// The files a class table is read from (the `--classes` list, its
 /// `--embeddings`, a `--text-model` and its card), as
@@ -120,7 +125,7 @@ impl BuildOptions {
         pipeline::BuildParams {
             resolution: self.resolution,
             tau: self.tau,
-            max_rows: self.max_rows,
+            max_rows: self.max_rows.unwrap_or(DEFAULT_MAX_ROWS),
             encoder,
             keep_strays: false,
         }
@@ -303,6 +308,11 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         } else {
             "a LAS/LAZ file (its labels are its classification codes)"
         }
+    );
+    ensure!(
+        a.build.max_rows.is_none() || a.build.classes.is_none(),
+        "--max-rows caps the rows made from raw features (--features, --point-model, a \
+         cloud's own features); with --classes the rows are the class table's"
     );
     ensure!(
         a.ort_lib.is_none() || a.point_model.is_some() || a.build.text_model.is_some(),
