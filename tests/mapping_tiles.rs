@@ -553,8 +553,8 @@ fn withheld_and_noise_points_agree_between_the_paths() {
 }
 
 /// Tile folders as users keep them: macOS's `._` files and other hidden
-/// files, a subfolder and a link to nothing are not read, and a note says
-/// so; GeoTIFF citations that differ do not split one CRS; a folder with
+/// files, a subfolder, a link to nothing and a second name of a tile are
+/// not read, and a note says so; GeoTIFF citations that differ do not split one CRS; a folder with
 /// nothing to read says what it is not; `--labels` on one LAS file is
 /// refused, not ignored.
 #[test]
@@ -568,6 +568,7 @@ fn tile_folders_as_users_keep_them() {
     std::fs::write(tiles.join("._a.las"), [0u8, 5, 22, 7]).unwrap();
     std::fs::write(tiles.join(".hidden.las"), b"junk").unwrap();
     std::os::unix::fs::symlink(dir.path().join("gone.las"), tiles.join("gone.las")).unwrap();
+    std::os::unix::fs::symlink(tiles.join("a.las"), tiles.join("z_again.las")).unwrap();
     // The same GeoTIFF keys, another citation text (record 34737).
     let mut r = las::Reader::from_path(&src).unwrap();
     let mut b = las::Builder::from(r.header().clone());
@@ -588,6 +589,7 @@ fn tile_folders_as_users_keep_them() {
         "._a.las, .hidden.las (hidden files)",
         "more/ (subfolders are not read)",
         "gone.las (links to nothing)",
+        "z_again.las (the same file as a tile before them)",
     ] {
         assert!(skipped.contains(n), "{n}: {skipped}");
     }

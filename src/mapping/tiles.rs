@@ -102,11 +102,28 @@ fn scan(dir: &Path) -> Option<Scan> {
     }
     las.sort();
     ply.sort();
+    // A link to a tile already listed (the same file twice would count its
+    // points twice): the first name in order is read.
+    let mut twice = Vec::new();
+    for list in [&mut las, &mut ply] {
+        let mut seen = std::collections::HashSet::new();
+        list.retain(|p| {
+            let fresh = std::fs::canonicalize(p).map_or(true, |c| seen.insert(c));
+            if !fresh {
+                twice.push(
+                    p.file_name()
+                        .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+                );
+            }
+            fresh
+        });
+    }
     let mut skipped = Vec::new();
     for (mut v, why) in [
         (hidden, "hidden files"),
         (folders, "subfolders are not read"),
         (dangling, "links to nothing"),
+        (twice, "the same file as a tile before them"),
     ] {
         if !v.is_empty() {
             v.sort();
