@@ -758,8 +758,8 @@ fn map_cloud_warns_about_strays_and_tables_and_guards_its_output() {
     assert!(!text.contains("skipped: their labels"), "{text}");
     // At 10 m the stray is within the grid's reach (2^20 cells): the
     // data's box leaves it out all the same (the map spanned 4,830 km);
-    // --keep-all keeps it.
-    for (extra, voxels) in [(&[][..], 1), (&["--keep-all"][..], 2)] {
+    // --keep-strays keeps it.
+    for (extra, voxels) in [(&[][..], 1), (&["--keep-strays"][..], 2)] {
         let (ok, text) = asprs(
             "utm.ply",
             &p("coarse.omcl"),
@@ -768,7 +768,7 @@ fn map_cloud_warns_about_strays_and_tables_and_guards_its_output() {
         assert!(ok, "{text}");
         assert_eq!(
             text.contains("warning: 1 of 2001 points were left out")
-                && text.contains("strays far outside the rest of the data"),
+                && text.contains("strays far outside the bulk of the data"),
             voxels == 1,
             "{text}"
         );

@@ -468,6 +468,13 @@ fn ply_tiles_need_labels_and_take_a_label_property() {
     let m = omcl::map::load(&out).unwrap();
     assert_eq!(m.len(), 2);
     std::fs::remove_file(&out).unwrap();
+    // Nothing is dropped by class from PLY: --keep-all is refused.
+    let r = run(&["--label-property", "sem_class", "--keep-all"]);
+    assert!(
+        !r.ok() && r.output().contains("nothing is dropped by class") && !out.exists(),
+        "{}",
+        r.output()
+    );
     tile(
         "c.ply",
         "property int sem_class\nproperty float f0\n",

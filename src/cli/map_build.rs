@@ -168,16 +168,32 @@ impl BuildOptions {
 
 /// Saves the map and says what it holds.
 fn save(m: &LanguageMap, b: &BuildOptions, stats: &IntegrationStats) -> anyhow::Result<()> {
+    save_as(m, b, stats, false)
+}
+
+/// [`save`]; `strays`: the build left strays out (`map cloud`), which the
+/// warning on left-out points then names.
+fn save_as(
+    m: &LanguageMap,
+    b: &BuildOptions,
+    stats: &IntegrationStats,
+    strays: bool,
+) -> anyhow::Result<()> {
     map::save(m, &b.out)?;
     if stats.rejected > 0 {
         let g = m.grid();
         let reach = f64::from(omcl::map::key::CELL_MAX) * g.resolution;
+        let stray = if strays {
+            "; strays far outside the bulk of the data (such as points at 0, 0, 0 in \
+             georeferenced coordinates: more than ten times its size or 10 km out of the box \
+             of its 1st to 99th percentiles; --keep-strays keeps them)"
+        } else {
+            ""
+        };
         eprintln!(
-            "warning: {} of {} points were left out: not finite; strays far outside the rest \
-             of the data (such as points at 0, 0, 0 in georeferenced coordinates: farther out \
-             of the box of the bulk of the points than its own size or 100 m; `map cloud \
-             --keep-all` keeps them); or beyond the grid's reach ({:.0} m each way of its \
-             origin ({:.2}, {:.2}, {:.2}) at {} m: a coarser --resolution reaches farther)",
+            "warning: {} of {} points were left out: not finite{stray}; or beyond the grid's \
+             reach ({:.0} m each way of its origin ({:.2}, {:.2}, {:.2}) at {} m: a coarser \
+             --resolution reaches farther)",
             stats.rejected, stats.offered, reach, g.origin.x, g.origin.y, g.origin.z, g.resolution
         );
     }
@@ -234,10 +250,15 @@ pub struct CloudArgs {
     #[arg(long)]
     pub features_dir: Option<PathBuf>,
     /// Keep points the authors drop: SemanticKITTI unlabeled, outlier and
-    /// moving classes; LAS noise classes 7 and 18; and strays far outside
-    /// the rest of the data (a point at 0, 0, 0 in UTM coordinates).
+    /// moving classes; LAS noise classes 7 and 18.
     #[arg(long)]
     pub keep_all: bool,
+    /// Keep strays: points far outside the bulk of the data (more than ten
+    /// times its size or 10 km out of the box of its 1st to 99th
+    /// percentiles, such as points at 0, 0, 0 in UTM coordinates), which
+    /// are left out by default.
+    #[arg(long)]
+    pub keep_strays: bool,
     /// Sequence folders: ignore points farther than this from the sensor (m).
     #[arg(long)]
     pub max_range: Option<f64>,
@@ -317,6 +338,17 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     ensure!(
         a.ort_lib.is_none() || a.point_model.is_some() || a.build.text_model.is_some(),
         "--ort-lib is for --point-model or --text-model, and neither is given"
+    );
+    let ply_file = !a.input.is_dir()
+        && match a.format {
+            Some(f) => matches!(f, FormatArg::Ply | FormatArg::Scannet),
+            None => CloudFormat::from_path(&a.input) == Some(CloudFormat::Ply),
+        };
+    ensure!(
+        !(a.keep_all && (ply_tiles || ply_file)),
+        "--keep-all is for KITTI scans and sequences (unlabeled, outlier and moving points) and \
+         LAS/LAZ (noise classes 7 and 18); from {} nothing is dropped by class",
+        a.input.display()
     );
     if tiles.is_some() {
         for (given, what) in [
@@ -403,7 +435,7 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         if let Some(s) = finishing {
             super::progress::finish(&s);
         }
-        save(&m, &a.build, &stats)?;
+        save_as(&m, &a.build, &stats, !a.keep_strays)?;
         warn_labels(
             &m,
             &a.build,
@@ -437,17 +469,16 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         encoder.as_mut(),
     )?;
     super::progress::finish(&pb);
-    save(&m, &a.build, &stats)?;
+    save_as(&m, &a.build, &stats, !a.keep_strays)?;
     let labelled = table.is_some() && !own_features && a.point_model.is_none();
     warn_labels(&m, &a.build, &stats, labelled);
     Ok(())
 }
 
-/// How `map cloud` builds: the shared options, and `--keep-all` keeping
-/// strays far from the data too.
+/// How `map cloud` builds: the shared options and `--keep-strays`.
 fn cloud_params(a: &CloudArgs, text_encoder: Option<&str>) -> pipeline::BuildParams {
     pipeline::BuildParams {
-        keep_strays: a.keep_all,
+        keep_strays: a.keep_strays,
         ..a.build.params(text_encoder)
     }
 }
@@ -512,7 +543,7 @@ fn map_tiles(
     for n in &notes {
         eprintln!("note: {n}");
     }
-    save(&m, &a.build, &stats)?;
+    save_as(&m, &a.build, &stats, !a.keep_strays)?;
     warn_labels(&m, &a.build, &stats, true);
     Ok(())
 }
@@ -537,9 +568,10 @@ fn warn_labels(m: &LanguageMap, b: &BuildOptions, stats: &IntegrationStats, labe
     }
     let used: std::collections::BTreeSet<u32> = m.rows().iter().copied().collect();
     if used.len() == 1 && m.len() > 1 {
-        // Class texts' CLIP features lie at cosine distances of 0.05 and
-        // more from each other: below that, --tau merges none of them.
-        let merged = if b.tau > 0.05 {
+        // Real CLIP text features of distinct classes lie at cosine
+        // distances of 0.035 and more (the closest pair of the LVIS table
+        // in ../shared/data): below that, --tau merges none of them.
+        let merged = if b.tau >= 0.035 {
             format!(", or --tau {} merged the classes' features into one", b.tau)
         } else {
             String::new()

@@ -77,19 +77,11 @@ impl KeepBox {
         (0..3).all(|a| p[a] >= self.lo[a] && p[a] <= self.hi[a])
     }
 
-    /// The box holding both.
-    pub fn union(&self, o: &KeepBox) -> KeepBox {
-        KeepBox {
-            lo: std::array::from_fn(|a| self.lo[a].min(o.lo[a])),
-            hi: std::array::from_fn(|a| self.hi[a].max(o.hi[a])),
-        }
-    }
-
-    /// The box grown on every side by its largest extent, or by `at_least`
-    /// metres when that is more.
-    pub fn grown(&self, at_least: f64) -> KeepBox {
+    /// The box grown on every side by `times` its largest extent, or by
+    /// `at_least` metres when that is more.
+    pub fn grown(&self, times: f64, at_least: f64) -> KeepBox {
         let extent = (0..3).map(|a| self.hi[a] - self.lo[a]).fold(0.0, f64::max);
-        let m = extent.max(at_least);
+        let m = (times * extent).max(at_least);
         KeepBox {
             lo: self.lo.map(|v| v - m),
             hi: self.hi.map(|v| v + m),

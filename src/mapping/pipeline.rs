@@ -343,7 +343,12 @@ impl<'a> LabelRows<'a> {
             let shown = v.len();
             let mut s = v.join(", ");
             if total > shown {
-                s.push_str(&format!(", ... ({total} in all)"));
+                let at_least = if total >= MISSING_KEPT {
+                    "at least "
+                } else {
+                    ""
+                };
+                s.push_str(&format!(", ... ({at_least}{total} in all)"));
             }
             s
         };
@@ -389,30 +394,37 @@ fn no_features(input: &str) -> PipelineError {
 /// point at 0, 0, 0 in UTM coordinates, common in real LAS files) cannot
 /// move the grid away from the data.
 ///
-/// And where the data is ([`Centre::keep`]): the union of the blocks'
-/// boxes from the 1st to the 99th percentile of each axis (blocks of at
-/// least [`STRAY_MIN_BLOCK`] points), grown on every side by its own
-/// largest extent or [`STRAY_MARGIN_M`], whichever is more. A point
-/// outside is a stray (a few points far from all others, under 1 % of
-/// their block) and is left out as rejected; without this, at the coarse
-/// voxels aerial LiDAR wants, a stray at 0, 0, 0 was within the grid's
-/// reach and made the map span the distance.
+/// And where the data is ([`Centre::keep`]): the box from the 1st to the
+/// 99th percentile of all the points on each axis (counted in 1 m bins, so
+/// it does not depend on the points' order), grown on every side by
+/// [`STRAY_GROWTH`] times its largest extent or [`STRAY_MARGIN_M`],
+/// whichever is more. A point outside is a stray (a georeferenced file's
+/// points at 0, 0, 0 lie hundreds of kilometres out) and is left out as
+/// rejected; without this, at the coarse voxels aerial LiDAR wants, such a
+/// point was within the grid's reach and made the map span the distance.
+/// Separate clusters of real data within that reach are kept, however few
+/// their points.
 #[derive(Debug, Default)]
 pub struct OriginEstimate {
     block: Vec<[f64; 3]>,
     medians: Vec<[f64; 3]>,
-    bulk: Option<KeepBox>,
+    /// Points a 1 m bin, per axis.
+    bins: [rustc_hash::FxHashMap<i64, u64>; 3],
+    count: u64,
 }
 
 /// Points a block of [`OriginEstimate`].
 pub const ORIGIN_BLOCK: usize = 1 << 16;
 
-/// Blocks of fewer points do not place the data's box (their 1st
-/// percentile would be their lowest point).
-pub const STRAY_MIN_BLOCK: usize = 100;
+/// Clouds of fewer points get no data box (their 1st percentile would be
+/// their lowest point).
+pub const STRAY_MIN_POINTS: u64 = 100;
 
-/// The least a stray lies outside the data's box, metres.
-pub const STRAY_MARGIN_M: f64 = 100.0;
+/// The data's box grows by this many times its largest extent...
+pub const STRAY_GROWTH: f64 = 10.0;
+
+/// ... or by this many metres, whichever is more.
+pub const STRAY_MARGIN_M: f64 = 10_000.0;
 
 /// A cloud's grid and where its points are expected ([`OriginEstimate`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -420,7 +432,7 @@ pub struct Centre {
     /// The grid, centred on the cloud.
     pub grid: GridSpec,
     /// Points outside are strays; `None` when the cloud is too small to
-    /// tell (no block of [`STRAY_MIN_BLOCK`] points).
+    /// tell (under [`STRAY_MIN_POINTS`] points).
     pub keep: Option<KeepBox>,
 }
 
@@ -428,38 +440,21 @@ impl OriginEstimate {
     /// Feeds the next points of the cloud.
     pub fn add(&mut self, points: &[[f64; 3]]) {
         for p in points {
+            // A non-finite coordinate (which the readers leave out) counts
+            // in no bin.
+            if p.iter().all(|v| v.is_finite()) {
+                for (bins, v) in self.bins.iter_mut().zip(p) {
+                    *bins.entry(v.floor() as i64).or_insert(0) += 1;
+                }
+                self.count += 1;
+            }
             self.block.push(*p);
             if self.block.len() == ORIGIN_BLOCK {
-                self.close_block();
+                let m = median3(&mut self.block);
+                self.medians.push(m);
+                self.block.clear();
             }
         }
-    }
-
-    fn close_block(&mut self) {
-        let m = median3(&mut self.block);
-        self.medians.push(m);
-        let n = self.block.len();
-        if n >= STRAY_MIN_BLOCK {
-            let (lo, hi) = (n / 100, n - 1 - n / 100);
-            let at = |v: &mut [[f64; 3]], k: usize| -> [f64; 3] {
-                std::array::from_fn(|a| {
-                    v.select_nth_unstable_by(k, |x, y| x[a].total_cmp(&y[a])).1[a]
-                })
-            };
-            let b = KeepBox {
-                lo: at(&mut self.block, lo),
-                hi: at(&mut self.block, hi),
-            };
-            // A non-finite coordinate (which the readers leave out) places
-            // nothing.
-            if b.lo.iter().chain(&b.hi).all(|v| v.is_finite()) {
-                self.bulk = Some(match self.bulk {
-                    Some(u) => u.union(&b),
-                    None => b,
-                });
-            }
-        }
-        self.block.clear();
     }
 
     /// The grid of resolution `resolution` centred on the points fed
@@ -473,14 +468,41 @@ impl OriginEstimate {
     /// point is a stray; `None` before any point.
     pub fn finish(mut self, resolution: f64) -> Option<Centre> {
         if !self.block.is_empty() {
-            self.close_block();
+            let m = median3(&mut self.block);
+            self.medians.push(m);
         }
         if self.medians.is_empty() {
             return None;
         }
+        let keep = (self.count >= STRAY_MIN_POINTS).then(|| {
+            let (lo_rank, hi_rank) = (self.count / 100, self.count - 1 - self.count / 100);
+            let mut b = KeepBox {
+                lo: [0.0; 3],
+                hi: [0.0; 3],
+            };
+            for a in 0..3 {
+                let mut bins: Vec<(i64, u64)> =
+                    self.bins[a].iter().map(|(&k, &n)| (k, n)).collect();
+                bins.sort_unstable();
+                // The bins holding the points of those ranks (0-based).
+                let (mut seen, mut lo, mut hi) = (0u64, None, None);
+                for (k, n) in bins {
+                    seen += n;
+                    if lo.is_none() && seen > lo_rank {
+                        lo = Some(k);
+                    }
+                    if hi.is_none() && seen > hi_rank {
+                        hi = Some(k);
+                    }
+                }
+                b.lo[a] = lo.unwrap_or(0) as f64;
+                b.hi[a] = hi.unwrap_or(0) as f64 + 1.0;
+            }
+            b.grown(STRAY_GROWTH, STRAY_MARGIN_M)
+        });
         Some(Centre {
             grid: grid_at(median3(&mut self.medians), resolution),
-            keep: self.bulk.map(|b| b.grown(STRAY_MARGIN_M)),
+            keep,
         })
     }
 }
@@ -569,17 +591,22 @@ pub fn map_from_cloud(
         .expect("a cloud with points has a centre");
     let (grid, keep) = (centre.grid, params.keep(&centre));
     let mut name = params.encoder.clone();
+    // Strays left out before a point encoder ran.
+    let mut strays = 0;
     if let Some(enc) = encoder {
         // Points relative to the cloud's lower corner (snapped to the
         // resolution; strays, which are left out, not counted) keep f32
         // precision (UTM) and stay non-negative, as the encoder contract
         // (`crate::encode::point`) states.
+        // Strays are left out before the encoder sees them (it is promised
+        // non-negative coordinates from the corner of the rest).
+        if let Some(k) = keep {
+            let inside: Vec<bool> = cloud.points.iter().map(|p| k.contains(p)).collect();
+            cloud.retain_indices(|i| inside[i]);
+            strays = inside.len() - cloud.len();
+        }
         let mut lo = [f64::INFINITY; 3];
-        for p in cloud
-            .points
-            .iter()
-            .filter(|p| keep.is_none_or(|k| k.contains(p)))
-        {
+        for p in &cloud.points {
             for a in 0..3 {
                 lo[a] = lo[a].min(p[a]);
             }
@@ -604,7 +631,7 @@ pub fn map_from_cloud(
         cloud.features = Some((enc.feature_dim(), f));
         name = enc.card().name.clone();
     }
-    let (integ, stats) = if let Some((dim, feats)) = &cloud.features {
+    let (integ, mut stats) = if let Some((dim, feats)) = &cloud.features {
         let db = FeatureDb::new(*dim, params.tau)?.with_max_rows(params.max_rows);
         let mut integ = Integrator::new(grid, db)?.keeping(keep);
         let s = super::cloud::integrate_points(&mut integ, &cloud.points, |i| {
@@ -629,6 +656,8 @@ pub fn map_from_cloud(
     } else {
         return Err(no_features(input));
     };
+    stats.offered += strays;
+    stats.rejected += strays;
     Ok((finish(integ, &name, params.tau, &stats)?, stats))
 }
 
@@ -1106,25 +1135,48 @@ mod tests {
         }
     }
 
-    /// The data's box: the blocks' 1st-99th percentiles grown by the
-    /// box's size or 100 m; a cloud of fewer than 100 points has none.
+    /// The data's box: the 1st-99th percentiles of all points in 1 m bins,
+    /// grown by ten times its size or 10 km; the same box whatever the
+    /// points' order (a run of strays in one block, or at the end, used to
+    /// stretch a per-block box); a cloud of fewer than 100 points has none.
     #[test]
-    fn the_data_box_is_the_bulk_grown() {
-        let mut o = OriginEstimate::default();
-        // 1000 points on x in 0..999 m, one stray at x = 5000.
-        let mut pts: Vec<[f64; 3]> = (0..1000).map(|i| [i as f64, 0.0, 0.0]).collect();
-        pts.push([5000.0, 0.0, 0.0]);
-        o.add(&pts);
-        let c = o.finish(1.0).unwrap();
-        let k = c.keep.unwrap();
-        // 1001 points: the 10th lowest (x = 10) and the 10th highest
-        // (x = 990) bound the bulk; grown by its size, 980 m.
-        assert_eq!((k.lo[0], k.hi[0]), (10.0 - 980.0, 990.0 + 980.0));
-        assert_eq!((k.lo[1], k.hi[1]), (-980.0, 980.0));
-        assert!(!k.contains(&[5000.0, 0.0, 0.0]) && k.contains(&[1900.0, 0.0, 0.0]));
+    fn the_data_box_is_the_bulk_grown_in_any_order() {
+        // 1000 points on x in 0..999 m, strays at x = 50 km: one, then a
+        // run of 9 at the end (1 % of the cloud, not more).
+        let mut pts: Vec<[f64; 3]> = (0..1000).map(|i| [i as f64 + 0.5, 0.25, 0.0]).collect();
+        pts.insert(500, [50_000.0, 0.0, 0.0]);
+        pts.extend([[50_000.0, 0.0, 0.0]; 9]);
+        let box_of = |pts: &[[f64; 3]]| {
+            let mut o = OriginEstimate::default();
+            o.add(pts);
+            o.finish(1.0).unwrap().keep.unwrap()
+        };
+        let k = box_of(&pts);
+        // 1010 points: ranks 10 and 999 (0-based) are x = 10.5 and 999.5
+        // (bins 10 and 999), the strays ranks 1000 to 1009: the box
+        // [10, 1000] grown by 10 km (10 x 990 m is less).
+        assert_eq!((k.lo[0], k.hi[0]), (10.0 - 10_000.0, 1000.0 + 10_000.0));
+        assert_eq!((k.lo[1], k.hi[1]), (-10_000.0, 10_001.0));
+        assert!(!k.contains(&[50_000.0, 0.0, 0.0]) && k.contains(&[9_000.0, 0.0, 0.0]));
+        let mut reversed = pts.clone();
+        reversed.reverse();
+        assert_eq!(box_of(&reversed), k);
         let mut small = OriginEstimate::default();
         small.add(&pts[..99]);
         assert_eq!(small.finish(1.0).unwrap().keep, None);
+        // A separate cluster of real data, 0.5 % of the points 2 km from
+        // a 200 m site, is inside, first or last in the file.
+        let site: Vec<[f64; 3]> = (0..20_000)
+            .map(|i| [(i % 200) as f64, (i / 200) as f64, 0.0])
+            .collect();
+        let cluster = [[2_000.0, 50.0, 0.0]; 100];
+        for pts in [
+            [&site[..], &cluster[..]].concat(),
+            [&cluster[..], &site[..]].concat(),
+        ] {
+            let k = box_of(&pts);
+            assert!(k.contains(&cluster[0]), "{k:?}");
+        }
     }
 
     #[test]

@@ -43,6 +43,8 @@ pub enum TileKind {
 #[derive(Debug, Clone)]
 pub struct TileSource {
     name: String,
+    /// A folder of tiles, not a file.
+    folder: bool,
     kind: TileKind,
     files: Vec<PathBuf>,
     declared: u64,
@@ -167,6 +169,7 @@ impl TileSource {
             // Read in the passes; a tile a batch.
             return Ok(Self {
                 name,
+                folder: path.is_dir(),
                 kind,
                 declared: files.len() as u64,
                 files,
@@ -206,6 +209,7 @@ impl TileSource {
         }
         Ok(Self {
             name,
+            folder: path.is_dir(),
             kind,
             files,
             declared,
@@ -485,7 +489,8 @@ fn left_out_notes(src: &TileSource, left: &LeftOut) -> Result<Vec<String>, Pipel
     let name = &src.name;
     let tiles = src.files.len();
     let kept: u64 = left.kept.iter().sum();
-    if tiles == 1 && kept == 0 {
+    // A file given alone, not a folder of one tile.
+    if !src.folder && kept == 0 {
         let reason = if left.withheld > 0 {
             format!("all {} points are flagged withheld (deleted)", src.declared)
         } else {
