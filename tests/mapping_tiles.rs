@@ -631,6 +631,34 @@ fn tile_folders_as_users_keep_them() {
         "{}",
         r.output()
     );
+    // A sequence folder does not take one file's options.
+    let seq = shared("semantickitti/sequences/00");
+    for (extra, says) in [
+        (
+            &["--labels", "/etc/hostname"][..],
+            "its labels are in labels/",
+        ),
+        (&["--format", "ply"][..], "its scans are KITTI .bin"),
+        (&["--features", "f.npy"][..], "--features-dir"),
+    ] {
+        let args = [
+            &[
+                "map",
+                "cloud",
+                seq.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+            ][..],
+            extra,
+        ]
+        .concat();
+        let r = common::omcl(&args);
+        assert!(
+            !r.ok() && r.output().contains(says) && !out.exists(),
+            "{extra:?}: {}",
+            r.output()
+        );
+    }
     // Options that would be ignored are refused.
     for (extra, says) in [
         (

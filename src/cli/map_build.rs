@@ -350,6 +350,24 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
          LAS/LAZ (noise classes 7 and 18); from {} nothing is dropped by class",
         a.input.display()
     );
+    if tiles.is_none() && a.input.is_dir() {
+        // A KITTI sequence folder.
+        for (given, what, instead) in [
+            (a.labels.is_some(), "--labels", "its labels are in labels/"),
+            (a.format.is_some(), "--format", "its scans are KITTI .bin"),
+            (
+                a.features.is_some(),
+                "--features",
+                "per-scan feature files go in a folder given with --features-dir",
+            ),
+        ] {
+            ensure!(
+                !given,
+                "{what} is for one cloud file; {} is a sequence folder: {instead}",
+                a.input.display()
+            );
+        }
+    }
     if tiles.is_some() {
         for (given, what) in [
             (a.features.is_some(), "--features"),
