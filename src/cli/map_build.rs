@@ -422,37 +422,17 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
     }
     if a.input.is_dir() && a.point_model.is_none() {
         // A sequence folder: scan by scan, never the merged cloud in memory.
-        // Two passes over the scans, each its own bar length and ETA, named
-        // as such: the first (reading only) is the quick one.
-        let pb = super::progress::bar_of(0, "pass 1 of 2, the grid's centre", "scans");
-        // After the last scan the map is finished (its voxels sorted, its
-        // features merged): a spinner, not a bar stuck at N/N.
-        let mut finishing = None;
+        let mut bar = super::progress::TwoPasses::new(0, "scans");
         let (m, stats) = pipeline::map_from_sequence(
             &input,
             &cloud_params(a, text_encoder.as_deref()),
             table.as_ref(),
             &mut |pass, done, total| {
-                if done == 1 {
-                    pb.set_length(total as u64);
-                    pb.set_prefix(match pass {
-                        pipeline::SequencePass::Bounds => "pass 1 of 2, the grid's centre",
-                        pipeline::SequencePass::Mapping => "pass 2 of 2, mapping",
-                    });
-                    // The ETA from this pass's rate; elapsed counts both.
-                    pb.reset_eta();
-                }
-                pb.set_position(done as u64);
-                if pass == pipeline::SequencePass::Mapping && done == total {
-                    super::progress::finish(&pb);
-                    finishing = Some(super::progress::spinner("finishing the map"));
-                }
+                let mapping = pass == pipeline::SequencePass::Mapping;
+                bar.update(mapping, done as u64, total as u64)
             },
         )?;
-        super::progress::finish(&pb);
-        if let Some(s) = finishing {
-            super::progress::finish(&s);
-        }
+        bar.finish();
         save_as(&m, &a.build, &stats, !a.keep_strays)?;
         warn_labels(
             &m,
@@ -528,9 +508,7 @@ fn map_tiles(
         (TileKind::Las, n) if n > 1 => format!("points of {n} tiles"),
         _ => src.unit().to_string(),
     };
-    let pb = super::progress::bar_of(src.declared(), "pass 1 of 2, the grid's centre", &what);
-    let mut finishing = None;
-    let mut pass = pipeline::SequencePass::Bounds;
+    let mut bar = super::progress::TwoPasses::new(src.declared(), &what);
     let (m, stats, notes) = map_from_tiles(
         &src,
         &TileOptions {
@@ -540,24 +518,9 @@ fn map_tiles(
         },
         &cloud_params(a, text_encoder),
         table,
-        &mut |now, done, total| {
-            if now != pass {
-                pass = now;
-                pb.set_prefix("pass 2 of 2, mapping");
-                // The ETA from this pass's rate; elapsed counts both.
-                pb.reset_eta();
-            }
-            pb.set_position(done);
-            if now == pipeline::SequencePass::Mapping && done == total {
-                super::progress::finish(&pb);
-                finishing = Some(super::progress::spinner("finishing the map"));
-            }
-        },
+        &mut |pass, done, total| bar.update(pass == pipeline::SequencePass::Mapping, done, total),
     )?;
-    super::progress::finish(&pb);
-    if let Some(s) = finishing {
-        super::progress::finish(&s);
-    }
+    bar.finish();
     for n in &notes {
         eprintln!("note: {n}");
     }

@@ -173,3 +173,51 @@ impl TermLike for LogLines {
         Ok(())
     }
 }
+
+/// The bar of a map built in two passes (`map cloud` on a sequence folder
+/// or on LAS/LAZ files and tiles): the first pass (reading only, for the
+/// grid's centre) and the second (mapping) each with its own length and
+/// ETA, then a spinner while the map is finished (its voxels sorted, its
+/// features merged) instead of a bar stuck at N/N.
+pub struct TwoPasses {
+    bar: ProgressBar,
+    mapping: bool,
+    finishing: Option<ProgressBar>,
+}
+
+impl TwoPasses {
+    /// Bars for `len` `unit` a pass (0: set by the first update).
+    pub fn new(len: u64, unit: &str) -> Self {
+        TwoPasses {
+            bar: bar_of(len, "pass 1 of 2, the grid's centre", unit),
+            mapping: false,
+            finishing: None,
+        }
+    }
+
+    /// `done` of `total` in the first pass (`mapping` false) or the second.
+    pub fn update(&mut self, mapping: bool, done: u64, total: u64) {
+        if mapping != self.mapping || done == 1 {
+            self.mapping = mapping;
+            self.bar.set_length(total);
+            if mapping {
+                self.bar.set_prefix("pass 2 of 2, mapping");
+            }
+            // The ETA from this pass's rate; elapsed counts both.
+            self.bar.reset_eta();
+        }
+        self.bar.set_position(done);
+        if mapping && done == total && self.finishing.is_none() {
+            finish(&self.bar);
+            self.finishing = Some(spinner("finishing the map"));
+        }
+    }
+
+    /// Ends the bar and the spinner.
+    pub fn finish(self) {
+        finish(&self.bar);
+        if let Some(s) = self.finishing {
+            finish(&s);
+        }
+    }
+}

@@ -58,12 +58,7 @@ pub struct TileSource {
 /// subfolders and links to nothing are not tiles ([`TileSource::open`]
 /// names them in a note).
 pub fn cloud_tiles(dir: &Path) -> Option<(TileKind, Vec<PathBuf>)> {
-    let s = scan(dir)?;
-    match (s.las.is_empty(), s.ply.is_empty()) {
-        (false, true) => Some((TileKind::Las, s.las)),
-        (true, false) => Some((TileKind::Ply, s.ply)),
-        _ => None,
-    }
+    scan(dir)?.tiles()
 }
 
 /// What a tile folder holds.
@@ -72,6 +67,17 @@ struct Scan {
     ply: Vec<PathBuf>,
     /// Entries not read, each with why.
     skipped: Vec<String>,
+}
+
+impl Scan {
+    /// The tiles, when they are of one kind.
+    fn tiles(self) -> Option<(TileKind, Vec<PathBuf>)> {
+        match (self.las.is_empty(), self.ply.is_empty()) {
+            (false, true) => Some((TileKind::Las, self.las)),
+            (true, false) => Some((TileKind::Ply, self.ply)),
+            _ => None,
+        }
+    }
 }
 
 fn scan(dir: &Path) -> Option<Scan> {
@@ -151,16 +157,18 @@ impl TileSource {
     /// share one frame, in metres.
     pub fn open(path: &Path) -> Result<Self, PipelineError> {
         let name = path.display().to_string();
-        let (kind, files) = if path.is_dir() {
-            cloud_tiles(path).ok_or_else(|| {
+        let (kind, files, skipped) = if path.is_dir() {
+            let s = scan(path);
+            let skipped = s.as_ref().map(|s| s.skipped.clone()).unwrap_or_default();
+            let (kind, files) = s.and_then(Scan::tiles).ok_or_else(|| {
                 PipelineError::Input(format!(
                     "{name}: no tiles in this folder (.las and .laz, or .ply, not both)"
                 ))
-            })?
+            })?;
+            (kind, files, skipped)
         } else {
-            (TileKind::Las, vec![path.to_path_buf()])
+            (TileKind::Las, vec![path.to_path_buf()], Vec::new())
         };
-        let skipped = scan(path).map(|s| s.skipped).unwrap_or_default();
         let mut notes: Vec<String> = skipped
             .iter()
             .map(|s| format!("{name}: not read as tiles: {s}"))
