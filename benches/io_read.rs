@@ -25,6 +25,7 @@ fn synthetic(n: usize, dim: usize) -> PointCloud {
         features: (dim > 0).then(|| (dim, (0..n * dim).map(|_| rng.random()).collect())),
         notes: Vec::new(),
         left_out: Vec::new(),
+        georef: None,
     }
 }
 

@@ -64,6 +64,7 @@ fn main() -> Result<()> {
         features: Some((2, vec![0.5, 0.5, 1.0, 0.0])),
         notes: Vec::new(),
         left_out: Vec::new(),
+        georef: None,
     };
     let p = tmp.path().join("w.ply");
     omcl::io::ply::write_ply(&p, &cloud)?;

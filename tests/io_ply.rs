@@ -665,6 +665,7 @@ mod roundtrip {
                         features: (dim > 0).then_some((dim, feats)),
                         notes: Vec::new(),
                         left_out: Vec::new(),
+                        georef: None,
                     })
             },
         )

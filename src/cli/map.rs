@@ -26,7 +26,8 @@ pub enum MapCommand {
     /// Write a PLY of the voxels coloured by feature row.
     Export(ExportArgs),
     /// Convert a map file of an older format version (1: checksum over the
-    /// data only) into the current one (2: header values checksummed too).
+    /// data only) into the current one (3: header values checksummed too,
+    /// and the survey's CRS; version 2 files read as they are).
     Upgrade(UpgradeArgs),
     /// Project a map to a floor plan: features averaged along the vertical
     /// over a height band into a 2-D grid (Table I's 2-D block), written as
@@ -115,6 +116,23 @@ pub struct MapInfo {
     pub memory_bytes: usize,
     pub top_rows: Vec<(usize, usize)>,
     pub unused_rows: usize,
+    /// The survey's CRS, for a map built from one that states it.
+    pub crs: Option<CrsInfo>,
+}
+
+/// A map's georeference, as `omcl map info` prints it.
+#[derive(Debug, serde::Serialize)]
+pub struct CrsInfo {
+    /// The CRS in words, as the survey names it.
+    pub name: String,
+    /// Which record governs: "WKT" or "GeoTIFF".
+    pub governing: &'static str,
+    /// The CRS records kept (LAS record ids).
+    pub records: Vec<u16>,
+    /// Metres per survey unit: x and y, z.
+    pub metres_per_unit: [f64; 2],
+    /// The survey's units in words, with their size when not metres.
+    pub survey_units: String,
 }
 
 pub fn map_info(path: &std::path::Path, map: &LanguageMap, top: usize) -> anyhow::Result<MapInfo> {
@@ -143,6 +161,29 @@ pub fn map_info(path: &std::path::Path, map: &LanguageMap, top: usize) -> anyhow
         memory_bytes: map.memory_bytes(),
         top_rows: ranked,
         unused_rows,
+        crs: map.georef().map(|g| {
+            let ids: Vec<u16> = g.records.iter().map(|r| r.0).collect();
+            let [xy, z] = g.metres_per_unit;
+            let words = |m: f64| {
+                let w = omcl::io::las::unit_words(m);
+                if m == 1.0 {
+                    w
+                } else {
+                    format!("{w} (1 = {m} m)")
+                }
+            };
+            CrsInfo {
+                name: g.crs.clone(),
+                governing: if g.wkt_governs() { "WKT" } else { "GeoTIFF" },
+                records: ids,
+                metres_per_unit: g.metres_per_unit,
+                survey_units: if xy == z {
+                    words(xy)
+                } else {
+                    format!("x, y in {}, z in {}", words(xy), words(z))
+                },
+            }
+        }),
     })
 }
 
@@ -199,6 +240,23 @@ pub fn render_info(i: &MapInfo) -> String {
         "origin       {:.3} {:.3} {:.3} m",
         i.origin_m[0], i.origin_m[1], i.origin_m[2]
     );
+    match &i.crs {
+        Some(c) => {
+            let _ = writeln!(
+                s,
+                "crs          {}, as the survey's {} record states it",
+                c.name, c.governing
+            );
+            let _ = writeln!(
+                s,
+                "             coordinates here in metres; the survey's: {}",
+                c.survey_units
+            );
+        }
+        None => {
+            let _ = writeln!(s, "crs          none stated (a local frame)");
+        }
+    }
     let _ = writeln!(
         s,
         "features     {} rows x {} dims, tau {}",

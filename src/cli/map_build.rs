@@ -922,7 +922,10 @@ pub struct QueryArgs {
     pub words: Vec<String>,
     #[command(flatten)]
     pub source: WordSource,
-    /// The PLY to write (voxel centres, coloured blue to red).
+    /// The file to write: PLY (voxel centres coloured blue to red), or
+    /// LAS/LAZ by its name (`.las`, `.laz`): the same in the survey's CRS
+    /// and units (a map built from LAS keeps them), the similarity as
+    /// intensity (0-65535 for 0-1) and the feature row as point source id.
     #[arg(long, short)]
     pub out: PathBuf,
 }
@@ -936,6 +939,43 @@ fn voxel_cloud(m: &LanguageMap, colors: Vec<[u8; 3]>) -> PointCloud {
     cloud
 }
 
+/// Writes the voxel centres of `m` with `colors` to `out`: LAS/LAZ (by
+/// its name) in the survey's CRS and units, the feature row as point
+/// source id (when rows fit 16 bits) and `intensity` if given; else PLY,
+/// the row as `label`.
+fn write_voxels(
+    out: &Path,
+    m: &LanguageMap,
+    colors: Vec<[u8; 3]>,
+    intensity: Option<Vec<u16>>,
+) -> anyhow::Result<()> {
+    let ext = out
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    if matches!(ext.as_deref(), Some("las" | "laz")) {
+        let g = m.grid();
+        let pts = omcl::io::las::LasPoints {
+            points: m.cells().iter().map(|&c| g.center(c).into()).collect(),
+            colors,
+            intensity,
+            source_id: (m.db().len() <= 1 << 16)
+                .then(|| m.rows().iter().map(|&r| r as u16).collect()),
+        };
+        omcl::io::las::write_las(out, &pts, m.georef())?;
+        return Ok(());
+    }
+    ply::write_ply(out, &voxel_cloud(m, colors))?;
+    if let Some(geo) = m.georef() {
+        eprintln!(
+            "note: {}: coordinates in metres of {} (a PLY carries no CRS); write .las or .laz \
+             for the survey's own units and CRS records",
+            out.display(),
+            geo.crs
+        );
+    }
+    Ok(())
+}
+
 pub fn query(a: &QueryArgs) -> anyhow::Result<()> {
     let mut inputs = vec![("the map".to_string(), a.map.clone())];
     inputs.extend(a.source.inputs());
@@ -946,7 +986,12 @@ pub fn query(a: &QueryArgs) -> anyhow::Result<()> {
     let best = map::query::best_similarity(&m, &prompts)?;
     let heat = colors::normalize_range(&best);
     let cols = heat.iter().map(|&t| colors::heat_color(t)).collect();
-    ply::write_ply(&a.out, &voxel_cloud(&m, cols))?;
+    // LAS intensity: the similarity, 0 (or below) to 1.
+    let intensity = best
+        .iter()
+        .map(|&b| (b.clamp(0.0, 1.0) * 65535.0).round() as u16)
+        .collect();
+    write_voxels(&a.out, &m, cols, Some(intensity))?;
     let hot = map::query::count_near_best(&best, 0.9);
     println!(
         "wrote {}: {} voxels coloured by similarity to {words:?} ({hot} within 10 % of the best)",
@@ -960,8 +1005,10 @@ pub fn query(a: &QueryArgs) -> anyhow::Result<()> {
 pub struct ExportArgs {
     /// The map to export.
     pub map: PathBuf,
-    /// The PLY to write (voxel centres, coloured by feature row; the row is
-    /// also written as the `label` property).
+    /// The file to write: PLY (voxel centres coloured by feature row, the
+    /// row also as the `label` property), or LAS/LAZ by its name (`.las`,
+    /// `.laz`): the same in the survey's CRS and units (a map built from
+    /// LAS keeps them), the row as point source id.
     #[arg(long, short)]
     pub out: PathBuf,
 }
@@ -970,7 +1017,7 @@ pub fn export(a: &ExportArgs) -> anyhow::Result<()> {
     super::outputs::refuse_overlaps(&[("--out", &a.out)], &[("the map", &a.map)])?;
     let m = map::load(&a.map)?;
     let cols = m.rows().iter().map(|&r| colors::row_color(r)).collect();
-    ply::write_ply(&a.out, &voxel_cloud(&m, cols))?;
+    write_voxels(&a.out, &m, cols, None)?;
     println!(
         "wrote {}: {} voxels, {} rows",
         a.out.display(),

@@ -94,6 +94,9 @@ pub struct PointCloud {
     /// `--features` `.npy` with a row a point of the file) skips their
     /// rows ([`Self::attach_features_npy`]). Empty when none were.
     pub left_out: Vec<usize>,
+    /// The CRS the file states (LAS/LAZ), kept for the map built from it;
+    /// `None` for a local frame.
+    pub georef: Option<crate::map::Georef>,
 }
 
 impl PointCloud {
@@ -379,6 +382,7 @@ mod tests {
             features: Some((2, vec![0.0, 0.1, 1.0, 1.1, 2.0, 2.1])),
             notes: vec!["c: a note".into()],
             left_out: Vec::new(),
+            georef: None,
         }
     }
 

@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 use las::{PointDataBuilder, Reader};
 
 use crate::io::cloud::{CloudError, PointCloud};
+use crate::map::Georef;
 
 /// Points decoded per batch, at most: bounds the reader's point buffer.
 const BATCH: u64 = 1 << 18;
@@ -289,6 +290,7 @@ pub fn read_las(path: &Path) -> Result<PointCloud, CloudError> {
         features: None,
         notes,
         left_out,
+        georef: chunks.georef().cloned(),
     };
     cloud.validate(&name)?;
     cloud.non_empty(&name, "the file holds no points")
@@ -325,6 +327,7 @@ pub struct LasChunks {
     has_color: bool,
     notes: Vec<String>,
     crs: CrsRecords,
+    georef: Option<Georef>,
 }
 
 /// A LAS file's `LASF_Projection` records (its coordinate reference
@@ -401,6 +404,12 @@ impl LasChunks {
             has_color: format.has_color,
             notes,
             crs: crs::records(reader.header()),
+            georef: crs::describe(reader.header()).map(|crs| Georef {
+                crs,
+                records: crs::all_records(reader.header()),
+                wkt: reader.header().has_wkt_crs(),
+                metres_per_unit: to_metres,
+            }),
             reader,
         })
     }
@@ -437,6 +446,12 @@ impl LasChunks {
     /// bytes; empty without).
     pub fn crs_records(&self) -> &[(u16, Vec<u8>)] {
         &self.crs
+    }
+
+    /// The file's CRS, with every CRS record and the scale to metres
+    /// applied; `None` when it states none.
+    pub fn georef(&self) -> Option<&Georef> {
+        self.georef.as_ref()
     }
 
     /// The next batch, `None` after the last point; an error names the
@@ -538,5 +553,14 @@ fn is_withheld(record: &[u8], extended: bool) -> bool {
     }
 }
 
+/// A length unit in words: "international feet" for 0.3048 (metres per
+/// unit), "US survey feet", or "units of 0.5 m".
+pub fn unit_words(metres: f64) -> String {
+    crs::unit_words(metres)
+}
+
 /// The units of a LAS file's coordinates (see the module's own page).
 mod crs;
+mod write;
+
+pub use write::{LasPoints, write_las};

@@ -786,6 +786,7 @@ impl Columns {
             features: self.feats.map(|f| (self.dim, f)),
             notes: Vec::new(),
             left_out: self.left_out,
+            georef: None,
         };
         (cloud, self.tally)
     }
@@ -1107,6 +1108,7 @@ mod tests {
             features: Some((3, vec![0.5, -1.0, 2.0, 0.0, 0.25, 9.0])),
             notes: Vec::new(),
             left_out: Vec::new(),
+            georef: None,
         };
         write_ply(&p, &cloud).unwrap();
         assert_eq!(read_ply(&p).unwrap(), cloud);

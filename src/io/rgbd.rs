@@ -262,6 +262,7 @@ pub fn read_rgbd_frame(
         features: None,
         notes: Vec::new(),
         left_out: Vec::new(),
+        georef: None,
     };
     cloud.transform(world_from_camera);
     cloud.non_empty(&depth_path.display().to_string(), "no valid depth pixel")

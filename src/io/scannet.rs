@@ -45,6 +45,7 @@ pub fn read_scannet_xyzrgb_bin(path: &Path) -> Result<PointCloud, CloudError> {
         features: None,
         notes: Vec::new(),
         left_out: Vec::new(),
+        georef: None,
     };
     cloud.validate(&path.display().to_string())?;
     cloud.non_empty(&path.display().to_string(), "the file holds no points")

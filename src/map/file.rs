@@ -8,8 +8,11 @@
 //! CRC-32 (IEEE) of the header values (each of [`CHECKED_FIELDS`] as a
 //! `name=value` line, in that order) followed by the three tensors' bytes in
 //! order, so a flipped digit in the resolution or origin is caught as well as
-//! a flipped byte in the data. Version 1 files (CRC over the tensors only)
-//! are refused with a message naming [`upgrade`] (`omcl map upgrade`).
+//! a flipped byte in the data. Version 3 adds the georeference of a map
+//! built from a survey ([`super::georef::FIELDS`], absent without one),
+//! checked after [`CHECKED_FIELDS`]; version 2 files (without it) read as
+//! they are. Version 1 files (CRC over the tensors only) are refused with a
+//! message naming [`upgrade`] (`omcl map upgrade`).
 //!
 //! Python reads it with `safetensors.numpy.load_file(path)` and the header
 //! with `safetensors.safe_open(path, "np").metadata()`.
@@ -31,9 +34,9 @@ use super::octree::{LanguageMap, MapError};
 
 /// Value of the `format` field.
 pub const FORMAT: &str = super::container::MAP_FORMAT;
-/// Version this build writes and reads. Version 2 put the header values
-/// under the checksum.
-pub const VERSION: u32 = 2;
+/// Version this build writes (and the newest it reads). Version 2 put the
+/// header values under the checksum; version 3 added the georeference.
+pub const VERSION: u32 = 3;
 
 /// Header fields covered by the checksum (version 2), in checksum order.
 /// `writer` (informational) and `crc32` itself are not.
@@ -51,11 +54,26 @@ pub const CHECKED_FIELDS: [&str; 11] = [
     "rows",
 ];
 
+/// Which header fields a version's checksum covers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Checked {
+    /// Version 1: none.
+    Data,
+    /// Version 2: [`CHECKED_FIELDS`].
+    Header,
+    /// Version 3: those and the georeference's.
+    HeaderAndGeoref,
+}
+
 /// The checksum of a map file: header values, then tensor bytes.
-fn checksum(meta: &HashMap<String, String>, tensors: [&[u8]; 3], with_header: bool) -> u32 {
+fn checksum(meta: &HashMap<String, String>, tensors: [&[u8]; 3], checked: Checked) -> u32 {
     let mut crc = crc32fast::Hasher::new();
-    if with_header {
-        for name in CHECKED_FIELDS {
+    let georef: &[&str] = match checked {
+        Checked::HeaderAndGeoref => &super::georef::FIELDS,
+        _ => &[],
+    };
+    if checked != Checked::Data {
+        for &name in CHECKED_FIELDS.iter().chain(georef) {
             crc.update(name.as_bytes());
             crc.update(b"=");
             crc.update(meta.get(name).map_or(&b""[..], |v| v.as_bytes()));
@@ -87,7 +105,7 @@ pub enum MapFileError {
         found: Option<String>,
     },
     #[error(
-        "{path}: map format version {found} is not supported (this build reads version {VERSION})"
+        "{path}: map format version {found} is not supported (this build reads versions 2 to {VERSION})"
     )]
     Version { path: PathBuf, found: String },
     #[error(
@@ -137,7 +155,11 @@ pub fn to_bytes(map: &LanguageMap) -> Vec<u8> {
     .into_iter()
     .map(|(k, v)| (k.to_string(), v))
     .collect();
-    let crc = checksum(&meta, [&codes, &rows, &features], true);
+    if let Some(g) = map.georef() {
+        let fields = super::georef::FIELDS.iter().map(|k| k.to_string());
+        meta.extend(fields.zip(g.to_fields()));
+    }
+    let crc = checksum(&meta, [&codes, &rows, &features], Checked::HeaderAndGeoref);
     meta.insert("crc32".into(), format!("{crc:08x}"));
     let l = map.len();
     let views = [
@@ -243,7 +265,7 @@ pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<LanguageMap, MapFileError
     parse_map(bytes, path, false)
 }
 
-/// Reads a map file of version 1 or 2 (each checked by its own checksum
+/// Reads a map file of version 1, 2 or 3 (each checked by its own checksum
 /// rule) and writes it as the current version to `out`, atomically.
 pub fn upgrade(path: &Path, out: &Path) -> Result<LanguageMap, MapFileError> {
     let bytes = crate::io::bounded_read::read_regular(path).map_err(|source| MapFileError::Io {
@@ -260,9 +282,10 @@ fn parse_map(bytes: &[u8], path: &Path, accept_v1: bool) -> Result<LanguageMap, 
     let header = |e| MapFileError::from_header(path, e);
     let c = Container::open(bytes, FORMAT).map_err(header)?;
     let version = c.field("version").map_err(header)?;
-    let header_checked = match version.parse::<u32>() {
-        Ok(VERSION) => true,
-        Ok(1) if accept_v1 => false,
+    let checked = match version.parse::<u32>() {
+        Ok(VERSION) => Checked::HeaderAndGeoref,
+        Ok(2) => Checked::Header,
+        Ok(1) if accept_v1 => Checked::Data,
         Ok(1) => return Err(MapFileError::OldVersion { path: p() }),
         _ => {
             return Err(MapFileError::Version {
@@ -301,7 +324,7 @@ fn parse_map(bytes: &[u8], path: &Path, accept_v1: bool) -> Result<LanguageMap, 
     let feat_b = c
         .tensor("features", Dtype::F32, &[nrows, dim])
         .map_err(header)?;
-    let computed = checksum(&c.meta, [codes_b, rows_b, feat_b], header_checked);
+    let computed = checksum(&c.meta, [codes_b, rows_b, feat_b], checked);
     if computed != stored {
         return Err(MapFileError::Container {
             path: p(),
@@ -313,8 +336,26 @@ fn parse_map(bytes: &[u8], path: &Path, accept_v1: bool) -> Result<LanguageMap, 
     let feats = le_4(feat_b, f32::from_le_bytes);
     let invalid = |source: MapError| MapFileError::Invalid { path: p(), source };
     let db = FeatureDb::from_rows(dim, tau, feats).map_err(|e| invalid(e.into()))?;
+    let georef = if checked == Checked::HeaderAndGeoref {
+        let field = |k: &str| c.meta.get(k).map(String::as_str);
+        super::georef::Georef::from_fields(field).map_err(|f| MapFileError::Container {
+            path: p(),
+            problem: match f.value {
+                None => ContainerProblem::MissingField(f.field),
+                Some(value) => ContainerProblem::BadField {
+                    field: f.field,
+                    value,
+                    expected: f.expected,
+                },
+            },
+        })?
+    } else {
+        None
+    };
     let grid = GridSpec { resolution, origin };
-    LanguageMap::from_sorted(grid, db, encoder, codes, rows).map_err(invalid)
+    Ok(LanguageMap::from_sorted(grid, db, encoder, codes, rows)
+        .map_err(invalid)?
+        .with_georef(georef))
 }
 
 super::container::header_errors!(MapFileError);
@@ -475,7 +516,7 @@ mod tests {
     fn wrong_version_and_foreign_files_are_named() {
         let bytes = to_bytes(&sample());
         // Same-length edit of the version inside the JSON header.
-        let needle = b"\"version\":\"2\"";
+        let needle = b"\"version\":\"3\"";
         let at = bytes
             .windows(needle.len())
             .position(|w| w == needle)
@@ -547,13 +588,19 @@ mod tests {
 
     /// A version-1 file of `map`: the old checksum over the tensors only.
     fn version_1_bytes(map: &LanguageMap) -> Vec<u8> {
+        old_bytes(map, "1", Checked::Data)
+    }
+
+    /// A file of `map` as an older `version` wrote it, its checksum by
+    /// that version's rule.
+    fn old_bytes(map: &LanguageMap, version: &str, checked: Checked) -> Vec<u8> {
         let codes = le_bytes_u64(map.codes());
         let rows = le_bytes_u32(map.rows());
         let features = le_bytes_f32(map.db().rows());
         let (_, header) = SafeTensors::read_metadata(&to_bytes(map)).unwrap();
         let mut meta = header.metadata().clone().unwrap();
-        meta.insert("version".into(), "1".into());
-        let crc = checksum(&meta, [&codes, &rows, &features], false);
+        meta.insert("version".into(), version.into());
+        let crc = checksum(&meta, [&codes, &rows, &features], checked);
         meta.insert("crc32".into(), format!("{crc:08x}"));
         let l = map.len();
         let views = [
@@ -569,6 +616,63 @@ mod tests {
             ),
         ];
         safetensors::serialize(views, Some(meta)).unwrap()
+    }
+
+    fn georeferenced() -> LanguageMap {
+        sample().with_georef(Some(crate::map::Georef {
+            crs: "ETRS89 / UTM zone 32N (EPSG:25832)".into(),
+            records: vec![(34735, vec![1, 0, 1, 0, 0, 0]), (34737, b"UTM|".to_vec())],
+            wkt: false,
+            metres_per_unit: [0.3048, 1.0],
+        }))
+    }
+
+    #[test]
+    fn a_georeference_round_trips_under_the_checksum() {
+        let m = georeferenced();
+        let bytes = to_bytes(&m);
+        let back = from_bytes(&bytes, Path::new("g.omcl")).unwrap();
+        assert_eq!(back, m);
+        assert_eq!(back.georef(), m.georef());
+        for (from, to) in [
+            ("zone 32N", "zone 33N"),
+            ("\"crs_wkt\":\"false\"", "\"crs_wkt\":\"true!\""),
+            (
+                "\"metres_per_unit_xy\":\"0.3048\"",
+                "\"metres_per_unit_xy\":\"0.3049\"",
+            ),
+            ("34737:", "34736:"),
+        ] {
+            let e = from_bytes(&edit(&bytes, from, to), Path::new("g.omcl")).unwrap_err();
+            assert!(
+                matches!(
+                    e,
+                    MapFileError::Container {
+                        problem: ContainerProblem::Checksum { .. },
+                        ..
+                    }
+                ),
+                "{to}: {e}"
+            );
+        }
+    }
+
+    #[test]
+    fn version_2_files_read_as_they_are_without_a_georeference() {
+        let m = sample();
+        let v2 = old_bytes(&m, "2", Checked::Header);
+        let back = from_bytes(&v2, Path::new("v2.omcl")).unwrap();
+        assert_eq!(back, m);
+        assert_eq!(back.georef(), None);
+        // Its header values are still under its checksum.
+        let e = from_bytes(
+            &edit(&v2, "clip-vit-b32", "clip-vit-b16"),
+            Path::new("v2.omcl"),
+        );
+        assert!(e.is_err());
+        // A version-3 file checked by the version-2 rule is not one.
+        let v3_rule = old_bytes(&georeferenced(), "2", Checked::HeaderAndGeoref);
+        assert!(from_bytes(&v3_rule, Path::new("x.omcl")).is_err());
     }
 
     #[test]

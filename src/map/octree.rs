@@ -5,6 +5,7 @@
 use nalgebra::Vector3;
 
 use super::features::{FeatureDb, FeatureDbError, dot};
+use super::georef::Georef;
 use super::key::{self, Cell, GridSpec};
 
 /// Smallest voxel edge a map may have, metres (0.1 mm). A header with
@@ -42,6 +43,7 @@ pub struct LanguageMap {
     rows: Vec<u32>,
     db: FeatureDb,
     encoder: String,
+    georef: Option<Georef>,
 }
 
 impl LanguageMap {
@@ -88,6 +90,7 @@ impl LanguageMap {
             rows,
             db,
             encoder: encoder.into(),
+            georef: None,
         })
     }
 
@@ -127,6 +130,18 @@ impl LanguageMap {
     /// The feature database.
     pub fn db(&self) -> &FeatureDb {
         &self.db
+    }
+
+    /// The same map, georeferenced: built from a survey in `georef`'s CRS
+    /// (`None`: a local frame).
+    pub fn with_georef(mut self, georef: Option<Georef>) -> Self {
+        self.georef = georef;
+        self
+    }
+
+    /// The CRS of the survey the map was built from, when it stated one.
+    pub fn georef(&self) -> Option<&Georef> {
+        self.georef.as_ref()
     }
 
     /// Name of the encoder whose feature space the rows live in.

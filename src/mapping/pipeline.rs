@@ -658,7 +658,8 @@ pub fn map_from_cloud(
     };
     stats.offered += strays;
     stats.rejected += strays;
-    Ok((finish(integ, &name, params.tau, &stats)?, stats))
+    let map = finish(integ, &name, params.tau, &stats)?.with_georef(cloud.georef);
+    Ok((map, stats))
 }
 
 /// The map of an integrator, or an error saying why nothing was

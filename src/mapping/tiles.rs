@@ -28,7 +28,7 @@ use crate::io::cloud::{CloudError, check_points};
 use crate::io::labels::EmbeddingTable;
 use crate::io::las::{CrsRecords, LasChunk, LasChunks, is_asprs_noise, withheld_note};
 use crate::io::ply::{PlyOptions, read_ply_with};
-use crate::map::{FeatureDb, Integrator, LanguageMap};
+use crate::map::{FeatureDb, Georef, Integrator, LanguageMap};
 
 /// The kind of files a [`TileSource`] reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -49,6 +49,7 @@ pub struct TileSource {
     files: Vec<PathBuf>,
     declared: u64,
     notes: Vec<String>,
+    georef: Option<Georef>,
 }
 
 /// The point-cloud files of folder `dir` in name order, when they are all
@@ -182,11 +183,13 @@ impl TileSource {
                 declared: files.len() as u64,
                 files,
                 notes,
+                georef: None,
             });
         }
         let mut declared = 0u64;
         let mut converted = false;
         let mut first: Option<(PathBuf, CrsRecords)> = None;
+        let mut georef = None;
         for f in &files {
             let r = LasChunks::open(f)?;
             declared = declared.saturating_add(r.declared());
@@ -195,6 +198,7 @@ impl TileSource {
                     converted = !r.notes().is_empty();
                     notes.extend(r.notes().iter().cloned());
                     first = Some((f.clone(), r.crs_records().to_vec()));
+                    georef = r.georef().cloned();
                 }
                 Some((f0, crs)) if crs.as_slice() != r.crs_records() => {
                     return Err(PipelineError::Input(format!(
@@ -222,6 +226,7 @@ impl TileSource {
             files,
             declared,
             notes,
+            georef,
         })
     }
 
@@ -252,6 +257,12 @@ impl TileSource {
     /// What was converted on the way (units), one line each.
     pub fn notes(&self) -> &[String] {
         &self.notes
+    }
+
+    /// The CRS its (first) LAS tile states, which the others share;
+    /// `None` for PLY tiles and LAS without one.
+    pub fn georef(&self) -> Option<&Georef> {
+        self.georef.as_ref()
     }
 }
 
@@ -487,7 +498,8 @@ pub fn map_from_tiles(
         },
     )?;
     rows.check(name, &stats)?;
-    let map = super::pipeline::finish(integ, &params.encoder, params.tau, &stats)?;
+    let map = super::pipeline::finish(integ, &params.encoder, params.tau, &stats)?
+        .with_georef(src.georef.clone());
     Ok((map, stats, notes))
 }
 

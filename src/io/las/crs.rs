@@ -62,7 +62,7 @@ fn is_metre(m: f64) -> bool {
 }
 
 /// "international feet" for 0.3048, or "units of 0.5 m".
-fn unit_words(metres: f64) -> String {
+pub(super) fn unit_words(metres: f64) -> String {
     EPSG_UNITS
         .iter()
         .find(|(_, m, _)| same_factor(metres, *m))
@@ -170,35 +170,76 @@ const REPROJECT: &str = "reproject the cloud to a projected CRS in metres (UTM, 
 
 // ---- GeoTIFF keys ------------------------------------------------------
 
-/// Reads the units of a GeoKeyDirectory (`keys`: u16 little-endian,
-/// a 4-value header then 4 values a key: id, location, count, value).
-fn geotiff_units(keys: &[u8], doubles: Option<&Vlr>) -> Result<Units, String> {
-    let word = |i: usize| {
-        keys.get(2 * i..2 * i + 2)
+/// A GeoKeyDirectory (record 34735): u16 little-endian, a 4-value header
+/// then 4 values a key: id, location, count, value (or offset).
+struct GeoKeys<'a>(&'a [u8]);
+
+impl GeoKeys<'_> {
+    fn word(&self, i: usize) -> Option<u16> {
+        self.0
+            .get(2 * i..2 * i + 2)
             .map(|b| u16::from_le_bytes([b[0], b[1]]))
-    };
-    let Some(count) = word(3) else {
+    }
+
+    /// Number of keys; `None` when the directory is truncated.
+    fn count(&self) -> Option<u16> {
+        self.word(3)
+    }
+
+    /// Key `id`: (location, count, value); location 0 holds the value
+    /// itself, 34736 and 34737 an index into those records.
+    fn key(&self, id: u16) -> Option<(u16, u16, u16)> {
+        (0..self.count()? as usize).find_map(|k| {
+            let at = 4 + 4 * k;
+            (self.word(at)? == id).then_some((
+                self.word(at + 1)?,
+                self.word(at + 2)?,
+                self.word(at + 3)?,
+            ))
+        })
+    }
+
+    /// A key whose value is a short.
+    fn short(&self, id: u16) -> Option<u16> {
+        self.key(id).and_then(|(loc, _, v)| (loc == 0).then_some(v))
+    }
+
+    /// A key whose value is a double of record 34736 (`doubles`).
+    fn double(&self, id: u16, doubles: Option<&Vlr>) -> Option<f64> {
+        let (loc, _, index) = self.key(id)?;
+        let at = 8 * index as usize;
+        (loc == 34736)
+            .then(|| doubles?.data.get(at..at + 8))
+            .flatten()
+            .map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8])))
+    }
+
+    /// A key whose value is text of record 34737 (`texts`, Latin-1 as
+    /// GeoTIFF writes it): its first part, up to the `|` that ends a
+    /// part.
+    fn text(&self, id: u16, texts: Option<&Vlr>) -> Option<String> {
+        let (loc, count, offset) = self.key(id)?;
+        let bytes = texts?
+            .data
+            .get(offset as usize..offset as usize + count as usize)?;
+        (loc == 34737).then(|| {
+            let t: String = bytes.iter().map(|&b| char::from(b)).collect();
+            let first = t.split(['|', '\0']).next().unwrap_or_default();
+            first.trim().to_string()
+        })
+    }
+}
+
+/// Reads the units of a GeoKeyDirectory (`keys`).
+fn geotiff_units(keys: &[u8], doubles: Option<&Vlr>) -> Result<Units, String> {
+    let keys = GeoKeys(keys);
+    if keys.count().is_none() {
         return Ok(Units::Unknown(
             "its GeoTIFF key directory (record 34735) is truncated".into(),
         ));
-    };
-    // A key: (location, value); location 0 holds the value itself.
-    let key = |id: u16| {
-        (0..count as usize).find_map(|k| {
-            let at = 4 + 4 * k;
-            (word(at)? == id).then_some((word(at + 1)?, word(at + 3)?))
-        })
-    };
-    let short = |id: u16| key(id).and_then(|(loc, v)| (loc == 0).then_some(v));
-    let double = |id: u16| {
-        let (loc, index) = key(id)?;
-        let data = &doubles?.data;
-        let at = 8 * index as usize;
-        (loc == 34736)
-            .then(|| data.get(at..at + 8))
-            .flatten()
-            .map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8])))
-    };
+    }
+    let short = |id: u16| keys.short(id);
+    let double = |id: u16| keys.double(id, doubles);
     let model = short(1024);
     // Without a model type, a geographic CRS key (GeodeticCRSGeoKey 2048)
     // and no projected one (3072) is a geographic CRS too.
@@ -542,6 +583,78 @@ fn wkt_units(data: &[u8]) -> Result<Units, String> {
     Ok(Units::Stated { xy, z, remarks })
 }
 
+/// Whether the WKT record governs a file's CRS rather than the GeoTIFF
+/// keys (the LAS rule, as [`units`] applies it; either when alone).
+fn wkt_governs(header: &Header) -> bool {
+    projection_record(header, 2112).is_some()
+        && (header.has_wkt_crs() || projection_record(header, 34735).is_none())
+}
+
+/// The file's CRS in words: the governing record's name and codes, e.g.
+/// `NAD83(HARN) / New Mexico Central (ftUS) (EPSG:2903)` or `UTM sone 32,
+/// basert på EUREF89 (ETRS89/UTM) (EPSG:25832, vertical EPSG:5941)`;
+/// `None` without a CRS record.
+pub(super) fn describe(header: &Header) -> Option<String> {
+    if wkt_governs(header) {
+        return projection_record(header, 2112).map(|v| describe_wkt(&v.data));
+    }
+    let keys = GeoKeys(&projection_record(header, 34735)?.data);
+    let texts = projection_record(header, 34737);
+    let name = [3073, 1026, 2049]
+        .into_iter()
+        .find_map(|id| keys.text(id, texts).filter(|t| !t.is_empty()));
+    let code = |id: u16| keys.short(id).filter(|c| (1..32767).contains(c));
+    let mut codes = Vec::new();
+    if let Some(c) = code(3072).or_else(|| code(2048)) {
+        codes.push(format!("EPSG:{c}"));
+    }
+    if let Some(c) = code(4096) {
+        codes.push(format!("vertical EPSG:{c}"));
+    }
+    let name = name.unwrap_or_else(|| "a GeoTIFF CRS".to_string());
+    Some(if codes.is_empty() {
+        name
+    } else {
+        format!("{name} ({})", codes.join(", "))
+    })
+}
+
+/// A WKT record's CRS in words: its name and authority code.
+fn describe_wkt(data: &[u8]) -> String {
+    let end = data.iter().position(|&b| b == 0).unwrap_or(data.len());
+    let Some(root) = parse_wkt(&String::from_utf8_lossy(&data[..end])) else {
+        return "a WKT CRS (record 2112) omcl cannot parse".to_string();
+    };
+    let name = match root.name() {
+        "" => root.key().unwrap_or("WKT").to_string(),
+        n => n.to_string(),
+    };
+    let code = root.child(&["AUTHORITY", "ID"]).and_then(|id| match id {
+        Wkt::Node(_, args) => match (args.first(), args.get(1)) {
+            (Some(Wkt::Text(a)), Some(Wkt::Text(c) | Wkt::Bare(c))) => Some(format!("{a}:{c}")),
+            _ => None,
+        },
+        _ => None,
+    });
+    match code {
+        Some(c) => format!("{name} ({c})"),
+        None => name,
+    }
+}
+
+/// Every CRS record of the file (`LASF_Projection`, ids
+/// [`crate::map::georef::CRS_RECORD_IDS`]), the first of each id, sorted:
+/// what a map keeps to write its CRS back.
+pub(super) fn all_records(header: &Header) -> super::CrsRecords {
+    let mut r: super::CrsRecords = Vec::new();
+    for id in crate::map::georef::CRS_RECORD_IDS {
+        if let Some(v) = projection_record(header, id) {
+            r.push((id, v.data.clone()));
+        }
+    }
+    r
+}
+
 /// The records that state the file's coordinate reference system, as
 /// [`units`] chooses them: the WKT record (2112) when the header's WKT bit
 /// is set or there are no GeoTIFF keys, else the GeoTIFF keys (34735) and
@@ -554,8 +667,7 @@ pub(super) fn records(header: &Header) -> super::CrsRecords {
         .all_vlrs()
         .filter(|v| v.user_id.eq_ignore_ascii_case("LASF_Projection"))
         .collect();
-    let has = |id: u16| all.iter().any(|v| v.record_id == id);
-    let governing: &[u16] = if has(2112) && (header.has_wkt_crs() || !has(34735)) {
+    let governing: &[u16] = if wkt_governs(header) {
         &[2112]
     } else {
         &[34735, 34736]

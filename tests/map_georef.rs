@@ -1,0 +1,280 @@
+//! A map built from a georeferenced survey keeps its CRS: `map info`
+//! names it, `map ground` keeps it, and `map query`/`map export` to LAS or
+//! LAZ write the voxels back in the survey's units with its CRS records,
+//! on real LAS/LAZ files (GeoTIFF keys in metres, GeoTIFF in feet, WKT in
+//! US survey feet with z in metres).
+
+mod common;
+
+use common::{omcl, shared};
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// The `LASF_Projection` records of a LAS file: id to bytes.
+fn crs_records(path: &Path) -> BTreeMap<u16, Vec<u8>> {
+    let r = las::Reader::from_path(path).unwrap();
+    r.header()
+        .all_vlrs()
+        .filter(|v| v.user_id == "LASF_Projection")
+        .map(|v| (v.record_id, v.data.clone()))
+        .collect()
+}
+
+/// The points of a LAS file in its own units, with intensity and point
+/// source id, and its header.
+fn las_points(path: &Path) -> (las::Header, Vec<las::Point>) {
+    let mut r = las::Reader::from_path(path).unwrap();
+    let data = r.read_all().unwrap();
+    let pts: Vec<las::Point> = data.points().map(Result::unwrap).collect();
+    (r.header().clone(), pts)
+}
+
+/// The voxel centres (metres) and rows of a map file.
+fn centres(map: &Path) -> Vec<([f64; 3], u32)> {
+    let m = omcl::map::load(map).unwrap();
+    let g = *m.grid();
+    m.cells()
+        .iter()
+        .zip(m.rows())
+        .map(|(&c, &r)| (g.center(c).into(), r))
+        .collect()
+}
+
+fn build(source: &Path, out: &Path) {
+    let r = omcl(&[
+        "map",
+        "cloud",
+        source.to_str().unwrap(),
+        "--classes",
+        "asprs",
+        "--resolution",
+        "0.5",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(r.ok(), "{}", r.text());
+}
+
+fn info(map: &Path) -> serde_json::Value {
+    let r = omcl(&["map", "info", map.to_str().unwrap(), "--json"]);
+    assert!(r.ok(), "{}", r.text());
+    serde_json::from_str(&r.stdout).unwrap()
+}
+
+/// Checks that `written` holds the voxels of `map`, each at its centre
+/// once converted from the file's units by `metres_per_unit`, with its row
+/// as point source id; returns the points by row.
+fn assert_voxels_in_survey_units(
+    written: &Path,
+    map: &Path,
+    metres_per_unit: [f64; 2],
+) -> Vec<las::Point> {
+    let (_, pts) = las_points(written);
+    let want = centres(map);
+    assert_eq!(pts.len(), want.len());
+    for (p, (c, row)) in pts.iter().zip(&want) {
+        let [xy, z] = metres_per_unit;
+        let got = [p.x * xy, p.y * xy, p.z * z];
+        for a in 0..3 {
+            // The file's step is 1 mm of its units.
+            assert!((got[a] - c[a]).abs() < 1e-3, "{got:?} vs {c:?}");
+        }
+        assert_eq!(u32::from(p.point_source_id), *row);
+    }
+    pts
+}
+
+#[test]
+fn geotiff_keys_in_metres_come_back_with_the_export() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = shared("las/32-1-472-150-76.laz");
+    let map = dir.path().join("m.omcl");
+    build(&src, &map);
+    let i = info(&map);
+    let crs = &i["crs"];
+    assert_eq!(
+        crs["name"],
+        "UTM sone 32, basert på EUREF89 (ETRS89/UTM) (EPSG:25832, vertical EPSG:5941)"
+    );
+    assert_eq!(crs["governing"], "GeoTIFF");
+    assert_eq!(crs["records"], serde_json::json!([34735, 34736, 34737]));
+    assert_eq!(i["version"], "3");
+    let text = omcl(&["map", "info", map.to_str().unwrap()]).stdout;
+    assert!(text.contains("the survey's: metres"), "{text}");
+
+    let out = dir.path().join("e.las");
+    let r = omcl(&[
+        "map",
+        "export",
+        map.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(r.ok(), "{}", r.text());
+    let (h, _) = las_points(&out);
+    assert_eq!((h.version().major, h.version().minor), (1, 2));
+    assert!(!h.has_wkt_crs());
+    assert_eq!(crs_records(&out), crs_records(&src));
+    assert_voxels_in_survey_units(&out, &map, [1.0, 1.0]);
+
+    // Read back by omcl, the export is a survey in the same CRS again.
+    let again = dir.path().join("again.omcl");
+    build(&out, &again);
+    assert_eq!(info(&again)["crs"], *crs);
+}
+
+#[test]
+fn wkt_in_us_survey_feet_is_written_back_in_feet_as_las_1_4() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = shared("las/test1_4.las");
+    let map = dir.path().join("m.omcl");
+    build(&src, &map);
+    let crs = &info(&map)["crs"];
+    assert_eq!(
+        crs["name"],
+        "NAD83(HARN) / New Mexico Central (ftUS) (EPSG:2903)"
+    );
+    assert_eq!(crs["governing"], "WKT");
+    let ft = 1200.0 / 3937.0;
+    let f = crs["metres_per_unit"].as_array().unwrap();
+    assert!((f[0].as_f64().unwrap() - ft).abs() < 1e-15 && f[1] == 1.0);
+
+    let out = dir.path().join("heat.laz");
+    let r = omcl(&[
+        "map",
+        "query",
+        map.to_str().unwrap(),
+        "ground",
+        "--classes",
+        "asprs",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(r.ok(), "{}", r.text());
+    let (h, _) = las_points(&out);
+    assert_eq!((h.version().major, h.version().minor), (1, 4));
+    assert!(h.has_wkt_crs() && h.point_format().is_compressed);
+    assert_eq!(crs_records(&out), crs_records(&src));
+    assert_voxels_in_survey_units(&out, &map, [ft, 1.0]);
+}
+
+#[test]
+fn feet_heat_map_carries_similarity_as_intensity_and_ground_keeps_the_crs() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = shared("las/autzen_trim.laz");
+    let map = dir.path().join("m.omcl");
+    build(&src, &map);
+    let crs = info(&map)["crs"].clone();
+    assert_eq!(crs["name"], "NAD_1983_HARN_Lambert_Conformal_Conic");
+    assert_eq!(crs["governing"], "GeoTIFF");
+
+    let out = dir.path().join("heat.las");
+    let r = omcl(&[
+        "map",
+        "query",
+        map.to_str().unwrap(),
+        "ground",
+        "--classes",
+        "asprs",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(r.ok(), "{}", r.text());
+    let pts = assert_voxels_in_survey_units(&out, &map, [0.3048, 0.3048]);
+    // Each voxel's intensity is its row's cosine to "ground", times
+    // 65535: the row of the pure ground class gives 65535, and every other
+    // row its cosine to that row.
+    let mut by_row: BTreeMap<u16, Vec<u16>> = BTreeMap::new();
+    for p in &pts {
+        by_row
+            .entry(p.point_source_id)
+            .or_default()
+            .push(p.intensity);
+    }
+    assert!(by_row.len() >= 2, "{:?}", by_row.keys());
+    let m = omcl::map::load(&map).unwrap();
+    let level = |v: &Vec<u16>| {
+        assert!(v.iter().all(|&i| i == v[0]), "one intensity a row");
+        v[0]
+    };
+    let ground: Vec<u16> = by_row
+        .iter()
+        .filter(|(_, v)| level(v) == 65535)
+        .map(|(r, _)| *r)
+        .collect();
+    assert_eq!(ground.len(), 1, "{by_row:?}");
+    let g = m.db().row(ground[0] as usize).to_vec();
+    for (&r, v) in &by_row {
+        let cos: f32 = m
+            .db()
+            .row(r as usize)
+            .iter()
+            .zip(&g)
+            .map(|(a, b)| a * b)
+            .sum();
+        let want = (cos.clamp(0.0, 1.0) * 65535.0).round() as i32;
+        assert!(
+            (i32::from(level(v)) - want).abs() <= 1,
+            "row {r}: {} vs {want}",
+            level(v)
+        );
+    }
+
+    // A PLY carries no CRS: the note says so and names the way.
+    let ply = dir.path().join("heat.ply");
+    let r = omcl(&[
+        "map",
+        "query",
+        map.to_str().unwrap(),
+        "ground",
+        "--classes",
+        "asprs",
+        "-o",
+        ply.to_str().unwrap(),
+    ]);
+    assert!(r.ok(), "{}", r.text());
+    assert!(
+        r.output().contains("NAD_1983_HARN_Lambert_Conformal_Conic")
+            && r.output().contains(".las or .laz"),
+        "{}",
+        r.output()
+    );
+
+    // Grounding replaces the rows, not the place.
+    let grounded = dir.path().join("g.omcl");
+    let r = omcl(&[
+        "map",
+        "ground",
+        map.to_str().unwrap(),
+        "ground",
+        "building",
+        "--classes",
+        "asprs",
+        "-o",
+        grounded.to_str().unwrap(),
+    ]);
+    assert!(r.ok(), "{}", r.text());
+    assert_eq!(info(&grounded)["crs"], crs);
+}
+
+#[test]
+fn a_survey_without_crs_stays_a_local_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let map = dir.path().join("m.omcl");
+    build(&shared("las/simple.las"), &map);
+    assert!(info(&map)["crs"].is_null());
+    let text = omcl(&["map", "info", map.to_str().unwrap()]).stdout;
+    assert!(text.contains("none stated"), "{text}");
+    let out = dir.path().join("e.laz");
+    let r = omcl(&[
+        "map",
+        "export",
+        map.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(r.ok(), "{}", r.text());
+    assert!(crs_records(&out).is_empty());
+    assert_voxels_in_survey_units(&out, &map, [1.0, 1.0]);
+}
