@@ -838,3 +838,89 @@ fn progress_goes_into_logs_as_plain_lines() {
     let quiet = run(None, &f.path("b"));
     assert!(!quiet.contains("scanning"), "{quiet}");
 }
+
+#[test]
+fn text_outputs_never_replace_a_map_or_binary_file() {
+    let f = Fixture::new();
+    // A copy of the map as -o, a PNG as --metrics: refused, kept.
+    let victim = f.path("victim.omcl");
+    std::fs::copy(f.path("map.omcl"), &victim).unwrap();
+    let before = std::fs::read(&victim).unwrap();
+    let r = f.localize(&victim, &[]);
+    refused(&r, 1, &[s(&victim), "--out", "a map file"]);
+    assert_eq!(std::fs::read(&victim).unwrap(), before);
+    let png = f.path("figure.png");
+    let png_bytes = b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR".to_vec();
+    std::fs::write(&png, &png_bytes).unwrap();
+    let r = f.localize(&f.path("est.txt"), &["--metrics", s(&png)]);
+    refused(&r, 1, &[s(&png), "--metrics", "not text"]);
+    assert_eq!(std::fs::read(&png).unwrap(), png_bytes);
+    assert!(!f.path("est.txt").exists());
+    // An earlier text output, and an empty file, are replaced as before.
+    let est = f.path("old.txt");
+    std::fs::write(&est, "an earlier estimate\n").unwrap();
+    let r = f.localize(&est, &[]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    // eval's --json likewise.
+    let gt = f.path("seq/poses.txt");
+    let r = omcl(&["eval", "ape", s(&gt), s(&est), "--json", s(&victim)]);
+    refused(&r, 1, &[s(&victim), "--json", "a map file"]);
+    assert_eq!(std::fs::read(&victim).unwrap(), before);
+}
+
+#[test]
+fn odometry_and_prompt_options_that_would_be_ignored_are_refused() {
+    let f = Fixture::new();
+    let est = f.path("est.txt");
+    let odom = f.path("seq/odometry.txt");
+    // --odom-from-gt with a file: which one was meant is unclear.
+    let r = f.localize(&est, &["--odom-from-gt", "--odometry", s(&odom)]);
+    refused(&r, 2, &["--odom-from-gt", "--odometry"]);
+    // Noise shapes odometry from ground truth only; the sequence's
+    // odometry.txt is replayed as it is.
+    let r = f.localize(&est, &["--odom-noise-m", "0.3"]);
+    refused(&r, 1, &["--odom-noise-m", s(&odom), "--odom-from-gt"]);
+    let r = f.localize(&est, &["--odom-from-gt", "--odom-noise-m", "0.3"]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    // --odom-first picks a row of a file that is not read.
+    let r = f.localize(&est, &["--odom-from-gt", "--odom-first", "2"]);
+    refused(&r, 1, &["--odom-first 2", "none is read"]);
+    // --prompt without --init prompt.
+    let r = f.localize(&est, &["--prompt", "floor"]);
+    refused(&r, 1, &["--prompt", "--init prompt"]);
+}
+
+#[test]
+fn the_suggested_link_for_the_benchmark_layout_works_as_typed() {
+    // Relative paths, as a user types them from the dataset's parent: the
+    // link the message suggests must point at the poses from where it
+    // lies (a relative target is read from the link's own folder).
+    let f = Fixture::new();
+    let root = f.path("dataset");
+    let seq = root.join("sequences/00");
+    std::fs::create_dir_all(seq.join("velodyne")).unwrap();
+    std::fs::create_dir_all(root.join("poses")).unwrap();
+    let calib = shared("semantickitti/sequences/00/calib.txt");
+    std::fs::copy(&calib, seq.join("calib.txt")).unwrap();
+    std::fs::write(root.join("poses/00.txt"), "1 0 0 0 0 1 0 0 0 0 1 0\n").unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .current_dir(f.path(""))
+        .args(["map", "cloud", "dataset/sequences/00", "-o", "m.omcl"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    let at = err.find("(ln -s ").expect("a link to make") + 1;
+    let cmd = &err[at..at + err[at..].find(')').unwrap()];
+    let ok = std::process::Command::new("sh")
+        .current_dir(f.path(""))
+        .args(["-c", cmd])
+        .status()
+        .unwrap();
+    assert!(ok.success(), "{cmd}");
+    assert_eq!(
+        std::fs::read_to_string(seq.join("poses.txt")).unwrap(),
+        "1 0 0 0 0 1 0 0 0 0 1 0\n",
+        "{cmd}"
+    );
+}

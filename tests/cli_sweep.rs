@@ -146,6 +146,16 @@ fn runs_are_idempotent_and_bad_input_names_the_run_and_file() {
     )
     .unwrap();
     std::fs::write(out.join("notes.txt"), b"mine").unwrap();
+    // While another collect writes into the folder (it holds the folder's
+    // lock), a second one is refused and changes nothing.
+    {
+        let held = std::fs::File::create(out.join(".omcl-collect.lock")).unwrap();
+        held.try_lock().unwrap();
+        let (o, text) = omcl(&["sweep", "collect", &m, "-o", out.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(1), "{text}");
+        assert!(text.contains("another omcl sweep collect"), "{text}");
+        assert!(out.join("figure4_OMCL_Other.png").exists());
+    }
     let (o, text) = omcl(&["sweep", "collect", &m, "-o", out.to_str().unwrap()]);
     assert!(o.status.success(), "{text}");
     assert!(!out.join("figure4_OMCL_Other.png").exists());
@@ -295,6 +305,18 @@ fn plans_replace_nothing_unasked_and_name_in_process_experiments() {
         std::fs::read_to_string(&poses).unwrap(),
         "0 0 0 0 0 0 0 1\n"
     );
+    // A misspelt variant beside a right one is named, not dropped.
+    let typo = dir.path().join("typo.jsonl");
+    let mut args = plan_args(typo.to_str().unwrap(), "1");
+    let v = args.iter().position(|a| a == "OMCL_GT_exact").unwrap();
+    args[v] = "OMCL_GT_exact,OMCL_Lseg".into();
+    let (o, text) = omcl(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(o.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("\"OMCL_Lseg\" is not a variant") && text.contains("OMCL_LSeg"),
+        "{text}"
+    );
+    assert!(!typo.exists());
     // Experiments that run in one process are named, nothing written.
     let fresh = dir.path().join("fresh.jsonl");
     for e in ["table4", "sevenscenes", "table1-floorplan"] {

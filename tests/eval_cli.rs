@@ -120,6 +120,24 @@ fn ape_sim3_json_matches_evo_and_bad_pairs_fail() {
         err.contains("first 3 frames") && err.contains("head -n 3"),
         "{err}"
     );
+    // The command it suggests, run as typed on a reference named as the
+    // suggestion used to be, keeps the reference (`head F > F` empties F).
+    let reference = tmp.path().join("ref_first.txt");
+    std::fs::write(&reference, &gt).unwrap();
+    let short = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(["eval", "ape"])
+        .arg(&reference)
+        .arg(&est)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&short.stderr);
+    let at = err.find("head -n 3").expect("a command to run");
+    let cmd = &err[at..at + err[at..].find(')').unwrap()];
+    let ran = Command::new("sh").args(["-c", cmd]).status().unwrap();
+    assert!(ran.success(), "{cmd}");
+    assert_eq!(std::fs::read_to_string(&reference).unwrap(), gt, "{cmd}");
+    let written = tmp.path().join("ref_first_first3.txt");
+    assert_eq!(std::fs::read_to_string(written).unwrap().lines().count(), 3);
 }
 
 /// `--save-aligned` and `--json` never replace the pose files read: the

@@ -382,3 +382,27 @@ fn calibration_without_p2_or_with_a_skewed_p2_is_named() {
         .unwrap_err();
     assert_err_names(&e, &p, "must be positive");
 }
+
+#[test]
+fn hidden_files_are_passed_over_and_unpadded_names_refused() {
+    let real = shared("semantickitti/sequences/00");
+    let tmp = tempfile::tempdir().unwrap();
+    let calib = std::fs::read_to_string(real.join("calib.txt")).unwrap();
+    fake_sequence(tmp.path(), &real, &calib, IDENTITY);
+    // macOS's AppleDouble file beside a copied scan: not a frame.
+    std::fs::write(tmp.path().join("velodyne/._000000.bin"), b"xxxx").unwrap();
+    let seq = KittiSequence::open(tmp.path()).unwrap();
+    assert_eq!(seq.frames, vec![0]);
+    // "19.bin" is not read as frame 19 (it would be looked for as
+    // 000019.bin); neither is a seven-digit name.
+    for name in ["1.bin", "0000001.bin"] {
+        let p = tmp.path().join("velodyne").join(name);
+        std::fs::copy(real.join("velodyne/000001.bin"), &p).unwrap();
+        assert_err_names(
+            KittiSequence::open(tmp.path()).unwrap_err(),
+            &p,
+            "NNNNNN.bin",
+        );
+        std::fs::remove_file(&p).unwrap();
+    }
+}

@@ -637,6 +637,8 @@ async fn caps_overload_idle_expiry_and_shutdown() {
     assert_eq!(poses, 1, "{e:?}");
     assert_eq!(e.code(), Code::OutOfRange, "{e:?}");
     assert!(e.message().contains("too large"), "{e:?}");
+    // The option that sets the limit is named, with its value.
+    assert!(e.message().contains("--max-message-mib is 1"), "{e:?}");
     c.localize(f.frame(&b, next + 4)).await.unwrap();
     // A session whose step would cast more rays than --max-rays-per-step
     // (here 2^27) is refused up front: a running step cannot be stopped.

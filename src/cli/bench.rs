@@ -306,8 +306,8 @@ fn default_trajectories() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/trajectories")
 }
 
-/// Runs Table IV and returns its Markdown; writes `table4.json` and
-/// `table4_<odometry>.png` (the first seed's path).
+/// Runs Table IV and returns its Markdown; writes `table4.json`,
+/// `table4.md` and `table4_<odometry>.png` (the first seed's path).
 fn street_table4(a: &BenchArgs, table: &ClassEmbeddings) -> anyhow::Result<String> {
     let params = Table4Params {
         trajectories: a

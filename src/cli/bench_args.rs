@@ -174,6 +174,24 @@ impl PlanArgs {
         apply_overrides(config, &self.set)
     }
 
+    /// Refuses a `--variants` name that is not a variant of the sweep's
+    /// tables (a typo would otherwise drop a row of the table unnoticed).
+    pub fn check_sweep_variants(&self) -> anyhow::Result<()> {
+        for n in self
+            .variants
+            .iter()
+            .flat_map(|l| l.split(','))
+            .map(str::trim)
+        {
+            anyhow::ensure!(
+                TABLE_VARIANT_NAMES.contains(&n),
+                "--variants: {n:?} is not a variant; they are {}",
+                TABLE_VARIANT_NAMES.join(", ")
+            );
+        }
+        Ok(())
+    }
+
     /// The sweep these options ask for.
     pub fn bench_plan(&self) -> anyhow::Result<BenchPlan> {
         let names = TABLE_VARIANT_NAMES;

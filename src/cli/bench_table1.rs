@@ -78,8 +78,9 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
 /// `--variants` against the Table I blocks asked for: each block must get
 /// at least one row (the 3-D block none with `--variants none` and
 /// `--rgbd-odometry`, whose row it then is alone), and each name must be a
-/// row of some experiment asked for. A name no block has would otherwise
-/// leave a block empty or a typo unnoticed.
+/// row of some experiment asked for (the sweep's tables' variants when no
+/// block is). A name no block has would otherwise leave a block empty or a
+/// typo unnoticed.
 fn check_variants(a: &BenchArgs) -> anyhow::Result<()> {
     let Some(list) = a.plan.variants.as_deref() else {
         return Ok(());
@@ -91,9 +92,6 @@ fn check_variants(a: &BenchArgs) -> anyhow::Result<()> {
     }
     if e.contains(&Experiment::Table1Sixdof) {
         blocks.push(("table1-sixdof", table1_6dof::ROWS.to_vec()));
-    }
-    if blocks.is_empty() {
-        return Ok(());
     }
     let named: Vec<&str> = list.split(',').map(str::trim).collect();
     let odometry_alone = named == ["none"] && a.sixdof.rgbd_odometry.is_some();

@@ -138,6 +138,7 @@ impl PairArgs {
         inputs.extend(self.ref_times.as_deref().map(|p| ("--ref-times", p)));
         inputs.extend(self.est_times.as_deref().map(|p| ("--est-times", p)));
         super::outputs::refuse_overlaps(outputs, &inputs)?;
+        super::outputs::refuse_replacing_data(outputs)?;
         super::outputs::refuse_unwritable(outputs, &[])
     }
 }
@@ -383,10 +384,18 @@ fn load_pair(args: &PairArgs) -> anyhow::Result<Paired> {
         // A run over a sequence's first frames (a folder with the first
         // scans and the whole drive's poses) is the usual case.
         let first = if estimate_poses < reference_poses {
+            // Never the reference's own name: `head F > F` empties F.
+            let r = &args.reference;
+            let stem = r.file_stem().unwrap_or_default().to_string_lossy();
+            let mut first = r.with_file_name(format!("{stem}_first{estimate_poses}.txt"));
+            if first == *r {
+                first = r.with_file_name(format!("{stem}_first{estimate_poses}_.txt"));
+            }
             format!(
                 " (for a run over the sequence's first {estimate_poses} frames, compare with \
-                 those: head -n {estimate_poses} {} > ref_first.txt)",
-                args.reference.display()
+                 those: head -n {estimate_poses} {} > {})",
+                r.display(),
+                first.display()
             )
         } else {
             String::new()

@@ -27,7 +27,7 @@ use omcl::session::sequence::{
 use omcl::session::{LabelTable, Session, SessionConfig, SessionError, SharedMap, Start};
 use omcl::trajectory::Trajectory;
 
-#[derive(Debug, Clone, Copy, ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, ValueEnum)]
 pub enum InitArg {
     /// Around a known pose (--init-pose, or the first ground-truth pose).
     Local,
@@ -126,8 +126,9 @@ pub struct LocalizeArgs {
     /// sequence cut from a longer drive).
     #[arg(long, default_value_t = 0)]
     pub odom_first: usize,
-    /// Use ground truth plus Gaussian noise as odometry even if a file exists.
-    #[arg(long)]
+    /// Use ground truth plus Gaussian noise as odometry even if a file exists
+    /// (the sequence's odometry.txt; not with --odometry).
+    #[arg(long, conflicts_with = "odometry")]
     pub odom_from_gt: bool,
     /// Odometry noise per frame when made from ground truth: metres on
     /// camera x and z (the ground plane of a level camera; the authors'
@@ -504,11 +505,34 @@ fn odometry_source(a: &LocalizeArgs, inputs: &CameraSequence) -> anyhow::Result<
         (!a.odom_from_gt && inputs.layout() == Layout::Rgbd && p.exists()).then_some(p)
     });
     if let Some(path) = odom_file {
+        // Noise shapes odometry made from ground truth only.
+        let noise: Vec<&str> = [
+            ("--odom-noise-m", a.odom_noise_m.is_some()),
+            ("--odom-noise-deg", a.odom_noise_deg.is_some()),
+        ]
+        .into_iter()
+        .filter_map(|(f, set)| set.then_some(f))
+        .collect();
+        ensure!(
+            noise.is_empty(),
+            "{} shape odometry made from ground truth, but the odometry comes from {} (its \
+             motion is replayed as it is); drop {}, or pass --odom-from-gt for ground truth \
+             plus noise",
+            noise.join(" and "),
+            path.display(),
+            if noise.len() == 1 { "it" } else { "them" }
+        );
         return Ok(Odometry::File {
             path,
             first: a.odom_first,
         });
     }
+    ensure!(
+        a.odom_first == 0,
+        "--odom-first {} picks a row of an odometry file, but none is read (--odometry FILE, \
+         or an RGB-D sequence's odometry.txt)",
+        a.odom_first
+    );
     let (sigma_t, sigma_r_deg, all_axes) = odometry_noise(a, inputs);
     let cfg = omcl::sim::paths::OdometryConfig {
         seed: a.seed ^ 0x0d0,
@@ -818,6 +842,21 @@ fn class_table(
         return Ok(None);
     }
     let t = EmbeddingTable::read(classes, &inputs.embeddings)?;
+    if has_image_encoder && t.dim != m.db().dim() {
+        // The frames come from the image model; the table would only give
+        // words, and it lives in another feature space than the map (one
+        // built with the image model).
+        eprintln!(
+            "note: {}: {}-d class features, not the map's {}-d (its encoder {}): the frames \
+             come from the image model and this table is not used; words (--init prompt or \
+             global, recovery) need --text-model in the map's feature space",
+            inputs.embeddings.display(),
+            t.dim,
+            m.db().dim(),
+            m.encoder()
+        );
+        return Ok(None);
+    }
     ensure!(
         t.dim == m.db().dim(),
         "{}: features have dimension {}, the map {} has {}",
@@ -1293,12 +1332,23 @@ fn refuse_replacing_inputs(a: &LocalizeArgs) -> anyhow::Result<()> {
     ));
     super::outputs::refuse_overlaps(&outputs, &inputs)?;
     super::outputs::refuse_inside_sequence(&outputs, &a.sequence)?;
+    let text: Vec<(&str, &Path)> = outputs
+        .iter()
+        .copied()
+        .filter(|(option, _)| *option != "--plot")
+        .collect();
+    super::outputs::refuse_replacing_data(&text)?;
     super::outputs::refuse_unwritable(&outputs, &["--plot"])
 }
 
 /// `--floorplan`'s and `--ground`'s limits, by name: planar motion, and
 /// for a floor plan a pose start.
 fn check_plan_and_ground_args(a: &LocalizeArgs) -> anyhow::Result<()> {
+    ensure!(
+        a.prompt.is_none() || a.init == InitArg::Prompt,
+        "--prompt gives the words of --init prompt (now --init {}); add --init prompt",
+        format!("{:?}", a.init).to_lowercase()
+    );
     // The option that asks for motion other than planar, if one does.
     let non_planar = match a.motion {
         Some(MotionArg::Planar) => None,

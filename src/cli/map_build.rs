@@ -149,8 +149,9 @@ impl BuildOptions {
             !["ply", "las", "laz", "bin", "npy", "png"]
                 .iter()
                 .any(|e| ext.eq_ignore_ascii_case(e)),
-            "--out {}: a map is an .omcl file, not a .{ext} (to see a map as a point cloud: \
-             `omcl map query MAP --ply FILE`, `omcl map info`)",
+            "--out {}: a map is an .omcl file, not a .{ext} (to see a map as a point cloud, \
+             after building it: `omcl map export MAP -o FILE.ply` or `omcl map query MAP WORDS \
+             -o FILE.ply`; .las/.laz as well)",
             out.display()
         );
         // An empty file (`mktemp`'s) holds nothing to lose.

@@ -142,6 +142,46 @@ pub fn refuse_unwritable(outputs: &[(&str, &Path)], figures: &[&str]) -> anyhow:
     Ok(())
 }
 
+/// Refuses text outputs (a trajectory, JSON, CSV) that would replace an
+/// existing file holding data of another kind: a map or floor plan, or any
+/// file that is not text (a PNG, a LAS, an `.npy`). `omcl localize -o
+/// kitti.omcl` replaced a 2.8 MB map with a trajectory. An empty file, and
+/// an earlier text output, are replaced as before.
+pub fn refuse_replacing_data(outputs: &[(&str, &Path)]) -> anyhow::Result<()> {
+    use std::io::Read;
+    for &(option, p) in outputs {
+        let Ok(mut f) = std::fs::File::open(p) else {
+            continue;
+        };
+        if !f.metadata().is_ok_and(|m| m.is_file()) {
+            continue;
+        }
+        let mut head = Vec::new();
+        if f.by_ref().take(8192).read_to_end(&mut head).is_err() {
+            continue;
+        }
+        let map = omcl::map::file::is_map_file(p).unwrap_or(false);
+        // Text: UTF-8 without NUL, a last character cut at 8 KiB allowed.
+        let text = !head.contains(&0)
+            && match std::str::from_utf8(&head) {
+                Ok(_) => true,
+                Err(e) => e.error_len().is_none() && head.len() == 8192,
+            };
+        anyhow::ensure!(
+            !map && (head.is_empty() || text),
+            "{}: {option} would replace {}; omcl writes text there (remove the file first, or \
+             choose another name)",
+            p.display(),
+            if map {
+                "a map file"
+            } else {
+                "a file that is not text (data of another kind)"
+            }
+        );
+    }
+    Ok(())
+}
+
 /// Refuses to write at `p` (a file or folder, existing or to be made;
 /// a link is followed as the writer follows it) when the folder it is or
 /// would go in is marked read-only (`io::atomic::read_only_folder`: a

@@ -208,6 +208,7 @@ fn plan(c: PlanCmd) -> anyhow::Result<()> {
         if in_process.len() == 1 { "runs" } else { "run" },
         in_process[0]
     );
+    c.plan.check_sweep_variants()?;
     let bench = c.plan.bench_plan()?;
     if let Some(dir) = c.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         super::outputs::create_folder("--out's folder", dir)?;

@@ -49,6 +49,7 @@ pub fn collect(
         path: out.to_path_buf(),
         source,
     })?;
+    let _held = lock_folder(out)?;
     clear_previous(out, beside_foreign)?;
     let before = top_files(out);
     let collected = collect_into(manifest, results, cache, out)?;
@@ -73,6 +74,28 @@ pub fn collect(
     }
     write_text(&out.join(COLLECTED), &stamp)?;
     Ok(collected)
+}
+
+/// The lock of an output folder, held while a collect writes into it
+/// (two at once each removed and wrote the other's tables, or failed on a
+/// file the other had just removed): a hidden file in it, locked.
+fn lock_folder(out: &Path) -> Result<std::fs::File, SweepError> {
+    let path = out.join(".omcl-collect.lock");
+    let io = |source| SweepError::Io {
+        path: path.clone(),
+        source,
+    };
+    let lock = std::fs::File::create(&path).map_err(io)?;
+    match lock.try_lock() {
+        Ok(()) => Ok(lock),
+        Err(std::fs::TryLockError::WouldBlock) => Err(SweepError::BadResult {
+            path: out.to_path_buf(),
+            reason: "another omcl sweep collect (or omcl bench) is writing its tables into \
+                     this folder; wait for it to end, or collect into another folder"
+                .into(),
+        }),
+        Err(std::fs::TryLockError::Error(e)) => Err(io(e)),
+    }
 }
 
 /// The plain files at the top of `dir` by name, each with its inode and

@@ -324,7 +324,7 @@ pub struct Table4Params {
     /// Output stride of the simulated camera encoder (1: a feature per
     /// pixel; 8: the resolution `omcl sim outdoor --features` writes).
     pub encoder_stride: u32,
-    /// Output folder: `table4.json`, `table4_<odometry>.png`.
+    /// Output folder: `table4.json`, `table4.md`, `table4_<odometry>.png`.
     pub out: std::path::PathBuf,
 }
 
@@ -385,7 +385,8 @@ fn odometry_variants(
 }
 
 /// Runs Table IV: for every seed a street world, its LiDAR map and each
-/// odometry variant's run; writes `table4.json` and the first seed's path
+/// odometry variant's run; writes `table4.json`, `table4.md` and the first
+/// seed's path
 /// over the map (`table4_<odometry>.png`) into `p.out`. `status` hears what
 /// is being computed, `done` a line per finished run.
 /// The KITTI 00 driving path, checked against the street's options.
@@ -614,6 +615,9 @@ pub fn table4(
     }
     write_table4_json(p, &runs, frames, length_m)?;
     let markdown = markdown(p, &runs, &variants, frames, length_m);
+    let md = p.out.join("table4.md");
+    files::write_atomic(&md, markdown.as_bytes())
+        .map_err(|e| cfg_err(format!("writing {}: {e}", md.display())))?;
     Ok(Table4 { runs, markdown })
 }
 

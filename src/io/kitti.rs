@@ -354,7 +354,10 @@ impl Default for AggregateOptions {
 }
 
 /// The `NNNNNN.ext` files of `folder` with their frame numbers, in frame
-/// order; a file of that extension whose name is not a number is an error.
+/// order; a file of that extension whose name is not six digits is an
+/// error (`19.png` would be read as frame 19 and then looked for as
+/// `000019.png`). Hidden files (macOS's `._000000.bin` beside each file
+/// copied from its disks) are not frames and are passed over.
 pub(crate) fn numbered_files(
     folder: &Path,
     ext: &str,
@@ -363,12 +366,16 @@ pub(crate) fn numbered_files(
     let mut frames = Vec::new();
     for entry in entries {
         let p = entry.map_err(|e| CloudError::io(folder, e))?.path();
-        if p.extension().and_then(|e| e.to_str()) != Some(ext) {
+        let hidden = p
+            .file_name()
+            .is_some_and(|n| n.to_string_lossy().starts_with('.'));
+        if hidden || p.extension().and_then(|e| e.to_str()) != Some(ext) {
             continue;
         }
         let frame = p
             .file_stem()
             .and_then(|s| s.to_str())
+            .filter(|s| s.len() == 6 && s.bytes().all(|b| b.is_ascii_digit()))
             .and_then(|s| s.parse::<usize>().ok())
             .ok_or_else(|| {
                 CloudError::format(
@@ -390,13 +397,16 @@ impl KittiSequence {
         let calib = read_calib(&dir.join("calib.txt"))?;
         let poses_path = dir.join("poses.txt");
         if let Some(there) = benchmark_poses(dir).filter(|_| !poses_path.exists()) {
+            // Absolute: a relative target would be read from the link's
+            // own folder, not from where the user types the command.
+            let target = std::fs::canonicalize(&there).unwrap_or(there.clone());
             return Err(CloudError::format(
                 &poses_path,
                 format!(
                     "missing; the odometry benchmark's layout keeps this sequence's poses in \
                      {}: link it here (ln -s {} {})",
                     there.display(),
-                    there.display(),
+                    target.display(),
                     poses_path.display()
                 ),
             ));

@@ -497,6 +497,16 @@ impl Localization for Service {
                         ) {
                             state.metrics.reject("invalid_frame");
                         }
+                        // The codec's words name no option: say which.
+                        let s = if s.code() == tonic::Code::OutOfRange {
+                            Status::out_of_range(format!(
+                                "{} (the server's --max-message-mib is {})",
+                                s.message(),
+                                state.limits.max_message_bytes >> 20
+                            ))
+                        } else {
+                            s
+                        };
                         // The answers of frames already handed to the pool
                         // go out first (each job holds a clone of `tx`
                         // until it has answered or been dropped); the
