@@ -263,7 +263,51 @@ fn bad_kitti_input_is_named_and_leaves_no_output() {
     omcl::sim::files::write_png_gray16(&small, 620, 188, &vec![40u16; 620 * 188]).unwrap();
     let out = f.existing_out("out_small.txt");
     let r = f.localize(&f.map, &seq, &out, &[]);
-    assert_clean_failure(&r, &out, &["000003.png", "620x188", "1241x376"]);
+    assert_clean_failure(&r, &out, &["000003.png", "620 x 188", "1241 x 376"]);
+    // Every label image at half the calibration's size: P2's principal
+    // point is then at their edge, and that is said (it tracked badly,
+    // with a warning that blamed the pose).
+    let seq = f.copy_seq("half");
+    for i in 0..12 {
+        let p = seq.join(format!("labels_2/{i:06}.png"));
+        omcl::sim::files::write_png_gray16(&p, 620, 188, &vec![40u16; 620 * 188]).unwrap();
+    }
+    let out = f.existing_out("out_half.txt");
+    let r = f.localize(&f.map, &seq, &out, &[]);
+    assert_clean_failure(
+        &r,
+        &out,
+        &["000000.png", "620 x 188", "principal point", "calib.txt"],
+    );
+    // A frame cut short near the end is named before any frame is
+    // localized (it failed after the work, with nothing written).
+    let seq = f.copy_seq("cut");
+    let last = seq.join("labels_2/000010.png");
+    let bytes = std::fs::read(&last).unwrap();
+    std::fs::write(&last, &bytes[..bytes.len() / 2]).unwrap();
+    let out = f.existing_out("out_cut_png.txt");
+    let r = f.localize(&f.map, &seq, &out, &[]);
+    assert_clean_failure(&r, &out, &["000010.png", "truncated"]);
+    assert!(!r.stderr.contains("frames/s"), "{}", r.text());
+    // Feature grids: one frame of another shape, or every grid transposed.
+    let seq = f.copy_seq("feat");
+    std::fs::create_dir(seq.join("features_2")).unwrap();
+    let grid = |p: &Path, h: usize, w: usize| {
+        omcl::io::npy::write_npy(p, &[h, w, 2], &vec![0.5; h * w * 2]).unwrap()
+    };
+    for i in 0..12 {
+        grid(&seq.join(format!("features_2/{i:06}.npy")), 47, 155);
+    }
+    let odd = seq.join("features_2/000007.npy");
+    grid(&odd, 40, 155);
+    let out = f.existing_out("out_feat.txt");
+    let r = f.localize(&f.map, &seq, &out, &["--use-features"]);
+    assert_clean_failure(&r, &out, &["000007.npy", "[40, 155, 2]", "[47, 155, 2]"]);
+    for i in 0..12 {
+        grid(&seq.join(format!("features_2/{i:06}.npy")), 155, 47);
+    }
+    let r = f.localize(&f.map, &seq, &out, &["--use-features"]);
+    assert_clean_failure(&r, &out, &["000000.npy", "155 x 47", "transposed"]);
     // A map of another feature dimension.
     let other = f.dir.path().join("other.omcl");
     let pts = f.dir.path().join("pts.ply");

@@ -1179,11 +1179,19 @@ pub fn project(a: &ProjectArgs) -> anyhow::Result<()> {
     if needs_table {
         super::outputs::refuse_read_only("the class table's folder", &table_dir)?;
     }
-    let made = !out.exists();
+    // The outermost folder this run makes: `out`, or a missing parent of
+    // it (`-o new/sub/labels_2`).
+    let made = out
+        .ancestors()
+        .take_while(|d| !d.as_os_str().is_empty() && !d.exists())
+        .last()
+        .map(Path::to_path_buf);
     super::outputs::create_folder("--out", &out)?;
     // A folder this run made goes if the run is interrupted, not only
     // when it fails.
-    let _interrupt = made.then(|| omcl::io::atomic::remove_on_interrupt(&out));
+    let _interrupt = made
+        .as_ref()
+        .map(|top| omcl::io::atomic::remove_on_interrupt(top));
     let t0 = std::time::Instant::now();
     // The scans are read and merged before the first frame is projected.
     let reading = super::progress::spinner("merging the scans");
@@ -1201,10 +1209,15 @@ pub fn project(a: &ProjectArgs) -> anyhow::Result<()> {
         }
     }
     let s = s.inspect_err(|_| {
-        if made {
+        if let Some(top) = &made {
             // Nothing is written before the scans are read: a failure
-            // leaves the new folder empty, and it goes.
-            let _ = std::fs::remove_dir(&out);
+            // leaves the new folders empty, and they go (only empty ones).
+            for d in out.ancestors() {
+                let _ = std::fs::remove_dir(d);
+                if d == top.as_path() {
+                    break;
+                }
+            }
         }
     })?;
     let secs = t0.elapsed().as_secs_f64();

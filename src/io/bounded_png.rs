@@ -18,6 +18,35 @@ const MAX_DEFLATE_RATIO: u64 = 1100;
 /// was decoded (2.4 GB) before its size was compared with the camera's.
 pub const MAX_PNG_PIXELS: u64 = 1 << 26;
 
+/// A PNG file's header without decoding it: width, height, bit depth and
+/// colour type (IHDR), after checking that the file ends with the IEND
+/// chunk, as every complete PNG does (a file cut short does not).
+pub(crate) fn png_header(path: &Path) -> Result<(u32, u32, u8, u8), CloudError> {
+    use std::io::{Read, SeekFrom};
+    const IEND: [u8; 12] = [0, 0, 0, 0, b'I', b'E', b'N', b'D', 0xAE, 0x42, 0x60, 0x82];
+    let io = |e| CloudError::io(path, e);
+    let mut f = File::open(path).map_err(io)?;
+    let mut head = [0u8; 29];
+    let n = f.read(&mut head).map_err(io)?;
+    if n < 29 || &head[..8] != b"\x89PNG\r\n\x1a\n" || &head[12..16] != b"IHDR" {
+        return Err(CloudError::format(path, "not a PNG file (no PNG header)"));
+    }
+    let mut tail = [0u8; 12];
+    let ends = f
+        .seek(SeekFrom::End(-12))
+        .and_then(|_| f.read_exact(&mut tail))
+        .is_ok()
+        && tail == IEND;
+    if !ends {
+        return Err(CloudError::format(
+            path,
+            "truncated PNG: it does not end with the IEND chunk",
+        ));
+    }
+    let be = |i: usize| u32::from_be_bytes([head[i], head[i + 1], head[i + 2], head[i + 3]]);
+    Ok((be(16), be(20), head[24], head[25]))
+}
+
 pub(crate) fn open_png(
     path: &Path,
     transform: Transformations,

@@ -600,13 +600,19 @@ pub fn check_sequence_folder(dir: &Path) -> Result<(), CloudError> {
 
 /// Makes `into` (a copy's folder, where `omcl map project -o
 /// into/labels_2` wrote the label images) open as the sequence `seq`:
-/// links `seq`'s `calib.txt`, `poses.txt` and `times.txt` into it where
-/// `into` has no file of that name. Returns the names linked.
+/// links `seq`'s `calib.txt`, `poses.txt`, `times.txt` and `velodyne/`
+/// (whose first scan `omcl localize` checks the map against) into it where
+/// `into` has nothing of that name. Returns the names linked.
 pub fn link_sequence_files(seq: &Path, into: &Path) -> std::io::Result<Vec<&'static str>> {
     let mut linked = Vec::new();
-    for name in ["calib.txt", "poses.txt", "times.txt"] {
+    for name in ["calib.txt", "poses.txt", "times.txt", "velodyne"] {
         let (from, to) = (seq.join(name), into.join(name));
-        if from.is_file() && std::fs::symlink_metadata(&to).is_err() {
+        let there = if name == "velodyne" {
+            from.is_dir()
+        } else {
+            from.is_file()
+        };
+        if there && std::fs::symlink_metadata(&to).is_err() {
             std::os::unix::fs::symlink(std::path::absolute(&from)?, &to)?;
             linked.push(name);
         }

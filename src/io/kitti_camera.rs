@@ -175,6 +175,10 @@ impl KittiCameraSequence {
             CameraInput::Features => KITTI_IMAGE_SIZE,
         };
         let camera = calib.camera("P2", w, h, &calib_path)?;
+        if input != CameraInput::Features {
+            check_principal_point(&camera, &first, &calib_path)?;
+        }
+        check_frames(&folder, input, count, (w, h))?;
         Ok(KittiCameraSequence {
             dir: dir.to_path_buf(),
             calib,
@@ -243,6 +247,126 @@ pub fn camera_in_map(
         .iter()
         .map(|p| map_from_kitti * p * c)
         .collect()
+}
+
+/// Refuses images whose size is not the calibration's: P2's principal
+/// point far from their middle (outside 30-70 % of the width or height)
+/// says they were scaled or cropped without P2 (KITTI's is at 49 % x
+/// 49 %); tracking then failed with a warning that blamed the pose.
+fn check_principal_point(
+    camera: &super::kitti::KittiCamera,
+    first: &Path,
+    calib: &Path,
+) -> Result<(), CloudError> {
+    let k = &camera.intrinsics;
+    let (fx, fy) = (k.cx / k.width as f64, k.cy / k.height as f64);
+    let near_middle = |f: f64| (0.3..=0.7).contains(&f);
+    if near_middle(fx) && near_middle(fy) {
+        return Ok(());
+    }
+    Err(CloudError::mismatch(
+        first,
+        format!(
+            "{} x {} pixels, but P2 of {} puts the principal point at ({:.1}, {:.1}), {:.0} % \
+             across and {:.0} % down, which is not near their middle: the images are not at \
+             the calibration's resolution (P2 implies about {:.0} x {:.0}); resize them to it, or \
+             scale P2 with them",
+            k.width,
+            k.height,
+            calib.display(),
+            k.cx,
+            k.cy,
+            100.0 * fx,
+            100.0 * fy,
+            2.0 * k.cx,
+            2.0 * k.cy
+        ),
+    ))
+}
+
+/// Checks every frame's header before any is localized, so that a bad
+/// frame late in a long drive fails the run at once instead of after the
+/// work: label and camera images of frame 0's size (`size`), label images
+/// grey with 8 or 16 bits, every file complete (a PNG ends with IEND; an
+/// `.npy` holds what its header declares), feature grids all of frame 0's
+/// shape and of about the camera's aspect (a transposed grid is not).
+fn check_frames(
+    folder: &Path,
+    input: CameraInput,
+    count: usize,
+    size: (u32, u32),
+) -> Result<(), CloudError> {
+    let path = |i: usize| folder.join(format!("{i:06}.{}", input.extension()));
+    match input {
+        CameraInput::Labels | CameraInput::Images => {
+            for i in 0..count {
+                let p = path(i);
+                let (w, h, depth, colour) = super::bounded_png::png_header(&p)?;
+                if (w, h) != size {
+                    return Err(CloudError::mismatch(
+                        &p,
+                        format!(
+                            "{w} x {h} pixels, frame 0 ({}) has {} x {}: every frame of a \
+                             sequence has its camera's size",
+                            path(0).display(),
+                            size.0,
+                            size.1
+                        ),
+                    ));
+                }
+                if input == CameraInput::Labels && (colour != 0 || !matches!(depth, 8 | 16)) {
+                    return Err(CloudError::format(
+                        &p,
+                        format!(
+                            "label image must be single-channel grey with 8 or 16 bits (PNG \
+                             colour type {colour}, {depth} bits)"
+                        ),
+                    ));
+                }
+            }
+        }
+        CameraInput::Features => {
+            let npy = |i: usize| {
+                let p = path(i);
+                super::npy::read_npy_shape(&p)
+                    .map_err(|e| CloudError::format(&p, e.to_string()))
+                    .map(|s| (p, s))
+            };
+            let (p0, first) = npy(0)?;
+            if first.len() != 3 || first.contains(&0) {
+                return Err(CloudError::format(
+                    &p0,
+                    format!("expected h x w x F features with every size above 0, got {first:?}"),
+                ));
+            }
+            let (gw, gh) = (first[1] as f64, first[0] as f64);
+            let (iw, ih) = (size.0 as f64, size.1 as f64);
+            if ((gw / gh) / (iw / ih)).ln().abs() > 1.5f64.ln() {
+                return Err(CloudError::mismatch(
+                    &p0,
+                    format!(
+                        "a {} x {} grid (h x w) for a {} x {} camera: its aspect is not the \
+                         image's (rows first: h x w x F; is it transposed?)",
+                        first[0], first[1], size.0, size.1
+                    ),
+                ));
+            }
+            for i in 1..count {
+                let (p, shape) = npy(i)?;
+                if shape != first {
+                    return Err(CloudError::mismatch(
+                        &p,
+                        format!(
+                            "shape {shape:?}, frame 0 ({}) has {first:?}: every frame's \
+                             features have one shape",
+                            p0.display()
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Number of `NNNNNN.ext` files in `folder`, which must be `000000` to

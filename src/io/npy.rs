@@ -137,13 +137,9 @@ fn parse_header(bytes: &[u8]) -> Result<Header, String> {
     })
 }
 
-/// Reads a floating-point `.npy` file as `f32`. The shape's product is
-/// checked against the file's size before any memory is sized by it.
-pub fn read_npy(path: &Path) -> Result<NpyArray, NpyError> {
-    let io_err = |source| NpyError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
+/// Checks a parsed header against what this reader supports and the
+/// file's size (`file_len` bytes); the number of values.
+fn checked_layout(path: &Path, h: &Header, file_len: usize) -> Result<usize, NpyError> {
     let fmt = |reason: String| NpyError::Format {
         path: path.to_path_buf(),
         reason,
@@ -152,8 +148,6 @@ pub fn read_npy(path: &Path) -> Result<NpyArray, NpyError> {
         path: path.to_path_buf(),
         reason,
     };
-    let bytes = crate::io::bounded_read::read_regular(path).map_err(io_err)?;
-    let h = parse_header(&bytes).map_err(fmt)?;
     if h.fortran {
         return Err(unsupported(
             "Fortran order; save with np.ascontiguousarray".into(),
@@ -167,9 +161,9 @@ pub fn read_npy(path: &Path) -> Result<NpyArray, NpyError> {
             h.item
         )));
     }
-    let shape = h.shape;
-    let data_bytes = bytes.len() - h.data_offset;
-    let expected = shape
+    let shape = &h.shape;
+    let data_bytes = file_len - h.data_offset;
+    shape
         .iter()
         .try_fold(1usize, |acc, &d| acc.checked_mul(d))
         .filter(|n| n.checked_mul(h.item).is_some_and(|b| b <= data_bytes))
@@ -179,7 +173,48 @@ pub fn read_npy(path: &Path) -> Result<NpyArray, NpyError> {
                  the {data_bytes} bytes the file holds",
                 h.item
             ))
-        })?;
+        })
+}
+
+/// The shape of a floating-point `.npy` file, from its header and size
+/// alone (the data are not read): what [`read_npy`] would refuse is
+/// refused the same way, a truncated file included.
+pub fn read_npy_shape(path: &Path) -> Result<Vec<usize>, NpyError> {
+    use std::io::Read;
+    let io_err = |source| NpyError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut f = std::fs::File::open(path).map_err(io_err)?;
+    let len = f.metadata().map_err(io_err)?.len() as usize;
+    let mut head = Vec::new();
+    f.by_ref()
+        .take(1 << 20)
+        .read_to_end(&mut head)
+        .map_err(io_err)?;
+    let h = parse_header(&head).map_err(|reason| NpyError::Format {
+        path: path.to_path_buf(),
+        reason,
+    })?;
+    checked_layout(path, &h, len)?;
+    Ok(h.shape)
+}
+
+/// Reads a floating-point `.npy` file as `f32`. The shape's product is
+/// checked against the file's size before any memory is sized by it.
+pub fn read_npy(path: &Path) -> Result<NpyArray, NpyError> {
+    let io_err = |source| NpyError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let fmt = |reason: String| NpyError::Format {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let bytes = crate::io::bounded_read::read_regular(path).map_err(io_err)?;
+    let h = parse_header(&bytes).map_err(fmt)?;
+    let expected = checked_layout(path, &h, bytes.len())?;
+    let shape = h.shape;
     let raw = &bytes[h.data_offset..h.data_offset + expected * h.item];
     let le = h.little_endian;
     let data: Vec<f32> = match h.item {
