@@ -520,3 +520,38 @@ fn table1_blocks_check_variants_and_take_the_preset() {
     assert_eq!(own.len(), 8);
     assert_ne!(own, exact);
 }
+
+/// Table IV on a 20-frame street: the Markdown it prints is also written
+/// as table4.md, beside table4.json (one run per odometry variant asked
+/// for) and the path's figure.
+#[test]
+fn table4_writes_its_markdown_json_and_figure() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("t4");
+    let (o, text) = bench(&[
+        "table4",
+        "--street-frames",
+        "20",
+        "--sequences",
+        "1",
+        "--particles",
+        "64",
+        "--rays",
+        "128",
+        "--odometry",
+        "noise",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{text}");
+    let md = std::fs::read_to_string(out.join("table4.md")).unwrap();
+    assert!(md.starts_with("## Table IV"), "{md}");
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains(md.trim()),
+        "{text}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("table4.json")).unwrap()).unwrap();
+    assert_eq!(json["runs"].as_array().unwrap().len(), 1, "{json}");
+    assert!(out.join("table4_noise.png").exists());
+}
