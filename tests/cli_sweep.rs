@@ -305,6 +305,18 @@ fn plans_replace_nothing_unasked_and_name_in_process_experiments() {
         std::fs::read_to_string(&poses).unwrap(),
         "0 0 0 0 0 0 0 1\n"
     );
+    // A folder as -o: said so (it was "something other than a manifest").
+    let (o, text) = omcl(
+        &plan_args(dir.path().to_str().unwrap(), "1")
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+    );
+    assert_eq!(o.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("is a folder") && text.contains("manifest.jsonl"),
+        "{text}"
+    );
     // A misspelt variant beside a right one is named, not dropped.
     let typo = dir.path().join("typo.jsonl");
     let mut args = plan_args(typo.to_str().unwrap(), "1");

@@ -154,10 +154,10 @@ fn python_client_sends_camera_images_for_the_server_to_encode() {
     );
     let server = Server::start(&f, &["--map", &map_arg, "--image-model", &model_arg]);
     let client = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/omcl_client.py");
-    let run = |seq: &Path| {
+    let run_on = |map: &str, seq: &Path| {
         Command::new("python3")
             .arg(&client)
-            .args(["--target", &server.grpc.to_string(), "--map", "img"])
+            .args(["--target", &server.grpc.to_string(), "--map", map])
             .args(["--sequence", s(seq), "--images", "--seed", "4"])
             .args(["--frames", &frames.to_string()])
             .args(["--particles", &PARTICLES.to_string()])
@@ -166,6 +166,17 @@ fn python_client_sends_camera_images_for_the_server_to_encode() {
             .output()
             .unwrap()
     };
+    let run = |seq: &Path| run_on("img", seq);
+    // Images for a map without an image model: the session's problem, not
+    // a frame's; the client stops at the first answer, naming it.
+    let r = run_on("room", &img.seq);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("FAILED_PRECONDITION") && stderr.contains("stopped (after 0 poses)"),
+        "{stderr}"
+    );
+    assert_eq!(stderr.matches("FAILED_PRECONDITION").count(), 1, "{stderr}");
     let r = run(&img.seq);
     let (stdout, stderr) = (
         String::from_utf8_lossy(&r.stdout),

@@ -288,7 +288,15 @@ fn a_sweep_through_a_slurm_job_array_equals_the_local_path() {
     let logs2 = d.join("logs2");
     let jobs = submit(ms, &results2, &cache, &logs2, "1");
     // Submitting again while they are queued would run their runs twice:
-    // refused, naming the jobs.
+    // refused, naming the jobs, and the scripts the jobs run are left as
+    // they are (the refused call asks for other options).
+    let scripts: Vec<_> = std::fs::read_dir(m.parent().unwrap())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "sbatch" || x == "sh"))
+        .collect();
+    assert!(!scripts.is_empty());
+    let before: Vec<Vec<u8>> = scripts.iter().map(|p| std::fs::read(p).unwrap()).collect();
     let (o, text) = omcl(&[
         "sweep",
         "slurm",
@@ -304,6 +312,9 @@ fn a_sweep_through_a_slurm_job_array_equals_the_local_path() {
         text.contains("still queued") && text.contains(&jobs[0]),
         "{text}"
     );
+    for (p, b) in scripts.iter().zip(&before) {
+        assert_eq!(&std::fs::read(p).unwrap(), b, "{} rewritten", p.display());
+    }
     let t = Instant::now();
     while status(ms, &results2).0 < 4 {
         assert!(t.elapsed() < PATIENCE, "{}", diagnostics(&logs2));

@@ -379,13 +379,19 @@ def run(a):
             yield f
             answered.get()
 
-    count, refused = 0, 0
+    count, refused, precondition = 0, 0, None
     call = client.stream(frames())
     try:
         for r in call:
             i, path = sent.get()
             answered.put(True)
             if r.HasField("error"):
+                # FAILED_PRECONDITION is about the session or its map (a
+                # map without an image encoder, say), not this frame:
+                # every frame after it would be refused alike.
+                if r.error.code == "FAILED_PRECONDITION":
+                    precondition = f"{r.error.message} (at frame {i:06}, {path})"
+                    break
                 print(f"error {r.error.code}: {r.error.message} (frame {i:06}, {path})",
                       file=sys.stderr)
                 refused += 1
@@ -410,6 +416,9 @@ def run(a):
             client.close_session(sid)
         except grpc.RpcError:
             pass
+    if precondition:
+        sys.exit(f"omcl_client: FAILED_PRECONDITION: {precondition}; stopped (after "
+                 f"{count} poses)")
     if unreadable:
         sys.exit(f"omcl_client: {unreadable[0]} (after {count} poses)")
     print(f"{count} poses from session {sid}", file=sys.stderr)

@@ -323,7 +323,13 @@ fn open_maps(a: &ServeArgs) -> anyhow::Result<Vec<SharedMap>> {
         if !known(&name) {
             bail!("--classes {spec:?}: no --map named {name:?}");
         }
-        let table = EmbeddingTable::read(&dir.join("classes.txt"), &dir.join("embeddings.npy"))?;
+        let table = EmbeddingTable::read(&dir.join("classes.txt"), &dir.join("embeddings.npy"))
+            .with_context(|| {
+                format!(
+                    "--classes {spec}: DIR must hold classes.txt and embeddings.npy (a sequence \
+                     folder of `omcl sim`, or one `omcl map classes -o DIR` wrote)"
+                )
+            })?;
         tables.push((name, table));
     }
     let mut plans: Vec<(String, Option<PathBuf>)> = Vec::new();

@@ -209,6 +209,12 @@ fn plan(c: PlanCmd) -> anyhow::Result<()> {
         in_process[0]
     );
     c.plan.check_sweep_variants()?;
+    anyhow::ensure!(
+        !c.out.is_dir(),
+        "--out {}: is a folder; give the manifest's file name (e.g. {})",
+        c.out.display(),
+        c.out.join("manifest.jsonl").display()
+    );
     let bench = c.plan.bench_plan()?;
     if let Some(dir) = c.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         super::outputs::create_folder("--out's folder", dir)?;
@@ -364,6 +370,7 @@ fn warn_no_results(results: &ResultDir) {
 fn collect(c: CollectCmd) -> anyhow::Result<()> {
     let manifest = Manifest::read(&c.manifest)?;
     let results = ResultDir::new(c.dirs.results(&c.manifest));
+    warn_no_results(&results);
     let cache = c.dirs.cache(&c.manifest);
     let r = report::collect(&manifest, &results, Some(&cache), &c.out, c.force)?;
     println!("{}", r.markdown);
@@ -435,6 +442,20 @@ fn slurm_cmd(c: SlurmCmd) -> anyhow::Result<()> {
     let s = sweep::status(&manifest, &ResultDir::new(&results));
     let to_do = s.to_do();
     let chunks = slurm::chunks(&to_do, max_array_size);
+    if c.submit && !chunks.is_empty() && !c.force {
+        // Runs of jobs still queued count as to do: submitting them again
+        // would run them twice. Refused before the scripts are rewritten.
+        let queued = slurm::queued_jobs(&script)?;
+        anyhow::ensure!(
+            queued.is_empty(),
+            "job(s) {} of this sweep ({}) are still queued or running: submitting now \
+             would run their runs twice; wait for them (squeue), cancel them (scancel {}), \
+             or pass --force",
+            queued.join(" "),
+            script.display(),
+            queued.join(" ")
+        );
+    }
     omcl::io::atomic::write(&script, slurm::script(&o).as_bytes())
         .with_context(|| format!("writing {}", script.display()))?;
     omcl::io::atomic::write(
@@ -452,20 +473,6 @@ fn slurm_cmd(c: SlurmCmd) -> anyhow::Result<()> {
         submit_sh.display()
     );
     if c.submit && !chunks.is_empty() {
-        if !c.force {
-            // Runs of jobs still queued count as to do: submitting them
-            // again would run them twice.
-            let queued = slurm::queued_jobs(&script)?;
-            anyhow::ensure!(
-                queued.is_empty(),
-                "job(s) {} of this sweep ({}) are still queued or running: submitting now \
-                 would run their runs twice; wait for them (squeue), cancel them (scancel {}), \
-                 or pass --force",
-                queued.join(" "),
-                script.display(),
-                queued.join(" ")
-            );
-        }
         let jobs = slurm::submit(&chunks, &o, &script)?;
         println!("submitted job(s) {}", jobs.join(" "));
     }
