@@ -317,6 +317,14 @@ async fn malformed_input_is_named_and_the_session_lives_on() {
         let u = c.localize(f.frame(&id, i)).await.unwrap().into_inner();
         assert_eq!(u.frame, i as u64 + 1);
     }
+    // Odometry that jumps a thousand kilometres between two frames (a
+    // glitch) is refused, not stepped (the estimate went 600 km away at
+    // full confidence); the next frame steps from the last good one.
+    let mut fr = f.frame(&id, 3);
+    fr.odometry.as_mut().unwrap().position.as_mut().unwrap().x += 1e6;
+    let e = c.localize(fr).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    assert!(e.message().contains("a jump, not motion"), "{e:?}");
     // In a stream the errors come in the stream, which goes on.
     let (tx, mut answers) = open_stream(&c).await;
     for (fr, code, needle) in cases {

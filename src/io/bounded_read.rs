@@ -54,7 +54,7 @@ pub fn read_text(path: &Path) -> io::Result<String> {
     let mut text = String::from_utf8(read_capped(path, MAX_TEXT_BYTES)?).map_err(|_| {
         io::Error::new(
             io::ErrorKind::InvalidData,
-            "stream did not contain valid UTF-8",
+            "not a text file (not valid UTF-8: binary data, such as a map, an image or a scan?)",
         )
     })?;
     if text.starts_with('\u{feff}') {

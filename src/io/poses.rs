@@ -229,9 +229,10 @@ fn kitti_pose(v: &[f64]) -> Result<Pose, String> {
     let deviation = (r.transpose() * r - Matrix3::identity()).abs().max();
     let det = r.determinant();
     if deviation > ROTATION_TOLERANCE || det <= 0.0 {
+        // Three significant digits whatever the size (1e300 printed 300).
         return Err(format!(
             "rotation part is not a rotation: max |R^T R - I| = {deviation:.3e} \
-             (tolerance {ROTATION_TOLERANCE}), det = {det:.6}"
+             (tolerance {ROTATION_TOLERANCE}), det = {det:.3e}"
         ));
     }
     let rotation = nearest_rotation(&r).ok_or_else(|| "rotation part is degenerate".to_string())?;

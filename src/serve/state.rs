@@ -256,9 +256,10 @@ pub fn status_of(e: &SessionError) -> Status {
                  larger PromptStart.radius, or a global or initial_pose start"
             ))
         }
-        SessionError::BadFrame(_) | SessionError::BadOdometry(_) | SessionError::BadStamp(_) => {
-            Status::invalid_argument(e.to_string())
-        }
+        SessionError::BadFrame(_)
+        | SessionError::BadOdometry(_)
+        | SessionError::OdometryJump(_)
+        | SessionError::BadStamp(_) => Status::invalid_argument(e.to_string()),
         SessionError::NoFloorFeature(_)
         | SessionError::ClassTable(_)
         | SessionError::Init(_)

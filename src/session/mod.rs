@@ -48,9 +48,14 @@ use ground::Mount;
 
 pub use frames::{LabelTable, feature_grid, label_frame};
 
-/// Errors of a session. [`SessionError::BadFrame`], [`SessionError::BadOdometry`]
-/// and [`SessionError::BadStamp`] reject one input and leave the session as
-/// it was.
+/// Farthest the odometry may move between two frames, metres: more is a
+/// jump (a visual odometry's reset, a glitch of 1e6 m), not motion, and
+/// stepping it sent the estimate 600 km away at full confidence.
+pub const MAX_ODOMETRY_STEP_M: f64 = 1000.0;
+
+/// Errors of a session. [`SessionError::BadFrame`], [`SessionError::BadOdometry`],
+/// [`SessionError::OdometryJump`] and [`SessionError::BadStamp`] reject one
+/// input and leave the session as it was.
 #[derive(Debug, thiserror::Error)]
 pub enum SessionError {
     #[error("map {path}: {source}")]
@@ -68,6 +73,11 @@ pub enum SessionError {
     ClassTable(String),
     #[error("odometry pose is not a finite rigid motion: {0}")]
     BadOdometry(String),
+    #[error(
+        "odometry moved {0:.3e} m between two frames (more than {MAX_ODOMETRY_STEP_M} m: a jump, \
+         not motion); the frame is refused (a new start pose, or a new session, begins afresh)"
+    )]
+    OdometryJump(f64),
     #[error("stamp {0} is not a finite number")]
     BadStamp(f64),
     #[error("{0} needs the feature of \"floor\" (a class table with a \"floor\" row)")]
@@ -556,6 +566,10 @@ impl Session {
         stamp: f64,
         frame: &dyn FrameFeatures,
     ) -> Result<PoseReport, SessionError> {
+        let moved = increment.translation.vector.norm();
+        if moved > MAX_ODOMETRY_STEP_M {
+            return Err(SessionError::OdometryJump(moved));
+        }
         let step = self.filter.step(increment, frame).map_err(|e| match e {
             MclError::DimMismatch { .. } | MclError::ImageSize { .. } => {
                 SessionError::BadFrame(e.to_string())
