@@ -289,6 +289,15 @@ fn bad_kitti_input_is_named_and_leaves_no_output() {
     let r = f.localize(&f.map, &seq, &out, &[]);
     assert_clean_failure(&r, &out, &["000010.png", "truncated"]);
     assert!(!r.stderr.contains("frames/s"), "{}", r.text());
+    // Only the frames a run reads are checked; bytes after a PNG's IEND
+    // (some writers append metadata) are no damage.
+    let tail = seq.join("labels_2/000005.png");
+    let mut bytes = std::fs::read(&tail).unwrap();
+    bytes.extend_from_slice(b"appended by some writer");
+    std::fs::write(&tail, bytes).unwrap();
+    let ok = f.dir.path().join("out_first8.txt");
+    let r = f.localize(&f.map, &seq, &ok, &["--frames", "8"]);
+    assert_eq!(r.code, Some(0), "{}", r.text());
     // Feature grids: one frame of another shape, or every grid transposed.
     let seq = f.copy_seq("feat");
     std::fs::create_dir(seq.join("features_2")).unwrap();
@@ -308,6 +317,14 @@ fn bad_kitti_input_is_named_and_leaves_no_output() {
     }
     let r = f.localize(&f.map, &seq, &out, &["--use-features"]);
     assert_clean_failure(&r, &out, &["000000.npy", "155 x 47", "transposed"]);
+    // A square grid (a ViT's) is any h x w: taken, each axis stretched; the
+    // run then stops at the features' dimension (2, the map's 512).
+    for i in 0..12 {
+        grid(&seq.join(format!("features_2/{i:06}.npy")), 24, 24);
+    }
+    let r = f.localize(&f.map, &seq, &out, &["--use-features"]);
+    assert_clean_failure(&r, &out, &["000000.npy"]);
+    assert!(!r.stderr.contains("transposed"), "{}", r.text());
     // A map of another feature dimension.
     let other = f.dir.path().join("other.omcl");
     let pts = f.dir.path().join("pts.ply");

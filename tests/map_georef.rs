@@ -81,6 +81,7 @@ fn assert_voxels_in_survey_units(
             assert!((got[a] - c[a]).abs() < 1e-3, "{got:?} vs {c:?}");
         }
         assert_eq!(u32::from(p.point_source_id), *row);
+        assert_eq!((p.return_number, p.number_of_returns), (1, 1));
     }
     pts
 }
@@ -122,6 +123,90 @@ fn geotiff_keys_in_metres_come_back_with_the_export() {
     let again = dir.path().join("again.omcl");
     build(&out, &again);
     assert_eq!(info(&again)["crs"], *crs);
+
+    // An export never replaces the survey (a LAS omcl did not write) nor
+    // a map; an earlier export it replaces.
+    let survey = dir.path().join("survey.laz");
+    std::fs::copy(&src, &survey).unwrap();
+    let before = std::fs::read(&survey).unwrap();
+    for target in [&survey, &again] {
+        let r = omcl(&[
+            "map",
+            "export",
+            map.to_str().unwrap(),
+            "-o",
+            target.to_str().unwrap(),
+        ]);
+        assert_eq!(r.code, Some(1), "{}", r.text());
+        assert!(r.stderr.contains("would replace"), "{}", r.text());
+    }
+    assert_eq!(std::fs::read(&survey).unwrap(), before);
+    let r = omcl(&[
+        "map",
+        "export",
+        map.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(r.ok(), "{}", r.text());
+}
+
+#[test]
+fn an_empty_crs_record_and_a_user_written_geotiff_read_back() {
+    // GeoTIFF keys of EPSG:32633 in metres, and an empty citation record
+    // (34737 with no bytes): the map keeps both and reads back.
+    let dir = tempfile::tempdir().unwrap();
+    let las_path = dir.path().join("t.las");
+    let keys: Vec<u16> = vec![
+        1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 32633, 3076, 0, 1, 9001,
+    ];
+    let vlr = |id: u16, data: Vec<u8>| las::Vlr {
+        user_id: "LASF_Projection".into(),
+        record_id: id,
+        description: String::new(),
+        data,
+    };
+    let mut b = las::Builder::from((1, 2));
+    let t = |offset: f64| las::Transform {
+        scale: 0.001,
+        offset,
+    };
+    b.transforms = las::Vector {
+        x: t(500_000.0),
+        y: t(5_000_000.0),
+        z: t(0.0),
+    };
+    b.vlrs = vec![
+        vlr(34735, keys.iter().flat_map(|k| k.to_le_bytes()).collect()),
+        vlr(34737, Vec::new()),
+    ];
+    let mut w = las::Writer::from_path(&las_path, b.into_header().unwrap()).unwrap();
+    for i in 0..50 {
+        w.write_point(las::Point {
+            x: 500_000.0 + f64::from(i),
+            y: 5_000_000.0,
+            z: 100.0,
+            classification: las::point::Classification::new(2).unwrap(),
+            ..Default::default()
+        })
+        .unwrap();
+    }
+    w.close().unwrap();
+    let map = dir.path().join("m.omcl");
+    build(&las_path, &map);
+    let crs = &info(&map)["crs"];
+    assert_eq!(crs["name"], "a GeoTIFF CRS (EPSG:32633)");
+    assert_eq!(crs["records"], serde_json::json!([34735, 34737]));
+    let out = dir.path().join("e.las");
+    let r = omcl(&[
+        "map",
+        "export",
+        map.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(r.ok(), "{}", r.text());
+    assert_eq!(crs_records(&out), crs_records(&las_path));
 }
 
 #[test]
@@ -166,7 +251,10 @@ fn feet_heat_map_carries_similarity_as_intensity_and_ground_keeps_the_crs() {
     let map = dir.path().join("m.omcl");
     build(&src, &map);
     let crs = info(&map)["crs"].clone();
-    assert_eq!(crs["name"], "NAD_1983_HARN_Lambert_Conformal_Conic");
+    assert_eq!(
+        crs["name"],
+        "NAD_1983_HARN_Lambert_Conformal_Conic (user-defined projection)"
+    );
     assert_eq!(crs["governing"], "GeoTIFF");
 
     let out = dir.path().join("heat.las");

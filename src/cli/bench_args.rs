@@ -177,12 +177,8 @@ impl PlanArgs {
     /// Refuses a `--variants` name that is not a variant of the sweep's
     /// tables (a typo would otherwise drop a row of the table unnoticed).
     pub fn check_sweep_variants(&self) -> anyhow::Result<()> {
-        for n in self
-            .variants
-            .iter()
-            .flat_map(|l| l.split(','))
-            .map(str::trim)
-        {
+        let names = self.variants.iter().flat_map(|l| l.split(','));
+        for n in names.map(str::trim).filter(|n| !n.is_empty()) {
             anyhow::ensure!(
                 TABLE_VARIANT_NAMES.contains(&n),
                 "--variants: {n:?} is not a variant; they are {}",

@@ -845,7 +845,11 @@ fn class_table(
     if has_image_encoder && t.dim != m.db().dim() {
         // The frames come from the image model; the table would only give
         // words, and it lives in another feature space than the map (one
-        // built with the image model).
+        // built with the image model). With --text-model the words come
+        // from it: nothing to say.
+        if a.text_model.is_some() {
+            return Ok(None);
+        }
         eprintln!(
             "note: {}: {}-d class features, not the map's {}-d (its encoder {}): the frames \
              come from the image model and this table is not used; words (--init prompt or \
@@ -1128,6 +1132,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             )),
             Odometry::FromTruth(_) => anyhow::Error::new(e),
         })?;
+    inputs.check_frames(n)?;
     for r in inputs.odometry_remarks(&source, &read, n) {
         eprintln!("note: {r}");
     }

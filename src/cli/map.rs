@@ -27,7 +27,8 @@ pub enum MapCommand {
     Export(ExportArgs),
     /// Convert a map file of an older format version (1: checksum over the
     /// data only) into the current one (3: header values checksummed too,
-    /// and the survey's CRS; version 2 files read as they are).
+    /// room for the survey's CRS, which an old file cannot give: rebuild it
+    /// from the survey for that; version 2 files read as they are).
     Upgrade(UpgradeArgs),
     /// Project a map to a floor plan: features averaged along the vertical
     /// over a height band into a 2-D grid (Table I's 2-D block), written as
@@ -251,6 +252,13 @@ pub fn render_info(i: &MapInfo) -> String {
                 s,
                 "             coordinates here in metres; the survey's: {}",
                 c.survey_units
+            );
+        }
+        None if i.version == "2" => {
+            let _ = writeln!(
+                s,
+                "crs          not recorded (a version-2 map file, written before maps kept \
+                 their survey's CRS: rebuild it from the survey to keep it)"
             );
         }
         None => {

@@ -955,6 +955,13 @@ fn write_voxels(
         .map(|e| e.to_string_lossy().to_ascii_lowercase());
     if matches!(ext.as_deref(), Some("las" | "laz")) {
         let g = m.grid();
+        if m.db().len() > 1 << 16 {
+            eprintln!(
+                "note: {}: {} feature rows do not fit LAS's 16-bit point source id: it is left 0",
+                out.display(),
+                m.db().len()
+            );
+        }
         let pts = omcl::io::las::LasPoints {
             points: m.cells().iter().map(|&c| g.center(c).into()).collect(),
             colors,
@@ -981,6 +988,7 @@ pub fn query(a: &QueryArgs) -> anyhow::Result<()> {
     let mut inputs = vec![("the map".to_string(), a.map.clone())];
     inputs.extend(a.source.inputs());
     super::outputs::refuse_overlaps(&[("--out", &a.out)], &inputs)?;
+    super::outputs::refuse_replacing_survey("--out", &a.out)?;
     let m = map::load(&a.map)?;
     let words = parse_words(&a.words, None)?;
     let prompts = a.source.features(&words, m.db().dim())?;
@@ -1016,6 +1024,7 @@ pub struct ExportArgs {
 
 pub fn export(a: &ExportArgs) -> anyhow::Result<()> {
     super::outputs::refuse_overlaps(&[("--out", &a.out)], &[("the map", &a.map)])?;
+    super::outputs::refuse_replacing_survey("--out", &a.out)?;
     let m = map::load(&a.map)?;
     let cols = m.rows().iter().map(|&r| colors::row_color(r)).collect();
     write_voxels(&a.out, &m, cols, None)?;
@@ -1187,11 +1196,13 @@ pub fn project(a: &ProjectArgs) -> anyhow::Result<()> {
         .last()
         .map(Path::to_path_buf);
     super::outputs::create_folder("--out", &out)?;
-    // A folder this run made goes if the run is interrupted, not only
-    // when it fails.
+    // The folder of the images goes if the run is interrupted, not only
+    // when it fails (with what is in it: only this run writes there). Its
+    // new parents are not registered: another run may write into them
+    // meanwhile (`-o copies/01/labels_2` beside `-o copies/00/labels_2`).
     let _interrupt = made
-        .as_ref()
-        .map(|top| omcl::io::atomic::remove_on_interrupt(top));
+        .is_some()
+        .then(|| omcl::io::atomic::remove_on_interrupt(&out));
     let t0 = std::time::Instant::now();
     // The scans are read and merged before the first frame is projected.
     let reading = super::progress::spinner("merging the scans");

@@ -182,6 +182,37 @@ pub fn refuse_replacing_data(outputs: &[(&str, &Path)]) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Refuses a point-cloud output (`option` at `p`) that would replace a
+/// map file, or a LAS/LAZ file that omcl did not write (its header's
+/// generating software): `omcl map export m.omcl -o survey.las` would
+/// have replaced the survey the map came from. An earlier export is
+/// replaced as before.
+pub fn refuse_replacing_survey(option: &str, p: &Path) -> anyhow::Result<()> {
+    use std::io::Read;
+    if !p.is_file() {
+        return Ok(());
+    }
+    anyhow::ensure!(
+        !omcl::map::file::is_map_file(p).unwrap_or(false),
+        "{}: {option} would replace a map file (choose another name)",
+        p.display()
+    );
+    let mut head = [0u8; 90];
+    let read = std::fs::File::open(p).and_then(|mut f| f.read_exact(&mut head));
+    if read.is_ok() && &head[..4] == b"LASF" {
+        let software = String::from_utf8_lossy(&head[58..90]);
+        let software = software.trim_end_matches(['\0', ' ']);
+        anyhow::ensure!(
+            software.starts_with("omcl"),
+            "{}: {option} would replace a LAS file omcl did not write (from {:?}: a survey?); \
+             choose another name",
+            p.display(),
+            software
+        );
+    }
+    Ok(())
+}
+
 /// Refuses to write at `p` (a file or folder, existing or to be made;
 /// a link is followed as the writer follows it) when the folder it is or
 /// would go in is marked read-only (`io::atomic::read_only_folder`: a

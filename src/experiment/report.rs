@@ -94,6 +94,11 @@ fn lock_folder(out: &Path) -> Result<std::fs::File, SweepError> {
                      this folder; wait for it to end, or collect into another folder"
                 .into(),
         }),
+        // A file system without locks (some NFS and Lustre mounts): go on
+        // unlocked, as before the lock was there.
+        Err(std::fs::TryLockError::Error(e)) if e.kind() == std::io::ErrorKind::Unsupported => {
+            Ok(lock)
+        }
         Err(std::fs::TryLockError::Error(e)) => Err(io(e)),
     }
 }

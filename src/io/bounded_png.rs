@@ -19,28 +19,33 @@ const MAX_DEFLATE_RATIO: u64 = 1100;
 pub const MAX_PNG_PIXELS: u64 = 1 << 26;
 
 /// A PNG file's header without decoding it: width, height, bit depth and
-/// colour type (IHDR), after checking that the file ends with the IEND
-/// chunk, as every complete PNG does (a file cut short does not).
+/// colour type (IHDR), after checking that the file holds the IEND chunk
+/// near its end, as every complete PNG does (a file cut short does not;
+/// bytes some writers append after IEND are allowed).
 pub(crate) fn png_header(path: &Path) -> Result<(u32, u32, u8, u8), CloudError> {
     use std::io::{Read, SeekFrom};
-    const IEND: [u8; 12] = [0, 0, 0, 0, b'I', b'E', b'N', b'D', 0xAE, 0x42, 0x60, 0x82];
+    /// IEND's type and CRC: the same 8 bytes in every PNG.
+    const IEND: [u8; 8] = [b'I', b'E', b'N', b'D', 0xAE, 0x42, 0x60, 0x82];
+    /// How far from the end IEND is looked for.
+    const TAIL: u64 = 64 << 10;
     let io = |e| CloudError::io(path, e);
     let mut f = File::open(path).map_err(io)?;
+    let len = f.metadata().map_err(io)?.len();
     let mut head = [0u8; 29];
-    let n = f.read(&mut head).map_err(io)?;
-    if n < 29 || &head[..8] != b"\x89PNG\r\n\x1a\n" || &head[12..16] != b"IHDR" {
+    if f.read_exact(&mut head).is_err()
+        || &head[..8] != b"\x89PNG\r\n\x1a\n"
+        || &head[12..16] != b"IHDR"
+    {
         return Err(CloudError::format(path, "not a PNG file (no PNG header)"));
     }
-    let mut tail = [0u8; 12];
-    let ends = f
-        .seek(SeekFrom::End(-12))
-        .and_then(|_| f.read_exact(&mut tail))
-        .is_ok()
-        && tail == IEND;
-    if !ends {
+    let mut tail = Vec::new();
+    f.seek(SeekFrom::Start(len.saturating_sub(TAIL).max(29)))
+        .map_err(io)?;
+    f.take(TAIL).read_to_end(&mut tail).map_err(io)?;
+    if !tail.windows(IEND.len()).any(|w| w == IEND) {
         return Err(CloudError::format(
             path,
-            "truncated PNG: it does not end with the IEND chunk",
+            "truncated PNG: it does not hold the IEND chunk that ends every PNG",
         ));
     }
     let be = |i: usize| u32::from_be_bytes([head[i], head[i + 1], head[i + 2], head[i + 3]]);

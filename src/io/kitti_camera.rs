@@ -178,7 +178,6 @@ impl KittiCameraSequence {
         if input != CameraInput::Features {
             check_principal_point(&camera, &first, &calib_path)?;
         }
-        check_frames(&folder, input, count, (w, h))?;
         Ok(KittiCameraSequence {
             dir: dir.to_path_buf(),
             calib,
@@ -190,6 +189,22 @@ impl KittiCameraSequence {
             poses_in_file,
             frames: count,
         })
+    }
+
+    /// Checks the headers of the first `n` frames (those a run reads)
+    /// before any is localized, so that a bad frame late in a long drive
+    /// fails the run at once instead of after the work: label and camera
+    /// images of the camera's size, label images grey with 8 or 16 bits,
+    /// every file complete, feature grids all of frame 0's shape and not
+    /// standing against the camera (transposed).
+    pub fn check_frames(&self, n: usize) -> Result<(), CloudError> {
+        let k = &self.camera.intrinsics;
+        check_frames(
+            &self.dir.join(self.input.folder()),
+            self.input,
+            n.min(self.frames),
+            (k.width, k.height),
+        )
     }
 
     /// Number of frames.
@@ -284,12 +299,12 @@ fn check_principal_point(
     ))
 }
 
-/// Checks every frame's header before any is localized, so that a bad
-/// frame late in a long drive fails the run at once instead of after the
-/// work: label and camera images of frame 0's size (`size`), label images
-/// grey with 8 or 16 bits, every file complete (a PNG ends with IEND; an
-/// `.npy` holds what its header declares), feature grids all of frame 0's
-/// shape and of about the camera's aspect (a transposed grid is not).
+/// Checks the headers of frames `0..count`: label and camera images of
+/// the camera's size (`size`, frame 0's), label images grey with 8 or 16
+/// bits, every file complete (a PNG holds its IEND chunk; an `.npy` what
+/// its header declares), feature grids all of frame 0's shape and not
+/// turned against the camera (a portrait grid for a landscape camera: a
+/// transposed one; any other h x w is taken, each axis stretched).
 fn check_frames(
     folder: &Path,
     input: CameraInput,
@@ -329,7 +344,7 @@ fn check_frames(
             let npy = |i: usize| {
                 let p = path(i);
                 super::npy::read_npy_shape(&p)
-                    .map_err(|e| CloudError::format(&p, e.to_string()))
+                    .map_err(CloudError::from)
                     .map(|s| (p, s))
             };
             let (p0, first) = npy(0)?;
@@ -341,12 +356,12 @@ fn check_frames(
             }
             let (gw, gh) = (first[1] as f64, first[0] as f64);
             let (iw, ih) = (size.0 as f64, size.1 as f64);
-            if ((gw / gh) / (iw / ih)).ln().abs() > 1.5f64.ln() {
+            if (gw - gh) * (iw - ih) < 0.0 {
                 return Err(CloudError::mismatch(
                     &p0,
                     format!(
-                        "a {} x {} grid (h x w) for a {} x {} camera: its aspect is not the \
-                         image's (rows first: h x w x F; is it transposed?)",
+                        "a {} x {} grid (h x w) for a {} x {} camera: it stands the other way \
+                         (rows first: h x w x F; is it transposed?)",
                         first[0], first[1], size.0, size.1
                     ),
                 ));

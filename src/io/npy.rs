@@ -187,9 +187,18 @@ pub fn read_npy_shape(path: &Path) -> Result<Vec<usize>, NpyError> {
     };
     let mut f = std::fs::File::open(path).map_err(io_err)?;
     let len = f.metadata().map_err(io_err)?.len() as usize;
+    // The preamble: 12 bytes hold the header's length (version 1: 10).
     let mut head = Vec::new();
+    f.by_ref().take(12).read_to_end(&mut head).map_err(io_err)?;
+    let header_len = match head.get(6) {
+        Some(1) if head.len() >= 10 => u16::from_le_bytes([head[8], head[9]]) as u64,
+        Some(2 | 3) if head.len() >= 12 => {
+            u32::from_le_bytes([head[8], head[9], head[10], head[11]]) as u64
+        }
+        _ => 0,
+    };
     f.by_ref()
-        .take(1 << 20)
+        .take(header_len.min(1 << 20))
         .read_to_end(&mut head)
         .map_err(io_err)?;
     let h = parse_header(&head).map_err(|reason| NpyError::Format {

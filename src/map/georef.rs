@@ -149,8 +149,9 @@ fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
+/// Hex digits to bytes; empty text is an empty record.
 fn unhex(text: &str) -> Option<Vec<u8>> {
-    if text.is_empty() || !text.len().is_multiple_of(2) {
+    if !text.len().is_multiple_of(2) {
         return None;
     }
     (0..text.len())
@@ -167,7 +168,11 @@ mod tests {
     fn sample() -> Georef {
         Georef {
             crs: "NAD83(HARN) / New Mexico Central (ftUS) (EPSG:2903)".into(),
-            records: vec![(2112, b"PROJCS[\"x\"]".to_vec()), (34735, vec![1, 0, 1, 0])],
+            records: vec![
+                (2112, b"PROJCS[\"x\"]".to_vec()),
+                (34735, vec![1, 0, 1, 0]),
+                (34737, Vec::new()),
+            ],
             wkt: true,
             metres_per_unit: [1200.0 / 3937.0, 1.0],
         }
@@ -203,6 +208,7 @@ mod tests {
             ("crs_records", Some("34735:00 2112:00")),
             ("crs_records", Some("7:00")),
             ("crs_records", Some("2112:0")),
+            ("crs_records", Some("")),
             ("crs_wkt", Some("yes")),
             ("metres_per_unit_xy", Some("0")),
             ("metres_per_unit_z", Some("NaN")),

@@ -232,6 +232,17 @@ impl CameraSequence {
                 d.display()
             )));
         }
+        // Nothing of any layout: name them all, not one missing file.
+        let rgbd_parts = ["labels", "features", "rgb", "depth", "poses.txt"];
+        if !intrinsics_path.exists() && !rgbd_parts.iter().any(|k| d.join(k).exists()) {
+            return Err(SequenceError::Input(format!(
+                "{}: not a camera sequence: none of an RGB-D folder (intrinsics.txt with \
+                 labels/, features/ or rgb/; `omcl sim indoor` writes one), a KITTI sequence \
+                 (calib.txt with labels_2/, features_2/ or image_2/) or a 7-Scenes folder \
+                 (camera-intrinsics.txt with frame-NNNNNN.color.jpg)",
+                d.display()
+            )));
+        }
         let intrinsics = rgbd::read_intrinsics(&intrinsics_path)?;
         let gt_path = d.join("poses.txt");
         let ground_truth = gt_path
@@ -340,6 +351,16 @@ impl CameraSequence {
                     file: None,
                 })
             }
+        }
+    }
+
+    /// Checks the headers of the first `n` frames before any is localized
+    /// (KITTI folders: [`KittiCameraSequence::check_frames`]), so that a
+    /// bad frame late in a long drive fails the run before the work.
+    pub fn check_frames(&self, n: usize) -> Result<(), SequenceError> {
+        match &self.kitti {
+            Some(k) => Ok(k.check_frames(n)?),
+            None => Ok(()),
         }
     }
 

@@ -605,8 +605,15 @@ pub(super) fn describe(header: &Header) -> Option<String> {
         .find_map(|id| keys.text(id, texts).filter(|t| !t.is_empty()));
     let code = |id: u16| keys.short(id).filter(|c| (1..32767).contains(c));
     let mut codes = Vec::new();
-    if let Some(c) = code(3072).or_else(|| code(2048)) {
-        codes.push(format!("EPSG:{c}"));
+    // A projected CRS's own code; a user-defined one (32767) has none,
+    // and its datum's geographic code (2048) is not the CRS's.
+    match keys.short(3072) {
+        Some(32767) => codes.push("user-defined projection".to_string()),
+        Some(_) => codes.extend(code(3072).map(|c| format!("EPSG:{c}"))),
+        None if keys.short(1024) != Some(1) => {
+            codes.extend(code(2048).map(|c| format!("EPSG:{c}")))
+        }
+        None => {}
     }
     if let Some(c) = code(4096) {
         codes.push(format!("vertical EPSG:{c}"));
@@ -625,7 +632,7 @@ fn describe_wkt(data: &[u8]) -> String {
     let Some(root) = parse_wkt(&String::from_utf8_lossy(&data[..end])) else {
         return "a WKT CRS (record 2112) omcl cannot parse".to_string();
     };
-    let name = match root.name() {
+    let name = match root.name().trim() {
         "" => root.key().unwrap_or("WKT").to_string(),
         n => n.to_string(),
     };

@@ -21,15 +21,17 @@ pub struct LasPoints {
     pub source_id: Option<Vec<u16>>,
 }
 
-/// Finest coordinate step written, in the file's units.
-const FINEST_SCALE: f64 = 0.001;
+/// Coarsest coordinate step written, metres (a millimetre).
+const STEP_M: f64 = 0.001;
 
-/// The scale and offset that hold `lo..=hi` in 32-bit integers: steps of
-/// [`FINEST_SCALE`], coarser by tens for a larger extent; the offset a
-/// whole number at or below `lo`.
-fn transform(lo: f64, hi: f64) -> Transform {
+/// The scale and offset that hold `lo..=hi` (in units of `metres_per_unit`
+/// m) in 32-bit integers: the power of ten at or below [`STEP_M`] in those
+/// units (0.001 for metres and feet, 1e-6 for kilometres),
+/// coarser by tens for a larger extent; the offset a whole number at or
+/// below `lo`.
+fn transform(lo: f64, hi: f64, metres_per_unit: f64) -> Transform {
     let offset = lo.floor();
-    let mut scale = FINEST_SCALE;
+    let mut scale = 10f64.powi((STEP_M / metres_per_unit).log10().floor() as i32);
     while (hi - offset) / scale > f64::from(i32::MAX) - 1.0 {
         scale *= 10.0;
     }
@@ -80,10 +82,11 @@ pub fn write_las(path: &Path, pts: &LasPoints, georef: Option<&Georef>) -> Resul
     if source.is_empty() {
         (lo, hi) = ([0.0; 3], [0.0; 3]);
     }
+    let [xy, z] = georef.map_or([1.0, 1.0], |g| g.metres_per_unit);
     b.transforms = Vector {
-        x: transform(lo[0], hi[0]),
-        y: transform(lo[1], hi[1]),
-        z: transform(lo[2], hi[2]),
+        x: transform(lo[0], hi[0], xy),
+        y: transform(lo[1], hi[1], xy),
+        z: transform(lo[2], hi[2], z),
     };
     let header = b.into_header().map_err(|e| err(e.to_string()))?;
     let bytes = {
@@ -101,6 +104,9 @@ pub fn write_las(path: &Path, pts: &LasPoints, georef: Option<&Georef>) -> Resul
                 point_source_id: pts.source_id.as_ref().map_or(0, |v| v[i]),
                 color: Some(Color::new(wide(c[0]), wide(c[1]), wide(c[2]))),
                 gps_time: wkt.then_some(0.0),
+                // One return a pulse: the spec's numbers start at 1.
+                return_number: 1,
+                number_of_returns: 1,
                 ..Default::default()
             })
             .map_err(|e| err(e.to_string()))?;
@@ -115,12 +121,17 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_transform_holds_the_extent_in_32_bits() {
-        let t = transform(1_234_567.891, 1_234_600.0);
+    fn the_transform_holds_the_extent_in_32_bits_at_a_millimetre_or_finer() {
+        let t = transform(1_234_567.891, 1_234_600.0, 1.0);
         assert_eq!((t.scale, t.offset), (0.001, 1_234_567.0));
         // 5,000 km at 1 mm would overflow: 1 cm steps.
-        let t = transform(0.0, 5.0e6);
-        assert_eq!(t.scale, 0.01);
+        let t = transform(0.0, 5.0e6, 1.0);
+        assert!((t.scale - 0.01).abs() < 1e-15, "{}", t.scale);
         assert!((5.0e6 - t.offset) / t.scale <= f64::from(i32::MAX));
+        // Feet: 0.001 ft (0.3 mm); kilometres: 1e-6 km (1 mm), not 1 m.
+        let t = transform(2_000_000.0, 2_001_000.0, 0.3048);
+        assert!((t.scale - 1e-3).abs() < 1e-18, "{}", t.scale);
+        let t = transform(500.0, 501.0, 1000.0);
+        assert!((t.scale - 1e-6).abs() < 1e-20, "{}", t.scale);
     }
 }
