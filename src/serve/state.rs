@@ -247,6 +247,15 @@ pub fn exhausted(msg: impl Into<String>, retry_after: Duration) -> Status {
 }
 
 /// The gRPC status of a session error.
+/// The answer to a frame that arrived before its session was
+/// reinitialized.
+fn reinitialized(id: &str) -> Status {
+    Status::aborted(format!(
+        "session {id:?} was reinitialized after this frame arrived: not stepped (its odometry \
+         and stamp belong to the track before)"
+    ))
+}
+
 pub fn status_of(e: &SessionError) -> Status {
     match e {
         // What to change, in the request's own fields.
@@ -490,13 +499,22 @@ impl State {
         }
         if q.busy {
             if let Some(old) = q.pending.replace(job) {
-                slot.frames_dropped.fetch_add(1, Ordering::Relaxed);
-                self.metrics.frames_dropped.fetch_add(1, Ordering::Relaxed);
-                if let Reply::Unary(tx, _) = old.reply {
-                    let _ = tx.send(Err(Status::resource_exhausted(
+                // A frame of the track before a reinitialization is not
+                // stepped whatever comes after it: answered as such, as its
+                // turn would have answered it, not as dropped.
+                let answer = if old.track != q.track {
+                    self.metrics.reject("reinitialized");
+                    reinitialized(&slot.id)
+                } else {
+                    slot.frames_dropped.fetch_add(1, Ordering::Relaxed);
+                    self.metrics.frames_dropped.fetch_add(1, Ordering::Relaxed);
+                    Status::resource_exhausted(
                         "dropped: a newer frame of this session arrived before this one ran \
                          (latest frame wins)",
-                    )));
+                    )
+                };
+                if let Reply::Unary(tx, _) = old.reply {
+                    let _ = tx.send(Err(answer));
                 }
             }
             return;
@@ -623,12 +641,7 @@ impl State {
         if track != now_track {
             drop(session);
             self.metrics.reject("reinitialized");
-            let st = Status::aborted(format!(
-                "session {:?} was reinitialized after this frame arrived: not stepped (its \
-                 odometry and stamp belong to the track before)",
-                slot.id
-            ));
-            return (reply, Err(st), frame);
+            return (reply, Err(reinitialized(&slot.id)), frame);
         }
         let seen = Seen {
             stepped,
