@@ -56,6 +56,26 @@ fn build(source: &Path, out: &Path) {
     assert!(r.ok(), "{}", r.text());
 }
 
+/// `omcl map export MAP -o OUT`.
+fn export(map: &Path, out: &Path) -> common::Run {
+    let (map, out) = (map.to_str().unwrap(), out.to_str().unwrap());
+    omcl(&["map", "export", map, "-o", out])
+}
+
+/// `omcl map query MAP WORD --classes asprs -o OUT`.
+fn query(map: &Path, word: &str, out: &Path) -> common::Run {
+    omcl(&[
+        "map",
+        "query",
+        map.to_str().unwrap(),
+        word,
+        "--classes",
+        "asprs",
+        "-o",
+        out.to_str().unwrap(),
+    ])
+}
+
 fn info(map: &Path) -> serde_json::Value {
     let r = omcl(&["map", "info", map.to_str().unwrap(), "--json"]);
     assert!(r.ok(), "{}", r.text());
@@ -105,13 +125,7 @@ fn geotiff_keys_in_metres_come_back_with_the_export() {
     assert!(text.contains("the survey's: metres"), "{text}");
 
     let out = dir.path().join("e.las");
-    let r = omcl(&[
-        "map",
-        "export",
-        map.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let r = export(&map, &out);
     assert!(r.ok(), "{}", r.text());
     let (h, _) = las_points(&out);
     assert_eq!((h.version().major, h.version().minor), (1, 2));
@@ -130,24 +144,12 @@ fn geotiff_keys_in_metres_come_back_with_the_export() {
     std::fs::copy(&src, &survey).unwrap();
     let before = std::fs::read(&survey).unwrap();
     for target in [&survey, &again] {
-        let r = omcl(&[
-            "map",
-            "export",
-            map.to_str().unwrap(),
-            "-o",
-            target.to_str().unwrap(),
-        ]);
+        let r = export(&map, &target);
         assert_eq!(r.code, Some(1), "{}", r.text());
         assert!(r.stderr.contains("would replace"), "{}", r.text());
     }
     assert_eq!(std::fs::read(&survey).unwrap(), before);
-    let r = omcl(&[
-        "map",
-        "export",
-        map.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let r = export(&map, &out);
     assert!(r.ok(), "{}", r.text());
 }
 
@@ -198,13 +200,7 @@ fn an_empty_crs_record_and_a_user_written_geotiff_read_back() {
     assert_eq!(crs["name"], "a GeoTIFF CRS (EPSG:32633)");
     assert_eq!(crs["records"], serde_json::json!([34735, 34737]));
     let out = dir.path().join("e.las");
-    let r = omcl(&[
-        "map",
-        "export",
-        map.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let r = export(&map, &out);
     assert!(r.ok(), "{}", r.text());
     assert_eq!(crs_records(&out), crs_records(&las_path));
 }
@@ -226,16 +222,7 @@ fn wkt_in_us_survey_feet_is_written_back_in_feet_as_las_1_4() {
     assert!((f[0].as_f64().unwrap() - ft).abs() < 1e-15 && f[1] == 1.0);
 
     let out = dir.path().join("heat.laz");
-    let r = omcl(&[
-        "map",
-        "query",
-        map.to_str().unwrap(),
-        "ground",
-        "--classes",
-        "asprs",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let r = query(&map, "ground", &out);
     assert!(r.ok(), "{}", r.text());
     let (h, _) = las_points(&out);
     assert_eq!((h.version().major, h.version().minor), (1, 4));
@@ -258,16 +245,7 @@ fn feet_heat_map_carries_similarity_as_intensity_and_ground_keeps_the_crs() {
     assert_eq!(crs["governing"], "GeoTIFF");
 
     let out = dir.path().join("heat.las");
-    let r = omcl(&[
-        "map",
-        "query",
-        map.to_str().unwrap(),
-        "ground",
-        "--classes",
-        "asprs",
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let r = query(&map, "ground", &out);
     assert!(r.ok(), "{}", r.text());
     let pts = assert_voxels_in_survey_units(&out, &map, [0.3048, 0.3048]);
     // Each voxel's intensity is its row's cosine to "ground", times
@@ -311,16 +289,7 @@ fn feet_heat_map_carries_similarity_as_intensity_and_ground_keeps_the_crs() {
 
     // A PLY carries no CRS: the note says so and names the way.
     let ply = dir.path().join("heat.ply");
-    let r = omcl(&[
-        "map",
-        "query",
-        map.to_str().unwrap(),
-        "ground",
-        "--classes",
-        "asprs",
-        "-o",
-        ply.to_str().unwrap(),
-    ]);
+    let r = query(&map, "ground", &ply);
     assert!(r.ok(), "{}", r.text());
     assert!(
         r.output().contains("NAD_1983_HARN_Lambert_Conformal_Conic")
@@ -355,13 +324,7 @@ fn a_survey_without_crs_stays_a_local_frame() {
     let text = omcl(&["map", "info", map.to_str().unwrap()]).stdout;
     assert!(text.contains("none stated"), "{text}");
     let out = dir.path().join("e.laz");
-    let r = omcl(&[
-        "map",
-        "export",
-        map.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
+    let r = export(&map, &out);
     assert!(r.ok(), "{}", r.text());
     assert!(crs_records(&out).is_empty());
     assert_voxels_in_survey_units(&out, &map, [1.0, 1.0]);
