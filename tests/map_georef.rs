@@ -144,7 +144,7 @@ fn geotiff_keys_in_metres_come_back_with_the_export() {
     std::fs::copy(&src, &survey).unwrap();
     let before = std::fs::read(&survey).unwrap();
     for target in [&survey, &again] {
-        let r = export(&map, &target);
+        let r = export(&map, target);
         assert_eq!(r.code, Some(1), "{}", r.text());
         assert!(r.stderr.contains("would replace"), "{}", r.text());
     }
