@@ -924,3 +924,19 @@ fn the_suggested_link_for_the_benchmark_layout_works_as_typed() {
         "{cmd}"
     );
 }
+
+#[test]
+fn a_bad_label_image_late_in_an_rgbd_folder_fails_the_run_before_the_work() {
+    let f = Fixture::new();
+    let late = f.path("seq/labels/000004.png");
+    let bytes = std::fs::read(&late).unwrap();
+    std::fs::write(&late, &bytes[..bytes.len() / 2]).unwrap();
+    let est = f.path("est.txt");
+    let r = f.localize(&est, &[]);
+    refused(&r, 1, &["000004.png", "truncated"]);
+    assert!(!r.stdout.contains("frames/s"), "{}", r.stdout);
+    assert!(!est.exists());
+    // A run over the frames before it reads no more and is not refused.
+    let r = f.localize(&est, &["--frames", "4"]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+}

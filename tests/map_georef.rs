@@ -90,7 +90,42 @@ fn assert_voxels_in_survey_units(
     map: &Path,
     metres_per_unit: [f64; 2],
 ) -> Vec<las::Point> {
-    let (_, pts) = las_points(written);
+    let (h, pts) = las_points(written);
+    // The header's bounds hold the stored points, at most a step beyond
+    // them (the las crate rounds them outwards).
+    let b = h.bounds();
+    let t = h.transforms();
+    for (v, lo, hi, step) in [
+        (
+            pts.iter().map(|p| p.x).collect::<Vec<_>>(),
+            b.min.x,
+            b.max.x,
+            t.x.scale,
+        ),
+        (
+            pts.iter().map(|p| p.y).collect(),
+            b.min.y,
+            b.max.y,
+            t.y.scale,
+        ),
+        (
+            pts.iter().map(|p| p.z).collect(),
+            b.min.z,
+            b.max.z,
+            t.z.scale,
+        ),
+    ] {
+        let (vlo, vhi) = v
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        assert!(lo <= vlo && vhi <= hi, "{vlo} {vhi} outside {lo} {hi}");
+        assert!(
+            vlo - lo <= step * 1.01 && hi - vhi <= step * 1.01,
+            "{vlo} {vhi} vs {lo} {hi}"
+        );
+    }
     let want = centres(map);
     assert_eq!(pts.len(), want.len());
     for (p, (c, row)) in pts.iter().zip(&want) {
@@ -149,6 +184,27 @@ fn geotiff_keys_in_metres_come_back_with_the_export() {
         assert!(r.stderr.contains("would replace"), "{}", r.text());
     }
     assert_eq!(std::fs::read(&survey).unwrap(), before);
+    // Nor a PLY omcl did not write (the cloud a map came from), nor a file
+    // of another kind by a LAS name.
+    let ply = dir.path().join("cloud.ply");
+    std::fs::write(
+        &ply,
+        "ply\nformat ascii 1.0\nelement vertex 0\nend_header\n",
+    )
+    .unwrap();
+    let notes = dir.path().join("notes.las");
+    std::fs::write(&notes, "my notes\n").unwrap();
+    for target in [&ply, &notes] {
+        let before = std::fs::read(target).unwrap();
+        let r = export(&map, target);
+        assert_eq!(r.code, Some(1), "{}", r.text());
+        assert!(r.stderr.contains("omcl did not write"), "{}", r.text());
+        assert_eq!(std::fs::read(target).unwrap(), before);
+    }
+    // An earlier PLY export is replaced.
+    let mine = dir.path().join("mine.ply");
+    assert!(export(&map, &mine).ok());
+    assert!(export(&map, &mine).ok());
     let r = export(&map, &out);
     assert!(r.ok(), "{}", r.text());
 }

@@ -1132,7 +1132,12 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             )),
             Odometry::FromTruth(_) => anyhow::Error::new(e),
         })?;
-    inputs.check_frames(n)?;
+    let frames_input = match (image.is_some(), table.is_some() && !a.use_features) {
+        (true, _) => CameraInput::Images,
+        (false, true) => CameraInput::Labels,
+        (false, false) => CameraInput::Features,
+    };
+    inputs.check_frames(n, frames_input)?;
     for r in inputs.odometry_remarks(&source, &read, n) {
         eprintln!("note: {r}");
     }
@@ -1212,7 +1217,8 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             ""
         }
     );
-    print!("wrote {} ({n} frames)", a.out.display());
+    let frames = if n == 1 { "frame" } else { "frames" };
+    print!("wrote {} ({n} {frames})", a.out.display());
     match &gt {
         Some(g) => {
             // The floor's feature colours the plot's floor plan.
@@ -1234,10 +1240,12 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
 fn print_setup(a: &LocalizeArgs, inputs: &CameraSequence) {
     let is_kitti = inputs.layout() == Layout::Kitti;
     let config = filter_config(a, inputs);
+    let particles = particle_count(a, is_kitti);
     println!(
-        "{} particles x {} rays a frame{}",
-        particle_count(a, is_kitti),
+        "{particles} particle{} x {} ray{} a frame{}",
+        if particles == 1 { "" } else { "s" },
         config.sampling.rays,
+        if config.sampling.rays == 1 { "" } else { "s" },
         match (is_kitti, a.particles.is_none() && a.rays.is_none()) {
             _ if a.filter != FilterArg::Auto && a.rays.is_none() => {
                 format!(

@@ -183,9 +183,10 @@ pub fn refuse_replacing_data(outputs: &[(&str, &Path)]) -> anyhow::Result<()> {
 }
 
 /// Refuses a point-cloud output (`option` at `p`) that would replace a
-/// map file, or a LAS/LAZ file that omcl did not write (its header's
-/// generating software): `omcl map export m.omcl -o survey.las` would
-/// have replaced the survey the map came from. An earlier export is
+/// file omcl did not write: a map, a survey (`omcl map export m.omcl -o
+/// survey.las`, or `-o survey.ply` over the PLY the map came from), or
+/// anything else by that name. An earlier export (a LAS whose header names
+/// omcl as its generating software, a PLY with omcl's comment) is
 /// replaced as before.
 pub fn refuse_replacing_survey(option: &str, p: &Path) -> anyhow::Result<()> {
     use std::io::Read;
@@ -197,19 +198,35 @@ pub fn refuse_replacing_survey(option: &str, p: &Path) -> anyhow::Result<()> {
         "{}: {option} would replace a map file (choose another name)",
         p.display()
     );
-    let mut head = [0u8; 90];
-    let read = std::fs::File::open(p).and_then(|mut f| f.read_exact(&mut head));
-    if read.is_ok() && &head[..4] == b"LASF" {
-        let software = String::from_utf8_lossy(&head[58..90]);
-        let software = software.trim_end_matches(['\0', ' ']);
-        anyhow::ensure!(
-            software.starts_with("omcl"),
-            "{}: {option} would replace a LAS file omcl did not write (from {:?}: a survey?); \
-             choose another name",
-            p.display(),
-            software
-        );
-    }
+    let mut head = Vec::new();
+    std::fs::File::open(p)
+        .and_then(|f| f.take(256).read_to_end(&mut head))
+        .map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?;
+    // An empty file (`mktemp`'s) holds nothing to lose.
+    let ours = if head.is_empty() {
+        true
+    } else if head.starts_with(b"LASF") && head.len() >= 90 {
+        String::from_utf8_lossy(&head[58..90]).starts_with("omcl")
+    } else if head.starts_with(b"ply") {
+        let text = String::from_utf8_lossy(&head);
+        text.lines()
+            .take(3)
+            .any(|l| l.trim() == "comment written by omcl")
+    } else {
+        false
+    };
+    anyhow::ensure!(
+        ours,
+        "{}: {option} would replace a file omcl did not write ({}); choose another name",
+        p.display(),
+        if head.starts_with(b"LASF") {
+            "a LAS file: a survey?"
+        } else if head.starts_with(b"ply") {
+            "a PLY file: the cloud the map came from?"
+        } else {
+            "not an export of omcl's"
+        }
+    );
     Ok(())
 }
 

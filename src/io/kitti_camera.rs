@@ -305,7 +305,7 @@ fn check_principal_point(
 /// its header declares), feature grids all of frame 0's shape and not
 /// turned against the camera (a portrait grid for a landscape camera: a
 /// transposed one; any other h x w is taken, each axis stretched).
-fn check_frames(
+pub(crate) fn check_frames(
     folder: &Path,
     input: CameraInput,
     count: usize,
@@ -368,6 +368,26 @@ fn check_frames(
             }
             for i in 1..count {
                 let (p, shape) = npy(i)?;
+                if shape.len() != 3 || shape.contains(&0) {
+                    return Err(CloudError::format(
+                        &p,
+                        format!(
+                            "expected h x w x F features with every size above 0, got {shape:?}"
+                        ),
+                    ));
+                }
+                if shape.len() == 3 && shape[..2] == first[..2] && shape[2] != first[2] {
+                    return Err(CloudError::mismatch(
+                        &p,
+                        format!(
+                            "feature dimension {}, frame 0 ({}) has {}: every frame's features \
+                             have one dimension, the map's",
+                            shape[2],
+                            p0.display(),
+                            first[2]
+                        ),
+                    ));
+                }
                 if shape != first {
                     return Err(CloudError::mismatch(
                         &p,

@@ -354,14 +354,27 @@ impl CameraSequence {
         }
     }
 
-    /// Checks the headers of the first `n` frames before any is localized
-    /// (KITTI folders: [`KittiCameraSequence::check_frames`]), so that a
-    /// bad frame late in a long drive fails the run before the work.
-    pub fn check_frames(&self, n: usize) -> Result<(), SequenceError> {
-        match &self.kitti {
-            Some(k) => Ok(k.check_frames(n)?),
-            None => Ok(()),
+    /// Checks the headers of the first `n` frames of `input` before any is
+    /// localized (KITTI folders: [`KittiCameraSequence::check_frames`]; an
+    /// RGB-D folder's `labels/` or `features/` alike), so that a bad frame
+    /// late in a long sequence fails the run before the work.
+    pub fn check_frames(&self, n: usize, input: CameraInput) -> Result<(), SequenceError> {
+        if let Some(k) = &self.kitti {
+            return Ok(k.check_frames(n)?);
         }
+        // An RGB-D folder's label images and feature grids, by the same
+        // rules (its colour images may be PNG or JPEG: read at their turn).
+        let folder = match input {
+            CameraInput::Labels => &self.labels_dir,
+            CameraInput::Features => &self.features_dir,
+            CameraInput::Images => return Ok(()),
+        };
+        if self.sevenscenes.is_some() || !folder.is_dir() {
+            return Ok(());
+        }
+        let k = &self.intrinsics;
+        crate::io::kitti_camera::check_frames(folder, input, n, (k.width, k.height))?;
+        Ok(())
     }
 
     /// Frames that can be localized: the odometry's, capped by `limit`

@@ -260,29 +260,26 @@ fn geotiff_units(keys: &[u8], doubles: Option<&Vlr>) -> Result<Units, String> {
     } else {
         (3076, "ProjLinearUnitsGeoKey")
     };
-    let xy = match short(unit_key).filter(|&c| c != 0) {
-        Some(32767) => match double(3077).filter(|m| m.is_finite() && *m > 0.0) {
-            Some(m) => Unit {
+    // The horizontal unit, or why it is not known.
+    let xy: Result<Unit, String> = match short(unit_key).filter(|&c| c != 0) {
+        Some(32767) => match double(3077) {
+            Some(m) if m.is_finite() && m > 0.0 => Ok(Unit {
                 metres: m,
                 source: format!("GeoTIFF ProjLinearUnitSizeGeoKey {m}"),
-            },
-            None => {
-                return Ok(Units::Unknown(
-                    "its GeoTIFF CRS has a user-defined linear unit without a size".into(),
-                ));
-            }
+            }),
+            Some(m) => Err(format!(
+                "its GeoTIFF CRS has a user-defined linear unit of size {m} m, not a length"
+            )),
+            None => Err("its GeoTIFF CRS has a user-defined linear unit without a size".into()),
         },
-        Some(code) => epsg_unit(code, unit_key_name)?,
-        None => {
-            let why = match short(3072) {
-                Some(crs) => format!(
-                    "its GeoTIFF CRS (ProjectedCRSGeoKey {crs}) states no linear unit \
-                     (ProjLinearUnitsGeoKey)"
-                ),
-                None => "its GeoTIFF keys state no linear unit".to_string(),
-            };
-            return Ok(Units::Unknown(why));
-        }
+        Some(code) => Ok(epsg_unit(code, unit_key_name)?),
+        None => Err(match short(3072) {
+            Some(crs) => format!(
+                "its GeoTIFF CRS (ProjectedCRSGeoKey {crs}) states no linear unit \
+                 (ProjLinearUnitsGeoKey)"
+            ),
+            None => "its GeoTIFF keys state no linear unit".to_string(),
+        }),
     };
     // A vertical unit omcl does not know leaves z as the horizontal unit,
     // with a remark, rather than refusing a file whose x and y are known.
@@ -296,6 +293,20 @@ fn geotiff_units(keys: &[u8], doubles: Option<&Vlr>) -> Result<Units, String> {
             }
         },
         None => None,
+    };
+    let xy = match (xy, &z) {
+        (Ok(u), _) => u,
+        // x and y unknown, z stated: z still counts in its unit (a file of
+        // an EPSG code and a vertical CRS in feet had its heights read as
+        // metres), x and y are taken as metres, and that is said.
+        (Err(why), Some(_)) => {
+            remarks.push(format!("{why}; x and y were taken as metres"));
+            Unit {
+                metres: 1.0,
+                source: "taken as metres".into(),
+            }
+        }
+        (Err(why), None) => return Ok(Units::Unknown(why)),
     };
     Ok(Units::Stated { xy, z, remarks })
 }
@@ -602,7 +613,8 @@ pub(super) fn describe(header: &Header) -> Option<String> {
     let texts = projection_record(header, 34737);
     let name = [3073, 1026, 2049]
         .into_iter()
-        .find_map(|id| keys.text(id, texts).filter(|t| !t.is_empty()));
+        .find_map(|id| keys.text(id, texts).filter(|t| !t.trim().is_empty()))
+        .map(|t| printable(&t));
     let code = |id: u16| keys.short(id).filter(|c| (1..32767).contains(c));
     let mut codes = Vec::new();
     // A projected CRS's own code; a user-defined one (32767) has none,
@@ -626,6 +638,22 @@ pub(super) fn describe(header: &Header) -> Option<String> {
     })
 }
 
+/// `text` fit for a terminal line: control characters (an escape
+/// sequence, a line break in a citation) as `?`, and at most 200
+/// characters (a 3 MB name was printed whole).
+fn printable(text: &str) -> String {
+    const MAX: usize = 200;
+    let mut out: String = text
+        .chars()
+        .take(MAX)
+        .map(|c| if c.is_control() { '?' } else { c })
+        .collect();
+    if text.chars().nth(MAX).is_some() {
+        out.push_str("...");
+    }
+    out
+}
+
 /// A WKT record's CRS in words: its name and authority code.
 fn describe_wkt(data: &[u8]) -> String {
     let end = data.iter().position(|&b| b == 0).unwrap_or(data.len());
@@ -634,7 +662,7 @@ fn describe_wkt(data: &[u8]) -> String {
     };
     let name = match root.name().trim() {
         "" => root.key().unwrap_or("WKT").to_string(),
-        n => n.to_string(),
+        n => printable(n),
     };
     let code = root.child(&["AUTHORITY", "ID"]).and_then(|id| match id {
         Wkt::Node(_, args) => match (args.first(), args.get(1)) {
@@ -747,6 +775,48 @@ mod tests {
         assert!(
             matches!(u, Units::Unknown(ref why) if why.contains("no length unit")),
             "{u:?}"
+        );
+    }
+
+    #[test]
+    fn a_vertical_unit_counts_when_the_horizontal_one_is_not_stated() {
+        // EPSG 32610 (no ProjLinearUnitsGeoKey), vertical EPSG 5703 in
+        // international feet (VerticalUnitsGeoKey 9002).
+        let keys: Vec<u8> = [
+            1u16, 1, 0, 3, 3072, 0, 1, 32610, 4096, 0, 1, 5703, 4099, 0, 1, 9002,
+        ]
+        .iter()
+        .flat_map(|k| k.to_le_bytes())
+        .collect();
+        let u = geotiff_units(&keys, None).unwrap();
+        let Units::Stated { xy, z, remarks } = u else {
+            panic!("{u:?}")
+        };
+        assert_eq!(xy.metres, 1.0);
+        assert_eq!(z.map(|z| z.metres), Some(0.3048));
+        assert!(
+            remarks.iter().any(|r| r.contains("taken as metres")),
+            "{remarks:?}"
+        );
+        // Without a vertical unit either: unknown, as before.
+        let keys: Vec<u8> = [1u16, 1, 0, 1, 3072, 0, 1, 32610]
+            .iter()
+            .flat_map(|k| k.to_le_bytes())
+            .collect();
+        assert!(matches!(
+            geotiff_units(&keys, None).unwrap(),
+            Units::Unknown(_)
+        ));
+    }
+
+    #[test]
+    fn names_are_printable_and_short() {
+        assert_eq!(printable("evil\x1b[31mRED\r\nX"), "evil?[31mRED??X");
+        let long = "a".repeat(1000);
+        assert_eq!(printable(&long).len(), 203);
+        assert_eq!(
+            printable("UTM sone 32, basert på"),
+            "UTM sone 32, basert på"
         );
     }
 
