@@ -270,10 +270,10 @@ impl TileSource {
 /// records, [`LasChunks::crs_records`]), in words.
 fn crs_difference(a: &[(u16, Vec<u8>)], b: &[(u16, Vec<u8>)]) -> String {
     let what = |id: u16| match id {
-        2112 => "the WKT record 2112",
-        34735 => "the GeoTIFF keys (record 34735)",
-        34736 => "the GeoTIFF doubles (record 34736)",
-        _ => "a projection record",
+        2112 => "the WKT record 2112 differs",
+        34735 => "the GeoTIFF keys (record 34735) differ",
+        34736 => "the GeoTIFF doubles (record 34736) differ",
+        _ => "a projection record differs",
     };
     let ids = |c: &[(u16, Vec<u8>)]| c.iter().map(|(id, _)| *id).collect::<Vec<_>>();
     if ids(a) != ids(b) {
@@ -289,7 +289,7 @@ fn crs_difference(a: &[(u16, Vec<u8>)], b: &[(u16, Vec<u8>)]) -> String {
         .zip(b)
         .find(|(x, y)| x != y)
         .map_or(0, |(x, _)| x.0);
-    format!("{} differs", what(id))
+    what(id).to_string()
 }
 
 /// How the points of a [`TileSource`] are read.
