@@ -362,6 +362,22 @@ fn crs_units_stated_by_wkt_or_geotiff_keys_are_converted() {
             1.0,
             vec![],
         ),
+        // The CRS by its EPSG code alone (as many writers leave it): the
+        // code's unit, z in it too (NAD83 / Texas Central (ftUS)).
+        (
+            "geotiff_code_only.las",
+            vec![geokeys(&[(1024, 0, 1, 1), (3072, 0, 1, 2277)])],
+            US_FOOT,
+            US_FOOT,
+            vec!["US survey feet (GeoTIFF ProjectedCRSGeoKey 2277: EPSG's US survey foot)"],
+        ),
+        (
+            "geotiff_code_only_metres.las",
+            vec![geokeys(&[(1024, 0, 1, 1), (3072, 0, 1, 32633)])],
+            1.0,
+            1.0,
+            vec![],
+        ),
         ("no_crs.las", vec![], 1.0, 1.0, vec![]),
     ];
     for (name, vlrs, xy, z, parts) in cases {

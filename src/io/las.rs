@@ -561,6 +561,7 @@ pub fn unit_words(metres: f64) -> String {
 
 /// The units of a LAS file's coordinates (see the module's own page).
 mod crs;
+mod epsg;
 mod write;
 
 pub use write::{LasPoints, write_las};

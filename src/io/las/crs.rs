@@ -2,8 +2,11 @@
 //! reference system its records state: OGC WKT (`LASF_Projection` record
 //! 2112) or GeoTIFF keys (record 34735, doubles in 34736), the header's
 //! WKT bit choosing when a file has both.
-//! Parsing only: no EPSG database, so a unit must be stated by the file.
+//! Parsing only, no EPSG database: a unit is the file's own, or, for a
+//! GeoTIFF CRS named by its EPSG code alone, the code's unit from the
+//! table in `epsg.rs` (made from EPSG's dataset).
 
+use super::epsg;
 use las::{Header, Vlr};
 
 /// A linear unit and where the file states it.
@@ -260,6 +263,10 @@ fn geotiff_units(keys: &[u8], doubles: Option<&Vlr>) -> Result<Units, String> {
     } else {
         (3076, "ProjLinearUnitsGeoKey")
     };
+    // The unit EPSG gives the projected CRS the keys name, if any.
+    let crs = short(3072).filter(|_| model != Some(3));
+    let implied_xy = crs.and_then(|c| epsg_crs_unit(&epsg::PROJECTED, c, "ProjectedCRSGeoKey"));
+    let mut remarks = Vec::new();
     // The horizontal unit, or why it is not known.
     let xy: Result<Unit, String> = match short(unit_key).filter(|&c| c != 0) {
         Some(32767) => match double(3077) {
@@ -272,27 +279,40 @@ fn geotiff_units(keys: &[u8], doubles: Option<&Vlr>) -> Result<Units, String> {
             )),
             None => Err("its GeoTIFF CRS has a user-defined linear unit without a size".into()),
         },
-        Some(code) => Ok(epsg_unit(code, unit_key_name)?),
-        None => Err(match short(3072) {
+        Some(code) => {
+            let unit = epsg_unit(code, unit_key_name)?;
+            remarks.extend(disagreement(&unit, implied_xy.as_ref()));
+            Ok(unit)
+        }
+        // The CRS's code alone: its unit is EPSG's (most writers state
+        // both, some only the code).
+        None => implied_xy.clone().ok_or_else(|| match short(3072) {
+            Some(32767) => "its GeoTIFF CRS is user-defined (ProjectedCRSGeoKey 32767) \
+                            and states no linear unit (ProjLinearUnitsGeoKey)"
+                .to_string(),
             Some(crs) => format!(
-                "its GeoTIFF CRS (ProjectedCRSGeoKey {crs}) states no linear unit \
-                 (ProjLinearUnitsGeoKey)"
+                "its GeoTIFF ProjectedCRSGeoKey {crs} is not a projected CRS of EPSG's \
+                 dataset and it states no linear unit (ProjLinearUnitsGeoKey)"
             ),
             None => "its GeoTIFF keys state no linear unit".to_string(),
         }),
     };
     // A vertical unit omcl does not know leaves z as the horizontal unit,
     // with a remark, rather than refusing a file whose x and y are known.
-    let mut remarks = Vec::new();
+    let implied_z =
+        short(4096).and_then(|c| epsg_crs_unit(&epsg::VERTICAL, c, "VerticalCSTypeGeoKey"));
     let z = match short(4099).filter(|&c| c != 0) {
         Some(code) => match epsg_unit(code, "VerticalUnitsGeoKey") {
-            Ok(u) => Some(u),
+            Ok(u) => {
+                remarks.extend(disagreement(&u, implied_z.as_ref()));
+                Some(u)
+            }
             Err(e) => {
                 remarks.push(format!("{e}; z taken in the horizontal unit"));
                 None
             }
         },
-        None => None,
+        None => implied_z,
     };
     let xy = match (xy, &z) {
         (Ok(u), _) => u,
@@ -309,6 +329,40 @@ fn geotiff_units(keys: &[u8], doubles: Option<&Vlr>) -> Result<Units, String> {
         (Err(why), None) => return Ok(Units::Unknown(why)),
     };
     Ok(Units::Stated { xy, z, remarks })
+}
+
+/// The unit EPSG gives the CRS of `code` (a projected or vertical one,
+/// per `table`), named by GeoTIFF key `key`; `None` for a code EPSG does
+/// not have (a user-defined 32767, an ESRI code).
+fn epsg_crs_unit(table: &[(u16, u16, u8)], code: u16, key: &str) -> Option<Unit> {
+    let i = table.partition_point(|&(_, last, _)| last < code);
+    let &(first, _, unit) = table.get(i).filter(|&&(first, _, _)| first <= code)?;
+    debug_assert!(first <= code);
+    let (name, metres) = epsg::UNITS[usize::from(unit)];
+    // The factor GeoTIFF's own unit code gives, where one does (PROJ's US
+    // survey foot is 1200/3937 but for the last bit): a file stating
+    // `ProjLinearUnitsGeoKey 9003` and one leaving it to the code agree.
+    let metres = EPSG_UNITS
+        .iter()
+        .map(|&(_, m, _)| m)
+        .find(|&m| same_factor(m, metres))
+        .unwrap_or(metres);
+    Some(Unit {
+        metres,
+        source: format!("GeoTIFF {key} {code}: EPSG's {name}"),
+    })
+}
+
+/// A remark when a unit key and the unit EPSG gives the named CRS
+/// differ: the key is followed, as GDAL and libgeotiff do.
+fn disagreement(key: &Unit, implied: Option<&Unit>) -> Option<String> {
+    let implied = implied.filter(|i| !same_factor(i.metres, key.metres))?;
+    Some(format!(
+        "{} ({}) disagrees with {}; the unit key was followed",
+        key.source,
+        unit_words(key.metres),
+        implied.source
+    ))
 }
 
 fn epsg_unit(code: u16, key: &str) -> Result<Unit, String> {
@@ -778,16 +832,17 @@ mod tests {
         );
     }
 
+    fn key_bytes(words: &[u16]) -> Vec<u8> {
+        words.iter().flat_map(|k| k.to_le_bytes()).collect()
+    }
+
     #[test]
     fn a_vertical_unit_counts_when_the_horizontal_one_is_not_stated() {
-        // EPSG 32610 (no ProjLinearUnitsGeoKey), vertical EPSG 5703 in
-        // international feet (VerticalUnitsGeoKey 9002).
-        let keys: Vec<u8> = [
-            1u16, 1, 0, 3, 3072, 0, 1, 32610, 4096, 0, 1, 5703, 4099, 0, 1, 9002,
-        ]
-        .iter()
-        .flat_map(|k| k.to_le_bytes())
-        .collect();
+        // A user-defined CRS (no ProjLinearUnitsGeoKey), vertical EPSG 5703
+        // in international feet (VerticalUnitsGeoKey 9002).
+        let keys = key_bytes(&[
+            1u16, 1, 0, 3, 3072, 0, 1, 32767, 4096, 0, 1, 5703, 4099, 0, 1, 9002,
+        ]);
         let u = geotiff_units(&keys, None).unwrap();
         let Units::Stated { xy, z, remarks } = u else {
             panic!("{u:?}")
@@ -798,15 +853,80 @@ mod tests {
             remarks.iter().any(|r| r.contains("taken as metres")),
             "{remarks:?}"
         );
+        // EPSG 5703 is in metres: the key and the code disagree, said.
+        assert!(
+            remarks.iter().any(|r| r.contains(
+                "VerticalUnitsGeoKey 9002 (international feet) disagrees with \
+                 GeoTIFF VerticalCSTypeGeoKey 5703: EPSG's metre"
+            )),
+            "{remarks:?}"
+        );
         // Without a vertical unit either: unknown, as before.
-        let keys: Vec<u8> = [1u16, 1, 0, 1, 3072, 0, 1, 32610]
-            .iter()
-            .flat_map(|k| k.to_le_bytes())
-            .collect();
+        let keys = key_bytes(&[1u16, 1, 0, 1, 3072, 0, 1, 32767]);
         assert!(matches!(
             geotiff_units(&keys, None).unwrap(),
-            Units::Unknown(_)
+            Units::Unknown(ref why) if why.contains("user-defined")
         ));
+        // A code EPSG does not have (ESRI's 102100), likewise.
+        let keys = key_bytes(&[1u16, 1, 0, 1, 3072, 0, 1, 40000]);
+        assert!(matches!(
+            geotiff_units(&keys, None).unwrap(),
+            Units::Unknown(ref why) if why.contains("40000 is not a projected CRS")
+        ));
+    }
+
+    #[test]
+    fn a_crs_named_by_its_epsg_code_alone_has_the_code_s_unit() {
+        let stated = |words: &[u16]| match geotiff_units(&key_bytes(words), None).unwrap() {
+            Units::Stated { xy, z, remarks } => (xy, z, remarks),
+            u => panic!("{u:?}"),
+        };
+        // NAD83 / California zone 3 (ftUS), no unit key: US survey feet,
+        // z in them too (no vertical CRS).
+        let (xy, z, remarks) = stated(&[1, 1, 0, 2, 1024, 0, 1, 1, 3072, 0, 1, 2227]);
+        assert_eq!(xy.metres, 1200.0 / 3937.0);
+        assert_eq!(
+            xy.source,
+            "GeoTIFF ProjectedCRSGeoKey 2227: EPSG's US survey foot"
+        );
+        assert!(z.is_none() && remarks.is_empty(), "{z:?} {remarks:?}");
+        let ([h, v], notes) = to_metres("a.las", &Units::Stated { xy, z, remarks });
+        assert_eq!([h, v], [1200.0 / 3937.0; 2]);
+        assert_eq!(
+            notes,
+            [
+                "a.las: coordinates in US survey feet (GeoTIFF ProjectedCRSGeoKey 2227: \
+              EPSG's US survey foot) converted to metres"
+            ]
+        );
+        // Arizona Central (ft): international feet; UTM 10N: metres.
+        assert_eq!(stated(&[1, 1, 0, 1, 3072, 0, 1, 2223]).0.metres, 0.3048);
+        assert_eq!(stated(&[1, 1, 0, 1, 3072, 0, 1, 32610]).0.metres, 1.0);
+        // NAVD88 height (ftUS), EPSG 6360, without VerticalUnitsGeoKey.
+        let (xy, z, _) = stated(&[1, 1, 0, 2, 3072, 0, 1, 26910, 4096, 0, 1, 6360]);
+        assert_eq!(
+            (xy.metres, z.map(|z| z.metres)),
+            (1.0, Some(1200.0 / 3937.0))
+        );
+        // A unit key that contradicts the code is followed, with a remark.
+        let (xy, _, remarks) = stated(&[1, 1, 0, 2, 3072, 0, 1, 2227, 3076, 0, 1, 9001]);
+        assert_eq!(xy.metres, 1.0);
+        assert_eq!(
+            remarks,
+            [
+                "GeoTIFF ProjLinearUnitsGeoKey 9001 (metres) disagrees with GeoTIFF \
+              ProjectedCRSGeoKey 2227: EPSG's US survey foot; the unit key was followed"
+            ]
+        );
+        // The table's edges: its first and last runs, codes between runs.
+        assert!(epsg_crs_unit(&epsg::PROJECTED, epsg::PROJECTED[0].0, "k").is_some());
+        let last = epsg::PROJECTED[epsg::PROJECTED.len() - 1].1;
+        assert!(epsg_crs_unit(&epsg::PROJECTED, last, "k").is_some());
+        assert!(epsg_crs_unit(&epsg::PROJECTED, last + 1, "k").is_none());
+        assert!(epsg_crs_unit(&epsg::PROJECTED, 0, "k").is_none());
+        assert!(epsg_crs_unit(&epsg::PROJECTED, 2008, "k").is_none());
+        assert!(epsg::PROJECTED.windows(2).all(|w| w[0].1 < w[1].0));
+        assert!(epsg::VERTICAL.windows(2).all(|w| w[0].1 < w[1].0));
     }
 
     #[test]
