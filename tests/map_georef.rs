@@ -201,6 +201,18 @@ fn geotiff_keys_in_metres_come_back_with_the_export() {
         assert!(r.stderr.contains("omcl did not write"), "{}", r.text());
         assert_eq!(std::fs::read(target).unwrap(), before);
     }
+    // A name of another format is refused, not given a PLY.
+    for (name, words) in [
+        ("heat.txt", "names a .txt file"),
+        ("heat", "has no extension"),
+    ] {
+        let target = dir.path().join(name);
+        let r = export(&map, &target);
+        assert_eq!(r.code, Some(1), "{}", r.text());
+        assert!(r.stderr.contains(words), "{}", r.text());
+        assert!(r.stderr.contains(".ply, .las or .laz"), "{}", r.text());
+        assert!(!target.exists());
+    }
     // An earlier PLY export is replaced.
     let mine = dir.path().join("mine.ply");
     assert!(export(&map, &mine).ok());

@@ -923,8 +923,8 @@ pub struct QueryArgs {
     pub words: Vec<String>,
     #[command(flatten)]
     pub source: WordSource,
-    /// The file to write: PLY (voxel centres coloured blue to red), or
-    /// LAS/LAZ by its name (`.las`, `.laz`): the same in the survey's CRS
+    /// The file to write, in the format its name says: `.ply` (voxel
+    /// centres coloured blue to red), or `.las`/`.laz`: the same in the survey's CRS
     /// and units (a map built from LAS keeps them), the similarity as
     /// intensity (0-65535 for 0-1) and the feature row as point source id.
     #[arg(long, short)]
@@ -989,6 +989,7 @@ pub fn query(a: &QueryArgs) -> anyhow::Result<()> {
     inputs.extend(a.source.inputs());
     super::outputs::refuse_overlaps(&[("--out", &a.out)], &inputs)?;
     super::outputs::refuse_replacing_survey("--out", &a.out)?;
+    super::outputs::check_cloud_name("--out", &a.out)?;
     let m = map::load(&a.map)?;
     let words = parse_words(&a.words, None)?;
     let prompts = a.source.features(&words, m.db().dim())?;
@@ -1014,9 +1015,9 @@ pub fn query(a: &QueryArgs) -> anyhow::Result<()> {
 pub struct ExportArgs {
     /// The map to export.
     pub map: PathBuf,
-    /// The file to write: PLY (voxel centres coloured by feature row, the
-    /// row also as the `label` property), or LAS/LAZ by its name (`.las`,
-    /// `.laz`): the same in the survey's CRS and units (a map built from
+    /// The file to write, in the format its name says: `.ply` (voxel
+    /// centres coloured by feature row, the row also as the `label`
+    /// property), or `.las`/`.laz`: the same in the survey's CRS and units (a map built from
     /// LAS keeps them), the row as point source id.
     #[arg(long, short)]
     pub out: PathBuf,
@@ -1025,6 +1026,7 @@ pub struct ExportArgs {
 pub fn export(a: &ExportArgs) -> anyhow::Result<()> {
     super::outputs::refuse_overlaps(&[("--out", &a.out)], &[("the map", &a.map)])?;
     super::outputs::refuse_replacing_survey("--out", &a.out)?;
+    super::outputs::check_cloud_name("--out", &a.out)?;
     let m = map::load(&a.map)?;
     let cols = m.rows().iter().map(|&r| colors::row_color(r)).collect();
     write_voxels(&a.out, &m, cols, None)?;

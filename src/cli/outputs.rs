@@ -182,6 +182,28 @@ pub fn refuse_replacing_data(outputs: &[(&str, &Path)]) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A cloud `map query` or `map export` writes is PLY, LAS or LAZ, as its
+/// name says: another name (`heat.txt`, `heat`) is refused rather than
+/// given a PLY the reader did not ask for.
+pub fn check_cloud_name(option: &str, p: &Path) -> anyhow::Result<()> {
+    let ext = p
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    match ext.as_deref() {
+        Some("ply" | "las" | "laz") => Ok(()),
+        Some(e) => anyhow::bail!(
+            "{}: {option} names a .{e} file; omcl writes clouds as .ply, .las or .laz, \
+             the format the name says",
+            p.display()
+        ),
+        None => anyhow::bail!(
+            "{}: {option} has no extension; name it .ply, .las or .laz (the format \
+             the name says)",
+            p.display()
+        ),
+    }
+}
+
 /// Refuses a point-cloud output (`option` at `p`) that would replace a
 /// file omcl did not write: a map, a survey (`omcl map export m.omcl -o
 /// survey.las`, or `-o survey.ply` over the PLY the map came from), or
