@@ -4,11 +4,9 @@ mod cli;
 
 use std::process::ExitCode;
 
-use clap::Parser;
-
 fn main() -> ExitCode {
     quiet_contained_panics();
-    let args = cli::Cli::parse();
+    let args = cli::parse();
     if !args.handles_signals() {
         clean_up_on_interrupt();
     }
@@ -157,8 +155,7 @@ mod tests {
     /// --release` would pass this vacuously).
     #[test]
     fn every_command_line_is_well_formed() {
-        use clap::CommandFactory;
-        super::cli::Cli::command().debug_assert();
+        super::cli::command().debug_assert();
     }
 
     #[test]

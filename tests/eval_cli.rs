@@ -331,8 +331,8 @@ fn times_files_pair_kitti_poses_and_shared_stamps_are_named() {
         })
         .collect();
     std::fs::write(&coarse, rounded).unwrap();
-    // Pairing with itself pairs every pose with the first of its stamp,
-    // as evo does (real files have a few: TUM fr2/desk's ground truth),
+    // Pairing with itself pairs every pose with the last of its stamp,
+    // as evo 1.38.1 does (real files have a few: TUM fr2/desk's ground truth),
     // and says so, with the hint that so many mean too few digits.
     let (code, text) = run(&[coarse.as_os_str(), coarse.as_os_str()]);
     assert_eq!(code, Some(0), "{text}");
@@ -388,6 +388,54 @@ fn options_that_cannot_work_are_refused_before_any_output() {
         "{stderr}"
     );
     assert!(!stdout.contains("rmse") && !saved.exists(), "{stdout}");
+    // A negative number reaches the option's own check (clap had said
+    // "unexpected argument '-1'" with a tip to write `-- -1`), and a bound
+    // of any f64 is not printed as 309 digits.
+    let (code, _, stderr) = run(&["--t-max-diff", "-1"]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("--t-max-diff") && stderr.contains("-1 is out of range"),
+        "{stderr}"
+    );
+    let (code, _, stderr) = run(&["--t-offset", "inf"]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("inf is not a finite number") && stderr.len() < 200,
+        "{stderr}"
+    );
+}
+
+/// An SE(3) fit of a trajectory shifted by a constant 1 m: error 0 after
+/// alignment, and the alignment's rotation printed as 0 degrees (its
+/// trace a hair over 3 had printed NaN).
+#[test]
+fn a_shifted_copy_aligns_to_zero_with_a_rotation_of_zero_degrees() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, shift: f64| {
+        let p = dir.path().join(name);
+        let text: String = (0..20)
+            .map(|i| {
+                let a = i as f64 * 0.3;
+                format!("{i} {} {} {} 0 0 0 1\n", a.cos() + shift, a.sin(), 0.1 * a)
+            })
+            .collect();
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let (r, e) = (write("ref.txt", 0.0), write("est.txt", 1.0));
+    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(["eval", "ape"])
+        .args([&r, &e])
+        .args(["--align", "se3"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{out:?}");
+    assert!(
+        stdout.contains("rotation 0.0000 deg") && !stdout.contains("NaN"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("translation [-1.0000, "), "{stdout}");
 }
 
 /// A rigid alignment fitted to nearly collinear positions (three poses of a

@@ -347,14 +347,14 @@ fn load_pair(args: &PairArgs) -> anyhow::Result<Paired> {
     let (reference_poses, estimate_poses) = (reference.trajectory.len(), estimate.trajectory.len());
     let estimate_format = estimate.format;
     if ref_stamped && est_stamped {
-        // Repeated stamps pair with the first of each group, as in evo:
+        // Repeated stamps pair with the last of each group, as in evo 1.38.1:
         // said, since many of them mean a file written with too few digits.
         for (file, path) in [(&reference, &args.reference), (&estimate, &args.estimate)] {
             if let Some((n, first, stamp)) = repeated_stamps(&file.trajectory) {
                 eprintln!(
                     "note: {}: {n} poses repeat the time stamp of the pose before (the first: \
-                     pose {}, {stamp} s); each pairs by time as the first of its stamp does, \
-                     as in evo{}",
+                     pose {}, {stamp} s); time pairing takes the last pose of a \
+                     stamp, as evo 1.38.1 does{}",
                     path.display(),
                     first + 1,
                     if n * 10 > file.trajectory.len() {
@@ -465,7 +465,7 @@ fn print_errors(
             sim.translation.x,
             sim.translation.y,
             sim.translation.z,
-            sim.rotation.angle().to_degrees()
+            sim.rotation_angle().to_degrees()
         ),
     }
     let s = &errors.stats;

@@ -21,6 +21,33 @@ pub mod sweep;
 
 use clap::{Parser, Subcommand};
 
+/// The command line as parsed: [`Cli`]'s, with every option and argument
+/// that takes a value allowed to take a negative number, so `--delta -1`
+/// reaches the option's own check ("out of range") instead of clap's
+/// "unexpected argument '-1'" and its tip to write `-- -1`.
+pub fn command() -> clap::Command {
+    fn negatives(c: clap::Command) -> clap::Command {
+        c.mut_args(|a| {
+            if a.get_action().takes_values() {
+                a.allow_negative_numbers(true)
+            } else {
+                a
+            }
+        })
+        .mut_subcommands(negatives)
+    }
+    use clap::CommandFactory;
+    negatives(Cli::command())
+}
+
+/// Parses the process's arguments with [`command`]; on an error prints
+/// clap's message and exits as clap does (2).
+pub fn parse() -> Cli {
+    use clap::FromArgMatches;
+    let mut matches = command().get_matches();
+    Cli::from_arg_matches_mut(&mut matches).unwrap_or_else(|e| e.format(&mut command()).exit())
+}
+
 /// Open-vocabulary Monte Carlo Localization: build language maps from RGB-D
 /// frames or point clouds, localize cameras in them, and evaluate.
 #[derive(Debug, Parser)]
@@ -116,11 +143,19 @@ pub fn seconds(s: &str) -> Result<f64, String> {
 
 fn finite_in(s: &str, lo: f64, hi: f64) -> Result<f64, String> {
     let v: f64 = s.trim().parse().map_err(|e| format!("{e}"))?;
-    if v.is_finite() && (lo..=hi).contains(&v) {
-        Ok(v)
-    } else {
-        Err(format!("{v} is not a finite number in {lo}..={hi}"))
+    if !v.is_finite() {
+        return Err(format!("{} is not a finite number", s.trim()));
     }
+    if (lo..=hi).contains(&v) {
+        return Ok(v);
+    }
+    // f64::MIN and f64::MAX print as 309 digits: no bound at all.
+    Err(match (lo > f64::MIN, hi < f64::MAX) {
+        (true, true) => format!("{v} is out of range: {lo}..={hi} is accepted"),
+        (true, false) => format!("{v} is out of range: {lo} or more is accepted"),
+        (false, true) => format!("{v} is out of range: {hi} or less is accepted"),
+        (false, false) => unreachable!("every finite number is in range"),
+    })
 }
 
 /// Most frames a simulated sequence or path may have (`omcl sim`, `omcl

@@ -34,6 +34,15 @@ pub struct Similarity {
 }
 
 impl Similarity {
+    /// The rotation's angle in radians, 0 for a rotation that rounding put
+    /// a hair past the identity (nalgebra's `Rotation3::angle` takes the
+    /// arc cosine of a trace over 3 there: NaN).
+    pub fn rotation_angle(&self) -> f64 {
+        ((self.rotation.matrix().trace() - 1.0) / 2.0)
+            .clamp(-1.0, 1.0)
+            .acos()
+    }
+
     /// The identity transform.
     pub fn identity() -> Self {
         Similarity {
@@ -246,6 +255,20 @@ mod tests {
         let expected = Matrix3::new(0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
         assert!((sim.rotation.matrix() - expected).abs().max() < 1e-12);
         assert!((sim.translation - Vector3::new(1.0, 1.0, 0.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn the_rotation_angle_is_a_number_a_hair_past_the_identity() {
+        let mut sim = Similarity::identity();
+        // As an SE(3) fit of a pure shift left it (trace 3 + 1e-15).
+        sim.rotation =
+            Rotation3::from_matrix_unchecked(Matrix3::from_diagonal_element(1.0000000000000007));
+        assert!(sim.rotation.angle().is_nan());
+        assert_eq!(sim.rotation_angle(), 0.0);
+        sim.rotation = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.5);
+        assert!((sim.rotation_angle() - 0.5).abs() < 1e-12);
+        sim.rotation = Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
+        assert!((sim.rotation_angle() - std::f64::consts::PI).abs() < 1e-7);
     }
 
     #[test]

@@ -52,7 +52,9 @@ pub fn matching_time_indices(
 /// first such pose (0-based) with its stamp; `None` when every stamp is
 /// distinct. Real files have them (TUM fr2/desk's ground truth, written
 /// to 0.1 ms, has some); a file written with too few digits has many,
-/// and time pairing then takes the first of each group, as evo does.
+/// and time pairing then takes the last of each group, as evo 1.38.1
+/// does (numpy's `searchsorted(side="right")`, the nearer neighbour below
+/// winning ties).
 pub fn repeated_stamps(t: &Trajectory) -> Option<(usize, usize, f64)> {
     let s = t.stamps();
     let first = s.windows(2).position(|w| w[0] == w[1])?;
@@ -67,7 +69,7 @@ pub fn repeated_stamps(t: &Trajectory) -> Option<(usize, usize, f64)> {
 ///
 /// As in evo, the shorter trajectory is the one walked through, so that none
 /// of its poses is lost to a neighbour's better match. Poses sharing a
-/// stamp pair as evo pairs them: with the first of them
+/// stamp pair as evo 1.38.1 pairs them: with the last of them
 /// ([`repeated_stamps`] finds them, for a caller to say so).
 pub fn associate(
     first: &Trajectory,
@@ -121,15 +123,24 @@ mod tests {
     }
 
     #[test]
-    fn repeated_stamps_are_counted_and_pair_with_the_first() {
+    fn repeated_stamps_are_counted_and_pair_with_the_last() {
         let a = traj(&[0.0, 0.1, 0.2]);
-        let b = traj(&[0.0, 0.1, 0.1, 0.1, 0.2]);
+        // Poses of one stamp told apart by y.
+        let stamps = [0.0, 0.1, 0.1, 0.1, 0.2];
+        let poses = (0..5)
+            .map(|i| {
+                let t = Translation3::new(stamps[i], i as f64, 0.0);
+                Pose::from_parts(t, UnitQuaternion::identity())
+            })
+            .collect();
+        let b = Trajectory::new(stamps.to_vec(), poses).unwrap();
         assert_eq!(repeated_stamps(&a), None);
         assert_eq!(repeated_stamps(&b), Some((2, 2, 0.1)));
-        // As evo: the pose at 0.1 of `a` pairs with the first 0.1 of `b`.
+        // As evo 1.38.1: the pose at 0.1 of `a` pairs with the last 0.1
+        // of `b`, its fourth pose.
         let (ra, rb) = associate(&a, &b, 0.01, 0.0).unwrap();
         assert_eq!(ra.len(), 3);
-        assert_eq!(rb.poses()[1], b.poses()[1]);
+        assert_eq!(rb.poses()[1], b.poses()[3]);
     }
 
     #[test]
