@@ -397,3 +397,88 @@ fn a_survey_without_crs_stays_a_local_frame() {
     assert!(crs_records(&out).is_empty());
     assert_voxels_in_survey_units(&out, &map, [1.0, 1.0]);
 }
+
+/// A map built on the built-in ASPRS list names its rows' classes in `map
+/// info`, and its LAS export carries them as classification: every voxel
+/// whose survey points are of one class gets that class, a voxel of
+/// several classes (its row a mix) one of them, and a note counts those.
+#[test]
+fn asprs_classes_are_named_and_exported_as_classification() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = shared("las/32-1-472-150-76.laz");
+    let map = dir.path().join("m.omcl");
+    build(&src, &map);
+    let i = info(&map);
+    let named: Vec<(u64, String)> = i["top_row_classes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|r| r["classes"].as_array().unwrap().clone())
+        .map(|c| {
+            (
+                c["id"].as_u64().unwrap(),
+                c["name"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect();
+    let mut ids: Vec<u64> = named.iter().map(|c| c.0).collect();
+    ids.sort();
+    // The survey holds classes 1, 2, 9 and 7 (noise, left out of maps).
+    assert_eq!(ids, [1, 2, 9], "{named:?}");
+    assert!(named.contains(&(9, "water".into())), "{named:?}");
+
+    // The survey's classes by voxel (metres: no unit conversion).
+    let origin: Vec<f64> = i["origin_m"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let key = |p: [f64; 3]| -> [i64; 3] {
+        std::array::from_fn(|a| ((p[a] - origin[a]) / 0.5).floor() as i64)
+    };
+    let mut truth: BTreeMap<[i64; 3], std::collections::BTreeSet<u8>> = BTreeMap::new();
+    for p in las_points(&src).1 {
+        let c = u8::from(p.classification);
+        if c != 7 {
+            truth.entry(key([p.x, p.y, p.z])).or_default().insert(c);
+        }
+    }
+    let out = dir.path().join("e.las");
+    let r = export(&map, &out);
+    assert!(r.ok(), "{}", r.text());
+    let pts = assert_voxels_in_survey_units(&out, &map, [1.0, 1.0]);
+    let (mut single, mut several) = (0, 0);
+    for p in &pts {
+        let c = u8::from(p.classification);
+        let want = &truth[&key([p.x, p.y, p.z])];
+        assert!(
+            want.contains(&c),
+            "voxel of classes {want:?} exported as {c}"
+        );
+        if want.len() == 1 {
+            single += 1;
+        } else {
+            several += 1;
+        }
+    }
+    assert_eq!(single + several, pts.len());
+    assert!(single > 4000 && several > 0, "{single} {several}");
+    // The note counts the voxels of a mixed row: at most those of several
+    // classes (a voxel of a few points of a second class can stay within
+    // tau of the first's row).
+    let mixed: usize = r
+        .stderr
+        .split("note: ")
+        .find_map(|n| {
+            n.split_once(" of ")
+                .map(|(a, _)| a.rsplit(' ').next().unwrap().to_string())
+        })
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{}", r.text()));
+    assert!(
+        mixed > 0 && mixed <= several,
+        "{mixed} of {several}: {}",
+        r.text()
+    );
+}

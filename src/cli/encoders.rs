@@ -98,6 +98,89 @@ pub fn class_list(
     Ok((None, ids, names))
 }
 
+/// What a feature row of a map in a built-in class list's space stands
+/// for, as `omcl map info` and the LAS exports say it.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RowClasses {
+    /// The classes whose feature is this row's (within tau).
+    pub classes: Vec<ClassRef>,
+    /// For a row of no class (a voxel that held points of several: their
+    /// mean): the nearest class and its cosine similarity.
+    pub nearest: Option<NearestClass>,
+}
+
+/// A class of a list: its id (the code in label files) and name.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct ClassRef {
+    pub id: u32,
+    pub name: String,
+}
+
+/// The class nearest a row, and how near (cosine similarity).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct NearestClass {
+    pub id: u32,
+    pub name: String,
+    pub similarity: f32,
+}
+
+impl RowClasses {
+    /// The class code a LAS export gives the row's voxels: its class, or
+    /// the nearest one for a mix.
+    pub fn code(&self) -> Option<u32> {
+        self.classes
+            .first()
+            .map(|c| c.id)
+            .or(self.nearest.as_ref().map(|n| n.id))
+    }
+}
+
+/// The classes each feature row of `map` stands for, when the map is in a
+/// built-in class list's feature space (its encoder is
+/// `omcl-builtin-<list>`, as `map cloud --classes asprs` writes it): the
+/// list, and every row's [`RowClasses`]. `None` for any other map: its
+/// rows' classes are not known.
+pub fn builtin_row_classes(
+    map: &omcl::map::LanguageMap,
+) -> anyhow::Result<Option<(BuiltinClasses, Vec<RowClasses>)>> {
+    let Some(set) = map
+        .encoder()
+        .strip_prefix("omcl-builtin-")
+        .and_then(BuiltinClasses::from_name)
+    else {
+        return Ok(None);
+    };
+    let sim = omcl::sim::files::builtin_table()?;
+    let table = omcl::sim::embeddings::builtin_label_table(set, &sim)?;
+    if table.dim != map.db().dim() {
+        return Ok(None);
+    }
+    let classes = omcl::map::FeatureDb::from_rows(table.dim, 0.0, table.data.clone())?;
+    let rows = omcl::map::classes_of_rows(map.db(), &classes)?;
+    let class = |c: usize| ClassRef {
+        id: table.ids[c],
+        name: table.names[c].clone(),
+    };
+    let mut named = Vec::with_capacity(rows.len());
+    for (r, cs) in rows.into_iter().enumerate() {
+        let nearest = match cs.is_empty() {
+            true => classes
+                .nearest(map.db().row(r))?
+                .map(|(c, similarity)| NearestClass {
+                    id: table.ids[c],
+                    name: table.names[c].clone(),
+                    similarity,
+                }),
+            false => None,
+        };
+        named.push(RowClasses {
+            classes: cs.into_iter().map(class).collect(),
+            nearest,
+        });
+    }
+    Ok(Some((set, named)))
+}
+
 /// A class list with one feature row per class, as the commands take it:
 /// `classes` is a class-list file or a built-in list's name (`semantickitti`,
 /// `asprs`; a file of that name wins); the rows come from `embeddings`

@@ -116,6 +116,10 @@ pub struct MapInfo {
     pub bounds_max_m: Option<[f64; 3]>,
     pub memory_bytes: usize,
     pub top_rows: Vec<(usize, usize)>,
+    /// For a map in a built-in class list's feature space: the classes
+    /// each of `top_rows` stands for, in its order.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub top_row_classes: Option<Vec<super::encoders::RowClasses>>,
     pub unused_rows: usize,
     /// The survey's CRS, for a map built from one that states it.
     pub crs: Option<CrsInfo>,
@@ -145,6 +149,8 @@ pub fn map_info(path: &std::path::Path, map: &LanguageMap, top: usize) -> anyhow
     ranked.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
     let unused_rows = counts.iter().filter(|&&c| c == 0).count();
     ranked.truncate(top);
+    let top_row_classes = super::encoders::builtin_row_classes(map)?
+        .map(|(_, rows)| ranked.iter().map(|&(r, _)| rows[r].clone()).collect());
     Ok(MapInfo {
         file: path.display().to_string(),
         file_bytes: std::fs::metadata(path).map(|m| m.len()).unwrap_or(0),
@@ -161,6 +167,7 @@ pub fn map_info(path: &std::path::Path, map: &LanguageMap, top: usize) -> anyhow
         bounds_max_m: bounds.map(|b| b.1),
         memory_bytes: map.memory_bytes(),
         top_rows: ranked,
+        top_row_classes,
         unused_rows,
         crs: map.georef().map(|g| {
             let ids: Vec<u16> = g.records.iter().map(|r| r.0).collect();
@@ -293,10 +300,28 @@ pub fn render_info(i: &MapInfo) -> String {
         i.memory_bytes as f64 / i.leaves.max(1) as f64
     );
     let _ = writeln!(s, "rows by use  (row: voxels)  {} unused", i.unused_rows);
-    for (r, n) in &i.top_rows {
+    for (k, (r, n)) in i.top_rows.iter().enumerate() {
+        // The classes a row stands for, for a built-in class list's map.
+        let classes = i.top_row_classes.as_ref().map_or(String::new(), |c| {
+            let c = &c[k];
+            match (&c.classes[..], &c.nearest) {
+                ([], Some(n)) => format!(
+                    "  a mix of classes; nearest {} ({}), similarity {:.2}",
+                    n.name, n.id, n.similarity
+                ),
+                ([], None) => String::new(),
+                (named, _) => {
+                    let words: Vec<String> = named
+                        .iter()
+                        .map(|c| format!("{} ({})", c.name, c.id))
+                        .collect();
+                    format!("  {}", words.join(", "))
+                }
+            }
+        });
         let _ = writeln!(
             s,
-            "  {r:>6}: {n:>9} ({:.1} %)",
+            "  {r:>6}: {n:>9} ({:.1} %){classes}",
             100.0 * *n as f64 / i.leaves.max(1) as f64
         );
     }

@@ -940,6 +940,45 @@ fn voxel_cloud(m: &LanguageMap, colors: Vec<[u8; 3]>) -> PointCloud {
     cloud
 }
 
+/// The ASPRS class code of every voxel of `m`, for a map built on the
+/// built-in `asprs` list's features (`map cloud --classes asprs`): its
+/// row's class, or for a row that mixes classes (a voxel that held points
+/// of several) the nearest class, which a note says. `None` for any other
+/// map (its LAS export leaves classification 0, "never classified").
+fn asprs_classification(out: &Path, m: &LanguageMap) -> anyhow::Result<Option<Vec<u8>>> {
+    let Some((omcl::io::labels::BuiltinClasses::Asprs, rows)) =
+        super::encoders::builtin_row_classes(m)?
+    else {
+        return Ok(None);
+    };
+    // ASPRS codes fit LAS's legacy 5 bits (the built-in list ends at 22).
+    let codes: Vec<u8> = rows
+        .iter()
+        .map(|r| {
+            r.code()
+                .and_then(|c| u8::try_from(c).ok())
+                .filter(|&c| c < 32)
+        })
+        .map(|c| c.unwrap_or(0))
+        .collect();
+    let counts = m.row_counts();
+    let mixed: usize = rows
+        .iter()
+        .zip(&counts)
+        .filter(|(r, _)| r.classes.is_empty())
+        .map(|(_, &n)| n)
+        .sum();
+    if mixed > 0 {
+        eprintln!(
+            "note: {}: {mixed} of {} voxels held points of several classes (their feature a \
+             mix): each is classified as the class nearest its feature",
+            out.display(),
+            m.len()
+        );
+    }
+    Ok(Some(m.rows().iter().map(|&r| codes[r as usize]).collect()))
+}
+
 /// Writes the voxel centres of `m` with `colors` to `out`: LAS/LAZ (by
 /// its name) in the survey's CRS and units, the feature row as point
 /// source id (when rows fit 16 bits) and `intensity` if given; else PLY,
@@ -968,6 +1007,7 @@ fn write_voxels(
             intensity,
             source_id: (m.db().len() <= 1 << 16)
                 .then(|| m.rows().iter().map(|&r| r as u16).collect()),
+            classification: asprs_classification(out, m)?,
         };
         omcl::io::las::write_las(out, &pts, m.georef())?;
         return Ok(());

@@ -67,11 +67,55 @@ pub fn ground(
     Ok(report)
 }
 
+/// Which of `classes` (one row a class, in the map's feature space) each
+/// row of `db` stands for: a class's feature goes to its nearest row when
+/// within the database's tau of it, as building the map admitted it, so a
+/// row can stand for several classes (SemanticKITTI's moving car shares
+/// the car's feature) or none (a row of another origin). Indices into
+/// `classes`, ascending, for every row of `db`.
+pub fn classes_of_rows(db: &FeatureDb, classes: &FeatureDb) -> Result<Vec<Vec<usize>>, MapError> {
+    if classes.dim() != db.dim() {
+        return Err(MapError::Features(
+            super::features::FeatureDbError::DimMismatch {
+                expected: db.dim(),
+                got: classes.dim(),
+            },
+        ));
+    }
+    let mut out = vec![Vec::new(); db.len()];
+    for c in 0..classes.len() {
+        let nearest = db.nearest(classes.row(c)).map_err(MapError::Features)?;
+        if let Some((row, sim)) = nearest
+            && 1.0 - sim <= db.tau() + 1e-6
+        {
+            out[row].push(c);
+        }
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::map::key::GridSpec;
     use nalgebra::Vector3;
+
+    #[test]
+    fn rows_are_named_by_the_classes_within_tau() {
+        let deg = |a: f32| [a.to_radians().cos(), a.to_radians().sin(), 0.0];
+        let rows = |angles: &[f32]| angles.iter().flat_map(|&a| deg(a)).collect::<Vec<f32>>();
+        // tau 0.02 is about 11.5 degrees of cosine distance.
+        let db = FeatureDb::from_rows(3, 0.02, rows(&[0.0, 40.0, 90.0])).unwrap();
+        // Class 0 is row 1's; classes 1 (0 deg) and 3 (5 deg) share row
+        // 0; class 2 (65 deg) is 25 degrees from any row: none.
+        let classes = FeatureDb::from_rows(3, 0.0, rows(&[40.0, 0.0, 65.0, 5.0])).unwrap();
+        assert_eq!(
+            classes_of_rows(&db, &classes).unwrap(),
+            vec![vec![1, 3], vec![0], vec![]]
+        );
+        let other = FeatureDb::from_rows(2, 0.0, vec![1.0, 0.0]).unwrap();
+        assert!(classes_of_rows(&db, &other).is_err());
+    }
 
     #[test]
     fn remaps_to_most_similar_prompt_and_drops_the_rest() {

@@ -17,7 +17,7 @@ pub use features::{FeatureDb, FeatureDbError};
 pub use file::{MapFileError, load, save};
 pub use floorplan::{FloorPlan, FloorPlanParams};
 pub use georef::Georef;
-pub use ground::{GroundingReport, ground};
+pub use ground::{GroundingReport, classes_of_rows, ground};
 pub use integrate::Integrator;
 pub use key::{Cell, GridSpec};
 pub use octree::{LanguageMap, MAX_RESOLUTION, MIN_RESOLUTION, MapError};

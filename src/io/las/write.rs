@@ -19,6 +19,9 @@ pub struct LasPoints {
     pub intensity: Option<Vec<u16>>,
     /// LAS point source id, e.g. a feature row.
     pub source_id: Option<Vec<u16>>,
+    /// LAS classification (ASPRS codes, at most 31 in the legacy point
+    /// formats `write_las` uses without a WKT CRS); 0 without.
+    pub classification: Option<Vec<u8>>,
 }
 
 /// Coarsest coordinate step written, metres (a millimetre).
@@ -102,6 +105,10 @@ pub fn write_las(path: &Path, pts: &LasPoints, georef: Option<&Georef>) -> Resul
                 z: p[2],
                 intensity: pts.intensity.as_ref().map_or(0, |v| v[i]),
                 point_source_id: pts.source_id.as_ref().map_or(0, |v| v[i]),
+                classification: las::point::Classification::new(
+                    pts.classification.as_ref().map_or(0, |v| v[i]),
+                )
+                .map_err(|e| err(e.to_string()))?,
                 color: Some(Color::new(wide(c[0]), wide(c[1]), wide(c[2]))),
                 gps_time: wkt.then_some(0.0),
                 // One return a pulse: the spec's numbers start at 1.
