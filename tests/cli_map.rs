@@ -208,3 +208,100 @@ fn map_commands_refuse_to_write_over_their_map() {
     assert!(!ok && err.contains("--png and --out"), "{err}");
     assert!(!plan.exists());
 }
+
+/// `map floorplan` (its plan and its PNG), `map ground` and `map upgrade`
+/// never replace a file they did not write as such without `--force`: a
+/// photo, a depth frame, notes, a map under a plan's name or a plan under
+/// a map's; nor name a plan or a map as data (`-o notes.txt`). Their own
+/// earlier outputs and empty files are replaced; `--force` replaces the
+/// rest. All three once wrote over anything they were given.
+#[test]
+fn map_outputs_replace_only_their_own_kind() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |n: &str| dir.path().join(n);
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let map = path("m.omcl");
+    write_map(&map);
+    // A real depth frame, a photo-like PNG omcl did not write.
+    let photo = path("photo.png");
+    std::fs::copy(
+        common::shared("rgbd_7scenes/frame-000000.depth.png"),
+        &photo,
+    )
+    .unwrap();
+    let notes = path("notes.plan");
+    std::fs::write(&notes, "my notes\n").unwrap();
+    let other_map = path("other.omcl");
+    write_map(&other_map);
+    let refused = |args: Vec<String>, kept: &Path, words: &str| {
+        let before = std::fs::read(kept).unwrap();
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let (ok, out, err) = omcl(&args);
+        assert!(!ok, "{args:?}: {out}");
+        assert!(err.contains(words), "{args:?}: {err}");
+        assert_eq!(std::fs::read(kept).unwrap(), before, "{args:?}");
+    };
+    let floorplan = |extra: &[&Path]| {
+        let mut v = vec!["map".to_string(), "floorplan".into(), s(&map), "-o".into()];
+        v.extend(extra.iter().map(|p| s(p)));
+        v
+    };
+    let plan = path("m.plan");
+    refused(
+        floorplan(&[&notes]),
+        &notes,
+        "is not an omcl floor plan; pass --force",
+    );
+    refused(
+        floorplan(&[&other_map]),
+        &other_map,
+        "is not an omcl floor plan",
+    );
+    let mut with_png = floorplan(&[&plan]);
+    with_png.extend(["--png".into(), s(&photo)]);
+    refused(
+        with_png.clone(),
+        &photo,
+        "--png exists and is not a PNG omcl wrote",
+    );
+    assert!(
+        !plan.exists(),
+        "the plan was written before the PNG was refused"
+    );
+    let txt = path("plan.txt");
+    let (ok, _, err) = omcl(&["map", "floorplan", &s(&map), "-o", &s(&txt)]);
+    assert!(
+        !ok && err.contains("a floor plan is not a .txt") && !txt.exists(),
+        "{err}"
+    );
+    // Its own outputs, twice: replaced.
+    let own_png = path("own.png");
+    for _ in 0..2 {
+        let (ok, out, err) = omcl(&[
+            "map",
+            "floorplan",
+            &s(&map),
+            "-o",
+            &s(&plan),
+            "--png",
+            &s(&own_png),
+        ]);
+        assert!(ok, "{out}{err}");
+    }
+    // `map ground` and `map upgrade`: a plan or notes are not maps.
+    for cmd in [
+        vec!["map", "ground", &s(&map), "wall", "--classes", "asprs"],
+        vec!["map", "upgrade", &s(&map)],
+    ] {
+        let args: Vec<String> = cmd.iter().map(|a| a.to_string()).collect();
+        let mut over_plan = args.clone();
+        over_plan.extend(["-o".into(), s(&plan)]);
+        refused(over_plan, &plan, "is not an omcl map; pass --force");
+    }
+    // --force replaces a foreign file.
+    with_png.push("--force".into());
+    let args: Vec<&str> = with_png.iter().map(String::as_str).collect();
+    let (ok, out, err) = omcl(&args);
+    assert!(ok, "{out}{err}");
+    assert!(omcl::sim::files::is_omcl_png(&photo));
+}

@@ -52,6 +52,10 @@ pub struct UpgradeArgs {
     /// Where to write the upgraded map (written atomically).
     #[arg(long, short)]
     pub out: PathBuf,
+    /// Replace --out even when it is a file that is not an omcl map (a map
+    /// is replaced without it).
+    #[arg(long)]
+    pub force: bool,
 }
 
 #[derive(Debug, Args)]
@@ -84,6 +88,7 @@ pub fn run(cmd: MapCommand) -> anyhow::Result<()> {
         MapCommand::Project(a) => super::map_build::project(&a),
         MapCommand::Upgrade(a) => {
             super::outputs::refuse_overlaps(&[("--out", &a.out)], &[("the map", &a.file)])?;
+            super::outputs::check_map_out("--out", &a.out, a.force)?;
             let map = file::upgrade(&a.file, &a.out)?;
             println!(
                 "{} -> {} (format version {}, {} voxels, {} rows)",

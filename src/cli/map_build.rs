@@ -142,27 +142,7 @@ impl BuildOptions {
             "--tau must be in [0, 2], got {}",
             self.tau
         );
-        super::outputs::refuse_unwritable(&[("--out", &self.out)], &[])?;
-        let out = &self.out;
-        let ext = out.extension().and_then(|e| e.to_str()).unwrap_or("");
-        ensure!(
-            !["ply", "las", "laz", "bin", "npy", "png"]
-                .iter()
-                .any(|e| ext.eq_ignore_ascii_case(e)),
-            "--out {}: a map is an .omcl file, not a .{ext} (to see a map as a point cloud, \
-             after building it: `omcl map export MAP -o FILE.ply` or `omcl map query MAP WORDS \
-             -o FILE.ply`; .las/.laz as well)",
-            out.display()
-        );
-        // An empty file (`mktemp`'s) holds nothing to lose.
-        let holds_something = std::fs::metadata(out).is_ok_and(|m| m.is_file() && m.len() > 0);
-        if holds_something && !self.force && !map::file::is_map_file(out).unwrap_or(false) {
-            bail!(
-                "--out {} exists and is not an omcl map (a floor plan, another program's file?); \
-                 pass --force to replace it",
-                out.display()
-            );
-        }
+        super::outputs::check_map_out("--out", &self.out, self.force)?;
         Ok(())
     }
 }
@@ -852,6 +832,10 @@ pub struct GroundArgs {
     /// Where to write the grounded map.
     #[arg(long, short)]
     pub out: PathBuf,
+    /// Replace --out even when it is a file that is not an omcl map (a map
+    /// is replaced without it).
+    #[arg(long)]
+    pub force: bool,
 }
 
 pub fn ground(a: &GroundArgs) -> anyhow::Result<()> {
@@ -863,6 +847,7 @@ pub fn ground(a: &GroundArgs) -> anyhow::Result<()> {
     );
     inputs.extend(a.source.inputs());
     super::outputs::refuse_overlaps(&[("--out", &a.out)], &inputs)?;
+    super::outputs::check_map_out("--out", &a.out, a.force)?;
     let mut m = map::load(&a.map)?;
     let words = parse_words(&a.words, a.prompt_file.as_deref())?;
     let prompts = a.source.features(&words, m.db().dim())?;

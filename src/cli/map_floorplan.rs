@@ -28,13 +28,17 @@ pub struct FloorplanArgs {
     /// white, occupied cells coloured by feature row.
     #[arg(long)]
     pub png: Option<PathBuf>,
+    /// Replace --out or --png even when it is a file omcl did not write
+    /// as such (an earlier plan or picture is replaced without it).
+    #[arg(long)]
+    pub force: bool,
 }
 
 pub fn run(a: &FloorplanArgs) -> anyhow::Result<()> {
     let mut outputs = vec![("--out", a.out.as_path())];
     outputs.extend(a.png.as_deref().map(|p| ("--png", p)));
     super::outputs::refuse_overlaps(&outputs, &[("the map", &a.map)])?;
-    super::outputs::refuse_unwritable(&outputs, &[])?;
+    super::outputs::check_plan_out(&a.out, a.png.as_deref(), a.force)?;
     let map = omcl::map::load(&a.map)?;
     let params = FloorPlanParams {
         band_min: a.band_min,

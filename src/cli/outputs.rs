@@ -182,6 +182,95 @@ pub fn refuse_replacing_data(outputs: &[(&str, &Path)]) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Refuses an output `p` that would replace a file holding something
+/// (a non-empty regular file) that `ours` does not recognise as `kind`
+/// omcl wrote, unless `force`: an earlier output of the same kind, an
+/// empty file (`mktemp`'s) and a new name are fine.
+pub fn refuse_replacing_other(
+    option: &str,
+    p: &Path,
+    kind: &str,
+    ours: impl Fn(&Path) -> bool,
+    force: bool,
+) -> anyhow::Result<()> {
+    let holds_something = std::fs::metadata(p).is_ok_and(|m| m.is_file() && m.len() > 0);
+    anyhow::ensure!(
+        !holds_something || force || ours(p),
+        "{}: {option} exists and is not {kind}; pass --force to replace it, or choose \
+         another name",
+        p.display()
+    );
+    Ok(())
+}
+
+/// Extensions of data omcl reads, which a map or a floor plan is never
+/// named: `-o cloud.ply` is a slip for `map export`, or would replace the
+/// survey.
+const DATA_EXTENSIONS: [&str; 9] = [
+    "ply", "las", "laz", "bin", "npy", "png", "jpg", "jpeg", "txt",
+];
+
+/// The checks of an output that is a map (`map cloud`, `map rgbd`, `map
+/// ground`, `map upgrade`): writable, not named as a point cloud or other
+/// data, and not replacing a file that is not a map unless `force`.
+pub fn check_map_out(option: &str, out: &Path, force: bool) -> anyhow::Result<()> {
+    refuse_unwritable(&[(option, out)], &[])?;
+    let ext = out.extension().and_then(|e| e.to_str()).unwrap_or("");
+    anyhow::ensure!(
+        !DATA_EXTENSIONS.iter().any(|e| ext.eq_ignore_ascii_case(e)),
+        "{option} {}: a map is an .omcl file, not a .{ext} (to see a map as a point cloud, \
+         after building it: `omcl map export MAP -o FILE.ply` or `omcl map query MAP WORDS \
+         -o FILE.ply`; .las/.laz as well)",
+        out.display()
+    );
+    refuse_replacing_other(
+        option,
+        out,
+        "an omcl map",
+        |p| omcl::map::file::is_map_file(p).unwrap_or(false),
+        force,
+    )
+}
+
+/// The checks of a floor plan's outputs (`map floorplan -o PLAN --png
+/// IMAGE`): writable, the plan not named as data, and neither replacing a
+/// file omcl did not write as such (a map, a photo, a depth frame)
+/// unless `force`.
+pub fn check_plan_out(out: &Path, png: Option<&Path>, force: bool) -> anyhow::Result<()> {
+    let mut outputs = vec![("--out", out)];
+    outputs.extend(png.map(|p| ("--png", p)));
+    refuse_unwritable(&outputs, &[])?;
+    let ext = out.extension().and_then(|e| e.to_str()).unwrap_or("");
+    anyhow::ensure!(
+        !DATA_EXTENSIONS.iter().any(|e| ext.eq_ignore_ascii_case(e)),
+        "--out {}: a floor plan is not a .{ext} (name it .plan; --png writes the picture)",
+        out.display()
+    );
+    refuse_replacing_other(
+        "--out",
+        out,
+        "an omcl floor plan",
+        |p| omcl::map::floorplan::is_plan_file(p).unwrap_or(false),
+        force,
+    )?;
+    if let Some(png) = png {
+        let ext = png.extension().and_then(|e| e.to_str()).unwrap_or("");
+        anyhow::ensure!(
+            ext.eq_ignore_ascii_case("png"),
+            "--png {}: the picture is a PNG: name it .png",
+            png.display()
+        );
+        refuse_replacing_other(
+            "--png",
+            png,
+            "a PNG omcl wrote",
+            omcl::sim::files::is_omcl_png,
+            force,
+        )?;
+    }
+    Ok(())
+}
+
 /// A cloud `map query` or `map export` writes is PLY, LAS or LAZ, as its
 /// name says: another name (`heat.txt`, `heat`) is refused rather than
 /// given a PLY the reader did not ask for.

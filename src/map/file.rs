@@ -242,6 +242,12 @@ pub fn read_header(path: &Path) -> Result<HashMap<String, String>, MapFileError>
 /// 16 MiB of header; the tensors are not read). A floor plan, another
 /// safetensors file or any other file is not one.
 pub fn is_map_file(path: &Path) -> std::io::Result<bool> {
+    is_container_of(path, FORMAT)
+}
+
+/// Whether `path` is a safetensors container whose header names `format`
+/// (a map's or a floor plan's), from its header alone.
+pub fn is_container_of(path: &Path, format: &str) -> std::io::Result<bool> {
     use std::io::Read;
     let mut f = std::fs::File::open(path)?;
     let mut len = [0u8; 8];
@@ -254,10 +260,10 @@ pub fn is_map_file(path: &Path) -> std::io::Result<bool> {
     }
     let mut header = Vec::new();
     f.take(n).read_to_end(&mut header)?;
-    let format = serde_json::from_slice::<serde_json::Value>(&header)
+    let found = serde_json::from_slice::<serde_json::Value>(&header)
         .ok()
         .and_then(|v| v["__metadata__"]["format"].as_str().map(str::to_string));
-    Ok(format.as_deref() == Some(FORMAT))
+    Ok(found.as_deref() == Some(format))
 }
 
 /// Parses the bytes of a map file; `path` names it in errors.

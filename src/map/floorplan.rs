@@ -619,6 +619,11 @@ pub fn to_bytes(plan: &FloorPlan) -> Vec<u8> {
     safetensors::serialize(views, Some(meta)).expect("a plan always has a valid safetensors layout")
 }
 
+/// Whether `path` is a floor-plan file, from its header alone.
+pub fn is_plan_file(path: &Path) -> std::io::Result<bool> {
+    super::file::is_container_of(path, FORMAT)
+}
+
 /// Writes `plan` to `path` atomically.
 pub fn save(plan: &FloorPlan, path: &Path) -> Result<(), FloorPlanFileError> {
     crate::io::atomic::write(path, &to_bytes(plan)).map_err(|source| FloorPlanFileError::Io {
