@@ -251,12 +251,15 @@ fn an_empty_crs_record_and_a_user_written_geotiff_read_back() {
         vlr(34737, Vec::new()),
     ];
     let mut w = las::Writer::from_path(&las_path, b.into_header().unwrap()).unwrap();
+    // Every other point ASPRS class 12 (overlap: code 12 in format 0, a
+    // flag to the las crate), the rest ground; one a voxel.
     for i in 0..50 {
         w.write_point(las::Point {
             x: 500_000.0 + f64::from(i),
             y: 5_000_000.0,
             z: 100.0,
             classification: las::point::Classification::new(2).unwrap(),
+            is_overlap: i % 2 == 1,
             ..Default::default()
         })
         .unwrap();
@@ -271,6 +274,15 @@ fn an_empty_crs_record_and_a_user_written_geotiff_read_back() {
     let r = export(&map, &out);
     assert!(r.ok(), "{}", r.text());
     assert_eq!(crs_records(&out), crs_records(&las_path));
+    // The classes come back, overlap included (the export had failed on
+    // class 12).
+    for p in las_points(&out).1 {
+        let odd = (p.x - 500_000.0).round() as i64 % 2 == 1;
+        assert_eq!(p.is_overlap, odd, "{p:?}");
+        if !odd {
+            assert_eq!(u8::from(p.classification), 2, "{p:?}");
+        }
+    }
 }
 
 #[test]
@@ -316,6 +328,11 @@ fn feet_heat_map_carries_similarity_as_intensity_and_ground_keeps_the_crs() {
     let r = query(&map, "ground", &out);
     assert!(r.ok(), "{}", r.text());
     let pts = assert_voxels_in_survey_units(&out, &map, [0.3048, 0.3048]);
+    // The survey has GeoTIFF keys and a WKT record; the export, a LAS 1.2
+    // file, the governing GeoTIFF ones only ("not both", LAS 1.4).
+    let mut geotiff = crs_records(&src);
+    assert!(geotiff.remove(&2112).is_some());
+    assert_eq!(crs_records(&out), geotiff);
     // Each voxel's intensity is its row's cosine to "ground", times
     // 65535: the row of the pure ground class gives 65535, and every other
     // row its cosine to that row.

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
-"""Writes src/io/las/epsg.rs: the linear unit of every EPSG projected and
-vertical CRS whose code fits a GeoTIFF key (at most 65535), as runs of
-consecutive codes with the same unit.
+"""Writes src/io/las/epsg.rs: EPSG's length units, and the linear unit of
+every EPSG projected and vertical CRS (deprecated ones included) whose
+code fits a GeoTIFF key (at most 65535), as runs of consecutive codes
+with the same unit.
 
 GeoTIFF writers often name a CRS by its EPSG code alone
 (ProjectedCRSGeoKey 3072, VerticalCSTypeGeoKey 4096) and leave its unit
@@ -13,13 +14,15 @@ once, here, from PROJ's (pip install pyproj; no network at run time).
 import json
 
 import pyproj
-from pyproj.database import get_database_metadata, query_crs_info
+from pyproj.database import get_database_metadata, get_units_map, query_crs_info
 from pyproj.enums import PJType
 
 
 def units(kind):
     out = {}
-    for info in query_crs_info(auth_name="EPSG", pj_types=[kind]):
+    # Deprecated codes too: old files carry them (NAD83 / Indiana East
+    # (ftUS), 2244), and their units stand.
+    for info in query_crs_info(auth_name="EPSG", pj_types=[kind], allow_deprecated=True):
         code = int(info.code)
         if code > 65535:
             continue
@@ -55,6 +58,19 @@ def main():
           f"(PROJ {pyproj.proj_version_str}'s database, pyproj")
     print(f"//! {pyproj.__version__}); do not edit by hand. The EPSG dataset is")
     print("//! (c) IOGP, used under its terms of use.")
+    print()
+    lengths = sorted(
+        (int(u.code), u.conv_factor, u.name)
+        for u in get_units_map(auth_name="EPSG", category="linear",
+                               allow_deprecated=True).values()
+        if int(u.code) <= 65535
+    )
+    print("/// EPSG's length units, as a GeoTIFF unit key gives them: code,")
+    print("/// metres per unit, name; sorted by code.")
+    print(f"pub(super) const LENGTH_UNITS: [(u16, f64, &str); {len(lengths)}] = [")
+    for code, factor, name in lengths:
+        print(f"    ({code}, {factor!r}, {json.dumps(name)}),")
+    print("];")
     print()
     print("/// Units: EPSG's name, metres per unit.")
     print(f"pub(super) const UNITS: [(&str, f64); {len(names)}] = [")

@@ -179,11 +179,11 @@ fn save_as(
         );
     }
     println!(
-        "wrote {}: {} voxels at {} m, {} feature rows x {} dims ({} of {} inputs integrated, {} skipped, {} rejected)",
+        "wrote {}: {} at {} m, {} x {} dims ({} of {} inputs integrated, {} skipped, {} rejected)",
         b.out.display(),
-        m.len(),
+        super::count(m.len(), "voxel"),
         b.resolution,
-        m.db().len(),
+        super::count(m.db().len(), "feature row"),
         m.db().dim(),
         stats.integrated,
         stats.offered,
@@ -860,11 +860,11 @@ pub fn ground(a: &GroundArgs) -> anyhow::Result<()> {
     );
     map::save(&m, &a.out)?;
     println!(
-        "wrote {}: {} rows -> {} words, kept {} voxels, dropped {}",
+        "wrote {}: {} -> {}, kept {}, dropped {}",
         a.out.display(),
-        rep.old_rows,
-        rep.new_rows,
-        rep.kept,
+        super::count(rep.old_rows, "row"),
+        super::count(rep.new_rows, "word"),
+        super::count(rep.kept, "voxel"),
         rep.dropped
     );
     // Every row takes its most similar word, however loosely it is
@@ -959,6 +959,33 @@ fn asprs_classification(out: &Path, m: &LanguageMap) -> anyhow::Result<Option<Ve
              mix): each is classified as the class nearest its feature",
             out.display(),
             m.len()
+        );
+    }
+    // A coarse --tau merges classes whose features are near (water and
+    // snow at 0.1): their voxels are one row, classified as its first.
+    let merged: Vec<String> = rows
+        .iter()
+        .zip(&counts)
+        .filter(|(r, n)| r.classes.len() > 1 && **n > 0)
+        .map(|(r, n)| {
+            let names: Vec<String> = r
+                .classes
+                .iter()
+                .map(|c| format!("{} ({})", c.name, c.id))
+                .collect();
+            format!(
+                "{n} voxels of {} as {}",
+                names.join(" or "),
+                r.classes[0].id
+            )
+        })
+        .collect();
+    if !merged.is_empty() {
+        eprintln!(
+            "note: {}: the map's tau ({}) merged classes into one row: {}",
+            out.display(),
+            m.db().tau(),
+            merged.join("; ")
         );
     }
     Ok(Some(m.rows().iter().map(|&r| codes[r as usize]).collect()))
@@ -1056,10 +1083,10 @@ pub fn export(a: &ExportArgs) -> anyhow::Result<()> {
     let cols = m.rows().iter().map(|&r| colors::row_color(r)).collect();
     write_voxels(&a.out, &m, cols, None)?;
     println!(
-        "wrote {}: {} voxels, {} rows",
+        "wrote {}: {}, {}",
         a.out.display(),
-        m.len(),
-        m.db().len()
+        super::count(m.len(), "voxel"),
+        super::count(m.db().len(), "row")
     );
     Ok(())
 }

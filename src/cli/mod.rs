@@ -125,6 +125,15 @@ pub fn positive_seconds(s: &str) -> Result<f64, String> {
     }
 }
 
+/// `n` and the noun, plural but for one: `count(1, "row")` is "1 row".
+pub fn count(n: usize, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
+    }
+}
+
 /// A finite score in `0..=1` (`--miss-score 5` was taken).
 pub fn unit_score(s: &str) -> Result<f32, String> {
     finite_in(s, 0.0, 1.0).map(|v| v as f32)

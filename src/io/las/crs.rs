@@ -66,11 +66,13 @@ fn is_metre(m: f64) -> bool {
 
 /// "international feet" for 0.3048, or "units of 0.5 m".
 pub(super) fn unit_words(metres: f64) -> String {
-    EPSG_UNITS
-        .iter()
-        .find(|(_, m, _)| same_factor(metres, *m))
-        .map(|(_, _, w)| w.to_string())
-        .unwrap_or_else(|| format!("units of {metres} m"))
+    if let Some((_, _, w)) = EPSG_UNITS.iter().find(|(_, m, _)| same_factor(metres, *m)) {
+        return w.to_string();
+    }
+    match epsg::LENGTH_UNITS.iter().find(|u| same_factor(metres, u.1)) {
+        Some((_, _, name)) => format!("units of {metres} m (EPSG's {name})"),
+        None => format!("units of {metres} m"),
+    }
 }
 
 /// Metres per unit of a unit name WKT writers use, when the name alone
@@ -279,11 +281,28 @@ fn geotiff_units(keys: &[u8], doubles: Option<&Vlr>) -> Result<Units, String> {
             )),
             None => Err("its GeoTIFF CRS has a user-defined linear unit without a size".into()),
         },
-        Some(code) => {
-            let unit = epsg_unit(code, unit_key_name)?;
-            remarks.extend(disagreement(&unit, implied_xy.as_ref()));
-            Ok(unit)
-        }
+        Some(code) => match (epsg_unit(code, unit_key_name), &implied_xy) {
+            (Some(unit), _) => {
+                remarks.extend(disagreement(&unit, implied_xy.as_ref()));
+                Ok(unit)
+            }
+            // A unit code EPSG does not have, beside a CRS code it has:
+            // the CRS's unit, said.
+            (None, Some(implied)) => {
+                remarks.push(format!(
+                    "its GeoTIFF {unit_key_name} {code} is not an EPSG length unit; {} was \
+                     used",
+                    implied.source
+                ));
+                Ok(implied.clone())
+            }
+            (None, None) => {
+                return Err(format!(
+                    "its GeoTIFF {unit_key_name} gives the unit code {code}, not a length unit \
+                     of EPSG's: {REPROJECT}"
+                ));
+            }
+        },
         // The CRS's code alone: its unit is EPSG's (most writers state
         // both, some only the code).
         None => implied_xy.clone().ok_or_else(|| match short(3072) {
@@ -302,13 +321,24 @@ fn geotiff_units(keys: &[u8], doubles: Option<&Vlr>) -> Result<Units, String> {
     let implied_z =
         short(4096).and_then(|c| epsg_crs_unit(&epsg::VERTICAL, c, "VerticalCSTypeGeoKey"));
     let z = match short(4099).filter(|&c| c != 0) {
-        Some(code) => match epsg_unit(code, "VerticalUnitsGeoKey") {
-            Ok(u) => {
-                remarks.extend(disagreement(&u, implied_z.as_ref()));
+        Some(code) => match (epsg_unit(code, "VerticalUnitsGeoKey"), implied_z) {
+            (Some(u), implied) => {
+                remarks.extend(disagreement(&u, implied.as_ref()));
                 Some(u)
             }
-            Err(e) => {
-                remarks.push(format!("{e}; z taken in the horizontal unit"));
+            (None, Some(implied)) => {
+                remarks.push(format!(
+                    "its GeoTIFF VerticalUnitsGeoKey {code} is not an EPSG length unit; {} \
+                     was used",
+                    implied.source
+                ));
+                Some(implied)
+            }
+            (None, None) => {
+                remarks.push(format!(
+                    "its GeoTIFF VerticalUnitsGeoKey gives the unit code {code}, not a length \
+                     unit of EPSG's; z taken in the horizontal unit"
+                ));
                 None
             }
         },
@@ -365,20 +395,23 @@ fn disagreement(key: &Unit, implied: Option<&Unit>) -> Option<String> {
     ))
 }
 
-fn epsg_unit(code: u16, key: &str) -> Result<Unit, String> {
-    EPSG_UNITS
+/// The EPSG length unit of GeoTIFF unit code `code` (key `key`), if EPSG
+/// has it.
+fn epsg_unit(code: u16, key: &str) -> Option<Unit> {
+    let metres = EPSG_UNITS
         .iter()
         .find(|(c, _, _)| *c == code)
-        .map(|(_, m, _)| Unit {
-            metres: *m,
-            source: format!("GeoTIFF {key} {code}"),
-        })
-        .ok_or_else(|| {
-            format!(
-                "its GeoTIFF {key} gives the unit code {code}, not a length unit omcl \
-                 knows: {REPROJECT}"
-            )
-        })
+        .map(|&(_, m, _)| m)
+        .or_else(|| {
+            let i = epsg::LENGTH_UNITS
+                .binary_search_by_key(&code, |u| u.0)
+                .ok()?;
+            Some(epsg::LENGTH_UNITS[i].1)
+        })?;
+    Some(Unit {
+        metres,
+        source: format!("GeoTIFF {key} {code}"),
+    })
 }
 
 // ---- OGC WKT -----------------------------------------------------------
@@ -716,7 +749,7 @@ fn describe_wkt(data: &[u8]) -> String {
     };
     let name = match root.name().trim() {
         "" => root.key().unwrap_or("WKT").to_string(),
-        n => printable(n),
+        n => n.to_string(),
     };
     let code = root.child(&["AUTHORITY", "ID"]).and_then(|id| match id {
         Wkt::Node(_, args) => match (args.first(), args.get(1)) {
@@ -725,24 +758,41 @@ fn describe_wkt(data: &[u8]) -> String {
         },
         _ => None,
     });
-    match code {
+    // Printable and short as a whole: the authority and code are the
+    // file's text too.
+    printable(&match code {
         Some(c) => format!("{name} ({c})"),
         None => name,
-    }
+    })
 }
 
 /// Every CRS record of the file (`LASF_Projection`, ids
 /// [`crate::map::georef::CRS_RECORD_IDS`]), the first of each id, sorted:
 /// what a map keeps to write its CRS back.
+/// A WKT record is cut after its terminating NUL (what follows is
+/// padding), and a record still larger than [`MAX_KEPT_RECORD`] is not
+/// kept: a map's header holds them, and a 55 MB padded WKT record made
+/// the map unwritable after the whole build.
 pub(super) fn all_records(header: &Header) -> super::CrsRecords {
     let mut r: super::CrsRecords = Vec::new();
     for id in crate::map::georef::CRS_RECORD_IDS {
         if let Some(v) = projection_record(header, id) {
-            r.push((id, v.data.clone()));
+            let mut data = v.data.as_slice();
+            if id == 2112
+                && let Some(nul) = data.iter().position(|&b| b == 0)
+            {
+                data = &data[..=nul];
+            }
+            if data.len() <= MAX_KEPT_RECORD {
+                r.push((id, data.to_vec()));
+            }
         }
     }
     r
 }
+
+/// The largest CRS record a map keeps, bytes (a WKT is a few KiB).
+pub(super) const MAX_KEPT_RECORD: usize = 1 << 20;
 
 /// The records that state the file's coordinate reference system, as
 /// [`units`] chooses them: the WKT record (2112) when the header's WKT bit
@@ -924,9 +974,80 @@ mod tests {
         assert!(epsg_crs_unit(&epsg::PROJECTED, last, "k").is_some());
         assert!(epsg_crs_unit(&epsg::PROJECTED, last + 1, "k").is_none());
         assert!(epsg_crs_unit(&epsg::PROJECTED, 0, "k").is_none());
-        assert!(epsg_crs_unit(&epsg::PROJECTED, 2008, "k").is_none());
+        assert!(epsg_crs_unit(&epsg::PROJECTED, 2181, "k").is_none());
+        // A deprecated code: NAD83 / Indiana East (ftUS), still in old files.
+        assert_eq!(
+            stated(&[1, 1, 0, 1, 3072, 0, 1, 2244]).0.metres,
+            1200.0 / 3937.0
+        );
+        // A unit key of EPSG's beyond the common ones (Gold Coast foot,
+        // 9094) is read; one EPSG lacks beside a known CRS gives way to
+        // the CRS's unit, with a remark, for x, y and z.
+        let gold = stated(&[1, 1, 0, 2, 3072, 0, 1, 2136, 3076, 0, 1, 9094]);
+        assert!(
+            (gold.0.metres - 0.304_799_710_181_508_8).abs() < 1e-12,
+            "{gold:?}"
+        );
+        assert!(gold.2.is_empty(), "{gold:?}");
+        assert!(unit_words(gold.0.metres).contains("EPSG's Gold Coast foot"));
+        let (xy, z, remarks) = stated(&[
+            1, 1, 0, 3, 3072, 0, 1, 2227, 3076, 0, 1, 9999, 4099, 0, 1, 9998,
+        ]);
+        assert_eq!(xy.metres, 1200.0 / 3937.0);
+        assert!(z.is_none(), "{z:?}");
+        assert!(
+            remarks[0].contains("ProjLinearUnitsGeoKey 9999 is not an EPSG length unit")
+                && remarks[0].contains("ProjectedCRSGeoKey 2227: EPSG's US survey foot was used"),
+            "{remarks:?}"
+        );
+        assert!(
+            remarks[1].contains("z taken in the horizontal unit"),
+            "{remarks:?}"
+        );
+        let (_, z, remarks) = stated(&[
+            1, 1, 0, 3, 3072, 0, 1, 26910, 4096, 0, 1, 6360, 4099, 0, 1, 9998,
+        ]);
+        assert_eq!(z.map(|z| z.metres), Some(1200.0 / 3937.0));
+        assert!(
+            remarks[0].contains("VerticalCSTypeGeoKey 6360"),
+            "{remarks:?}"
+        );
         assert!(epsg::PROJECTED.windows(2).all(|w| w[0].1 < w[1].0));
         assert!(epsg::VERTICAL.windows(2).all(|w| w[0].1 < w[1].0));
+    }
+
+    #[test]
+    fn a_wkt_name_is_printable_authority_and_code_included() {
+        let code = "9".repeat(5000);
+        let wkt = format!("PROJCS[\"x\",AUTHORITY[\"EPSG\x1b[31mRED\n\",\"{code}\"]]");
+        let d = describe_wkt(wkt.as_bytes());
+        assert!(
+            d.len() <= 203 && !d.contains('\x1b') && !d.contains('\n'),
+            "{d}"
+        );
+        assert!(d.starts_with("x (EPSG?[31mRED?:999"), "{d}");
+    }
+
+    #[test]
+    fn padded_and_oversized_crs_records_are_not_kept_whole() {
+        let evlr = |id: u16, data: Vec<u8>| Vlr {
+            user_id: "LASF_Projection".into(),
+            record_id: id,
+            description: String::new(),
+            data,
+        };
+        let wkt = br#"PROJCS["x",UNIT["metre",1]]"#.to_vec();
+        let mut padded = wkt.clone();
+        padded.push(0);
+        padded.resize(2 << 20, 0);
+        let mut b = las::Builder::from((1, 4));
+        b.point_format = las::point::Format::new(6).unwrap();
+        b.evlrs = vec![evlr(2112, padded), evlr(34737, vec![b'a'; 2 << 20])];
+        let h = b.into_header().unwrap();
+        let kept = all_records(&h);
+        let mut want = wkt;
+        want.push(0);
+        assert_eq!(kept, vec![(2112, want)]);
     }
 
     #[test]

@@ -43,9 +43,10 @@ fn transform(lo: f64, hi: f64, metres_per_unit: f64) -> Transform {
 
 /// Writes `pts` to `path` (LAZ when its name ends in `.laz`), atomically.
 /// With `georef`, coordinates are converted back into the survey's units
-/// and its CRS records copied: LAS 1.4 (point format 7, WKT bit set) when
-/// its WKT record governs, else LAS 1.2 (point format 2) with its GeoTIFF
-/// keys. Without, LAS 1.2 in metres, no CRS record.
+/// and its governing CRS records copied: LAS 1.4 (point format 7, WKT bit
+/// set) with the WKT record when it governs, else LAS 1.2 (point format 2)
+/// with the GeoTIFF records (keys, doubles, citations). Without, LAS 1.2
+/// in metres, no CRS record.
 pub fn write_las(path: &Path, pts: &LasPoints, georef: Option<&Georef>) -> Result<(), CloudError> {
     let err = |reason: String| CloudError::format(path, reason);
     let laz = path
@@ -63,9 +64,12 @@ pub fn write_las(path: &Path, pts: &LasPoints, georef: Option<&Georef>) -> Resul
     b.has_wkt_crs = wkt;
     b.generating_software = format!("omcl {}", env!("CARGO_PKG_VERSION"));
     if let Some(g) = georef {
+        // The governing kind only: LAS 1.4 allows "GeoTIFF or WKT, but
+        // not both", and a reader of a 1.2 file ignores a WKT record.
         b.vlrs = g
             .records
             .iter()
+            .filter(|(id, _)| (*id == 2112) == wkt)
             .map(|(id, data)| Vlr {
                 user_id: "LASF_Projection".into(),
                 record_id: *id,
@@ -99,16 +103,25 @@ pub fn write_las(path: &Path, pts: &LasPoints, georef: Option<&Georef>) -> Resul
             let c = pts.colors.get(i).copied().unwrap_or([0; 3]);
             // 8-bit colour spread over 16 bits, as LAS expects.
             let wide = |v: u8| u16::from(v) * 257;
+            // ASPRS class 12 (overlap) is a flag to the las crate: it
+            // writes code 12 in the legacy formats, and in format 7
+            // "unclassified" with the overlap bit, as LAS 1.4 has it.
+            let code = pts.classification.as_ref().map_or(0, |v| v[i]);
+            let (classification, is_overlap) = match code {
+                12 => (las::point::Classification::Unclassified, true),
+                c => (
+                    las::point::Classification::new(c).map_err(|e| err(e.to_string()))?,
+                    false,
+                ),
+            };
             w.write_point(Point {
                 x: p[0],
                 y: p[1],
                 z: p[2],
                 intensity: pts.intensity.as_ref().map_or(0, |v| v[i]),
                 point_source_id: pts.source_id.as_ref().map_or(0, |v| v[i]),
-                classification: las::point::Classification::new(
-                    pts.classification.as_ref().map_or(0, |v| v[i]),
-                )
-                .map_err(|e| err(e.to_string()))?,
+                classification,
+                is_overlap,
                 color: Some(Color::new(wide(c[0]), wide(c[1]), wide(c[2]))),
                 gps_time: wkt.then_some(0.0),
                 // One return a pulse: the spec's numbers start at 1.
