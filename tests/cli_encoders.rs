@@ -241,6 +241,127 @@ fn rgbd_mapping_with_an_image_encoder() {
             "row {r} is far from every pixel feature: {best}"
         );
     }
+
+    // The cache holds frame 0 of this image; another image of frame 0
+    // (another sequence, or the image changed) is encoded anew: the map
+    // equals one built without the cache. It had been painted with the
+    // cached features.
+    let rgb2: Vec<u8> = (0..w * h)
+        .flat_map(|i| [(i * 13 % 256) as u8, (i * 7 % 256) as u8, 90])
+        .collect();
+    write_png(
+        &d.join("rgb/000000.png"),
+        w,
+        h,
+        png::ColorType::Rgb,
+        png::BitDepth::Eight,
+        &rgb2,
+    );
+    let build = |out: &Path, cache: Option<&Path>| {
+        let mut args: Vec<String> = [
+            "map",
+            "rgbd",
+            d.to_str().unwrap(),
+            "--image-model",
+            model.to_str().unwrap(),
+            "--stride",
+            "1",
+            "--resolution",
+            "0.1",
+            "--tau",
+            "0.0005",
+            "-o",
+            out.to_str().unwrap(),
+        ]
+        .map(String::from)
+        .to_vec();
+        if let Some(c) = cache {
+            args.extend(["--feature-cache".into(), c.to_str().unwrap().into()]);
+        }
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        omcl(&args)
+    };
+    let (cached, fresh) = (d.join("cached.omcl"), d.join("fresh.omcl"));
+    let (ok, text) = build(&cached, Some(&cache));
+    assert!(ok, "{text}");
+    let (ok, text) = build(&fresh, None);
+    assert!(ok, "{text}");
+    let (a, b) = (map::load(&cached).unwrap(), map::load(&fresh).unwrap());
+    assert_eq!(a.db().rows(), b.db().rows());
+    assert_eq!(a.rows(), b.rows());
+    assert_ne!(
+        a.db().rows(),
+        m.db().rows(),
+        "the new image's features differ"
+    );
+
+    // A cache in the sequence's frame folders, or the folder itself, is
+    // refused: `features/` holds a user's feature grids.
+    for bad in [d.join("features"), d.join("rgb"), d.to_path_buf()] {
+        let (ok, text) = build(&d.join("x.omcl"), Some(&bad));
+        assert!(!ok && text.contains("--feature-cache"), "{text}");
+    }
+    assert!(!d.join("features").exists());
+
+    // A colour image of another size than the intrinsics' is refused by
+    // name, by the map and by the localizer (it had mapped part of it).
+    let small: Vec<u8> = rgb2[..(w * h * 3 / 4) as usize].to_vec();
+    write_png(
+        &d.join("rgb/000000.png"),
+        w / 2,
+        h / 2,
+        png::ColorType::Rgb,
+        png::BitDepth::Eight,
+        &small,
+    );
+    let (ok, text) = build(&d.join("y.omcl"), None);
+    assert!(
+        !ok && text.contains("rgb/000000.png: 8x8 pixels, intrinsics say 16x16"),
+        "{text}"
+    );
+    let localize = |extra: &[&str]| {
+        let mut args = vec![
+            "localize",
+            "--map",
+            out.to_str().unwrap(),
+            "--sequence",
+            d.to_str().unwrap(),
+            "--image-model",
+            model.to_str().unwrap(),
+            "--particles",
+            "16",
+            "--rays",
+            "32",
+            "-o",
+        ];
+        args.extend_from_slice(extra);
+        omcl(&args)
+    };
+    let est2 = d.join("est2.txt");
+    let (ok, text) = localize(&[est2.to_str().unwrap()]);
+    assert!(
+        !ok && text.contains("8 x 8 pixels") && text.contains("intrinsics.txt says 16 x 16"),
+        "{text}"
+    );
+    // Two frames but one pose: refused, not a run of the first frame.
+    write_png(
+        &d.join("rgb/000000.png"),
+        w,
+        h,
+        png::ColorType::Rgb,
+        png::BitDepth::Eight,
+        &rgb2,
+    );
+    std::fs::copy(d.join("rgb/000000.png"), d.join("rgb/000001.png")).unwrap();
+    std::fs::copy(d.join("depth/000000.png"), d.join("depth/000001.png")).unwrap();
+    let (ok, text) = localize(&[est2.to_str().unwrap()]);
+    assert!(
+        !ok && text.contains("2 frames in") && text.contains("--frames 1"),
+        "{text}"
+    );
+    assert!(!est2.exists());
+    let (ok, text) = localize(&[est2.to_str().unwrap(), "--frames", "1"]);
+    assert!(ok, "{text}");
 }
 
 /// `omcl map cloud --classes asprs --text-model`: the class names are

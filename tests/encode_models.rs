@@ -275,10 +275,16 @@ fn cached_features_are_reused_without_running_the_model() {
     let mut enc = ImageEncoder::load(rt(), &data("tiny_image.onnx"), 1).unwrap();
     let img = read_rgb(&data("tiny_image_input.png")).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let cache = FeatureCache::new(dir.path(), &enc.card().name).unwrap();
-    let first = cache.get_or_compute("000000", || enc.encode(&img)).unwrap();
+    let model = omcl::encode::cache::model_stamp(&data("tiny_image.onnx")).unwrap();
+    let image = omcl::encode::cache::stamp(&[&data("tiny_image_input.png")]).unwrap();
+    let cache = FeatureCache::new(dir.path(), &enc.card().name, &model).unwrap();
+    let first = cache
+        .get_or_compute("000000", Some(&image), || enc.encode(&img))
+        .unwrap();
     let again = cache
-        .get_or_compute("000000", || panic!("cached frame must not be recomputed"))
+        .get_or_compute("000000", Some(&image), || {
+            panic!("cached frame must not be recomputed")
+        })
         .unwrap();
     assert_eq!(first, again);
     let want = read_npy(&data("tiny_image_expected.npy")).unwrap();

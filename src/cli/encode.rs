@@ -214,14 +214,16 @@ fn image(a: &ImageArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     let dir = a.cache.as_deref().context("no cache directory")?;
-    let cache = FeatureCache::new(dir, &enc.card().name)?;
+    let model = omcl::encode::cache::model_stamp(&a.model)?;
+    let cache = FeatureCache::new(dir, &enc.card().name, &model)?;
     let (mut computed, mut reused) = (0usize, 0usize);
     for path in &a.images {
         let frame = path
             .file_stem()
             .and_then(|s| s.to_str())
             .with_context(|| format!("{}: no usable file name", path.display()))?;
-        if cache.load(frame)?.is_some() {
+        let image = omcl::encode::cache::stamp(&[path])?;
+        if cache.load(frame, Some(&image))?.is_some() {
             reused += 1;
             continue;
         }
@@ -229,7 +231,7 @@ fn image(a: &ImageArgs) -> anyhow::Result<()> {
         let map = enc
             .encode(&img)
             .with_context(|| format!("encoding {}", path.display()))?;
-        cache.store(frame, &map)?;
+        cache.store(frame, &map, Some(&image))?;
         computed += 1;
     }
     eprintln!(

@@ -51,9 +51,14 @@ pub fn open_image_source(args: &EncoderArgs) -> anyhow::Result<Option<ImageSourc
     };
     let rt = super::encode::init_runtime(args.ort_lib.as_deref())?;
     let encoder = ImageEncoder::load(rt, model, 0)?;
+    let stamp = match args.feature_cache {
+        Some(_) => omcl::encode::cache::model_stamp(model)?,
+        None => String::new(),
+    };
     Ok(Some(ImageSource::new(
         encoder,
         args.feature_cache.as_deref(),
+        &stamp,
     )?))
 }
 

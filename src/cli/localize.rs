@@ -1137,6 +1137,20 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         (false, true) => CameraInput::Labels,
         (false, false) => CameraInput::Features,
     };
+    // An RGB-D folder of more frames than its poses: a short poses.txt
+    // (the run had localized the first frames only, without a word).
+    if a.frames.is_none()
+        && let Some(stored) = inputs.stored_frames(frames_input)?
+        && stored > n
+    {
+        bail!(
+            "{}: {} frames in {}, but poses for {n} (poses.txt, or the odometry); pass \
+             --frames {n} to localize the first {n}, or complete the poses",
+            d.display(),
+            stored,
+            inputs.input_folder(frames_input).display()
+        );
+    }
     inputs.check_frames(n, frames_input)?;
     for r in inputs.odometry_remarks(&source, &read, n) {
         eprintln!("note: {r}");
@@ -1345,6 +1359,9 @@ fn refuse_replacing_inputs(a: &LocalizeArgs) -> anyhow::Result<()> {
     ));
     super::outputs::refuse_overlaps(&outputs, &inputs)?;
     super::outputs::refuse_inside_sequence(&outputs, &a.sequence)?;
+    if let Some(cache) = &a.encoder.feature_cache {
+        super::outputs::refuse_folder_in_sequence("--feature-cache", cache, &a.sequence)?;
+    }
     let text: Vec<(&str, &Path)> = outputs
         .iter()
         .copied()

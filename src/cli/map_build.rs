@@ -644,6 +644,9 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
     // What --out would overwrite first: it says more than its extension.
     super::outputs::refuse_overlaps(&[("--out", &a.build.out)], &inputs)?;
     super::outputs::refuse_inside_sequence(&[("--out", &a.build.out)], &a.dir)?;
+    if let Some(cache) = &a.encoder.feature_cache {
+        super::outputs::refuse_folder_in_sequence("--feature-cache", cache, &a.dir)?;
+    }
     a.build.check()?;
     let d = &a.dir;
     let is_sevenscenes =

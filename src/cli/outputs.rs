@@ -100,6 +100,43 @@ pub fn refuse_inside_sequence(outputs: &[(&str, &Path)], seq: &Path) -> anyhow::
     Ok(())
 }
 
+/// The subfolders of a sequence its readers read frames from, in every
+/// layout (RGB-D, KITTI, SemanticKITTI).
+const FRAME_FOLDERS: [&str; 8] = [
+    "rgb", "depth", "labels", "features", "image_2", "image_3", "labels_2", "velodyne",
+];
+
+/// Refuses a folder an option fills (`--feature-cache`) that is, or is in,
+/// a part of the sequence `seq` its readers read: the sequence's folder
+/// itself (7-Scenes frames, poses), a frame folder (`features/`, whose
+/// `.npy` files the cache would have replaced) or anything inside one. A
+/// new folder beside the frames (`seq/cache`) is fine.
+pub fn refuse_folder_in_sequence(option: &str, dir: &Path, seq: &Path) -> anyhow::Result<()> {
+    let (Ok(root), Some(abs)) = (std::fs::canonicalize(seq), absolute(dir)) else {
+        return Ok(());
+    };
+    let Ok(rel) = abs.strip_prefix(&root) else {
+        return Ok(());
+    };
+    let parts: Vec<_> = rel.components().collect();
+    let frames = parts
+        .first()
+        .is_some_and(|c| FRAME_FOLDERS.iter().any(|f| c.as_os_str() == *f));
+    anyhow::ensure!(
+        !(parts.is_empty() || parts.len() > 1 || frames),
+        "{}: {option} is {} the sequence {}, whose frames are read from there; filling it \
+         would replace or add to them (a new folder beside them, or elsewhere, will do)",
+        dir.display(),
+        if parts.is_empty() {
+            "the folder of"
+        } else {
+            "inside"
+        },
+        seq.display()
+    );
+    Ok(())
+}
+
 /// Refuses, before any work, outputs that could not be written at the
 /// end: a folder that does not exist or is not a folder, and a figure
 /// (`figures`: options drawn as PNG or SVG by extension) of another kind.

@@ -61,7 +61,8 @@ impl CameraInput {
         }
     }
 
-    fn extension(self) -> &'static str {
+    /// The extension of its frame files.
+    pub fn extension(self) -> &'static str {
         match self {
             CameraInput::Features => "npy",
             CameraInput::Labels | CameraInput::Images => "png",
@@ -204,6 +205,7 @@ impl KittiCameraSequence {
             self.input,
             n.min(self.frames),
             (k.width, k.height),
+            None,
         )
     }
 
@@ -310,6 +312,7 @@ pub(crate) fn check_frames(
     input: CameraInput,
     count: usize,
     size: (u32, u32),
+    size_from: Option<&Path>,
 ) -> Result<(), CloudError> {
     let path = |i: usize| folder.join(format!("{i:06}.{}", input.extension()));
     match input {
@@ -318,14 +321,16 @@ pub(crate) fn check_frames(
                 let p = path(i);
                 let (w, h, depth, colour) = super::bounded_png::png_header(&p)?;
                 if (w, h) != size {
+                    let whose = match size_from {
+                        Some(file) => format!("{} says", file.display()),
+                        None => format!("frame 0 ({}) has", path(0).display()),
+                    };
                     return Err(CloudError::mismatch(
                         &p,
                         format!(
-                            "{w} x {h} pixels, frame 0 ({}) has {} x {}: every frame of a \
-                             sequence has its camera's size",
-                            path(0).display(),
-                            size.0,
-                            size.1
+                            "{w} x {h} pixels, {whose} {} x {}: every frame of a sequence has \
+                             its camera's size",
+                            size.0, size.1
                         ),
                     ));
                 }

@@ -938,6 +938,17 @@ impl RgbdFrame<'_> {
             }
             RgbdFeatures::Encoder(src) => {
                 let rgb = d.join("rgb").join(format!("{i:06}.png"));
+                // The encoder's features cover its image: one of another
+                // size than the intrinsics' had mapped a part of the frame.
+                let (w, h, _, _) = crate::io::bounded_png::png_header(&rgb)?;
+                if (w, h) != (k.width, k.height) {
+                    return Err(bad(format!(
+                        "{}: {w}x{h} pixels, intrinsics say {}x{}",
+                        rgb.display(),
+                        k.width,
+                        k.height
+                    )));
+                }
                 let fm = encode_image(src, &rgb, i)?;
                 *name = src.name.clone();
                 let f = crate::encode::image::EncodedFrame {

@@ -362,19 +362,45 @@ impl CameraSequence {
         if let Some(k) = &self.kitti {
             return Ok(k.check_frames(n)?);
         }
-        // An RGB-D folder's label images and feature grids, by the same
-        // rules (its colour images may be PNG or JPEG: read at their turn).
-        let folder = match input {
-            CameraInput::Labels => &self.labels_dir,
-            CameraInput::Features => &self.features_dir,
-            CameraInput::Images => return Ok(()),
-        };
+        // An RGB-D folder's label images, feature grids and colour images
+        // by the same rules, against its intrinsics (an encoder's image of
+        // another size had mapped and localized on a part of the frame).
+        let folder = self.input_folder(input);
         if self.sevenscenes.is_some() || !folder.is_dir() {
             return Ok(());
         }
         let k = &self.intrinsics;
-        crate::io::kitti_camera::check_frames(folder, input, n, (k.width, k.height))?;
+        crate::io::kitti_camera::check_frames(
+            folder,
+            input,
+            n,
+            (k.width, k.height),
+            Some(&self.dir.join("intrinsics.txt")),
+        )?;
         Ok(())
+    }
+
+    /// The folder of an RGB-D folder's frames of `input`.
+    pub fn input_folder(&self, input: CameraInput) -> &Path {
+        match input {
+            CameraInput::Labels => &self.labels_dir,
+            CameraInput::Features => &self.features_dir,
+            CameraInput::Images => &self.rgb_dir,
+        }
+    }
+
+    /// How many frames an RGB-D folder holds for `input` (its
+    /// `NNNNNN.png` or `.npy` files; another name is an error); `None` for
+    /// a KITTI or 7-Scenes folder, whose readers count their own, and for
+    /// a missing folder.
+    pub fn stored_frames(&self, input: CameraInput) -> Result<Option<usize>, SequenceError> {
+        let folder = self.input_folder(input);
+        if self.kitti.is_some() || self.sevenscenes.is_some() || !folder.is_dir() {
+            return Ok(None);
+        }
+        Ok(Some(
+            crate::io::kitti::numbered_files(folder, input.extension())?.len(),
+        ))
     }
 
     /// Frames that can be localized: the odometry's, capped by `limit`
