@@ -996,3 +996,85 @@ fn map_cloud_reads_labels_from_a_named_ply_property() {
         );
     }
 }
+
+/// A PLY whose points carry both labels and features, mapped with
+/// `--classes`: the labels are mapped (the table's rows), the features
+/// left out and said; without labels, refused. The features had been
+/// mapped and `--classes` ignored, the map's rows of another dimension
+/// than the table's. A sequence's `--features-dir` with `--classes` is
+/// refused by the command line.
+#[test]
+fn classes_map_a_cloud_s_labels_not_its_own_features() {
+    let dir = tempfile::tempdir().unwrap();
+    let (classes, emb) = one_hot_table(dir.path(), &[(1, "wall"), (2, "floor"), (3, "door")]);
+    let ply = |name: &str, labels: bool| {
+        let p = dir.path().join(name);
+        let mut t = String::from("ply\nformat ascii 1.0\nelement vertex 20\n");
+        t.push_str("property float x\nproperty float y\nproperty float z\n");
+        if labels {
+            t.push_str("property int label\n");
+        }
+        for f in 0..8 {
+            t.push_str(&format!("property float feature_{f}\n"));
+        }
+        t.push_str("end_header\n");
+        for i in 0..20 {
+            t.push_str(&format!("{} 0.5 0.5", i as f32 + 0.5));
+            if labels {
+                t.push_str(&format!(" {}", 1 + i % 2));
+            }
+            for f in 0..8 {
+                t.push_str(if f == i % 8 { " 1" } else { " 0" });
+            }
+            t.push('\n');
+        }
+        std::fs::write(&p, t).unwrap();
+        p
+    };
+    let build = |input: &Path, out: &Path| {
+        omcl(&[
+            "map",
+            "cloud",
+            input.to_str().unwrap(),
+            "--classes",
+            classes.to_str().unwrap(),
+            "--embeddings",
+            emb.to_str().unwrap(),
+            "--resolution",
+            "1",
+            "-o",
+            out.to_str().unwrap(),
+        ])
+    };
+    let out = dir.path().join("m.omcl");
+    let (ok, text) = build(&ply("both.ply", true), &out);
+    assert!(ok, "{text}");
+    assert!(
+        text.contains("--classes maps the labels, the features are left out"),
+        "{text}"
+    );
+    let m = map::load(&out).unwrap();
+    assert_eq!(
+        (m.db().dim(), m.db().len()),
+        (3, 2),
+        "the table's rows, two classes"
+    );
+    let out2 = dir.path().join("n.omcl");
+    let (ok, text) = build(&ply("features.ply", false), &out2);
+    assert!(
+        !ok && text.contains("no labels") && !out2.exists(),
+        "{text}"
+    );
+    let (ok, text) = omcl(&[
+        "map",
+        "cloud",
+        shared("semantickitti/sequences/00").to_str().unwrap(),
+        "--classes",
+        "semantickitti",
+        "--features-dir",
+        dir.path().to_str().unwrap(),
+        "-o",
+        out2.to_str().unwrap(),
+    ]);
+    assert!(!ok && text.contains("cannot be used with"), "{text}");
+}

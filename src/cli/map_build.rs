@@ -227,8 +227,9 @@ pub struct CloudArgs {
     /// Sequence folders: use at most this many scans from the start.
     #[arg(long, value_parser = super::count_in::<1, { usize::MAX }>)]
     pub frames: Option<usize>,
-    /// Sequence folders: per-scan feature files NNNNNN.npy in this folder.
-    #[arg(long)]
+    /// Sequence folders: per-scan feature files NNNNNN.npy in this folder;
+    /// the map is made of them, so not with --classes.
+    #[arg(long, conflicts_with = "classes")]
     pub features_dir: Option<PathBuf>,
     /// Keep points the authors drop: SemanticKITTI unlabeled, outlier and
     /// moving classes; LAS noise classes 7 and 18.
@@ -424,7 +425,24 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     let pb = super::progress::spinner(&format!("reading {}", a.input.display()));
-    let c = pipeline::load_cloud(&input)?;
+    let mut c = pipeline::load_cloud(&input)?;
+    // A cloud with feature columns of its own is mapped from them, but
+    // --classes asks for its labels: they are used, and the features left
+    // out, said (the features had been used and --classes ignored).
+    if let (Some(_), Some((dim, _))) = (&table, &c.features) {
+        ensure!(
+            c.labels.is_some(),
+            "{}: its points carry features ({dim} values a point) but no labels, and --classes \
+             maps labels: leave --classes out to map the features",
+            a.input.display()
+        );
+        c.notes.push(format!(
+            "{}: its points carry features ({dim} values a point) and labels; --classes maps \
+             the labels, the features are left out (leave --classes out to map them)",
+            a.input.display()
+        ));
+        c.features = None;
+    }
     // A cloud with feature columns of its own is mapped from them.
     let own_features = c.features.is_some();
     pb.suspend(|| {

@@ -60,8 +60,17 @@ fn is_label_name(name: &str) -> bool {
     LABEL_NAMES.iter().any(|n| n.eq_ignore_ascii_case(base))
 }
 
-/// A label value as a class id: a whole number in `0..=u32::MAX`.
+/// The class id a label of -1 (the common "unlabelled", of S3DIS-style
+/// and many segmentation exports) is read as: no class of any table, so
+/// its points are skipped as unknown labels are, with a note.
+pub const UNLABELLED: u32 = u32::MAX;
+
+/// A label value as a class id: a whole number in `0..=u32::MAX` (the
+/// last, [`UNLABELLED`], as a 32-bit -1 reads unsigned), or -1.
 fn label_id(raw: f64) -> Option<u32> {
+    if raw == -1.0 {
+        return Some(UNLABELLED);
+    }
     (raw >= 0.0 && raw <= u32::MAX as f64 && raw.fract() == 0.0).then_some(raw as u32)
 }
 
@@ -69,7 +78,10 @@ fn label_of(path: &Path, vertex: usize, raw: f64) -> Result<u32, CloudError> {
     label_id(raw).ok_or_else(|| {
         CloudError::format(
             path,
-            format!("vertex {vertex}: label {raw} is not a whole number in 0..=4294967295"),
+            format!(
+                "vertex {vertex}: label {raw} is not a whole number in 0..=4294967295 nor -1 \
+                 (unlabelled)"
+            ),
         )
     })
 }
@@ -409,6 +421,16 @@ fn choose_label(path: &Path, def: &mut ElementDef, choice: &str) -> Result<(), C
             format!("vertex property '{found}' is a coordinate, colour or feature, not labels"),
         ));
     }
+    if def
+        .properties
+        .get(&found)
+        .is_some_and(|p| scalar(&p.data_type).is_none())
+    {
+        return Err(CloudError::format(
+            path,
+            format!("label property '{found}' (--label-property) must be a scalar, not a list"),
+        ));
+    }
     let props = std::mem::take(&mut def.properties);
     def.properties = props
         .into_iter()
@@ -470,6 +492,22 @@ pub fn read_ply_with(path: &Path, opts: &PlyOptions) -> Result<PointCloud, Cloud
         }
         declared = def.count;
         let layout = check_vertex_layout(path, def)?;
+        // A list property is read by nothing: a feature vector stored as
+        // one had been ignored without a word (said when no features are
+        // read otherwise).
+        let lists: Vec<&str> = def
+            .properties
+            .iter()
+            .filter(|(_, p)| scalar(&p.data_type).is_none())
+            .map(|(n, _)| n.as_str())
+            .collect();
+        let list_note = (!lists.is_empty() && layout.feature_dim == 0).then(|| {
+            format!(
+                "{}: the vertex list properties {lists:?} are not read (features are read from \
+                 scalar properties f0, f1, ... or feat_0, ... or feature_0, ...)",
+                path.display()
+            )
+        });
         float_axes = ["x", "y", "z"].map(|a| {
             def.properties
                 .get(a)
@@ -511,6 +549,7 @@ pub fn read_ply_with(path: &Path, opts: &PlyOptions) -> Result<PointCloud, Cloud
             }
         };
         (cloud, tally) = cols.finish();
+        cloud.notes.extend(list_note);
         if pos + 1 == header.elements.len() {
             // Nothing may follow the last element: more data means the
             // header's count or properties do not describe the file, and
@@ -537,6 +576,21 @@ pub fn read_ply_with(path: &Path, opts: &PlyOptions) -> Result<PointCloud, Cloud
     }
     if let Some(note) = float_precision_note(&name, &cloud.points, float_axes) {
         cloud.notes.push(note);
+    }
+    let unlabelled = cloud
+        .labels
+        .as_ref()
+        .map_or(0, |l| l.iter().filter(|&&c| c == UNLABELLED).count());
+    if unlabelled > 0 {
+        cloud.notes.push(format!(
+            "{name}: {} the label -1 (or 4294967295, a 32-bit -1: \
+             unlabelled); they belong to no class and are skipped",
+            if unlabelled == 1 {
+                "1 vertex has".to_string()
+            } else {
+                format!("{unlabelled} vertices have")
+            }
+        ));
     }
     if tally.clamped > 0 {
         cloud.notes.push(format!(
@@ -1098,12 +1152,65 @@ mod tests {
     }
 
     #[test]
+    fn a_label_of_minus_one_is_unlabelled_other_negatives_are_errors() {
+        let d = tempfile::tempdir().unwrap();
+        let ply = |labels: &str| {
+            let mut t = String::from(
+                "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                 property float z\nproperty int label\nend_header\n",
+            );
+            for (i, l) in labels.split(' ').enumerate() {
+                t.push_str(&format!("{i} 0 0 {l}\n"));
+            }
+            write(d.path(), "l.ply", t.as_bytes())
+        };
+        let c = read_ply(&ply("2 -1 -1")).unwrap();
+        assert_eq!(c.labels, Some(vec![2, UNLABELLED, UNLABELLED]));
+        assert!(
+            c.notes
+                .iter()
+                .any(|n| n.contains("2 vertices have the label -1")),
+            "{:?}",
+            c.notes
+        );
+        let e = read_ply(&ply("2 -2 1")).unwrap_err().to_string();
+        assert!(e.contains("label -2 is not a whole number"), "{e}");
+    }
+
+    #[test]
+    fn a_list_property_is_said_unread_and_named_when_chosen_as_labels() {
+        let d = tempfile::tempdir().unwrap();
+        let p = write(
+            d.path(),
+            "fl.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+              property float z\nproperty list uchar float feature\nend_header\n0 0 0 2 1 0\n",
+        );
+        let c = read_ply(&p).unwrap();
+        assert!(
+            c.notes
+                .iter()
+                .any(|n| n.contains("list properties [\"feature\"] are not read")),
+            "{:?}",
+            c.notes
+        );
+        let opts = PlyOptions {
+            label_property: Some("feature".into()),
+        };
+        let e = read_ply_with(&p, &opts).unwrap_err().to_string();
+        assert!(
+            e.contains("label property 'feature' (--label-property)"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn write_then_read_round_trips() {
         let d = tempfile::tempdir().unwrap();
         let p = d.path().join("out.ply");
         let cloud = PointCloud {
             points: vec![[637_000.123_456, -5.0, 1e-3], [0.0, 1.0, 2.0]],
-            labels: Some(vec![7, u32::MAX]),
+            labels: Some(vec![7, u32::MAX - 1]),
             colors: Some(vec![[1, 2, 3], [4, 5, 6]]),
             features: Some((3, vec![0.5, -1.0, 2.0, 0.0, 0.25, 9.0])),
             notes: Vec::new(),
@@ -1287,11 +1394,11 @@ mod tests {
             d.path(),
             "neg.ply",
             b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
-              property float z\nproperty int label\nend_header\n0 0 0 -1\n",
+              property float z\nproperty int label\nend_header\n0 0 0 -3\n",
         );
         let e = read_ply(&p).unwrap_err().to_string();
         assert!(
-            e.contains("neg.ply") && e.contains("vertex 0") && e.contains("-1"),
+            e.contains("neg.ply") && e.contains("vertex 0") && e.contains("-3"),
             "{e}"
         );
     }

@@ -106,6 +106,13 @@ pub fn load_cloud(input: &CloudInput) -> Result<PointCloud, PipelineError> {
         read_point_cloud(path, input.format)?
     };
     if let Some(f) = &input.features {
+        if let Some((dim, _)) = &c.features {
+            c.notes.push(format!(
+                "{}: its own features ({dim} values a point) are replaced by --features {}",
+                path.display(),
+                f.display()
+            ));
+        }
         c.attach_features_npy(f)?;
     }
     // After the features are attached, so their rows stay with their
