@@ -947,3 +947,41 @@ fn a_bad_label_image_late_in_an_rgbd_folder_fails_the_run_before_the_work() {
     let r = f.localize(&est, &["--frames", "4"]);
     assert_eq!(r.code, Some(0), "{}", r.stderr);
 }
+
+/// `--encoder` names are stored in the map and printed back: an empty
+/// one, one with a newline or a terminal escape, or one of 201
+/// characters is refused; `--depth-scale 0` is the option's fault, not
+/// the first frame's.
+#[test]
+fn stored_names_and_scales_are_checked_as_options() {
+    let f = Fixture::new();
+    let out = f.path("m.omcl");
+    let long = "n".repeat(201);
+    for (name, why) in [
+        ("", "cannot be empty"),
+        ("evil\n\x1b[31mred", "control characters"),
+        (long.as_str(), "at most 200"),
+    ] {
+        let r = omcl(&[
+            "map",
+            "cloud",
+            s(&f.path("nothing.ply")),
+            "--encoder",
+            name,
+            "-o",
+            s(&out),
+        ]);
+        refused(&r, 2, &["--encoder", why]);
+    }
+    let r = omcl(&[
+        "map",
+        "rgbd",
+        s(&f.path("seq")),
+        "--depth-scale",
+        "0",
+        "-o",
+        s(&out),
+    ]);
+    refused(&r, 2, &["--depth-scale", "0 is not above 0"]);
+    assert!(!out.exists());
+}

@@ -132,6 +132,27 @@ fn missing_depth_is_refused_naming_it() {
     );
 }
 
+/// A frame whose pose is missing, and a file named `frame-...` as the
+/// dataset does not name them, are refused by name (both frames had been
+/// left out without a word).
+#[test]
+fn a_missing_pose_and_an_odd_frame_name_are_refused_naming_them() {
+    let dir = small_copy(4);
+    std::fs::remove_file(dir.path().join("frame-000002.pose.txt")).unwrap();
+    refused(
+        dir.path(),
+        "frame-000002.pose.txt",
+        "the pose of frame 000002 is missing",
+    );
+    let dir = small_copy(4);
+    std::fs::rename(
+        dir.path().join("frame-000003.pose.txt"),
+        dir.path().join("frame-3.pose.txt"),
+    )
+    .unwrap();
+    refused(dir.path(), "frame-3.pose.txt", "not a 7-Scenes frame file");
+}
+
 #[test]
 fn a_pose_that_is_not_a_rotation_is_refused_naming_it() {
     let dir = small_copy(4);

@@ -54,7 +54,7 @@ pub struct BuildOptions {
     )]
     pub text_model: Option<PathBuf>,
     /// Name of the feature space, stored in the map (e.g. clip-vit-b32).
-    #[arg(long, default_value = DEFAULT_ENCODER)]
+    #[arg(long, default_value = DEFAULT_ENCODER, value_parser = super::name)]
     pub encoder: String,
     /// Replace --out even when it is a file that is not an omcl map (a map
     /// is replaced without it).
@@ -579,7 +579,7 @@ pub struct RgbdArgs {
     pub build: BuildOptions,
     /// Depth PNG units per metre (TUM: 5000; Replica: 6553.5; 7-Scenes
     /// folders are read in millimetres whatever this says).
-    #[arg(long, default_value_t = 5000.0)]
+    #[arg(long, default_value_t = 5000.0, value_parser = super::positive)]
     pub depth_scale: f64,
     /// Ignore depths beyond this many metres.
     #[arg(long, default_value_t = 10.0)]
@@ -617,6 +617,13 @@ pub struct RgbdArgs {
 /// `omcl map rgbd` on a 7-Scenes folder.
 fn sevenscenes(a: &RgbdArgs) -> anyhow::Result<()> {
     let seq = omcl::io::sevenscenes::SevenScenes::open(&a.dir)?;
+    if seq.gravity_in_first_camera.is_none() {
+        eprintln!(
+            "note: {}: no gravity-direction.txt: the map is in the first camera's frame, not \
+             z-up (a floor plan, --max-height and planar motion take z as up)",
+            a.dir.display()
+        );
+    }
     let Some(mut src) = super::encoders::open_image_source(&a.encoder)? else {
         anyhow::bail!(
             "{}: a 7-Scenes folder gives colour images only: pass --image-model (e.g. the \
@@ -708,6 +715,13 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
         frames: a.frames,
     };
     let n = poses::read_poses(&d.join("poses.txt"))?.trajectory.len();
+    // Depth in another unit than --depth-scale says maps a room into a
+    // box of a metre, or of a kilometre, without an error: said.
+    if let Ok(depth) = omcl::io::rgbd::read_depth_png(&d.join("depth/000000.png"), a.depth_scale)
+        && let Some(doubt) = omcl::io::rgbd::depth_scale_doubt(&depth.depth, a.depth_scale)
+    {
+        eprintln!("note: {}: {doubt}", d.join("depth/000000.png").display());
+    }
     let pb = super::progress::bar(n.min(a.frames.unwrap_or(usize::MAX)) as u64, "frames");
     let (m, stats) = pipeline::map_from_rgbd(
         &input,

@@ -145,6 +145,33 @@ pub fn cosine(s: &str) -> Result<f32, String> {
     finite_in(s, -1.0, 1.0).map(|v| v as f32)
 }
 
+/// A name stored in a file and printed back (`--encoder`): 1 to 200
+/// characters, none of them a control character (a newline or a terminal
+/// escape had been stored and printed as it was).
+pub fn name(s: &str) -> Result<String, String> {
+    if s.trim().is_empty() {
+        return Err("a name cannot be empty".into());
+    }
+    if s.chars().count() > 200 {
+        return Err(format!("{} characters: at most 200", s.chars().count()));
+    }
+    if s.chars().any(char::is_control) {
+        return Err("a name cannot hold control characters (newlines, escapes)".into());
+    }
+    Ok(s.to_string())
+}
+
+/// A finite number above 0 (`--depth-scale 0` was refused by the first
+/// frame, named as if the file were at fault).
+pub fn positive(s: &str) -> Result<f64, String> {
+    let v = finite(s)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not above 0"))
+    }
+}
+
 /// A finite number of seconds, 0 or more.
 pub fn seconds(s: &str) -> Result<f64, String> {
     finite_in(s, 0.0, 1e12)

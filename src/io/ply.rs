@@ -493,12 +493,15 @@ pub fn read_ply_with(path: &Path, opts: &PlyOptions) -> Result<PointCloud, Cloud
         declared = def.count;
         let layout = check_vertex_layout(path, def)?;
         // A list property is read by nothing: a feature vector stored as
-        // one had been ignored without a word (said when no features are
-        // read otherwise).
+        // one (a list named feat..., emb...) had been ignored without a
+        // word (said when no features are read otherwise).
         let lists: Vec<&str> = def
             .properties
             .iter()
-            .filter(|(_, p)| scalar(&p.data_type).is_none())
+            .filter(|(n, p)| {
+                let n = n.to_ascii_lowercase();
+                scalar(&p.data_type).is_none() && (n.contains("feat") || n.contains("emb"))
+            })
             .map(|(n, _)| n.as_str())
             .collect();
         let list_note = (!lists.is_empty() && layout.feature_dim == 0).then(|| {

@@ -67,6 +67,43 @@ pub fn read_label_png(path: &Path) -> Result<(u32, u32, Vec<u32>), CloudError> {
     Ok((info.width, info.height, labels))
 }
 
+/// A doubt about the scale a depth image was read at (`depth` in metres,
+/// 0 for no reading; `units_per_metre` the scale): no valid depth at all,
+/// or a median valid depth under 0.5 m or over 20 m, where RGB-D cameras
+/// of rooms do not read (millimetres read at TUM's 5000 units a metre put
+/// a 2.8 m room into a 1 m box). The words for a note, or `None`.
+pub fn depth_scale_doubt(depth: &[f32], units_per_metre: f64) -> Option<String> {
+    let mut valid: Vec<f32> = depth
+        .iter()
+        .copied()
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .collect();
+    if valid.is_empty() {
+        return Some("no pixel has a depth (all 0): is it the depth image?".into());
+    }
+    let mid = valid.len() / 2;
+    let median = *valid.select_nth_unstable_by(mid, f32::total_cmp).1 as f64;
+    if (0.5..=20.0).contains(&median) {
+        return None;
+    }
+    // The scale that would put the median at about 2 m.
+    let raw = median * units_per_metre;
+    let hint = [1.0, 1000.0, 5000.0]
+        .into_iter()
+        .filter(|s| (0.5..=20.0).contains(&(raw / s)))
+        .map(|s| format!("--depth-scale {s}"))
+        .collect::<Vec<_>>();
+    Some(format!(
+        "its median depth is {median:.3} m at --depth-scale {units_per_metre} ({raw:.0} units); \
+         RGB-D cameras of rooms read 0.5 to 20 m: is the depth in another unit{}?",
+        if hint.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", hint.join(" or "))
+        }
+    ))
+}
+
 /// Reads a 16-bit single-channel depth PNG; `units_per_metre` converts the
 /// stored integers to metres (see the constants above). Zero stays zero
 /// (invalid).
@@ -271,6 +308,26 @@ pub fn read_rgbd_frame(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_depth_scale_off_by_a_unit_is_doubted() {
+        // A room at 0.5 to 4 m, stored in millimetres.
+        let mm: Vec<f32> = (500..4000).step_by(7).map(|v| v as f32).collect();
+        let at = |scale: f64| -> Vec<f32> { mm.iter().map(|v| v / scale as f32).collect() };
+        assert_eq!(depth_scale_doubt(&at(1000.0), 1000.0), None);
+        let d = depth_scale_doubt(&at(5000.0), 5000.0).unwrap();
+        assert!(
+            d.contains("0.450 m") && d.contains("--depth-scale 1000"),
+            "{d}"
+        );
+        let d = depth_scale_doubt(&at(1.0), 1.0).unwrap();
+        assert!(
+            d.contains("--depth-scale 1000") && !d.contains("scale 5000)"),
+            "{d}"
+        );
+        let d = depth_scale_doubt(&[0.0; 16], 1000.0).unwrap();
+        assert!(d.contains("no pixel has a depth"), "{d}");
+    }
     use nalgebra::Point3;
 
     #[test]

@@ -63,18 +63,43 @@ impl SevenScenes {
     pub fn open(dir: &Path) -> Result<SevenScenes, CloudError> {
         let entries = std::fs::read_dir(dir).map_err(|e| CloudError::io(dir, e))?;
         let mut numbers = Vec::new();
+        // Frames with images: each must have its pose (a frame without one
+        // had been left out without a word), and every `frame-` file must
+        // be named as the dataset names them (`frame-23.pose.txt` was too).
+        let mut imaged = Vec::new();
         for e in entries {
             let e = e.map_err(|e| CloudError::io(dir, e))?;
             let name = e.file_name();
             let Some(name) = name.to_str() else { continue };
-            if let Some(n) = name
-                .strip_prefix("frame-")
-                .and_then(|s| s.strip_suffix(".pose.txt"))
-                .filter(|s| s.len() == 6)
-                .and_then(|s| s.parse::<u32>().ok())
-            {
-                numbers.push(n);
+            let Some(rest) = name.strip_prefix("frame-") else {
+                continue;
+            };
+            let (digits, kind) = rest.split_once('.').unwrap_or((rest, ""));
+            let number = digits
+                .parse::<u32>()
+                .ok()
+                .filter(|_| digits.len() == 6 && digits.bytes().all(|b| b.is_ascii_digit()));
+            match (number, kind) {
+                (Some(n), "pose.txt") => numbers.push(n),
+                (Some(n), "color.jpg" | "color.png" | "depth.png") => imaged.push(n),
+                _ => {
+                    return Err(CloudError::format(
+                        &dir.join(name),
+                        "not a 7-Scenes frame file (frame-NNNNNN.color.jpg, .depth.png or \
+                         .pose.txt)",
+                    ));
+                }
             }
+        }
+        numbers.sort_unstable();
+        if let Some(&n) = imaged.iter().find(|n| numbers.binary_search(n).is_err()) {
+            return Err(CloudError::Mismatch {
+                path: dir.join(format!("frame-{n:06}.pose.txt")),
+                reason: format!(
+                    "the pose of frame {n:06} is missing (its images exist): restore it, or \
+                     move the frame's files out of the folder"
+                ),
+            });
         }
         if numbers.is_empty() {
             return Err(CloudError::Empty {
@@ -82,7 +107,6 @@ impl SevenScenes {
                 reason: "no frame-NNNNNN.pose.txt: not a 7-Scenes sequence folder".into(),
             });
         }
-        numbers.sort_unstable();
         let k_path = dir.join("camera-intrinsics.txt");
         let k_text =
             crate::io::bounded_read::read_text(&k_path).map_err(|e| CloudError::io(&k_path, e))?;
