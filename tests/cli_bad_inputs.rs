@@ -985,3 +985,36 @@ fn stored_names_and_scales_are_checked_as_options() {
     refused(&r, 2, &["--depth-scale", "0 is not above 0"]);
     assert!(!out.exists());
 }
+
+/// A KITTI scan mapped through `--classes` without a label file names
+/// where the labels were looked for and `--labels` (the error had told
+/// to use `--classes`, given, and spoke of PLY files).
+#[test]
+fn a_kitti_scan_without_its_labels_says_where_they_were_looked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let scan = dir.path().join("scans/000001.bin");
+    std::fs::create_dir(dir.path().join("scans")).unwrap();
+    std::fs::copy(
+        shared("semantickitti/sequences/00/velodyne/000001.bin"),
+        &scan,
+    )
+    .unwrap();
+    let out = dir.path().join("m.omcl");
+    let r = omcl(&[
+        "map",
+        "cloud",
+        s(&scan),
+        "--format",
+        "kitti",
+        "--classes",
+        "semantickitti",
+        "-o",
+        s(&out),
+    ]);
+    refused(
+        &r,
+        1,
+        &["scans/000001.label", "labels/000001.label", "--labels FILE"],
+    );
+    assert!(!out.exists());
+}

@@ -136,6 +136,14 @@ fn an_earlier_simulation_is_replaced_only_with_force_and_whole() {
     assert!(!m.exists());
     let r = omcl(&["map", "rgbd", s(&deep), "-o", s(&m), "--frames", "1"]);
     assert_eq!(r.code, Some(0), "{}", r.text());
+    // A depth image missing among them is named, not counted.
+    std::fs::write(deep.join("poses.txt"), poses.clone()).unwrap();
+    std::fs::rename(deep.join("depth/000000.png"), deep.join("000000.png")).unwrap();
+    let r = omcl(&["map", "rgbd", s(&deep), "-o", s(&m), "--force"]);
+    refused(
+        &r,
+        &["depth/000000.png: missing", "2 poses and 1 depth images"],
+    );
     // And the replaced sequence maps.
     let map = dir.path().join("m.omcl");
     let r = omcl(&["map", "rgbd", s(&seq), "-o", s(&map)]);

@@ -352,11 +352,15 @@ fn load_pair(args: &PairArgs) -> anyhow::Result<Paired> {
         for (file, path) in [(&reference, &args.reference), (&estimate, &args.estimate)] {
             if let Some((n, first, stamp)) = repeated_stamps(&file.trajectory) {
                 eprintln!(
-                    "note: {}: {n} poses repeat the time stamp of the pose before (the first: \
-                     pose {}, {stamp} s); time pairing takes the last pose of a \
-                     stamp, as evo 1.38.1 does{}",
+                    "note: {}: {} the time stamp of the pose before (the first: the file's \
+                     pose {first}, counting from 0, at {stamp} s); time pairing takes the last \
+                     pose of a stamp, as evo 1.38.1 does{}",
                     path.display(),
-                    first + 1,
+                    if n == 1 {
+                        "1 pose repeats".to_string()
+                    } else {
+                        format!("{n} poses repeat")
+                    },
                     if n * 10 > file.trajectory.len() {
                         " (so many: stamps written with too few digits?)"
                     } else {

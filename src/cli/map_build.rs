@@ -193,7 +193,7 @@ fn save_as(
     Ok(())
 }
 
-#[derive(Debug, Clone, Copy, ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum FormatArg {
     Ply,
     Las,
@@ -423,6 +423,27 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
             table.is_some() && a.features_dir.is_none(),
         );
         return Ok(());
+    }
+    // A KITTI scan mapped by labels needs its .label file: say where it
+    // was looked for (the error had told to pass --classes, given).
+    if table.is_some()
+        && a.format == Some(FormatArg::Kitti)
+        && omcl::io::kitti::label_path_for_scan(&a.input, a.labels.as_deref()).is_none()
+    {
+        let beside = a.input.with_extension("label");
+        let layout = a
+            .input
+            .parent()
+            .and_then(Path::parent)
+            .zip(a.input.file_stem())
+            .map(|(d, n)| d.join("labels").join(n).with_extension("label"));
+        anyhow::bail!(
+            "{}: --classes maps the scan's labels, and no label file is at {}{}: pass --labels \
+             FILE",
+            a.input.display(),
+            beside.display(),
+            layout.map_or(String::new(), |l| format!(" nor {}", l.display()))
+        );
     }
     let pb = super::progress::spinner(&format!("reading {}", a.input.display()));
     let mut c = pipeline::load_cloud(&input)?;

@@ -733,11 +733,18 @@ pub fn map_from_rgbd(
     // truncated or foreign file, not a request to map part of them.
     if input.frames.is_none() {
         let depth = d.join("depth");
-        let images = std::fs::read_dir(&depth)
-            .map_err(|e| PipelineError::Input(format!("{}: {e}", depth.display())))?
-            .filter_map(|e| e.ok())
-            .filter(|e| e.file_name().to_string_lossy().ends_with(".png"))
-            .count();
+        // NNNNNN.png names only (`0.png` is named as the error it is).
+        let files = crate::io::kitti::numbered_files(&depth, "png")?;
+        let images = files.len();
+        let have: std::collections::HashSet<usize> = files.iter().map(|f| f.0).collect();
+        if let Some(gap) = (0..traj.poses().len().min(images + 1)).find(|i| !have.contains(i)) {
+            return Err(PipelineError::Input(format!(
+                "{}: missing: {} poses and {images} depth images, depth/NNNNNN.png numbered \
+                 from 000000 a pose each",
+                depth.join(format!("{gap:06}.png")).display(),
+                traj.poses().len()
+            )));
+        }
         if images != traj.poses().len() {
             return Err(PipelineError::Input(format!(
                 "{}: {} poses but {images} depth images in {}; pass --frames N to map the first N",
