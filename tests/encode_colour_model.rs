@@ -107,7 +107,11 @@ fn the_card_makes_it_an_image_encoder_of_box_averaged_pixels() {
     write_colour_model(&classes, (320, 240), &model).unwrap();
     let mut enc = ImageEncoder::load(rt(), &model, 1).unwrap();
     assert_eq!(enc.feature_dim(), 32);
-    assert_eq!(enc.card().name, "omcl-colour-lab-k10");
+    // Classes, dimension and the model's CRC-32: another fit is another
+    // name.
+    let name = enc.card().name.clone();
+    let crc = crc32fast::hash(&std::fs::read(&model).unwrap());
+    assert_eq!(name, format!("omcl-colour-lab-k10-d32-{crc:08x}"));
     let img = seq.read_color(41).unwrap();
     let fm = enc.encode(&img).unwrap();
     assert_eq!(fm.shape(), [240, 320, 32]);

@@ -119,6 +119,63 @@ fn a_small_copy_fits_a_model() {
     );
     assert!(String::from_utf8_lossy(&out.stdout).contains("3 colour classes"));
     assert!(model.exists() && out_dir.path().join("m.card.json").exists());
+
+    // Another fit (another seed) is another feature space of the same
+    // dimension: a map of the first is not localized with the second.
+    let run = |args: &[&std::ffi::OsStr]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
+            .args(args)
+            .output()
+            .unwrap();
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let os = |s: &str| std::ffi::OsString::from(s);
+    let other = out_dir.path().join("other.onnx");
+    let (code, err) = run(&[
+        &os("encode"),
+        &os("colour-model"),
+        &os("-k"),
+        &os("3"),
+        &os("--seed"),
+        &os("8"),
+        &os("--frames"),
+        dir.path().as_os_str(),
+        &os("-o"),
+        other.as_os_str(),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    let map = out_dir.path().join("m.omcl");
+    let (code, err) = run(&[
+        &os("map"),
+        &os("rgbd"),
+        dir.path().as_os_str(),
+        &os("--image-model"),
+        model.as_os_str(),
+        &os("-o"),
+        map.as_os_str(),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    let est = out_dir.path().join("est.txt");
+    let (code, err) = run(&[
+        &os("localize"),
+        &os("--map"),
+        map.as_os_str(),
+        &os("--sequence"),
+        dir.path().as_os_str(),
+        &os("--image-model"),
+        other.as_os_str(),
+        &os("-o"),
+        est.as_os_str(),
+    ]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("the colour model `omcl-colour-lab-k3-d32-") && err.contains("another fit"),
+        "{err}"
+    );
+    assert!(!est.exists());
 }
 
 #[test]

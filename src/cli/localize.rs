@@ -1070,6 +1070,22 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     let m = &map3;
     let d = &a.sequence;
     let mut image = super::encoders::open_image_source(&a.encoder)?;
+    // Two colour-class encoders are two feature spaces of the same
+    // dimension: a map of one localized with the other ran to a wrong
+    // answer (0.48 m where the right model gave 0.05 m).
+    if let Some(src) = &image {
+        let prefix = omcl::experiment::sevenscenes::COLOUR_MODEL_PREFIX;
+        ensure!(
+            !(src.name.starts_with(prefix)
+                && m.encoder().starts_with(prefix)
+                && src.name != m.encoder()),
+            "{}: the map is in the features of the colour model `{}`, --image-model gives \
+             `{}` (another fit): localize with the model the map was built with",
+            a.map.display(),
+            m.encoder(),
+            src.name
+        );
+    }
     let pick = FramePick {
         step: a.frame_step,
         offset: a.frame_offset,

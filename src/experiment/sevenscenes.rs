@@ -217,16 +217,28 @@ pub fn fit_colour_model(
     Ok(classes)
 }
 
+/// How the name of every colour-class encoder omcl writes begins.
+pub const COLOUR_MODEL_PREFIX: &str = "omcl-colour-lab-";
+
 /// Writes `classes` as ONNX to `model` and its card beside it.
 pub fn write_colour_model(
     classes: &ColourClasses,
     size: (u32, u32),
     model: &Path,
 ) -> Result<(), ExperimentError> {
-    let name = format!("omcl-colour-lab-k{}", classes.len());
+    // The classes, their dimension and a CRC-32 of the model's bytes: two
+    // fits (another seed, other frames) are two feature spaces, and a map
+    // of one is not localized with the other (`omcl localize` refuses).
+    let bytes = colour_model(classes);
+    let name = format!(
+        "{COLOUR_MODEL_PREFIX}k{}-d{}-{:08x}",
+        classes.len(),
+        classes.dim,
+        crc32fast::hash(&bytes)
+    );
     let card = colour_card(classes, &name, size.0, size.1);
     let card_text = serde_json::to_string_pretty(&card).map_err(err)?;
-    crate::io::atomic::write(model, &colour_model(classes))
+    crate::io::atomic::write(model, &bytes)
         .map_err(|e| err(format!("{}: {e}", model.display())))?;
     let card_path = crate::encode::card::card_path_for(model);
     crate::io::atomic::write(&card_path, card_text.as_bytes())
