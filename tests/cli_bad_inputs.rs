@@ -844,6 +844,29 @@ fn progress_goes_into_logs_as_plain_lines() {
     );
     let quiet = run(None, &f.path("b"));
     assert!(!quiet.contains("scanning"), "{quiet}");
+    // A single cloud's mapping counts its points (a spinner had said
+    // nothing of how far it was).
+    let ply = f.path("feat.ply");
+    let mut t = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 100\nproperty float x\nproperty float y\n\
+         property float z\nproperty float f0\nproperty float f1\nend_header\n",
+    );
+    for i in 0..100 {
+        t.push_str(&format!("{} 0.5 0.5 1 {}\n", i as f32 * 0.1, i % 3));
+    }
+    std::fs::write(&ply, t).unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(["map", "cloud", s(&ply), "-o", s(&f.path("feat.omcl"))])
+        .env("OMCL_PROGRESS_EVERY_S", "0")
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.lines()
+            .any(|l| l.starts_with("mapping: 100/100 points (done in ")),
+        "{e}"
+    );
 }
 
 #[test]

@@ -478,15 +478,19 @@ pub fn cloud(a: &CloudArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
-    pb.set_message(format!("mapping {} points", c.len()));
-    let (m, stats) = pipeline::map_from_cloud(
+    // A bar over the points (512-dimensional features take minutes a
+    // million points; a spinner had said nothing of how far it was).
+    super::progress::finish(&pb);
+    let bar = super::progress::bar_of(c.len() as u64, "mapping", "points");
+    let (m, stats) = pipeline::map_from_cloud_with(
         c,
         &a.input.display().to_string(),
         &cloud_params(a, text_encoder.as_deref()),
         table.as_ref(),
         encoder.as_mut(),
+        &mut |done, _| bar.set_position(done as u64),
     )?;
-    super::progress::finish(&pb);
+    super::progress::finish(&bar);
     save_as(&m, &a.build, &stats, !a.keep_strays)?;
     let labelled = table.is_some() && !own_features && a.point_model.is_none();
     warn_labels(&m, &a.build, &stats, labelled);

@@ -580,11 +580,29 @@ impl BuildParams {
 /// `table` (the ground-truth mode). Fails, naming what to pass, when the
 /// points carry neither or when nothing could be integrated.
 pub fn map_from_cloud(
+    cloud: PointCloud,
+    input: &str,
+    params: &BuildParams,
+    table: Option<&EmbeddingTable>,
+    encoder: Option<&mut PointEncoder>,
+) -> Result<(LanguageMap, IntegrationStats), PipelineError> {
+    map_from_cloud_with(cloud, input, params, table, encoder, &mut |_, _| {})
+}
+
+/// Points integrated between two calls of [`map_from_cloud_with`]'s
+/// `progress` (512-dimensional features take a quarter of a millisecond a
+/// point: 65,536 points are a few seconds).
+const PROGRESS_BATCH: usize = 1 << 16;
+
+/// [`map_from_cloud`], telling `progress(done, total)` the points
+/// integrated so far (the same map: points are integrated one by one).
+pub fn map_from_cloud_with(
     mut cloud: PointCloud,
     input: &str,
     params: &BuildParams,
     table: Option<&EmbeddingTable>,
     encoder: Option<&mut PointEncoder>,
+    progress: &mut dyn FnMut(usize, usize),
 ) -> Result<(LanguageMap, IntegrationStats), PipelineError> {
     if cloud.is_empty() {
         return Err(PipelineError::Input(format!(
@@ -641,9 +659,16 @@ pub fn map_from_cloud(
     let (integ, mut stats) = if let Some((dim, feats)) = &cloud.features {
         let db = FeatureDb::new(*dim, params.tau)?.with_max_rows(params.max_rows);
         let mut integ = Integrator::new(grid, db)?.keeping(keep);
-        let s = super::cloud::integrate_points(&mut integ, &cloud.points, |i| {
-            Feature::Vector(&feats[i * dim..(i + 1) * dim])
-        })?;
+        let total = cloud.points.len();
+        let mut s = IntegrationStats::default();
+        for (b, chunk) in cloud.points.chunks(PROGRESS_BATCH).enumerate() {
+            let first = b * PROGRESS_BATCH;
+            s += super::cloud::integrate_points(&mut integ, chunk, |i| {
+                let i = first + i;
+                Feature::Vector(&feats[i * dim..(i + 1) * dim])
+            })?;
+            progress(first + chunk.len(), total);
+        }
         (integ, s)
     } else if let (Some(labels), Some(t)) = (&cloud.labels, table) {
         let db = FeatureDb::from_rows(t.dim, params.tau, t.data.clone())?;
@@ -653,8 +678,11 @@ pub fn map_from_cloud(
         // the cloud.
         let mut rows = LabelRows::new(t);
         let mut s = IntegrationStats::default();
+        let (total, mut done) = (cloud.points.len(), 0);
         for (p, l) in cloud.points.chunks(ROW_BATCH).zip(labels.chunks(ROW_BATCH)) {
             s += super::cloud::integrate_point_rows(&mut integ, p, rows.rows(l));
+            done += p.len();
+            progress(done, total);
         }
         rows.check(input, &s)?;
         (integ, s)
