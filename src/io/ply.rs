@@ -29,7 +29,7 @@
 //! with their other values, and a note on the cloud counts them.
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{BufRead, BufReader, Read, Seek, Write};
 use std::path::Path;
 
 use ply_rs_bw::parser::{Parser, Reader};
@@ -475,6 +475,7 @@ pub fn read_ply_with(path: &Path, opts: &PlyOptions) -> Result<PointCloud, Cloud
     let mut tally = Tally::default();
     let mut declared = 0;
     let mut float_axes = [false; 3];
+    let mut note_after = None;
     for (pos, (_, def)) in header.elements.iter().enumerate() {
         if pos < vertex_pos {
             // Elements before the vertices must be consumed to reach them.
@@ -485,7 +486,23 @@ pub fn read_ply_with(path: &Path, opts: &PlyOptions) -> Result<PointCloud, Cloud
             }
             for i in 0..def.count {
                 read_one(&skip, &mut reader, def, header.encoding).map_err(|e| {
-                    CloudError::format(path, format!("element '{}' {i}: {e}", def.name))
+                    // The parser's words span lines and tabs; its end of
+                    // file is a truncation.
+                    let words = e
+                        .to_string()
+                        .split_whitespace()
+                        .collect::<Vec<_>>()
+                        .join(" ");
+                    let why = if words.contains("fill whole buffer") || words.contains("EOF") {
+                        format!(
+                            "truncated: the file ends inside it ({} declared, before the \
+                             vertices)",
+                            def.count
+                        )
+                    } else {
+                        words
+                    };
+                    CloudError::format(path, format!("element '{}' {i}: {why}", def.name))
                 })?;
             }
             continue;
@@ -553,6 +570,33 @@ pub fn read_ply_with(path: &Path, opts: &PlyOptions) -> Result<PointCloud, Cloud
         };
         (cloud, tally) = cols.finish();
         cloud.notes.extend(list_note);
+        // Elements after the vertices (a mesh's faces) are not read; a
+        // file too short to hold them even at their smallest is truncated
+        // (it had been taken without a word).
+        if pos + 1 < header.elements.len()
+            && let Ok(at) = reader.get_mut().stream_position()
+        {
+            let need = header
+                .elements
+                .values()
+                .skip(pos + 1)
+                .map(|d| (d.count as u64).saturating_mul(min_record(d, header.encoding)))
+                .fold(0u64, u64::saturating_add);
+            if file_len.saturating_sub(at) < need {
+                let names: Vec<String> = header
+                    .elements
+                    .values()
+                    .skip(pos + 1)
+                    .map(|d| format!("{} {}", d.count, d.name))
+                    .collect();
+                note_after = Some(format!(
+                    "{}: the file ends before the elements its header declares after the \
+                     vertices ({}): truncated, or a wrong count; the vertices were read whole",
+                    path.display(),
+                    names.join(", ")
+                ));
+            }
+        }
         if pos + 1 == header.elements.len() {
             // Nothing may follow the last element: more data means the
             // header's count or properties do not describe the file, and
@@ -561,6 +605,7 @@ pub fn read_ply_with(path: &Path, opts: &PlyOptions) -> Result<PointCloud, Cloud
         }
         break;
     }
+    cloud.notes.extend(note_after);
     let name = path.display().to_string();
     if tally.non_finite > 0 {
         if cloud.is_empty() {
@@ -898,6 +943,23 @@ struct FixedRecord {
     features: Vec<(usize, ScalarType)>,
 }
 
+/// The fewest bytes an element of `def` takes: binary, its scalars' sizes
+/// and its lists' count fields (an empty list); ASCII, a character and a
+/// separator a property.
+fn min_record(def: &ElementDef, encoding: Encoding) -> u64 {
+    match encoding {
+        Encoding::Ascii => 2 * def.properties.len() as u64,
+        _ => def
+            .properties
+            .values()
+            .map(|p| match &p.data_type {
+                PropertyType::Scalar(t) => scalar_size(t) as u64,
+                PropertyType::List(count, _) => scalar_size(count) as u64,
+            })
+            .sum(),
+    }
+}
+
 fn scalar_size(t: &ScalarType) -> usize {
     match t {
         ScalarType::Char | ScalarType::UChar => 1,
@@ -1203,6 +1265,41 @@ mod tests {
         let e = read_ply_with(&p, &opts).unwrap_err().to_string();
         assert!(
             e.contains("label property 'feature' (--label-property)"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn elements_the_file_cannot_hold_are_said_or_refused() {
+        let d = tempfile::tempdir().unwrap();
+        // Faces after the vertices, 4e9 declared, none there: a note.
+        let p = write(
+            d.path(),
+            "after.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+              property float z\nelement face 4000000000\nproperty list uchar int \
+              vertex_indices\nend_header\n1 2 3\n",
+        );
+        let c = read_ply(&p).unwrap();
+        assert_eq!(c.points, vec![[1.0, 2.0, 3.0]]);
+        assert!(
+            c.notes
+                .iter()
+                .any(|n| n.contains("ends before the elements") && n.contains("4000000000 face")),
+            "{:?}",
+            c.notes
+        );
+        // Before the vertices: refused as truncated, in one line.
+        let p = write(
+            d.path(),
+            "before.ply",
+            b"ply\nformat binary_little_endian 1.0\nelement face 4000000000\nproperty list \
+              uchar int vertex_indices\nelement vertex 1\nproperty float x\nproperty float \
+              y\nproperty float z\nend_header\n\x03\x00\x00",
+        );
+        let e = read_ply(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("truncated") && !e.contains('\n') && !e.contains('\t'),
             "{e}"
         );
     }
