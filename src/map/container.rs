@@ -56,8 +56,42 @@ pub(crate) struct Container<'a> {
 impl<'a> Container<'a> {
     /// Opens `bytes` as a container whose `format` field is `format`.
     pub fn open(bytes: &'a [u8], format: &str) -> Result<Self, HeaderError> {
-        let tensors = SafeTensors::deserialize(bytes)
-            .map_err(|e| HeaderError::NotSafetensors(e.to_string()))?;
+        // Files a map is often mistaken for, by their first bytes: their
+        // kind said, not the safetensors parser's "header too large".
+        for (magic, kind) in [
+            (&b"ply"[..], "a PLY point cloud"),
+            (b"LASF", "a LAS/LAZ point cloud"),
+            (b"\x89PNG", "a PNG image"),
+            (b"\xff\xd8\xff", "a JPEG image"),
+            (b"\x93NUMPY", "a .npy array"),
+        ] {
+            if bytes.starts_with(magic) {
+                return Err(HeaderError::NotSafetensors(format!(
+                    "it is {kind}; `omcl map cloud` builds a map from a cloud"
+                )));
+            }
+        }
+        if bytes.len() < 8 {
+            return Err(HeaderError::NotSafetensors(format!(
+                "{} bytes: truncated or empty",
+                bytes.len()
+            )));
+        }
+        let declared = u64::from_le_bytes(bytes[..8].try_into().expect("8 bytes"));
+        if declared <= 100 << 20 && declared > bytes.len() as u64 - 8 {
+            return Err(HeaderError::NotSafetensors(format!(
+                "its header takes {declared} bytes and the file has {}: truncated?",
+                bytes.len()
+            )));
+        }
+        let tensors = SafeTensors::deserialize(bytes).map_err(|e| {
+            HeaderError::NotSafetensors(match e.to_string() {
+                m if m.contains("incomplete metadata") || m.contains("not fully covered") => {
+                    format!("{m}: truncated?")
+                }
+                m => m,
+            })
+        })?;
         let (_, header) = SafeTensors::read_metadata(bytes)
             .map_err(|e| HeaderError::NotSafetensors(e.to_string()))?;
         let meta = header.metadata().clone().unwrap_or_default();

@@ -547,6 +547,14 @@ mod tests {
         let e = from_bytes(b"ply\nformat ascii 1.0\n", Path::new("cloud.ply")).unwrap_err();
         assert!(matches!(e, MapFileError::NotSafetensors { .. }), "{e}");
         assert!(e.to_string().contains("cloud.ply"));
+        // What such a file is, said (the parser had said "header too
+        // large"), and a cut file called truncated.
+        assert!(e.to_string().contains("it is a PLY point cloud"), "{e}");
+        let e = from_bytes(b"LASF\0\0\0\0\0\0", Path::new("s.omcl")).unwrap_err();
+        assert!(e.to_string().contains("a LAS/LAZ point cloud"), "{e}");
+        let whole = to_bytes(&sample());
+        let e = from_bytes(&whole[..whole.len() / 2], Path::new("cut.omcl")).unwrap_err();
+        assert!(e.to_string().contains("truncated"), "{e}");
     }
 
     /// `bytes` with the first occurrence of `from` replaced by `to` (same
