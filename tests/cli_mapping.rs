@@ -477,11 +477,12 @@ fn a_single_kitti_scan_reads_the_labels_beside_it() {
         .count();
     assert!(road_voxels > 500, "{road_voxels} road voxels");
 
-    // No labels anywhere: refused, nothing written.
+    // No labels anywhere: refused, where they were looked for named,
+    // nothing written.
     let d = dir.path().join("d.omcl");
     let (ok, text) = map_of(&bare.join("000000.bin"), &[], &d);
     assert!(
-        !ok && text.contains("neither features nor labels"),
+        !ok && text.contains("bare/000000.label") && text.contains("--labels FILE"),
         "{text}"
     );
     assert!(!d.exists());
