@@ -362,6 +362,81 @@ fn not_ply(head: &[u8]) -> String {
     }
 }
 
+/// The first property an element of the header in `head` declares twice,
+/// said with the two lines (the header parser keeps one of them, so the
+/// records then seemed to hold a value more than the header's properties).
+/// Looks at the header as far as `head` holds it.
+fn duplicate_property(head: &[u8]) -> Option<String> {
+    let mut element = String::new();
+    let mut seen: Vec<(String, usize)> = Vec::new();
+    for (i, line) in head.split(|b| *b == b'\n').enumerate() {
+        let line = String::from_utf8_lossy(line);
+        let words: Vec<&str> = line.split_whitespace().collect();
+        match words.first().copied() {
+            Some("end_header") => return None,
+            Some("element") => {
+                element = words.get(1).unwrap_or(&"").to_string();
+                seen.clear();
+            }
+            Some("property") if words.len() >= 3 => {
+                let name = words[words.len() - 1];
+                if let Some((_, first)) = seen.iter().find(|(n, _)| n == name) {
+                    return Some(format!(
+                        "element '{element}' declares the property '{name}' twice (header \
+                         lines {} and {}): rename one",
+                        first + 1,
+                        i + 1
+                    ));
+                }
+                seen.push((name.to_string(), i));
+            }
+            _ => {}
+        }
+    }
+    None
+}
+
+/// The names omcl reads as coordinates and colours, taken in any letter
+/// case and, for colours, with the `diffuse_` prefix of some scanners'
+/// files (PDAL's PLY writer writes `X`, `Y`, `Z`, `Red`, ...): each such
+/// property is renamed to its lowercase name, unless the vertex has that
+/// name itself or the match is ambiguous.
+fn fold_standard_names(def: &mut ElementDef) {
+    let canon = |k: &str| -> Option<&'static str> {
+        let base = match k.get(..8) {
+            Some(p) if p.eq_ignore_ascii_case("diffuse_") => &k[8..],
+            _ => k,
+        };
+        ["x", "y", "z"]
+            .into_iter()
+            .chain(COLOR_NAMES)
+            .find(|n| n.eq_ignore_ascii_case(base))
+            .filter(|n| *n != k)
+    };
+    let renames: Vec<(String, &str)> = def
+        .properties
+        .keys()
+        .filter_map(|k| canon(k).map(|c| (k.clone(), c)))
+        .filter(|(_, c)| !def.properties.contains_key(*c))
+        .collect();
+    let unique = |c: &str| renames.iter().filter(|(_, d)| *d == c).count() == 1;
+    if renames.iter().all(|(_, c)| !unique(c)) {
+        return;
+    }
+    let props = std::mem::take(&mut def.properties);
+    def.properties = props
+        .into_iter()
+        .map(|(k, mut p)| {
+            let name = match renames.iter().find(|(r, c)| *r == k && unique(c)) {
+                Some((_, c)) => c.to_string(),
+                None => k,
+            };
+            p.name = name.clone();
+            (name, p)
+        })
+        .collect();
+}
+
 /// What the vertex readers left out or changed, for the cloud's notes.
 #[derive(Default)]
 struct Tally {
@@ -459,6 +534,9 @@ pub fn read_ply_with(path: &Path, opts: &PlyOptions) -> Result<PointCloud, Cloud
     if !head.starts_with(b"ply") {
         return Err(CloudError::format(path, not_ply(head)));
     }
+    if let Some(why) = duplicate_property(head) {
+        return Err(CloudError::format(path, why));
+    }
     let mut reader = Reader::new(buffered);
     let parser = Parser::<Vertex>::new();
     let mut header = parser
@@ -467,6 +545,9 @@ pub fn read_ply_with(path: &Path, opts: &PlyOptions) -> Result<PointCloud, Cloud
     let Some(vertex_pos) = header.elements.get_index_of("vertex") else {
         return Err(CloudError::format(path, "no 'vertex' element in header"));
     };
+    if let Some(def) = header.elements.get_mut("vertex") {
+        fold_standard_names(def);
+    }
     if let (Some(choice), Some(def)) = (&opts.label_property, header.elements.get_mut("vertex")) {
         choose_label(path, def, choice)?;
     }
@@ -1214,6 +1295,75 @@ mod tests {
         assert_eq!(c.colors, Some(vec![[10, 20, 30], [255, 0, 1]]));
         assert_eq!(c.labels, Some(vec![5, 40]));
         assert!(c.features.is_none());
+    }
+
+    #[test]
+    fn pdal_style_capitals_read_as_coordinates_and_colours() {
+        let d = tempfile::tempdir().unwrap();
+        // PDAL's PLY writer: capitals, colours before coordinates, a
+        // Classification; binary, so the fixed-record path reads it.
+        let mut b = b"ply\nformat binary_little_endian 1.0\nelement vertex 2\n\
+              property uchar Red\nproperty uchar Green\nproperty uchar Blue\n\
+              property float X\nproperty float Y\nproperty float Z\n\
+              property uchar Classification\nend_header\n"
+            .to_vec();
+        for (rgb, xyz, class) in [
+            ([1u8, 2, 3], [1.5f32, -2.0, 3.25], 6u8),
+            ([9, 8, 7], [0.0, 1.0, 2.0], 2),
+        ] {
+            b.extend_from_slice(&rgb);
+            xyz.iter()
+                .for_each(|v| b.extend_from_slice(&v.to_le_bytes()));
+            b.push(class);
+        }
+        let c = read_ply(&write(d.path(), "pdal.ply", &b)).unwrap();
+        assert_eq!(c.points, vec![[1.5, -2.0, 3.25], [0.0, 1.0, 2.0]]);
+        assert_eq!(c.colors, Some(vec![[1, 2, 3], [9, 8, 7]]));
+        assert_eq!(c.labels, Some(vec![6, 2]));
+        // ASCII, older scanners' diffuse_ colours.
+        let p = write(
+            d.path(),
+            "diffuse.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty double X\nproperty double Y\n\
+              property double Z\nproperty uchar diffuse_red\nproperty uchar diffuse_green\n\
+              property uchar diffuse_blue\nend_header\n4 5 6 10 20 30\n",
+        );
+        let c = read_ply(&p).unwrap();
+        assert_eq!(c.points, vec![[4.0, 5.0, 6.0]]);
+        assert_eq!(c.colors, Some(vec![[10, 20, 30]]));
+        // A vertex with both x and X keeps x as the coordinate.
+        let p = write(
+            d.path(),
+            "both.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float X\nproperty float x\n\
+              property float y\nproperty float z\nend_header\n9 1 2 3\n",
+        );
+        assert_eq!(read_ply(&p).unwrap().points, vec![[1.0, 2.0, 3.0]]);
+    }
+
+    #[test]
+    fn a_property_declared_twice_is_named_with_its_lines() {
+        let d = tempfile::tempdir().unwrap();
+        let p = write(
+            d.path(),
+            "dup.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+              property float z\nproperty float x\nend_header\n0 0 0 5\n",
+        );
+        let e = read_ply(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("element 'vertex' declares the property 'x' twice (header lines 4 and 7)"),
+            "{e}"
+        );
+        // The same name in two elements is no duplicate.
+        let p = write(
+            d.path(),
+            "two.ply",
+            b"ply\nformat ascii 1.0\nelement camera 1\nproperty float x\n\
+              element vertex 1\nproperty float x\nproperty float y\nproperty float z\n\
+              end_header\n7\n1 2 3\n",
+        );
+        assert_eq!(read_ply(&p).unwrap().points, vec![[1.0, 2.0, 3.0]]);
     }
 
     #[test]
