@@ -146,3 +146,80 @@ fn bad_images_and_intrinsics_are_named() {
     std::fs::write(&pose, "1 2 3 0 0 0 3\n").unwrap();
     assert_err_names(read_single_tum_pose(&pose).unwrap_err(), &pose, "norm");
 }
+
+/// A TUM sequence as published (the real pair in its names and lists) is
+/// refused by `map rgbd` and `localize` with what an RGB-D folder needs,
+/// not with "poses.txt: No such file".
+#[test]
+fn a_raw_tum_sequence_is_named_with_what_omcl_reads() {
+    let root = shared("rgbd_tum_fr1_xyz/case_1");
+    let d = tempfile::tempdir().unwrap();
+    let tum = d.path().join("rgbd_dataset_freiburg1_xyz");
+    for (sub, name, from) in [
+        ("rgb", "1305031102.175304.png", "img_prev.png"),
+        ("depth", "1305031102.160407.png", "dep_prev.png"),
+    ] {
+        std::fs::create_dir_all(tum.join(sub)).unwrap();
+        std::fs::copy(root.join(from), tum.join(sub).join(name)).unwrap();
+        let stamp = name.trim_end_matches(".png");
+        std::fs::write(
+            tum.join(format!("{sub}.txt")),
+            format!("# {sub}\n# timestamp filename\n{stamp} {sub}/{name}\n"),
+        )
+        .unwrap();
+    }
+    std::fs::write(
+        tum.join("groundtruth.txt"),
+        "# ground truth\n1305031102.1758 1.3405 0.6266 1.6575 0.6574 0.6126 -0.2949 -0.3248\n",
+    )
+    .unwrap();
+    let map = d.path().join("m.omcl");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    // A map to localize in: a few labelled points.
+    let ply = d.path().join("p.ply");
+    std::fs::write(
+        &ply,
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+         property float z\nproperty int label\nend_header\n0 0 0 40\n1 0 0 40\n0 1 0 50\n",
+    )
+    .unwrap();
+    let r = common::omcl(&[
+        "map",
+        "cloud",
+        &s(&ply),
+        "--classes",
+        "semantickitti",
+        "-o",
+        &s(&map),
+    ]);
+    assert!(r.ok(), "{}", r.output());
+    let before = std::fs::read(&map).unwrap();
+    let map2 = d.path().join("m2.omcl");
+    let est = d.path().join("est.txt");
+    for args in [
+        vec!["map", "rgbd", &s(&tum), "-o", &s(&map2)],
+        vec![
+            "localize",
+            "--map",
+            &s(&map),
+            "--sequence",
+            &s(&tum),
+            "-o",
+            &s(&est),
+        ],
+    ] {
+        let r = common::omcl(&args);
+        assert_ne!(r.code, Some(0), "{args:?}: {}", r.output());
+        let e = r.stderr;
+        assert!(
+            e.contains(&format!(
+                "{}: a TUM RGB-D sequence as published",
+                tum.display()
+            )) && e.contains("intrinsics.txt (`fx fy cx cy width height`")
+                && e.contains("associate.py"),
+            "{args:?}: {e}"
+        );
+    }
+    assert!(!map2.exists() && !est.exists());
+    assert_eq!(std::fs::read(&map).unwrap(), before);
+}

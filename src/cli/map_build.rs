@@ -710,6 +710,9 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
          (with camera-intrinsics.txt) only",
         d.display()
     );
+    if let Some(why) = omcl::io::rgbd::raw_tum_layout(d) {
+        anyhow::bail!(why);
+    }
     let mut image = super::encoders::open_image_source(&a.encoder)?;
     let use_labels = image.is_none() && !a.use_features && d.join("labels").is_dir();
     let (table, text_encoder) = if use_labels {

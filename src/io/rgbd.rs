@@ -137,6 +137,27 @@ pub fn read_depth_png(path: &Path, units_per_metre: f64) -> Result<DepthImage, C
     })
 }
 
+/// Why `dir` cannot be read as it is when it is a sequence as the TUM
+/// RGB-D benchmark publishes it (`rgb.txt`, `depth.txt`, frames named by
+/// timestamps, no `intrinsics.txt`), with what omcl needs instead.
+pub fn raw_tum_layout(dir: &Path) -> Option<String> {
+    let raw = dir.join("rgb.txt").is_file()
+        && dir.join("depth.txt").is_file()
+        && !dir.join("intrinsics.txt").exists();
+    raw.then(|| {
+        format!(
+            "{}: a TUM RGB-D sequence as published (rgb.txt, depth.txt, frames named by \
+             timestamps), which omcl does not read as it is: an RGB-D folder has \
+             intrinsics.txt (`fx fy cx cy width height`; TUM's calibrated values for its \
+             camera, the images undistorted for freiburg1 and 2), poses.txt (one TUM pose a \
+             frame, e.g. groundtruth.txt at each colour frame's time) and rgb/NNNNNN.png, \
+             depth/NNNNNN.png numbered from 000000 (pair the frames by time as TUM's \
+             associate.py does)",
+            dir.display()
+        )
+    })
+}
+
 /// Reads an intrinsics file: `fx fy cx cy width height` (whitespace
 /// separated, `#` comments), pixels, pixel centres at `u + 0.5`.
 pub fn read_intrinsics(path: &Path) -> Result<Intrinsics, CloudError> {
@@ -163,11 +184,24 @@ pub fn read_intrinsics(path: &Path) -> Result<Intrinsics, CloudError> {
             .filter(|v| v.is_finite())
             .ok_or_else(|| CloudError::format(path, format!("'{s}' is not a finite number")))?;
     }
+    // A size written as a float ("640.0", as calibration tools print
+    // them) is taken when whole.
     let dim = |s: &str| {
         s.parse::<u32>()
             .ok()
+            .or_else(|| {
+                s.parse::<f64>()
+                    .ok()
+                    .filter(|v| v.fract() == 0.0 && (1.0..=u32::MAX as f64).contains(v))
+                    .map(|v| v as u32)
+            })
             .filter(|v| *v > 0)
-            .ok_or_else(|| CloudError::format(path, format!("'{s}' is not a positive image size")))
+            .ok_or_else(|| {
+                CloudError::format(
+                    path,
+                    format!("'{s}' is not a positive whole image size (pixels)"),
+                )
+            })
     };
     let (width, height) = (dim(fields[4])?, dim(fields[5])?);
     if f[0] <= 0.0 || f[1] <= 0.0 {
@@ -358,6 +392,23 @@ mod tests {
         // y = (2.5 - 1.5) / 400 * 2.
         let j = px.iter().position(|&i| i == 2 * 4 + 1).unwrap();
         assert!((pts[j][0] + 0.002).abs() < 1e-12 && (pts[j][1] - 0.005).abs() < 1e-12);
+    }
+
+    #[test]
+    fn intrinsics_sizes_may_be_whole_floats() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("k.txt");
+        std::fs::write(&p, "525 525.5 319.5 239.5 640.0 480 # Kinect\n").unwrap();
+        let k = read_intrinsics(&p).unwrap();
+        assert_eq!((k.width, k.height, k.fy), (640, 480, 525.5));
+        for bad in ["640.5", "0", "-640", "nan", "1e12"] {
+            std::fs::write(&p, format!("525 525 319.5 239.5 {bad} 480")).unwrap();
+            let e = read_intrinsics(&p).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("'{bad}' is not a positive whole image size")),
+                "{bad}: {e}"
+            );
+        }
     }
 
     #[test]

@@ -232,6 +232,9 @@ impl CameraSequence {
                 d.display()
             )));
         }
+        if let Some(why) = rgbd::raw_tum_layout(d) {
+            return Err(SequenceError::Input(why));
+        }
         // Nothing of any layout: name them all, not one missing file.
         let rgbd_parts = ["labels", "features", "rgb", "depth", "poses.txt"];
         if !intrinsics_path.exists() && !rgbd_parts.iter().any(|k| d.join(k).exists()) {
