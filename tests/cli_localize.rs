@@ -112,7 +112,9 @@ impl Fixture {
     }
 }
 
-const OLD_OUT: &str = "# an earlier result that a failed run must not touch\n";
+/// An earlier estimate (one pose: a trajectory, which a run may replace)
+/// that a failed run must not touch.
+const OLD_OUT: &str = "# an earlier result that a failed run must not touch\n0 0 0 0 0 0 0 1\n";
 
 fn copy_dir(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
@@ -1090,6 +1092,122 @@ fn outputs_over_the_inputs_are_refused_and_leave_them_intact() {
     let r = f.localize(&f.map, &seq, &est, &["--frames", "4"]);
     assert!(r.ok(), "{}", r.text());
     assert_eq!(read_tum(&est).len(), 4);
+}
+
+/// Outputs replace only earlier outputs of their kind: another sequence's
+/// ground truth, a class table, a note, a simulated label frame are
+/// refused by name and left byte for byte (`-o other/poses.txt` replaced
+/// another sequence's ground truth, `--plot other/labels/000004.png` a
+/// label frame), unless --force; a run's own outputs, run twice, are
+/// replaced; `omcl eval ape --json` follows the same rule.
+#[test]
+fn outputs_replace_only_earlier_outputs_of_their_kind() {
+    let f = Fixture::new();
+    let other = f.copy_seq("other");
+    let note = f.dir.path().join("notes.md");
+    std::fs::write(&note, "# my notes\n").unwrap();
+    let est = f.dir.path().join("est.txt");
+    let cases: [(&str, PathBuf, &str); 5] = [
+        (
+            "-o",
+            other.join("poses.txt"),
+            "--out would replace a dataset's file",
+        ),
+        ("-o", note.clone(), "--out exists and is not a trajectory"),
+        (
+            "--metrics",
+            other.join("classes.txt"),
+            "--metrics would replace a dataset's file",
+        ),
+        (
+            "--diagnostics",
+            note.clone(),
+            "--diagnostics exists and is not diagnostics CSV",
+        ),
+        (
+            "--plot",
+            other.join("labels/000001.png"),
+            "--plot exists and is not a figure omcl drew",
+        ),
+    ];
+    for (option, victim, why) in &cases {
+        let before = std::fs::read(victim).unwrap();
+        let out = if *option == "-o" {
+            victim.clone()
+        } else {
+            est.clone()
+        };
+        let extra: Vec<&str> = match *option {
+            "-o" => vec!["--frames", "3"],
+            o => vec!["--frames", "3", o, s(victim)],
+        };
+        let r = f.localize(&f.map, &f.seq, &out, &extra);
+        assert_eq!(r.code, Some(1), "{option}: {}", r.text());
+        assert!(
+            r.stderr.contains(&format!("{}: {why}", victim.display()))
+                && r.stderr.contains("pass --force"),
+            "{option}: {}",
+            r.stderr
+        );
+        assert_eq!(std::fs::read(victim).unwrap(), before, "{option}");
+        assert!(!est.exists() || *option == "-o");
+    }
+    // Its own outputs, twice.
+    let (m, d, p) = (
+        f.dir.path().join("m.json"),
+        f.dir.path().join("d.csv"),
+        f.dir.path().join("p.png"),
+    );
+    for _ in 0..2 {
+        let r = f.localize(
+            &f.map,
+            &f.seq,
+            &est,
+            &[
+                "--frames",
+                "3",
+                "--metrics",
+                s(&m),
+                "--diagnostics",
+                s(&d),
+                "--plot",
+                s(&p),
+            ],
+        );
+        assert!(r.ok(), "{}", r.text());
+    }
+    // eval: --json over a note refused, over its own JSON (or localize's
+    // metrics) fine; --force replaces the note.
+    let gt = f.seq.join("poses.txt");
+    let eval = |json: &Path, force: bool| {
+        let mut a = vec!["eval", "ape", s(&gt), s(&est), "--json", s(json)];
+        if force {
+            a.push("--force");
+        }
+        omcl(&a)
+    };
+    let r = eval(&note, false);
+    assert!(
+        r.code == Some(1)
+            && r.stderr
+                .contains("--json exists and is not metrics JSON omcl wrote"),
+        "{}",
+        r.text()
+    );
+    assert_eq!(std::fs::read_to_string(&note).unwrap(), "# my notes\n");
+    assert!(eval(&m, false).ok());
+    assert!(eval(&m, false).ok());
+    let r = eval(&note, true);
+    assert!(r.ok(), "{}", r.text());
+    // localize --force replaces another sequence's ground truth.
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &other.join("poses.txt"),
+        &["--frames", "3", "--force"],
+    );
+    assert!(r.ok(), "{}", r.text());
+    assert_eq!(read_tum(&other.join("poses.txt")).len(), 3);
 }
 
 /// `omcl map ground` of the fixture's map on `words` (its class table) into

@@ -262,7 +262,18 @@ fn map_outputs_replace_only_their_own_kind() {
     refused(
         with_png.clone(),
         &photo,
-        "--png exists and is not a PNG omcl wrote",
+        "--png exists and is not a figure omcl drew",
+    );
+    // A simulated depth frame (marked as written by omcl) is data, not a
+    // picture: refused as a photo is.
+    let frame = path("000003.png");
+    omcl::sim::files::write_png_gray16(&frame, 4, 3, &[1000; 12]).unwrap();
+    let mut over_frame = floorplan(&[&plan]);
+    over_frame.extend(["--png".into(), s(&frame)]);
+    refused(
+        over_frame,
+        &frame,
+        "--png exists and is not a figure omcl drew",
     );
     assert!(
         !plan.exists(),
@@ -303,5 +314,5 @@ fn map_outputs_replace_only_their_own_kind() {
     let args: Vec<&str> = with_png.iter().map(String::as_str).collect();
     let (ok, out, err) = omcl(&args);
     assert!(ok, "{out}{err}");
-    assert!(omcl::sim::files::is_omcl_png(&photo));
+    assert!(omcl::plot::is_omcl_figure(&photo));
 }

@@ -111,6 +111,10 @@ pub struct OutArgs {
     /// Write the statistics (and per-pose errors) as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+    /// Replace --json (and --save-aligned) even when it holds a file that
+    /// is not an earlier output of its kind, or a file of a dataset folder
+    #[arg(long)]
+    pub force: bool,
 }
 
 impl OutArgs {
@@ -130,7 +134,7 @@ impl PairArgs {
     /// outputs that could not be written at the end
     /// ([`super::outputs::refuse_unwritable`]: a missing folder failed
     /// after the results were printed and another output written).
-    fn refuse_overlaps(&self, outputs: &[(&str, &Path)]) -> anyhow::Result<()> {
+    fn refuse_overlaps(&self, outputs: &[(&str, &Path)], force: bool) -> anyhow::Result<()> {
         let mut inputs = vec![
             ("the reference", self.reference.as_path()),
             ("the estimate", self.estimate.as_path()),
@@ -139,6 +143,14 @@ impl PairArgs {
         inputs.extend(self.est_times.as_deref().map(|p| ("--est-times", p)));
         super::outputs::refuse_overlaps(outputs, &inputs)?;
         super::outputs::refuse_replacing_data(outputs)?;
+        for &(option, p) in outputs {
+            let kind = if option == "--save-aligned" {
+                super::outputs::TextOutput::Trajectory
+            } else {
+                super::outputs::TextOutput::Metrics
+            };
+            super::outputs::refuse_replacing_unlike(option, p, kind, force)?;
+        }
         super::outputs::refuse_unwritable(outputs, &[])
     }
 }
@@ -205,7 +217,7 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
             );
             let mut outputs = out.outputs();
             outputs.extend(save_aligned.as_deref().map(|p| ("--save-aligned", p)));
-            pair.refuse_overlaps(&outputs)?;
+            pair.refuse_overlaps(&outputs, out.force)?;
             let paired = load_pair(&pair)?;
             let (aligned, alignment) = align_trajectory(
                 &paired.estimate,
@@ -268,7 +280,7 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
                 DeltaUnitArg::M if delta > 0.0 && delta.is_finite() => Delta::Meters(delta),
                 DeltaUnitArg::M => bail!("--delta {delta}: a metric delta must be positive"),
             };
-            pair.refuse_overlaps(&out.outputs())?;
+            pair.refuse_overlaps(&out.outputs(), out.force)?;
             let paired = load_pair(&pair)?;
             let (aligned, alignment) =
                 align_trajectory(&paired.estimate, &paired.reference, align.into(), None)?;
@@ -286,7 +298,7 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
             })
         }
         EvalCommand::Kitti { pair, step, out } => {
-            pair.refuse_overlaps(&out.outputs())?;
+            pair.refuse_overlaps(&out.outputs(), out.force)?;
             let paired = load_pair(&pair)?;
             let metric =
                 kitti_metric_with(&paired.reference, &paired.estimate, &KITTI_LENGTHS, step)?;

@@ -321,6 +321,12 @@ pub struct LocalizeArgs {
     /// time).
     #[arg(long)]
     pub diagnostics: Option<PathBuf>,
+    /// Replace -o, --metrics, --diagnostics and --plot even when they hold
+    /// files that are not earlier outputs of their kind (a trajectory,
+    /// omcl's metrics JSON or diagnostics CSV, a figure omcl drew), or
+    /// files of a dataset folder (another sequence's poses.txt)
+    #[arg(long)]
+    pub force: bool,
     /// Recover from track loss (a lost or kidnapped camera): when the frames
     /// suddenly agree less with the map, inject the best-scoring of fresh
     /// floor poses (augmented MCL with sensor resetting). Needs "floor" in
@@ -1384,7 +1390,21 @@ fn refuse_replacing_inputs(a: &LocalizeArgs) -> anyhow::Result<()> {
         .filter(|(option, _)| *option != "--plot")
         .collect();
     super::outputs::refuse_replacing_data(&text)?;
-    super::outputs::refuse_unwritable(&outputs, &["--plot"])
+    super::outputs::refuse_unwritable(&outputs, &["--plot"])?;
+    use super::outputs::TextOutput;
+    for (option, p) in outputs {
+        let kind = match option {
+            "--metrics" => TextOutput::Metrics,
+            "--diagnostics" => TextOutput::Diagnostics,
+            "--plot" => {
+                super::outputs::refuse_replacing_figure(option, p, a.force)?;
+                continue;
+            }
+            _ => TextOutput::Trajectory,
+        };
+        super::outputs::refuse_replacing_unlike(option, p, kind, a.force)?;
+    }
+    Ok(())
 }
 
 /// `--floorplan`'s and `--ground`'s limits, by name: planar motion, and

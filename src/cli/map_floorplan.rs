@@ -62,7 +62,7 @@ pub fn run(a: &FloorplanArgs) -> anyhow::Result<()> {
     );
     if let Some(png) = &a.png {
         let (w, h, rgb) = plan.image();
-        omcl::sim::files::write_png_rgb(png, w, h, &rgb)
+        omcl::plot::write_picture_png(png, w, h, &rgb)
             .with_context(|| format!("writing {}", png.display()))?;
         println!("wrote {} ({w} x {h})", png.display());
     }

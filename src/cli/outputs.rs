@@ -240,6 +240,116 @@ pub fn refuse_replacing_other(
     Ok(())
 }
 
+/// The kinds of text omcl writes, each recognised in a file it would
+/// replace ([`refuse_replacing_unlike`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TextOutput {
+    /// A trajectory (`omcl localize -o`): TUM or KITTI poses.
+    Trajectory,
+    /// Metrics JSON (`--metrics`, `omcl eval --json`): an object with a
+    /// `"metric"`.
+    Metrics,
+    /// `omcl localize --diagnostics` CSV.
+    Diagnostics,
+}
+
+impl TextOutput {
+    fn what(self) -> &'static str {
+        match self {
+            TextOutput::Trajectory => "a trajectory (TUM or KITTI poses)",
+            TextOutput::Metrics => "metrics JSON omcl wrote",
+            TextOutput::Diagnostics => "diagnostics CSV omcl wrote",
+        }
+    }
+
+    fn recognises(self, p: &Path) -> bool {
+        match self {
+            TextOutput::Trajectory => omcl::io::poses::read_poses(p).is_ok(),
+            TextOutput::Metrics => omcl::io::bounded_read::read_text(p)
+                .ok()
+                .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+                .is_some_and(|v| v.get("metric").is_some()),
+            TextOutput::Diagnostics => {
+                use std::io::Read;
+                let mut head = Vec::new();
+                std::fs::File::open(p)
+                    .and_then(|f| f.take(64).read_to_end(&mut head))
+                    .is_ok()
+                    && head.starts_with(b"frame,ess,")
+            }
+        }
+    }
+}
+
+/// Whether `p` is a file a dataset's readers read: one of
+/// [`sequence_files`] in a camera sequence's folder (RGB-D, KITTI or
+/// 7-Scenes), or any file of KITTI's `poses/` beside `sequences/`.
+fn is_dataset_file(p: &Path) -> bool {
+    let dir = match p.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let sequence = ["depth", "labels", "features", "rgb", "image_2", "velodyne"]
+        .iter()
+        .any(|d| dir.join(d).is_dir())
+        || ["intrinsics.txt", "calib.txt", "camera-intrinsics.txt"]
+            .iter()
+            .any(|f| dir.join(f).is_file());
+    let kitti_poses = dir.file_name().is_some_and(|n| n == "poses")
+        && dir.parent().is_some_and(|d| d.join("sequences").is_dir());
+    kitti_poses
+        || (sequence
+            && p.file_name().is_some_and(|n| {
+                sequence_files(Path::new(""))
+                    .iter()
+                    .any(|f| f.as_os_str() == n)
+            }))
+}
+
+/// Refuses, unless `force`, a text output that would replace an existing
+/// file (non-empty) other than an earlier output of its kind, or a file a
+/// dataset's readers read: `omcl localize -o other_seq/poses.txt` replaced
+/// another sequence's ground truth, `--metrics classes.txt` a class table,
+/// `omcl eval ape --json notes.md` a note.
+pub fn refuse_replacing_unlike(
+    option: &str,
+    p: &Path,
+    kind: TextOutput,
+    force: bool,
+) -> anyhow::Result<()> {
+    let holds_something = std::fs::metadata(p).is_ok_and(|m| m.is_file() && m.len() > 0);
+    if !holds_something || force {
+        return Ok(());
+    }
+    anyhow::ensure!(
+        !is_dataset_file(p),
+        "{}: {option} would replace a dataset's file (ground truth, odometry, calibration \
+         or a class table); pass --force to replace it, or choose another name",
+        p.display(),
+    );
+    anyhow::ensure!(
+        kind.recognises(p),
+        "{}: {option} exists and is not {}; pass --force to replace it, or choose another name",
+        p.display(),
+        kind.what()
+    );
+    Ok(())
+}
+
+/// Refuses, unless `force`, a figure output (PNG or SVG) that would
+/// replace an existing file (non-empty) omcl did not draw as a figure or
+/// picture ([`omcl::plot::is_omcl_figure`]): a photo, a depth or label
+/// frame (the simulator's too), anyone's image.
+pub fn refuse_replacing_figure(option: &str, p: &Path, force: bool) -> anyhow::Result<()> {
+    refuse_replacing_other(
+        option,
+        p,
+        "a figure omcl drew",
+        omcl::plot::is_omcl_figure,
+        force,
+    )
+}
+
 /// Extensions of data omcl reads, which a map or a floor plan is never
 /// named: `-o cloud.ply` is a slip for `map export`, or would replace the
 /// survey.
@@ -297,13 +407,7 @@ pub fn check_plan_out(out: &Path, png: Option<&Path>, force: bool) -> anyhow::Re
             "--png {}: the picture is a PNG: name it .png",
             png.display()
         );
-        refuse_replacing_other(
-            "--png",
-            png,
-            "a PNG omcl wrote",
-            omcl::sim::files::is_omcl_png,
-            force,
-        )?;
+        refuse_replacing_figure("--png", png, force)?;
     }
     Ok(())
 }

@@ -50,6 +50,7 @@ use std::path::PathBuf;
 pub use bar::{BarGroup, bar_plot};
 pub use floor::{FloorPlan, PlanCell};
 pub use line::{Series, line_plot};
+pub use output::{FIGURE_MARK, is_omcl_figure, write_picture_png};
 pub use trajectory::{TrajectoryPanel, trajectory_grid, trajectory_plot};
 
 /// Titles and axis labels of a line or bar plot.

@@ -88,7 +88,7 @@ pub(crate) fn write_figure<F: Figure>(path: &Path, figure: &F) -> Result<F::Layo
             Ok(layout)
         }
         Format::Svg => {
-            let mut svg = String::new();
+            let mut svg = svg_mark();
             let layout = {
                 let root = SVGBackend::with_string(&mut svg, (width, height)).into_drawing_area();
                 let layout = draw_on(&root, figure).map_err(draw_err)?;
@@ -109,12 +109,59 @@ fn draw_on<DB: DrawingBackend, F: Figure>(
     figure.draw(root)
 }
 
+/// The mark every figure and picture omcl draws carries (a PNG `tEXt`
+/// `Software` chunk, an SVG's first comment), so that a later run may
+/// replace its own figure but not a photo, a depth or label frame (which
+/// the simulator marks `Software: omcl`) or anyone else's file
+/// ([`is_omcl_figure`]).
+pub const FIGURE_MARK: &str = "omcl figure";
+
+/// Whether `path` is a figure or picture omcl drew ([`FIGURE_MARK`]
+/// within its first 4 KiB: the PNG chunk comes before the image data, the
+/// SVG comment first).
+pub fn is_omcl_figure(path: &Path) -> bool {
+    use std::io::Read;
+    let mut head = Vec::new();
+    if std::fs::File::open(path)
+        .and_then(|f| f.take(4096).read_to_end(&mut head))
+        .is_err()
+    {
+        return false;
+    }
+    if head.starts_with(b"\x89PNG\r\n\x1a\n") {
+        let mut needle = b"tEXtSoftware\0".to_vec();
+        needle.extend(FIGURE_MARK.bytes());
+        return head.windows(needle.len()).any(|w| w == needle.as_slice());
+    }
+    head.starts_with(svg_mark().as_bytes())
+}
+
+fn svg_mark() -> String {
+    format!("<!-- {FIGURE_MARK} -->\n")
+}
+
+/// Writes an 8-bit RGB picture (`rgb` = width * height * 3 bytes) as a
+/// PNG with [`FIGURE_MARK`], atomically.
+pub fn write_picture_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgb: &[u8],
+) -> Result<(), PlotError> {
+    let bytes = encode_png(rgb, width, height).map_err(|source| PlotError::Png {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    write_atomic(path, &bytes)
+}
+
 fn encode_png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>, png::EncodingError> {
     let mut bytes = Vec::new();
     {
         let mut encoder = png::Encoder::new(&mut bytes, width, height);
         encoder.set_color(png::ColorType::Rgb);
         encoder.set_depth(png::BitDepth::Eight);
+        encoder.add_text_chunk("Software".into(), FIGURE_MARK.into())?;
         let mut writer = encoder.write_header()?;
         writer.write_image_data(rgb)?;
         writer.finish()?;

@@ -278,8 +278,8 @@ fn png_bytes(
         enc.set_color(color);
         enc.set_depth(depth);
         enc.set_compression(png::Compression::Fast);
-        // Says who wrote it, so a command may replace its own earlier
-        // image but not a photo or a depth frame ([`is_omcl_png`]).
+        // Says who wrote it: a frame of omcl's, which no figure output
+        // replaces (figures carry `crate::plot::FIGURE_MARK` instead).
         enc.add_text_chunk(PNG_SOFTWARE.0.into(), PNG_SOFTWARE.1.into())
             .map_err(perr)?;
         let mut w = enc.write_header().map_err(perr)?;
@@ -291,21 +291,6 @@ fn png_bytes(
 
 /// The `tEXt` chunk every PNG omcl writes carries: keyword and text.
 const PNG_SOFTWARE: (&str, &str) = ("Software", "omcl");
-
-/// Whether `path` is a PNG omcl wrote (its `Software` text chunk, which
-/// omcl writes before the image data, within the first 4 KiB).
-pub fn is_omcl_png(path: &Path) -> bool {
-    use std::io::Read;
-    let mut head = Vec::new();
-    let read = std::fs::File::open(path).and_then(|f| f.take(4096).read_to_end(&mut head));
-    let mut needle = b"tEXt".to_vec();
-    needle.extend(PNG_SOFTWARE.0.bytes());
-    needle.push(0);
-    needle.extend(PNG_SOFTWARE.1.bytes());
-    read.is_ok()
-        && head.starts_with(b"\x89PNG\r\n\x1a\n")
-        && head.windows(needle.len()).any(|w| w == needle.as_slice())
-}
 
 /// Writes an 8-bit RGB PNG (`data` = width * height * 3 bytes).
 pub fn write_png_rgb(path: &Path, width: u32, height: u32, data: &[u8]) -> Result<(), SimIoError> {
