@@ -172,6 +172,25 @@ impl Trajectory {
         }
     }
 
+    /// Every position's height set to 0 (rotations kept): translation
+    /// errors between two such trajectories are horizontal (x and y), as
+    /// Table I's 2-D block measures them.
+    pub fn horizontal(&self) -> Trajectory {
+        let poses = self
+            .poses
+            .iter()
+            .map(|p| {
+                let mut q = *p;
+                q.translation.vector.z = 0.0;
+                q
+            })
+            .collect();
+        Trajectory {
+            stamps: self.stamps.clone(),
+            poses,
+        }
+    }
+
     /// The camera centre of pose `i` as a point (world frame, metres).
     pub fn position(&self, i: usize) -> Option<Point3<f64>> {
         self.poses

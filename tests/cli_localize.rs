@@ -637,8 +637,14 @@ fn tilt_deg(p: &[f64; 7]) -> f64 {
 fn localizes_on_the_floor_plan_near_ground_truth() {
     let f = Fixture::new();
     let out = f.dir.path().join("est2d.txt");
+    let metrics = f.dir.path().join("est2d.json");
     let frames = FRAMES.to_string();
-    let r = f.localize(&f.map, &f.seq, &out, &["--frames", &frames, "--floorplan"]);
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &out,
+        &["--frames", &frames, "--floorplan", "--metrics", s(&metrics)],
+    );
     assert!(r.ok(), "{}", r.text());
     assert!(
         r.stdout.contains("floor plan: ") && r.stdout.contains("band 0.10 to 2.00 m"),
@@ -671,6 +677,63 @@ fn localizes_on_the_floor_plan_near_ground_truth() {
     assert!(mean < 0.25, "mean error {mean:.3} m: {errors:.3?}");
     // The printed APE is horizontal: the RMSE of these distances.
     assert_printed_rmse(&r, "APE (horizontal) rmse ", &errors);
+    // So are --metrics' translation errors (they had been 3-D) and `omcl
+    // eval ape --horizontal`'s.
+    let rmse = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&metrics).unwrap()).unwrap();
+    assert_eq!(m["horizontal"], true);
+    assert!(
+        m["metric"]
+            .as_str()
+            .unwrap()
+            .contains("horizontal translation error")
+    );
+    let per_frame = m["per_frame"]["translation_m"].as_array().unwrap();
+    for (i, (j, e)) in per_frame.iter().zip(&errors).enumerate() {
+        assert!(
+            (j.as_f64().unwrap() - e).abs() < 1e-5,
+            "frame {i}: {j} against {e}"
+        );
+    }
+    assert!((m["translation_m"]["rmse"].as_f64().unwrap() - rmse).abs() < 1e-5);
+    let ape_json = f.dir.path().join("ape2d.json");
+    let gt_path = f.seq.join("poses.txt");
+    let r = omcl(&[
+        "eval",
+        "ape",
+        s(&gt_path),
+        s(&out),
+        "--horizontal",
+        "--json",
+        s(&ape_json),
+    ]);
+    assert!(
+        r.ok() && r.stdout.contains("APE (horizontal) w.r.t. translation"),
+        "{}",
+        r.text()
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&ape_json).unwrap()).unwrap();
+    assert!(
+        (v["stats"]["rmse"].as_f64().unwrap() - rmse).abs() < 1e-5,
+        "{v}"
+    );
+    assert_eq!(v["horizontal"], true);
+    let r = omcl(&[
+        "eval",
+        "ape",
+        s(&gt_path),
+        s(&out),
+        "--horizontal",
+        "--relation",
+        "angle-deg",
+    ]);
+    assert!(
+        r.code == Some(1) && r.stderr.contains("--horizontal measures translation"),
+        "{}",
+        r.text()
+    );
 
     // The plan file `omcl map floorplan` writes (the same default band)
     // gives the same scene, so the same estimates, byte for byte.

@@ -43,6 +43,12 @@ pub enum EvalCommand {
         /// Write the aligned estimate to this pose file (the estimate's format).
         #[arg(long, value_name = "FILE")]
         save_aligned: Option<PathBuf>,
+        /// Horizontal translation errors: heights set to 0 after the
+        /// alignment (the error of a floor plan's 2-D estimate, as `omcl
+        /// localize --floorplan` prints it and Table I's 2-D block measures
+        /// it); with --relation trans
+        #[arg(long)]
+        horizontal: bool,
         #[command(flatten)]
         out: OutArgs,
     },
@@ -208,8 +214,13 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
             n_to_align,
             relation,
             save_aligned,
+            horizontal,
             out,
         } => {
+            ensure!(
+                !horizontal || relation == RelationArg::Trans,
+                "--horizontal measures translation: it takes --relation trans"
+            );
             ensure!(
                 n_to_align.is_none() || align != AlignArg::None,
                 "--n-to-align fits the alignment to the first poses: give --align too (se3, \
@@ -226,7 +237,14 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
                 n_to_align,
             )?;
             warn_line_alignment(&paired.reference, &alignment);
-            let errors = ape(&paired.reference, &aligned, relation.into())?;
+            let errors = match horizontal {
+                true => ape(
+                    &paired.reference.horizontal(),
+                    &aligned.horizontal(),
+                    relation.into(),
+                )?,
+                false => ape(&paired.reference, &aligned, relation.into())?,
+            };
             // The repo's completion rule (as `omcl localize` and the bench
             // apply it) on translation errors in pose order.
             // `None` for another relation, `Some(None)` for too few poses
@@ -234,7 +252,12 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
             let rule = CompletionRule::default();
             let completed =
                 (errors.relation == PoseRelation::Translation).then(|| rule.judge(&errors.errors));
-            print_errors("APE", &pair, &paired, &alignment, &errors, None);
+            let label = if horizontal {
+                "APE (horizontal)"
+            } else {
+                "APE"
+            };
+            print_errors(label, &pair, &paired, &alignment, &errors, None);
             if let Some(c) = completed {
                 let verdict = match c {
                     Some(true) => "yes".to_string(),
@@ -255,6 +278,7 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
             }
             write_json(out.json.as_deref(), || {
                 let mut v = errors_json("ape", &pair, &paired, &alignment, &errors, None);
+                v["horizontal"] = serde_json::json!(horizontal);
                 v["completed"] = serde_json::json!(completed.flatten());
                 v["completion_rule"] = serde_json::json!(CompletionRule::default());
                 v

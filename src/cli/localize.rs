@@ -725,14 +725,25 @@ fn write_metrics(
     d: &Path,
     n: usize,
     mt: &omcl::eval::OutdoorMetric,
+    horizontal: bool,
     steps_per_s: f64,
 ) -> anyhow::Result<()> {
+    let translation = match horizontal {
+        true => {
+            "horizontal translation error |(t_est - t_gt)_xy| (m; a floor plan's \
+                 2-D estimate, as `omcl eval ape --horizontal`)"
+        }
+        false => "translation error |t_est - t_gt| (m)",
+    };
     let json = serde_json::json!({
         "sequence": d.display().to_string(),
         "frames": n,
-        "metric": "per-frame translation error |t_est - t_gt| (m) and rotation error \
-                   angle(R_gt^T R_est) (deg) of the camera; completed: after frame 10 \
-                   the error never exceeds 1 m for more than 5 frames",
+        "metric": format!(
+            "per-frame {translation} and rotation error angle(R_gt^T R_est) (deg) of the \
+             camera; completed: after frame 10 the error never exceeds 1 m for more than 5 \
+             frames"
+        ),
+        "horizontal": horizontal,
         "translation_m": mt.translation,
         "rotation_deg": mt.rotation,
         // null: too few frames for the rule to fail (not judged).
@@ -766,15 +777,11 @@ fn report_against_truth(
     // On a floor plan the error is horizontal (x and y), as Table I's 2-D
     // block measures it.
     let e = if a.floorplan.is_some() {
-        let flat = |t: &Trajectory| {
-            let poses = t.poses().iter().map(|p| {
-                let mut p = *p;
-                p.translation.vector.z = 0.0;
-                p
-            });
-            Trajectory::new(t.stamps().to_vec(), poses.collect())
-        };
-        ape(&flat(&reference)?, &flat(est)?, PoseRelation::Translation)?
+        ape(
+            &reference.horizontal(),
+            &est.horizontal(),
+            PoseRelation::Translation,
+        )?
     } else {
         ape(&reference, est, PoseRelation::Translation)?
     };
@@ -1222,9 +1229,17 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     super::progress::finish(&pb);
     let (estimates, diag, filter_s, input_s) = diagnostics(&frames);
     let est = Trajectory::new(stamps.clone(), estimates)?;
+    // On a floor plan the translation errors are horizontal, as printed.
+    let horizontal = a.floorplan.is_some();
     let metric = gt
         .as_ref()
-        .map(|g| omcl::eval::outdoor_metric(&g.poses()[..n], est.poses()))
+        .map(|g| {
+            let (g, e) = match horizontal {
+                true => (g.horizontal(), est.horizontal()),
+                false => (g.clone(), est.clone()),
+            };
+            omcl::eval::outdoor_metric(&g.poses()[..n], e.poses())
+        })
         .transpose()?;
     // Every output is made in memory first, then written: a failure
     // leaves nothing half-written behind.
@@ -1241,7 +1256,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             .with_context(|| format!("writing {}", p.display()))?;
     }
     if let (Some(p), Some(mt)) = (&a.metrics, &metric) {
-        write_metrics(p, d, n, mt, n as f64 / filter_s.max(1e-12))?;
+        write_metrics(p, d, n, mt, horizontal, n as f64 / filter_s.max(1e-12))?;
     }
     println!(
         "{:.1} filter steps/s; {:.1} frames/s with reading the frames{}",
