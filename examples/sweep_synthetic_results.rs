@@ -46,7 +46,7 @@ fn main() -> anyhow::Result<()> {
                 result: RunResult {
                     estimates: Vec::new(),
                     stats: ErrorStats::from_errors(&errors).context("no frames")?,
-                    completed: true,
+                    completed: Some(true),
                     step_seconds: (0..f).map(|_| rng.random_range(0.05..0.1)).collect(),
                     encoder_seconds: (0..f).map(|_| rng.random_range(0.05..0.1)).collect(),
                     errors_m: errors,

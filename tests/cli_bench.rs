@@ -435,7 +435,48 @@ fn table1_blocks_write_tables_and_figure4() {
                 assert!(len > 1000, "{}: {len} bytes", f.display());
             }
         }
+        // Six frames are too few for the completion rule: not judged, as
+        // `omcl localize` and `omcl eval` say (the benches had counted
+        // such runs completed).
+        assert!(
+            md.contains("| 0/1 (1 not judged: under 16 frames) |"),
+            "{md}"
+        );
+        for r in json.as_array().unwrap() {
+            assert!(r["per_sequence"][0]["completed"].is_null(), "{r}");
+        }
     }
+    // The 2-D block again with its baseline only, into the same folder:
+    // the earlier run's OMCL_GT figures go (they had stayed beside a
+    // table without their row), said; no filter note for OMCL rows that
+    // did not run.
+    let (o, text) = bench(
+        &[
+            &[
+                "table1-floorplan",
+                "--variants",
+                "SeDAR*_GT",
+                "--sequences",
+                "1",
+            ][..],
+            &common::TINY_RUN,
+            &["-o", out],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{text}");
+    assert!(
+        text.contains("its Figure 4 files of rows not run now are removed: figure4_2d_OMCL_GT.png, figure4_2d_OMCL_GT.svg"),
+        "{text}"
+    );
+    assert!(!dir.path().join("figure4_2d_OMCL_GT.png").exists());
+    assert!(dir.path().join("figure4_2d_SeDAR_GT.png").exists());
+    assert!(dir.path().join("figure4_6dof_OMCL_GT.png").exists());
+    let md = std::fs::read_to_string(dir.path().join("table1_floorplan.md")).unwrap();
+    assert!(
+        !md.contains("Filter:") && md.contains("The baselines sample"),
+        "{md}"
+    );
 }
 
 /// `--variants` that names no row of a Table I block, or no row at all, is

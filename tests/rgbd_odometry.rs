@@ -175,6 +175,25 @@ fn open3d_odometry_follows_known_motion_and_the_bench_scores_it_alike() {
         text.contains("| RTAB-Map RGB-D SLAM, paper | 5.23 |"),
         "{text}"
     );
+    // Both rows are rows of the table (they had come after its notes):
+    // one run of table lines from the header on, and no filter note for
+    // a block without OMCL rows.
+    let md = std::fs::read_to_string(bench_out.join("table1_6dof.md")).unwrap();
+    let table: Vec<&str> = md
+        .lines()
+        .skip_while(|l| !l.starts_with("| variant |"))
+        .take_while(|l| l.starts_with('|'))
+        .collect();
+    assert!(
+        table.len() == 4
+            && table[2].starts_with("| geometric RGB-D odometry")
+            && table[3].starts_with("| RTAB-Map RGB-D SLAM, paper |"),
+        "{md}"
+    );
+    assert!(
+        !md.contains("Filter:") && md.contains("SSE: the mean over sequences"),
+        "{md}"
+    );
 
     // An estimate of another length is refused, naming the file.
     let short = odo.join(format!("seq_{SEED}/estimate.txt"));

@@ -60,7 +60,7 @@ fn the_street_filter_keeps_its_heading_through_a_sky_filled_turn() {
         let street = run(seed, None, &out);
         assert_eq!(street.frames, 70);
         assert!(
-            street.completed
+            street.completed == Some(true)
                 && street.translation_mean_m < 0.5
                 && street.translation_max_m < 1.2
                 && street.rotation_mean_deg < 1.6,

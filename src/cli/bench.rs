@@ -255,7 +255,7 @@ fn describe(e: &sweep::RunEntry, results: &ResultDir) -> String {
                 ": APE rmse {:.3} m, max {:.3}, completed {}, {:.1} steps/s ({:.1} with the simulated encoder), K = {}",
                 r.stats.rmse,
                 r.stats.max,
-                r.completed,
+                omcl::eval::CompletionRule::default().verdict(r.completed),
                 r.fps(),
                 r.fps_with_encoder(),
                 r.map_rows

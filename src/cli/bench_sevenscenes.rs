@@ -84,7 +84,9 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
             let r = sevenscenes::run_track(&seq, &spec, &classes, &model, None, &progress)?;
             eprintln!(
                 "{name}, seed {seed}: APE rmse {:.3} m, max {:.3}, completed {}",
-                r.ape.rmse, r.ape.max, r.completed
+                r.ape.rmse,
+                r.ape.max,
+                omcl::eval::CompletionRule::default().verdict(r.completed)
             );
             rows.push((name.to_string(), seed, r));
         }
@@ -162,7 +164,11 @@ fn markdown(dir: &Path, spec: &TrackSpec, rows: &[(String, u64, TrackResult)]) -
             r.ape.median,
             r.ape.max,
             r.ape_rotation_deg.rmse,
-            if r.completed { "yes" } else { "no" },
+            match r.completed {
+                Some(true) => "yes",
+                Some(false) => "no",
+                None => "not judged",
+            },
             f(c.map(|c| c.accuracy)),
             f(c.map(|c| c.precision)),
             f(c.map(|c| c.recall)),

@@ -251,17 +251,63 @@ fn block_spec(
 /// `figure4_<tag>_<variant>.png` and `.svg` (the variant's name without
 /// `*`).
 fn write(a: &BenchArgs, name: &str, tag: &str, b: &BlockResult) -> anyhow::Result<()> {
+    // SeDAR*_GT -> SeDAR_GT: no shell pattern in a file name.
+    let stems: Vec<String> = b
+        .rows
+        .iter()
+        .map(|row| format!("figure4_{tag}_{}", row.variant.replace('*', "")))
+        .collect();
+    remove_stale_figures(&a.out, name, &format!("figure4_{tag}_"), &stems)?;
     let p = a.out.join(format!("{name}.md"));
     omcl::io::atomic::write(&p, b.markdown.as_bytes())
         .with_context(|| format!("writing {}", p.display()))?;
     let p = a.out.join(format!("{name}.json"));
     omcl::io::atomic::write(&p, serde_json::to_string_pretty(&b.rows)?.as_bytes())
         .with_context(|| format!("writing {}", p.display()))?;
-    for (row, panels) in b.rows.iter().zip(&b.figures) {
-        // SeDAR*_GT -> SeDAR_GT: no shell pattern in a file name.
-        let stem = format!("figure4_{tag}_{}", row.variant.replace('*', ""));
-        write_figure4(&a.out, &stem, panels)
+    for (stem, panels) in stems.iter().zip(&b.figures) {
+        write_figure4(&a.out, stem, panels)
             .with_context(|| format!("drawing {}", a.out.join(stem).display()))?;
+    }
+    Ok(())
+}
+
+/// Removes the block's Figure 4 files of an earlier run in `out` (names
+/// starting `prefix`, drawn by omcl) whose rows this run does not write:
+/// a second run of other variants into the same folder had left the
+/// first run's figures beside a table without their rows. Said when any
+/// is removed.
+fn remove_stale_figures(
+    out: &std::path::Path,
+    name: &str,
+    prefix: &str,
+    stems: &[String],
+) -> anyhow::Result<()> {
+    let Ok(entries) = std::fs::read_dir(out) else {
+        return Ok(());
+    };
+    let mut removed = Vec::new();
+    for e in entries.flatten() {
+        let p = e.path();
+        let file = e.file_name().to_string_lossy().into_owned();
+        let stale = file.starts_with(prefix)
+            && (file.ends_with(".png") || file.ends_with(".svg"))
+            && !stems
+                .iter()
+                .any(|s| p.file_stem().is_some_and(|f| f == s.as_str()))
+            && omcl::plot::is_omcl_figure(&p);
+        if stale {
+            std::fs::remove_file(&p).with_context(|| format!("removing {}", p.display()))?;
+            removed.push(file);
+        }
+    }
+    if !removed.is_empty() {
+        removed.sort();
+        println!(
+            "note: {}: {name}.md of an earlier run is replaced; its Figure 4 files of rows not \
+             run now are removed: {}",
+            out.display(),
+            removed.join(", ")
+        );
     }
     Ok(())
 }

@@ -83,6 +83,42 @@ impl CompletionRule {
         (errors_m.len() >= self.frames_to_judge()).then(|| self.is_completed(errors_m))
     }
 
+    /// A judgement of [`CompletionRule::judge`] in words: yes, no, or not
+    /// judged (with the frames the rule needs).
+    pub fn verdict(&self, judged: Option<bool>) -> String {
+        match judged {
+            Some(true) => "yes".into(),
+            Some(false) => "no".into(),
+            None => format!(
+                "not judged (the rule needs {} frames or more)",
+                self.frames_to_judge()
+            ),
+        }
+    }
+
+    /// Judgements of several sequences as a table cell: `k/n` completed,
+    /// and how many were too short to judge when any was (each such run
+    /// had been counted completed by the benches, while `omcl localize`
+    /// and `omcl eval` said "not judged").
+    pub fn tally(&self, judged: impl IntoIterator<Item = Option<bool>>) -> String {
+        let (mut yes, mut unjudged, mut n) = (0, 0, 0);
+        for j in judged {
+            n += 1;
+            match j {
+                Some(true) => yes += 1,
+                Some(false) => {}
+                None => unjudged += 1,
+            }
+        }
+        match unjudged {
+            0 => format!("{yes}/{n}"),
+            m => format!(
+                "{yes}/{n} ({m} not judged: under {} frames)",
+                self.frames_to_judge()
+            ),
+        }
+    }
+
     /// Whether the per-frame translation errors (metres, in frame order)
     /// complete the sequence. A non-finite error counts as above the bound.
     pub fn is_completed(&self, errors_m: &[f64]) -> bool {

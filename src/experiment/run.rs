@@ -66,7 +66,9 @@ pub struct RunResult {
     /// Translation error per frame, metres.
     pub errors_m: Vec<f64>,
     pub stats: ErrorStats,
-    pub completed: bool,
+    /// [`CompletionRule::judge`]: `None` (null) for a run too short to
+    /// judge.
+    pub completed: Option<bool>,
     /// Filter time per step (pixel sampling and similarity table, predict,
     /// weigh, resample, estimate; rendering and the encoder excluded),
     /// seconds.
@@ -198,7 +200,7 @@ pub fn run(
     let stats = ErrorStats::from_errors(&errors)
         .ok_or_else(|| ExperimentError::Config("the run has no frames".into()))?;
     Ok(RunResult {
-        completed: CompletionRule::default().is_completed(&errors),
+        completed: CompletionRule::default().judge(&errors),
         mean_rays: rays as f64 / estimates.len() as f64,
         map_rows: map.db().len(),
         estimates,
@@ -243,7 +245,11 @@ pub struct TrackingRow {
     pub variant: String,
     pub per_sequence: Vec<RunResult>,
     pub summary: Option<SequenceSummary>,
+    /// Sequences completed (judged and completed).
     pub completed: usize,
+    /// The completed cell: `k/n`, and the runs too short to judge
+    /// ([`CompletionRule::tally`]).
+    pub completed_cell: String,
     /// Filter steps per second over all steps of all sequences (encoder
     /// excluded, as in the paper).
     pub fps: f64,
@@ -269,7 +275,12 @@ impl TrackingRow {
         TrackingRow {
             variant: variant.into(),
             summary: summarize_sequences(&stats),
-            completed: per_sequence.iter().filter(|r| r.completed).count(),
+            completed: per_sequence
+                .iter()
+                .filter(|r| r.completed == Some(true))
+                .count(),
+            completed_cell: CompletionRule::default()
+                .tally(per_sequence.iter().map(|r| r.completed)),
             fps: steps as f64 / secs.max(1e-12),
             fps_with_encoder: steps as f64 / (secs + encoder).max(1e-12),
             map_rows: per_sequence.iter().map(|r| r.map_rows as f64).sum::<f64>()

@@ -126,7 +126,8 @@ pub struct TrackResult {
     pub ape: ErrorStats,
     /// Rotation error statistics, degrees.
     pub ape_rotation_deg: ErrorStats,
-    pub completed: bool,
+    /// [`CompletionRule::judge`]: `None` for a run too short to judge.
+    pub completed: Option<bool>,
     /// Table II's scores of the map against the localized frames' features
     /// from their true poses (averaged over the frames).
     pub consistency: Option<ConsistencyMetrics>,
@@ -402,7 +403,7 @@ pub fn run_track(
     let est = Trajectory::new(stamps, estimate.clone()).map_err(err)?;
     let e = ape(&reference, &est, PoseRelation::Translation).map_err(err)?;
     let er = ape(&reference, &est, PoseRelation::RotationAngleDeg).map_err(err)?;
-    let completed = CompletionRule::default().is_completed(&e.errors);
+    let completed = CompletionRule::default().judge(&e.errors);
     Ok(TrackResult {
         map_frames: mapping.len(),
         voxels,

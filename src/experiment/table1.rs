@@ -138,7 +138,7 @@ pub struct PaperRow {
 pub(super) fn ape_cells(r: &TrackingRow) -> Option<String> {
     let m = r.summary.as_ref()?;
     Some(format!(
-        "{:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {}/{}",
+        "{:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {}",
         m.mean.rmse,
         m.mean.std,
         m.mean.mean,
@@ -146,8 +146,7 @@ pub(super) fn ape_cells(r: &TrackingRow) -> Option<String> {
         m.min_rmse,
         m.max_rmse,
         m.mean.sse,
-        r.completed,
-        r.per_sequence.len(),
+        r.completed_cell,
     ))
 }
 

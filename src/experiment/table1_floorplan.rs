@@ -187,7 +187,7 @@ pub fn planar_errors(result: &mut RunResult, truth: &[crate::geometry::Pose], fi
     if let Some(s) = ErrorStats::from_errors(&errors) {
         result.stats = s;
     }
-    result.completed = CompletionRule::default().is_completed(&errors);
+    result.completed = CompletionRule::default().judge(&errors);
     result.errors_m = errors;
 }
 
@@ -449,7 +449,7 @@ pub fn track_with(
         .ok_or_else(|| ExperimentError::Config("the run has no frames".into()))?;
     Ok((
         RunResult {
-            completed: CompletionRule::default().is_completed(&errors),
+            completed: CompletionRule::default().judge(&errors),
             errors_m: errors,
             stats,
             step_seconds,
@@ -532,6 +532,10 @@ impl BlockSpec {
         })
     }
 }
+
+/// What the SSE column of both blocks is, said under each table.
+pub const SSE_NOTE: &str = "SSE: the mean over sequences of each sequence's sum of squared \
+                            errors, so it grows with the sequences' length (--frames).\n";
 
 /// The OMCL variants of the 2-D block (OMCL_GT_exact aside).
 pub const OMCL_ROWS: [&str; 4] = ["OMCL_GT", "OMCL_LSeg", "OMCL_auto_LSeg", "OMCL_Open_LSeg"];
@@ -624,9 +628,10 @@ pub fn omcl_rows(
                 let scene = SharedMap::from_parts("3-D map", map.map.clone(), map.caster.clone());
                 let (r3, t3) = track_with(&seq, scene, v.localize, filter, spec.particles, None)?;
                 progress(&format!(
-                    "speed, seed {seed} {}, {} particles: 3-D (RMSE {:.3} m) {:.1} steps/s, cast {:.1} ms a step; 2-D {:.1} steps/s, cast {:.1} ms a step ({:.1}x faster step, {:.1}x faster cast)\n  3-D step: {}\n  2-D step: {}",
+                    "speed, seed {seed} {}, {} particles x {} pixels: 3-D (RMSE {:.3} m) {:.1} steps/s, cast {:.1} ms a step; 2-D {:.1} steps/s, cast {:.1} ms a step ({:.1}x faster step, {:.1}x faster cast)\n  3-D step: {}\n  2-D step: {}",
                     v.name,
                     spec.particles,
+                    filter.sampling.rays,
                     r3.stats.rmse,
                     r3.fps(),
                     cast_ms(&t3),
@@ -785,7 +790,7 @@ pub fn track_baseline(
     let mut r = RunResult {
         errors_m: Vec::new(),
         stats: ErrorStats::from_errors(&[0.0]).expect("one error"),
-        completed: false,
+        completed: None,
         step_seconds,
         encoder_seconds,
         mean_rays: rays as f64 / n as f64,
@@ -849,14 +854,28 @@ pub fn block(
         &rows,
         &PAPER_2D,
     );
-    markdown.push_str(&format!(
-        "\nFilter: {} particles x {} sampled pixels a frame, likelihood exponent {}; the \
-         baselines sample {} pixels a frame the same way.\n",
-        spec.particles,
-        spec.filter.sampling.rays,
-        spec.filter.sharpen,
-        crate::mcl::baselines::BaselineParams::default().pixels
-    ));
+    markdown.push('\n');
+    // Each note only for rows that ran (the filter's had been printed
+    // for a baselines-only run).
+    if !variants.is_empty() {
+        markdown.push_str(&format!(
+            "Filter: {} particles x {} sampled pixels a frame, likelihood exponent {}.\n",
+            spec.particles, spec.filter.sampling.rays, spec.filter.sharpen,
+        ));
+    }
+    if !baselines.is_empty() {
+        markdown.push_str(&format!(
+            "The baselines sample {} pixels a frame the same way.\n",
+            crate::mcl::baselines::BaselineParams::default().pixels
+        ));
+    }
+    if baselines.contains(&Baseline::Simp) {
+        markdown.push_str(
+            "SIMP*_GT places each pixel with the frame's true depth (SIMP estimates depth from \
+             monocular 3-D detections): metric range that neither SeDAR* nor OMCL uses.\n",
+        );
+    }
+    markdown.push_str(SSE_NOTE);
     let raw = spec.raw_feature_filter.sampling.strategy;
     if raw != spec.filter.sampling.strategy
         && variants
@@ -889,7 +908,9 @@ pub fn block(
              every row of the plan, not only the plan's own.\n"
         });
     }
-    markdown.push_str(&spec.preset_note());
+    if !variants.is_empty() {
+        markdown.push_str(&spec.preset_note());
+    }
     Ok(BlockResult {
         rows,
         markdown,

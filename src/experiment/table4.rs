@@ -14,6 +14,7 @@ use nalgebra::Vector3;
 use super::ExperimentError;
 use super::run::{RunSpec, Start};
 use super::sequence::BenchSequence;
+use crate::eval::CompletionRule;
 use crate::geometry::{Intrinsics, Pose};
 use crate::map::{FeatureDb, GridSpec, Integrator, LanguageMap};
 use crate::mcl::{FilterConfig, SensorModel};
@@ -290,7 +291,9 @@ pub struct Table4Run {
     pub translation_max_m: f64,
     pub rotation_mean_deg: f64,
     pub rotation_std_deg: f64,
-    pub completed: bool,
+    /// The outdoor metric's judgement: `None` for a run too short to
+    /// judge.
+    pub completed: Option<bool>,
     /// The odometry alone (no map), scored the same way.
     pub odometry_translation_mean_m: f64,
     pub odometry_rotation_mean_deg: f64,
@@ -525,9 +528,9 @@ impl Street<'_> {
             translation_max_m: m.translation_m.iter().copied().fold(0.0, f64::max),
             rotation_mean_deg: m.rotation.mean,
             rotation_std_deg: m.rotation.std,
-            // A street too short to judge (fewer than 16 frames) counts
-            // as not completed.
-            completed: m.completed == Some(true),
+            // A street too short to judge (fewer than 16 frames) is not
+            // judged (it had counted as not completed).
+            completed: m.completed,
             odometry_translation_mean_m: odo.translation.mean,
             odometry_rotation_mean_deg: odo.rotation.mean,
             filter_steps_per_s: r.run.fps(),
@@ -652,13 +655,12 @@ fn markdown(
         let avg = |f: fn(&Table4Run) -> f64| rs.iter().map(|r| f(r)).sum::<f64>() / n;
         let _ = writeln!(
             s,
-            "| OMCL, street world, odometry `{name}` | {:.3} | {:.3} | {:.2} | {:.2} | {}/{} | {:.1} |",
+            "| OMCL, street world, odometry `{name}` | {:.3} | {:.3} | {:.2} | {:.2} | {} | {:.1} |",
             avg(|r| r.translation_mean_m),
             avg(|r| r.translation_std_m),
             avg(|r| r.rotation_mean_deg),
             avg(|r| r.rotation_std_deg),
-            rs.iter().filter(|r| r.completed).count(),
-            rs.len(),
+            CompletionRule::default().tally(rs.iter().map(|r| r.completed)),
             avg(|r| r.filter_steps_per_s)
         );
         let _ = writeln!(
