@@ -886,10 +886,18 @@ fn text_outputs_never_replace_a_map_or_binary_file() {
     refused(&r, 1, &[s(&png), "--metrics", "not text"]);
     assert_eq!(std::fs::read(&png).unwrap(), png_bytes);
     assert!(!f.path("est.txt").exists());
-    // An earlier text output, and an empty file, are replaced as before.
+    // An earlier estimate is replaced as before; other text only with
+    // --force (since 2026-11-29).
     let est = f.path("old.txt");
-    std::fs::write(&est, "an earlier estimate\n").unwrap();
+    std::fs::write(&est, "0 1 2 3 0 0 0 1\n").unwrap();
     let r = f.localize(&est, &[]);
+    assert_eq!(r.code, Some(0), "{}", r.stderr);
+    let note = f.path("note.txt");
+    std::fs::write(&note, "a note\n").unwrap();
+    let r = f.localize(&note, &[]);
+    refused(&r, 1, &[s(&note), "--out", "is not a trajectory"]);
+    assert_eq!(std::fs::read_to_string(&note).unwrap(), "a note\n");
+    let r = f.localize(&note, &["--force"]);
     assert_eq!(r.code, Some(0), "{}", r.stderr);
     // eval's --json likewise.
     let gt = f.path("seq/poses.txt");

@@ -550,7 +550,14 @@ fn prompt_initialization_explains_what_is_missing() {
     assert_eq!(read_tum(&out).len(), 4);
     std::fs::write(&out, OLD_OUT).unwrap();
     let r = prompt_with(&floor_wall, "bathtub", &["--prompt-radius=-1"]);
-    assert_clean_failure(&r, &out, &["radius"]);
+    assert!(
+        r.code == Some(2)
+            && r.stderr
+                .contains("'--prompt-radius <PROMPT_RADIUS>': -1 is not above 0"),
+        "{}",
+        r.text()
+    );
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), OLD_OUT);
 
     // A map grounded without "floor": no particle can be placed. The error
     // must say so and point at an initialization that needs no floor.
@@ -740,6 +747,59 @@ fn localizes_on_the_floor_plan_near_ground_truth() {
     let plan = f.dir.path().join("seq.plan");
     let r = omcl(&["map", "floorplan", s(&f.map), "-o", s(&plan)]);
     assert!(r.ok(), "{}", r.text());
+    // `map info` reads a plan too (it had refused it as not a map): the
+    // numbers `map floorplan` printed.
+    let made = r.stdout.clone();
+    let r = omcl(&["map", "info", s(&plan), "--json"]);
+    assert!(r.ok(), "{}", r.text());
+    let info: serde_json::Value = serde_json::from_str(&r.stdout).unwrap();
+    let (cells, rows) = (
+        info["cells"].as_u64().unwrap(),
+        info["rows"].as_u64().unwrap(),
+    );
+    assert!(
+        made.contains(&format!("{cells} columns of "))
+            && made.contains(&format!("{rows} feature rows")),
+        "{made}\n{info}"
+    );
+    assert_eq!(info["band_m"], serde_json::json!([0.1, 2.0]));
+    let top: u64 = info["top_rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r[1].as_u64().unwrap())
+        .sum();
+    assert!(top <= cells && top > 0, "{info}");
+    let r = omcl(&["map", "info", s(&plan)]);
+    assert!(
+        r.ok() && r.stdout.contains("(a floor plan, checksum ok)"),
+        "{}",
+        r.text()
+    );
+    // A band into the floor's or the ceiling's layer is said.
+    let wide = f.dir.path().join("wide.plan");
+    let r = omcl(&[
+        "map",
+        "floorplan",
+        s(&f.map),
+        "-o",
+        s(&wide),
+        "--band-min",
+        "-1",
+        "--band-max",
+        "100",
+    ]);
+    assert!(
+        r.ok()
+            && r.stderr
+                .contains("--band-min -1 m reaches into the floor's layer")
+            && r.stderr
+                .contains("--band-max 100 m reaches into the map's top layer"),
+        "{}",
+        r.text()
+    );
+    let r = omcl(&["map", "floorplan", s(&f.map), "-o", s(&wide)]);
+    assert!(r.ok() && !r.stderr.contains("reaches into"), "{}", r.text());
     let out2 = f.dir.path().join("est2d_file.txt");
     let r = f.localize(
         &f.map,
@@ -1271,6 +1331,59 @@ fn outputs_replace_only_earlier_outputs_of_their_kind() {
     );
     assert!(r.ok(), "{}", r.text());
     assert_eq!(read_tum(&other.join("poses.txt")).len(), 3);
+}
+
+/// Start options that cannot apply are refused, and starts that cannot be
+/// right are said: --prompt-radius without --prompt (it had been taken
+/// silently, as --prompt without --init prompt was refused); on a floor
+/// plan, a start off the map's extent (it had run 64 m off without a
+/// word) and one looking along the vertical, whose heading is a guess;
+/// --ground says what it holds.
+#[test]
+fn start_options_that_cannot_apply_or_be_right_are_said() {
+    let f = Fixture::new();
+    let out = f.dir.path().join("est.txt");
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &out,
+        &["--frames", "2", "--prompt-radius", "1"],
+    );
+    assert!(
+        r.code == Some(2) && r.stderr.contains("--prompt <PROMPT>"),
+        "{}",
+        r.text()
+    );
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &out,
+        &[
+            "--frames",
+            "2",
+            "--floorplan",
+            "--init-pose",
+            "50 50 1.5 0 0 0 1",
+        ],
+    );
+    assert!(r.ok(), "{}", r.text());
+    assert!(
+        r.stderr.contains(
+            "warning: --init-pose: the start (x 50.00, y 50.00 m) lies outside the map's extent"
+        ) && r
+            .stderr
+            .contains("its heading taken from an optical axis this close to the vertical"),
+        "{}",
+        r.text()
+    );
+    let r = f.localize(&f.map, &f.seq, &out, &["--frames", "2", "--ground"]);
+    assert!(
+        r.ok()
+            && r.stdout
+                .contains("--ground: the camera held at the start's height, roll and pitch"),
+        "{}",
+        r.text()
+    );
 }
 
 /// `omcl map ground` of the fixture's map on `words` (its class table) into

@@ -67,7 +67,7 @@ fn encode_text_and_image_write_the_expected_npy() {
     ];
     let (ok, log) = omcl(&args);
     assert!(
-        ok && log.contains("1 images encoded, 0 already cached"),
+        ok && log.contains("1 image encoded, 0 already cached"),
         "{log}"
     );
     let (ok, log) = omcl(&args);

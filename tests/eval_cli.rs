@@ -138,6 +138,26 @@ fn ape_sim3_json_matches_evo_and_bad_pairs_fail() {
     assert_eq!(std::fs::read_to_string(&reference).unwrap(), gt, "{cmd}");
     let written = tmp.path().join("ref_first_first3.txt");
     assert_eq!(std::fs::read_to_string(written).unwrap().lines().count(), 3);
+    // A reference in a sequence's folder: the suggested file is not put
+    // among the dataset's files but in the current folder.
+    let seq = tmp.path().join("seq");
+    std::fs::create_dir(&seq).unwrap();
+    std::fs::write(seq.join("calib.txt"), "P0: 1 0 0 0 0 1 0 0 0 0 1 0\n").unwrap();
+    std::fs::write(seq.join("poses.txt"), &gt).unwrap();
+    let short = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(["eval", "ape"])
+        .arg(seq.join("poses.txt"))
+        .arg(&est)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&short.stderr);
+    assert!(
+        err.contains(&format!(
+            "head -n 3 {} > poses_first3.txt)",
+            seq.join("poses.txt").display()
+        )),
+        "{err}"
+    );
 }
 
 /// `--save-aligned` and `--json` never replace the pose files read: the

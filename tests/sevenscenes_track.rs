@@ -58,7 +58,10 @@ fn a_real_stretch_is_tracked_within_ten_centimetres() {
     // Measured (release and test builds, seed 1): 0.061 m RMSE, 0.12 max.
     assert!(r.ape.rmse < 0.10, "APE rmse {:.3} m", r.ape.rmse);
     assert!(r.ape.max < 0.20, "APE max {:.3} m", r.ape.max);
-    assert_eq!(r.completed, Some(true));
+    // 15 localized frames (1, 9, ..., 113) are too few for the completion
+    // rule (16): not judged (the bound on the maximum above is this
+    // stretch's tracking check; it had been called completed).
+    assert_eq!(r.completed, None);
     // A step moves about 5 cm and 2 degrees; noise in the paper's ratio.
     assert!(
         (0.04..0.06).contains(&r.step_motion.0),

@@ -124,11 +124,14 @@ pub struct PlanArgs {
     #[arg(long, value_parser = super::count_in::<1, { super::MAX_COUNT }>)]
     pub particles: Option<usize>,
     /// Rays, sampled pixels before duplicates are dropped (default 2048;
-    /// table4: 4096).
+    /// table1-floorplan: 8192; table1-sixdof and table4: 4096; a block's
+    /// point-cloud and raw-feature rows have their own: --show-config).
     #[arg(long, value_parser = super::count_in::<1, { super::MAX_COUNT }>)]
     pub rays: Option<usize>,
     /// Only these variants (comma-separated: OMCL_GT, OMCL_LSeg,
-    /// OMCL_auto_LSeg, OMCL_Open_LSeg, OMCL_GT_exact; default all).
+    /// OMCL_auto_LSeg, OMCL_Open_LSeg, OMCL_GT_exact; table1-floorplan's
+    /// baselines SeDAR*_GT, SIMP*_GT (quote the *); `none` for no row, as
+    /// for table1-sixdof's --rgbd-odometry row alone; default all).
     #[arg(long)]
     pub variants: Option<String>,
     /// Localize (and score consistency) with these features instead of each

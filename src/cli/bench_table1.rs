@@ -31,7 +31,11 @@ pub fn export(a: &BenchArgs, dir: &Path) -> anyhow::Result<()> {
         dir,
         &progress,
     )?;
-    println!("wrote {} sequences to {}", dirs.len(), dir.display());
+    println!(
+        "wrote {} to {}",
+        super::count(dirs.len(), "sequence"),
+        dir.display()
+    );
     Ok(())
 }
 

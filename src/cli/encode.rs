@@ -235,8 +235,9 @@ fn image(a: &ImageArgs) -> anyhow::Result<()> {
         computed += 1;
     }
     eprintln!(
-        "{}: {computed} images encoded, {reused} already cached",
-        dir.display()
+        "{}: {} encoded, {reused} already cached",
+        dir.display(),
+        super::count(computed, "image")
     );
     Ok(())
 }

@@ -427,7 +427,16 @@ fn load_pair(args: &PairArgs) -> anyhow::Result<Paired> {
             // Never the reference's own name: `head F > F` empties F.
             let r = &args.reference;
             let stem = r.file_stem().unwrap_or_default().to_string_lossy();
-            let mut first = r.with_file_name(format!("{stem}_first{estimate_poses}.txt"));
+            let name = format!("{stem}_first{estimate_poses}.txt");
+            // Beside the reference, but not into a sequence's folder (a
+            // new file among a dataset's): there, in the current folder.
+            let in_sequence = r.parent().is_some_and(|d| {
+                !d.as_os_str().is_empty() && super::outputs::is_sequence_folder(d)
+            });
+            let mut first = match in_sequence {
+                true => PathBuf::from(&name),
+                false => r.with_file_name(&name),
+            };
             if first == *r {
                 first = r.with_file_name(format!("{stem}_first{estimate_poses}_.txt"));
             }

@@ -183,18 +183,18 @@ pub struct LocalizeArgs {
     #[arg(long)]
     pub prompt: Option<String>,
     /// --init prompt: horizontal radius around a floor voxel in which the
-    /// words' voxels are counted, metres (paper: 2).
-    #[arg(long, default_value_t = PromptParams::default().radius)]
-    pub prompt_radius: f64,
+    /// words' voxels are counted, metres [default: 2, the paper's].
+    #[arg(long, requires = "prompt", value_parser = super::positive)]
+    pub prompt_radius: Option<f64>,
     /// --init prompt: a voxel matches a word at this cosine similarity or
-    /// more (paper: 0.9).
-    #[arg(long, default_value_t = PromptParams::default().rho, value_parser = super::cosine)]
-    pub prompt_rho: f32,
+    /// more [default: 0.9, the paper's].
+    #[arg(long, requires = "prompt", value_parser = super::cosine)]
+    pub prompt_rho: Option<f32>,
     /// --init prompt: voxels each word needs within the radius, stated at
-    /// 2 cm voxels and scaled to the map's resolution (paper: 500; 80 at
-    /// 5 cm).
-    #[arg(long, default_value_t = PromptParams::default().k)]
-    pub prompt_k: f64,
+    /// 2 cm voxels and scaled to the map's resolution [default: 500, the
+    /// paper's; 80 at 5 cm].
+    #[arg(long, requires = "prompt", value_parser = super::non_negative)]
+    pub prompt_k: Option<f64>,
     /// Number of particles [default: 1024, the paper's indoor setting; 512
     /// on a KITTI sequence, its street setting].
     #[arg(long, value_parser = super::count_in::<1, { super::MAX_COUNT }>)]
@@ -598,11 +598,14 @@ fn start(
                 .context("--init prompt needs --prompt \"word, word\"")?;
             Start::Prompt {
                 words: words_of.features(words, "prompt word")?,
-                params: PromptParams {
-                    radius: a.prompt_radius,
-                    rho: a.prompt_rho,
-                    k: a.prompt_k,
-                    ..PromptParams::default()
+                params: {
+                    let d = PromptParams::default();
+                    PromptParams {
+                        radius: a.prompt_radius.unwrap_or(d.radius),
+                        rho: a.prompt_rho.unwrap_or(d.rho),
+                        k: a.prompt_k.unwrap_or(d.k),
+                        ..d
+                    }
                 },
             }
         }
@@ -903,7 +906,13 @@ fn open_session(
         if tilt > 2.0 && shared.is_level() {
             eprintln!(
                 "note: the start pose is {tilt:.1} degrees from level; on a floor plan the \
-                 camera is held level at its height"
+                 camera is held level at its height{}",
+                if tilt > 80.0 {
+                    ", its heading taken from an optical axis this close to the vertical \
+                     (little more than a guess: give a start that looks sideways)"
+                } else {
+                    ""
+                }
             );
         } else if tilt > 2.0 && a.ground {
             eprintln!(
@@ -997,7 +1006,38 @@ fn start_advice(
             );
         }
     }
-    if let Some(b) = omcl::session::blind_start(shared, pose, config) {
+    let blind = omcl::session::blind_start(shared, pose, config);
+    // A floor plan has no view to measure: a start off the map's extent
+    // is said by its place (it had been taken without a word).
+    if blind.is_none()
+        && shared.is_level()
+        && let Some((lo, hi)) = shared.map().world_bounds()
+    {
+        let t = pose.translation.vector;
+        let margin = 1.0;
+        if t.x < lo[0] - margin
+            || t.x > hi[0] + margin
+            || t.y < lo[1] - margin
+            || t.y > hi[1] + margin
+        {
+            eprintln!(
+                "warning: {}: the start (x {:.2}, y {:.2} m) lies outside the map's extent \
+                 (x {:.1} to {:.1}, y {:.1} to {:.1} m); is the pose {frame}?",
+                if a.init_pose.is_some() {
+                    "--init-pose"
+                } else {
+                    "the first ground-truth pose"
+                },
+                t.x,
+                t.y,
+                lo[0],
+                hi[0],
+                lo[1],
+                hi[1]
+            );
+        }
+    }
+    if let Some(b) = blind {
         let source = if a.init_pose.is_some() {
             "--init-pose"
         } else {
@@ -1323,6 +1363,12 @@ fn print_setup(a: &LocalizeArgs, inputs: &CameraSequence) {
         motion_name(config.motion.mode),
         config.sharpen
     );
+    if a.ground {
+        println!(
+            "--ground: the camera held at the start's height, roll and pitch; the odometry's \
+             horizontal motion and turn move it"
+        );
+    }
     if let Some(e) = config.sensor.early_reject {
         println!(
             "two-pass likelihoods: one pixel in {} first, the rest for particles within {:.0} % \

@@ -60,7 +60,8 @@ pub struct UpgradeArgs {
 
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// The map file (`.omcl`, safetensors).
+    /// The map file (`.omcl`, safetensors), or a floor plan (`omcl map
+    /// floorplan`'s `.plan`: its header, band, cells and rows).
     pub file: PathBuf,
     /// Print machine-readable JSON instead of text.
     #[arg(long)]
@@ -200,7 +201,127 @@ pub fn map_info(path: &std::path::Path, map: &LanguageMap, top: usize) -> anyhow
     })
 }
 
+/// What `omcl map info` prints of a floor plan.
+#[derive(Debug, serde::Serialize)]
+pub struct PlanInfo {
+    pub file: String,
+    pub file_bytes: u64,
+    pub format: String,
+    pub version: String,
+    pub encoder: String,
+    pub resolution_m: f64,
+    pub origin_m: [f64; 2],
+    pub floor_z_m: f64,
+    /// The height band averaged, metres above the floor.
+    pub band_m: [f64; 2],
+    pub feature_dim: usize,
+    pub tau: f32,
+    pub cells: usize,
+    pub rows: usize,
+    /// World x, y of the occupied cells' bounding rectangle's corners.
+    pub bounds_min_m: Option<[f64; 2]>,
+    pub bounds_max_m: Option<[f64; 2]>,
+    /// (row, cells) of the most used rows, most first.
+    pub top_rows: Vec<(usize, usize)>,
+}
+
+fn plan_info(a: &InfoArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !a.scene,
+        "{}: a floor plan; --scene builds a 3-D map's Embree scene (a plan is cast in 2-D)",
+        a.file.display()
+    );
+    let header = file::read_header(&a.file)?;
+    let plan = omcl::map::floorplan::load(&a.file)?;
+    let mut counts = vec![0usize; plan.db().len()];
+    plan.rows().iter().for_each(|&r| counts[r as usize] += 1);
+    let mut ranked: Vec<(usize, usize)> = counts.into_iter().enumerate().collect();
+    ranked.sort_by(|x, y| y.1.cmp(&x.1).then(x.0.cmp(&y.0)));
+    ranked.truncate(a.top);
+    let (r, o) = (plan.resolution, plan.origin);
+    let corner = |f: fn(i32, i32) -> i32, edge: i32| {
+        plan.cells()
+            .iter()
+            .copied()
+            .reduce(|p, c| [f(p[0], c[0]), f(p[1], c[1])])
+            .map(|c| {
+                [
+                    o[0] + (c[0] + edge) as f64 * r,
+                    o[1] + (c[1] + edge) as f64 * r,
+                ]
+            })
+    };
+    let i = PlanInfo {
+        file: a.file.display().to_string(),
+        file_bytes: std::fs::metadata(&a.file).map(|m| m.len()).unwrap_or(0),
+        format: header.get("format").cloned().unwrap_or_default(),
+        version: header.get("version").cloned().unwrap_or_default(),
+        encoder: plan.encoder().to_string(),
+        resolution_m: r,
+        origin_m: o,
+        floor_z_m: plan.floor_z,
+        band_m: [plan.params.band_min, plan.params.band_max],
+        feature_dim: plan.db().dim(),
+        tau: plan.db().tau(),
+        cells: plan.len(),
+        rows: plan.db().len(),
+        bounds_min_m: corner(i32::min, 0),
+        bounds_max_m: corner(i32::max, 1),
+        top_rows: ranked,
+    };
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&i).context("serializing plan info")?
+        );
+        return Ok(());
+    }
+    let mut s = String::new();
+    use std::fmt::Write as _;
+    let _ = writeln!(s, "file         {} ({} bytes)", i.file, i.file_bytes);
+    let _ = writeln!(
+        s,
+        "format       {} v{} (a floor plan, checksum ok)",
+        i.format, i.version
+    );
+    let _ = writeln!(s, "encoder      {}", i.encoder);
+    let _ = writeln!(
+        s,
+        "grid         {} m cells, origin ({:.3}, {:.3}) m",
+        i.resolution_m, i.origin_m[0], i.origin_m[1]
+    );
+    let _ = writeln!(
+        s,
+        "band         {} to {} m above the floor at z = {:.3} m",
+        i.band_m[0], i.band_m[1], i.floor_z_m
+    );
+    let _ = writeln!(
+        s,
+        "features     {} x {}, tau {}",
+        super::count(i.rows, "row"),
+        super::count(i.feature_dim, "dim"),
+        i.tau
+    );
+    let _ = writeln!(s, "columns      {}", super::count(i.cells, "cell"));
+    if let (Some(lo), Some(hi)) = (i.bounds_min_m, i.bounds_max_m) {
+        let _ = writeln!(
+            s,
+            "bounds       x {:.3} .. {:.3}, y {:.3} .. {:.3} m",
+            lo[0], hi[0], lo[1], hi[1]
+        );
+    }
+    let _ = writeln!(s, "top rows     (row: cells)");
+    for (row, n) in &i.top_rows {
+        let _ = writeln!(s, "  {row:>6}: {n}");
+    }
+    print!("{s}");
+    Ok(())
+}
+
 fn info(a: &InfoArgs) -> anyhow::Result<()> {
+    if omcl::map::floorplan::is_plan_file(&a.file).unwrap_or(false) {
+        return plan_info(a);
+    }
     let t0 = std::time::Instant::now();
     let map = file::load(&a.file)?;
     let load_s = t0.elapsed().as_secs_f64();
@@ -279,8 +400,10 @@ pub fn render_info(i: &MapInfo) -> String {
     }
     let _ = writeln!(
         s,
-        "features     {} rows x {} dims, tau {}",
-        i.rows, i.feature_dim, i.tau
+        "features     {} x {}, tau {}",
+        super::count(i.rows, "row"),
+        super::count(i.feature_dim, "dim"),
+        i.tau
     );
     let _ = writeln!(s, "leaves       {} voxels", i.leaves);
     if let (Some(lo), Some(hi)) = (i.bounds_min_m, i.bounds_max_m) {

@@ -29,8 +29,8 @@ pub struct BuildOptions {
     #[arg(long, default_value_t = 0.02)]
     pub tau: f32,
     /// Cap on observation rows for raw features (memory and time bound)
-    /// [default: 4096]; with a class table (--classes) the rows are the
-    /// table's, and `map cloud` refuses it.
+    /// [default: 4096]; with a class table (label images, --classes) the
+    /// rows are the table's, and it is refused.
     #[arg(long, value_parser = super::count_in::<1, { usize::MAX }>)]
     pub max_rows: Option<usize>,
     /// The class list that turns labels into features (ground-truth mode):
@@ -715,6 +715,12 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
     }
     let mut image = super::encoders::open_image_source(&a.encoder)?;
     let use_labels = image.is_none() && !a.use_features && d.join("labels").is_dir();
+    ensure!(
+        a.build.max_rows.is_none() || !use_labels,
+        "--max-rows caps the rows made from raw features (features/ files, --use-features, \
+         --image-model); {}'s frames are label images, whose rows are the class table's",
+        d.display()
+    );
     let (table, text_encoder) = if use_labels {
         match a.build.table(a.encoder.ort_lib.as_deref())? {
             Some((t, name)) => (Some(t), name),

@@ -46,6 +46,31 @@ pub fn run(a: &FloorplanArgs) -> anyhow::Result<()> {
     };
     let plan = FloorPlan::from_map(&map, &params)
         .with_context(|| format!("projecting {} to a floor plan", a.map.display()))?;
+    // A band that takes in the floor's or the ceiling's layer makes every
+    // cell under it a column (the plan's walls vanish among them): said,
+    // as docs/table1.md says it (it had been taken without a word).
+    let res = map.grid().resolution;
+    if a.band_min < res {
+        eprintln!(
+            "note: --band-min {} m reaches into the floor's layer (0 to {res} m above z = \
+             {:.3} m): every floor cell becomes a column of the plan; the default {} m \
+             starts above it",
+            a.band_min,
+            plan.floor_z,
+            FloorPlanParams::default().band_min
+        );
+    }
+    if let Some(ceiling) = plan.ceiling_height(&map)
+        && a.band_max > ceiling
+    {
+        eprintln!(
+            "note: --band-max {} m reaches into the map's top layer ({ceiling:.2} m above the \
+             floor: a ceiling indoors): every cell under it becomes a column of the plan; the \
+             default {} m stays below a room's ceiling",
+            a.band_max,
+            FloorPlanParams::default().band_max
+        );
+    }
     floorplan::save(&plan, &a.out)?;
     println!(
         "{} -> {}: {} columns of {} m, {} feature rows (from {} voxels, {} rows), band {}..{} m above z = {:.3} m",

@@ -172,6 +172,11 @@ pub fn positive(s: &str) -> Result<f64, String> {
     }
 }
 
+/// A finite number, 0 or more (a count of voxels, say).
+pub fn non_negative(s: &str) -> Result<f64, String> {
+    finite_in(s, 0.0, f64::MAX)
+}
+
 /// A finite number of seconds, 0 or more.
 pub fn seconds(s: &str) -> Result<f64, String> {
     finite_in(s, 0.0, 1e12)

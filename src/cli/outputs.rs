@@ -289,12 +289,7 @@ fn is_dataset_file(p: &Path) -> bool {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    let sequence = ["depth", "labels", "features", "rgb", "image_2", "velodyne"]
-        .iter()
-        .any(|d| dir.join(d).is_dir())
-        || ["intrinsics.txt", "calib.txt", "camera-intrinsics.txt"]
-            .iter()
-            .any(|f| dir.join(f).is_file());
+    let sequence = is_sequence_folder(dir);
     let kitti_poses = dir.file_name().is_some_and(|n| n == "poses")
         && dir.parent().is_some_and(|d| d.join("sequences").is_dir());
     kitti_poses
@@ -304,6 +299,17 @@ fn is_dataset_file(p: &Path) -> bool {
                     .iter()
                     .any(|f| f.as_os_str() == n)
             }))
+}
+
+/// Whether `dir` is a camera sequence's folder (RGB-D, KITTI or 7-Scenes):
+/// it has frame folders or a calibration file.
+pub fn is_sequence_folder(dir: &Path) -> bool {
+    ["depth", "labels", "features", "rgb", "image_2", "velodyne"]
+        .iter()
+        .any(|d| dir.join(d).is_dir())
+        || ["intrinsics.txt", "calib.txt", "camera-intrinsics.txt"]
+            .iter()
+            .any(|f| dir.join(f).is_file())
 }
 
 /// Refuses, unless `force`, a text output that would replace an existing

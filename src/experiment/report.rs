@@ -210,8 +210,12 @@ fn collect_into(
     let done = slots.iter().filter(|s| s.record.is_some()).count();
     let b = &manifest.header.bench;
     let mut md = format!(
-        "# omcl bench ({} sequences of {} frames, {} particles, {} rays)\n\n",
-        b.sequences, b.frames, b.particles, b.rays
+        "# omcl bench ({} sequence{} of {} frames, {} particles, {} rays)\n\n",
+        b.sequences,
+        if b.sequences == 1 { "" } else { "s" },
+        b.frames,
+        b.particles,
+        b.rays
     );
     let ctx = Ctx {
         bench: b,
