@@ -1079,3 +1079,73 @@ fn classes_map_a_cloud_s_labels_not_its_own_features() {
     ]);
     assert!(!ok && text.contains("cannot be used with"), "{text}");
 }
+
+/// Words of the built-in CLIP-like table against a map built in another
+/// feature space (its own embeddings named `my-clip`), and the other way
+/// round, are said; words from the map's own table are not.
+#[test]
+fn words_from_another_feature_space_than_the_map_are_said() {
+    let d = tempfile::tempdir().unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let ply = d.path().join("c.ply");
+    labelled_ply(
+        &ply,
+        &[
+            ([0.0, 0.0, 0.0], 2),
+            ([1.0, 0.0, 0.0], 2),
+            ([0.0, 1.0, 1.0], 6),
+        ],
+    );
+    let table = d.path().join("table");
+    let (ok, out) = omcl(&["map", "classes", "asprs", "-o", &s(&table)]);
+    assert!(ok, "{out}");
+    let (classes, emb) = (table.join("classes.txt"), table.join("embeddings.npy"));
+    let builtin_map = d.path().join("b.omcl");
+    let own_map = d.path().join("o.omcl");
+    let (ok, out) = omcl(&[
+        "map",
+        "cloud",
+        &s(&ply),
+        "--classes",
+        "asprs",
+        "-o",
+        &s(&builtin_map),
+    ]);
+    assert!(ok, "{out}");
+    let (ok, out) = omcl(&[
+        "map",
+        "cloud",
+        &s(&ply),
+        "--classes",
+        &s(&classes),
+        "--embeddings",
+        &s(&emb),
+        "--encoder",
+        "my-clip",
+        "-o",
+        &s(&own_map),
+    ]);
+    assert!(ok, "{out}");
+    let heat = d.path().join("h.ply");
+    let query = |map: &Path, extra: &[&str]| {
+        let mut a = vec!["map".to_string(), "query".into(), s(map), "ground".into()];
+        a.extend(extra.iter().map(|x| x.to_string()));
+        a.extend(["-o".into(), s(&heat)]);
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        omcl(&a)
+    };
+    let note = "two feature spaces, whose similarities mean little";
+    let (ok, out) = query(&own_map, &["--classes", "asprs"]);
+    assert!(
+        ok && out.contains(note)
+            && out.contains("(omcl-builtin-asprs), the map's rows in my-clip's space"),
+        "{out}"
+    );
+    let (ok, out) = query(&builtin_map, &["--classes", "asprs"]);
+    assert!(ok && !out.contains(note), "{out}");
+    let (ok, out) = query(
+        &own_map,
+        &["--classes", &s(&classes), "--embeddings", &s(&emb)],
+    );
+    assert!(ok && !out.contains(note), "{out}");
+}

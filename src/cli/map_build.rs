@@ -808,10 +808,13 @@ impl WordSource {
         v
     }
 
-    /// Unit features of `words`, in order; an unknown word is an error that
-    /// lists a few known names.
-    fn features(&self, words: &[String], dim: usize) -> anyhow::Result<FeatureDb> {
-        let rows = match (&self.text_model, &self.classes, &self.embeddings) {
+    /// Unit features of `words`, in order, for the map `m`; an unknown
+    /// word is an error that lists a few known names. Words from the
+    /// built-in CLIP-like table against a map in another feature space (or
+    /// the other way round) are said: their similarities mean little.
+    fn features(&self, words: &[String], m: &map::LanguageMap) -> anyhow::Result<FeatureDb> {
+        let dim = m.db().dim();
+        let (space, rows) = match (&self.text_model, &self.classes, &self.embeddings) {
             (Some(model), _, _) => {
                 let (name, rows) =
                     super::encoders::text_features(model, self.ort_lib.as_deref(), words)?;
@@ -822,10 +825,10 @@ impl WordSource {
                         r.len()
                     );
                 }
-                rows.concat()
+                (Some(name), rows.concat())
             }
             (None, Some(classes), embeddings) => {
-                let (t, _) =
+                let (t, space) =
                     super::encoders::class_table(classes, embeddings.as_deref(), None, None)?;
                 ensure!(
                     t.dim == dim,
@@ -853,12 +856,32 @@ impl WordSource {
                         })?;
                     rows.extend_from_slice(&t.data[i * dim..(i + 1) * dim]);
                 }
-                rows
+                (space, rows)
             }
             _ => bail!(
                 "words need features: pass --classes (with --embeddings for a file), or --text-model"
             ),
         };
+        let builtin = |n: &str| n.starts_with("omcl-builtin-");
+        let map_space = m.encoder();
+        if let Some(space) = space
+            && space != map_space
+            && (builtin(&space) || builtin(map_space))
+        {
+            eprintln!(
+                "note: the words' features are {}, the map's rows {}: two feature spaces, whose \
+                 similarities mean little; give the words from the table the map was built with \
+                 (its --embeddings, or its --text-model)",
+                match builtin(&space) {
+                    true => format!("the built-in CLIP-like table's ({space})"),
+                    false => format!("{space}'s"),
+                },
+                match builtin(map_space) {
+                    true => format!("the built-in CLIP-like table's ({map_space})"),
+                    false => format!("in {map_space}'s space"),
+                }
+            );
+        }
         Ok(FeatureDb::from_rows(dim, 0.0, rows)?)
     }
 }
@@ -919,7 +942,7 @@ pub fn ground(a: &GroundArgs) -> anyhow::Result<()> {
     super::outputs::check_map_out("--out", &a.out, a.force)?;
     let mut m = map::load(&a.map)?;
     let words = parse_words(&a.words, a.prompt_file.as_deref())?;
-    let prompts = a.source.features(&words, m.db().dim())?;
+    let prompts = a.source.features(&words, &m)?;
     let old_counts = m.row_counts();
     let rep = map::ground(&mut m, &prompts, a.min_similarity)?;
     ensure!(
@@ -1113,7 +1136,7 @@ pub fn query(a: &QueryArgs) -> anyhow::Result<()> {
     super::outputs::check_cloud_name("--out", &a.out)?;
     let m = map::load(&a.map)?;
     let words = parse_words(&a.words, None)?;
-    let prompts = a.source.features(&words, m.db().dim())?;
+    let prompts = a.source.features(&words, &m)?;
     let best = map::query::best_similarity(&m, &prompts)?;
     let heat = colors::normalize_range(&best);
     let cols = heat.iter().map(|&t| colors::heat_color(t)).collect();
