@@ -596,3 +596,53 @@ fn table4_writes_its_markdown_json_and_figure() {
     assert_eq!(json["runs"].as_array().unwrap().len(), 1, "{json}");
     assert!(out.join("table4_noise.png").exists());
 }
+
+/// Options of experiments a call does not run are refused before anything
+/// is written, naming who takes them (they had been ignored silently).
+#[test]
+fn options_of_experiments_not_run_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let o = out.to_str().unwrap();
+    for (args, want) in [
+        (
+            vec!["table1-floorplan", "--jobs", "2"],
+            "--jobs is an option of the planned experiments",
+        ),
+        (
+            vec!["table1-sixdof", "--resume"],
+            "--resume is an option of the planned experiments",
+        ),
+        (
+            vec!["table1", "--street-frames", "10"],
+            "--street-frames is an option of table4",
+        ),
+        (
+            vec!["table1", "--starts", "2"],
+            "--starts is an option of table5",
+        ),
+        (
+            vec!["table5", "--ablation-sequences", "2"],
+            "--ablation-sequences is an option of particles-rays and sampling",
+        ),
+        (
+            vec!["table4", "--scenes-seeds", "1"],
+            "--scenes-seeds is an option of sevenscenes",
+        ),
+        (
+            vec!["table1-floorplan", "--set", "sixdof.height_m=0.3"],
+            "--set sixdof.height_m=0.3 is table1-sixdof's",
+        ),
+        (
+            vec!["table1", "--set", "plan.band_min=0.2"],
+            "--set plan.band_min=0.2 is the Table I blocks'",
+        ),
+    ] {
+        let (st, text) = bench(&[&args[..], &["-o", o]].concat());
+        assert!(
+            st.status.code() == Some(1) && text.contains(want) && text.contains("leave it out"),
+            "{args:?}: {text}"
+        );
+        assert!(!out.exists(), "{args:?}: {} was made", out.display());
+    }
+}

@@ -42,6 +42,167 @@ pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     result
 }
 
+/// Refuses options of experiments the call does not run, naming who takes
+/// them (they had been ignored without a word: `--jobs 2` on the Table I
+/// blocks, `--street-frames` without table4, `--set sixdof.height_m`
+/// without table1-sixdof). An option given at its default value is not
+/// told from one left out.
+fn refuse_options_of_other_experiments(a: &BenchArgs) -> anyhow::Result<()> {
+    use omcl::experiment::sweep::Experiment as S;
+    let ex = &a.plan.experiments;
+    let planned: Vec<S> = ex.iter().filter_map(|e| e.to_library()).collect();
+    let wants = |s: S| planned.contains(&S::All) || planned.contains(&s);
+    let has = |e: Experiment| ex.contains(&e);
+    let street = &a.street;
+    let scenes = &a.scenes;
+    let checks: [(bool, bool, &str, &str); 20] = [
+        (
+            a.jobs != 1,
+            !planned.is_empty(),
+            "--jobs",
+            "the planned experiments (table1, table2, table5, particles-rays, sampling, all)",
+        ),
+        (
+            a.resume,
+            !planned.is_empty(),
+            "--resume",
+            "the planned experiments (table1, table2, table5, particles-rays, sampling, all)",
+        ),
+        (
+            a.force,
+            !planned.is_empty(),
+            "--force",
+            "the planned experiments (table1, table2, table5, particles-rays, sampling, all)",
+        ),
+        (a.plan.starts != 3, wants(S::Table5), "--starts", "table5"),
+        (
+            a.plan.max_steps != 60,
+            wants(S::Table5),
+            "--max-steps",
+            "table5",
+        ),
+        (
+            a.plan.ablation_variant != "OMCL_LSeg",
+            wants(S::Table5) || wants(S::ParticlesRays) || wants(S::Sampling),
+            "--ablation-variant",
+            "table5, particles-rays and sampling",
+        ),
+        (
+            a.plan.ablation_sequences != 3,
+            wants(S::ParticlesRays) || wants(S::Sampling),
+            "--ablation-sequences",
+            "particles-rays and sampling",
+        ),
+        (
+            street.street_start != 0,
+            has(Experiment::Table4),
+            "--street-start",
+            "table4",
+        ),
+        (
+            street.street_frames != 300,
+            has(Experiment::Table4),
+            "--street-frames",
+            "table4",
+        ),
+        (
+            street.street_resolution != 0.1,
+            has(Experiment::Table4),
+            "--street-resolution",
+            "table4",
+        ),
+        (
+            street.odometry != "noise,orb",
+            has(Experiment::Table4),
+            "--odometry",
+            "table4",
+        ),
+        (
+            street.encoder_stride != 1,
+            has(Experiment::Table4),
+            "--encoder-stride",
+            "table4",
+        ),
+        (
+            street.trajectories.is_some(),
+            has(Experiment::Table4),
+            "--trajectories",
+            "table4",
+        ),
+        (
+            scenes.scenes.is_some(),
+            has(Experiment::SevenScenes),
+            "--scenes",
+            "sevenscenes",
+        ),
+        (
+            scenes.scenes_frames.is_some(),
+            has(Experiment::SevenScenes),
+            "--scenes-frames",
+            "sevenscenes",
+        ),
+        (
+            scenes.localize_every != 4,
+            has(Experiment::SevenScenes),
+            "--localize-every",
+            "sevenscenes",
+        ),
+        (
+            scenes.colour_classes != 10,
+            has(Experiment::SevenScenes),
+            "--colour-classes",
+            "sevenscenes",
+        ),
+        (
+            scenes.edge_radius != 4,
+            has(Experiment::SevenScenes),
+            "--edge-radius",
+            "sevenscenes",
+        ),
+        (
+            scenes.colour_shift != [0, 0],
+            has(Experiment::SevenScenes),
+            "--colour-shift",
+            "sevenscenes",
+        ),
+        (
+            scenes.scenes_seeds != "1000,1001,1002,1003,1004",
+            has(Experiment::SevenScenes),
+            "--scenes-seeds",
+            "sevenscenes",
+        ),
+    ];
+    for (given, applies, option, who) in checks {
+        anyhow::ensure!(
+            !given || applies,
+            "{option} is an option of {who}, which this call does not run; leave it out"
+        );
+    }
+    // The Table I blocks' own --set paths.
+    let set_names = |prefix: &str| {
+        a.plan
+            .set
+            .iter()
+            .filter(|s| s.starts_with(prefix))
+            .cloned()
+            .collect::<Vec<_>>()
+    };
+    let sixdof_sets = set_names("sixdof.");
+    anyhow::ensure!(
+        sixdof_sets.is_empty() || has(Experiment::Table1Sixdof),
+        "--set {} is table1-sixdof's, which this call does not run; leave it out",
+        sixdof_sets.join(", ")
+    );
+    let plan_sets = [set_names("plan."), set_names("two_d.")].concat();
+    anyhow::ensure!(
+        plan_sets.is_empty() || has(Experiment::Table1Floorplan) || has(Experiment::Table1Sixdof),
+        "--set {} is the Table I blocks' (table1-floorplan, table1-sixdof), which this call \
+         does not run; leave it out",
+        plan_sets.join(", ")
+    );
+    Ok(())
+}
+
 fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
     // Tables and figures go into --out: not into a sequence's folder.
     if let Some(f) = ["intrinsics.txt", "calib.txt", "sim.json", "poses.txt"]
@@ -100,6 +261,7 @@ fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
         }
         return Ok(());
     }
+    refuse_options_of_other_experiments(&a)?;
     if let Some(dir) = &a.sixdof.export_frames {
         return super::bench_table1::export(&a, dir);
     }
