@@ -209,7 +209,9 @@ pub struct LocalizeArgs {
     /// floor-plan with the pixels stratified over every row of the plan,
     /// not only its own, for a plan of a map made from a labelled point
     /// cloud with frames from an image encoder (Table I's 2-D
-    /// OMCL_Open_LSeg row). six-dof: full 6-DoF motion, two layers of
+    /// OMCL_Open_LSeg row; where every row of the database is one of the
+    /// plan's own, as on a plan of a map built from label images, the two
+    /// sample alike and give the same estimates). six-dof: full 6-DoF motion, two layers of
     /// progressive correction, the first on 16 copies of each particle,
     /// 4096 pixels, exponent 240 (Table I's 6-DoF block). six-dof-point-cloud:
     /// six-dof with 512 pixels and exponent 20, for a map made from a
