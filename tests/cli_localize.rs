@@ -792,14 +792,40 @@ fn localizes_on_the_floor_plan_near_ground_truth() {
     assert!(
         r.ok()
             && r.stderr
-                .contains("--band-min -1 m reaches into the floor's layer")
+                .contains("--band-min -1 m takes in the floor's layer")
             && r.stderr
-                .contains("--band-max 100 m reaches into the map's top layer"),
+                .contains("--band-max 100 m takes in the map's top layer"),
         "{}",
         r.text()
     );
     let r = omcl(&["map", "floorplan", s(&f.map), "-o", s(&wide)]);
-    assert!(r.ok() && !r.stderr.contains("reaches into"), "{}", r.text());
+    assert!(r.ok() && !r.stderr.contains("takes in"), "{}", r.text());
+    // The fixture's 10 cm voxels: the floor layer's centres at 5 cm, so
+    // 0.04 takes them in and 0.06 does not.
+    let r = omcl(&[
+        "map",
+        "floorplan",
+        s(&f.map),
+        "-o",
+        s(&wide),
+        "--band-min",
+        "0.04",
+    ]);
+    assert!(
+        r.ok() && r.stderr.contains("takes in the floor's layer"),
+        "{}",
+        r.text()
+    );
+    let r = omcl(&[
+        "map",
+        "floorplan",
+        s(&f.map),
+        "-o",
+        s(&wide),
+        "--band-min",
+        "0.06",
+    ]);
+    assert!(r.ok() && !r.stderr.contains("takes in"), "{}", r.text());
     let out2 = f.dir.path().join("est2d_file.txt");
     let r = f.localize(
         &f.map,
@@ -1322,6 +1348,57 @@ fn outputs_replace_only_earlier_outputs_of_their_kind() {
     assert!(eval(&m, false).ok());
     let r = eval(&note, true);
     assert!(r.ok(), "{}", r.text());
+    // Through a link, a TUM folder's groundtruth.txt, a new odometry.txt
+    // in another sequence: refused too; KITTI's poses/NN.txt is ground
+    // truth, a run's own file beside it in poses/ is replaced on a re-run.
+    let link = f.dir.path().join("link.txt");
+    std::os::unix::fs::symlink(other.join("poses.txt"), &link).unwrap();
+    let tum = f.dir.path().join("tum");
+    std::fs::create_dir_all(tum.join("rgb")).unwrap();
+    std::fs::create_dir_all(tum.join("depth")).unwrap();
+    std::fs::write(tum.join("groundtruth.txt"), "1 0 0 0 0 0 0 1\n").unwrap();
+    let kitti = f.dir.path().join("kitti");
+    std::fs::create_dir_all(kitti.join("sequences/00")).unwrap();
+    std::fs::create_dir_all(kitti.join("poses")).unwrap();
+    std::fs::write(kitti.join("poses/00.txt"), "1 0 0 0 0 1 0 0 0 0 1 0\n").unwrap();
+    for (out, verb) in [
+        (link.clone(), "replace"),
+        (tum.join("groundtruth.txt"), "replace"),
+        (other.join("odometry_new.txt"), ""),
+        (kitti.join("poses/00.txt"), "replace"),
+    ] {
+        let before = std::fs::read(&out).ok();
+        let r = f.localize(&f.map, &f.seq, &out, &["--frames", "3"]);
+        if verb.is_empty() {
+            // Not a dataset's name: written.
+            assert!(r.ok(), "{}: {}", out.display(), r.text());
+            continue;
+        }
+        assert!(
+            r.code == Some(1) && r.stderr.contains(&format!("would {verb} a dataset's file")),
+            "{}: {}",
+            out.display(),
+            r.text()
+        );
+        assert_eq!(std::fs::read(&out).ok(), before, "{}", out.display());
+    }
+    std::fs::remove_file(other.join("odometry.txt")).unwrap();
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &other.join("odometry.txt"),
+        &["--frames", "3"],
+    );
+    assert!(
+        r.code == Some(1) && r.stderr.contains("would add a dataset's file"),
+        "{}",
+        r.text()
+    );
+    let own = kitti.join("poses/00_est.txt");
+    for _ in 0..2 {
+        let r = f.localize(&f.map, &f.seq, &own, &["--frames", "3"]);
+        assert!(r.ok(), "{}", r.text());
+    }
     // localize --force replaces another sequence's ground truth.
     let r = f.localize(
         &f.map,

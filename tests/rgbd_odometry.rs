@@ -195,6 +195,31 @@ fn open3d_odometry_follows_known_motion_and_the_bench_scores_it_alike() {
         "{md}"
     );
 
+    // Estimates of another sequence than the block's as this call makes
+    // it (another height motion) are refused by the CRC of the poses.txt
+    // they were made on, which the script records (they had been scored).
+    let (ok, text) = omcl(
+        &[
+            &block[..],
+            &[
+                "--variants",
+                "none",
+                "--set",
+                "sixdof.height_m=0.6",
+                "--rgbd-odometry",
+                odo.to_str().unwrap(),
+            ],
+            &["-o", bench_out.to_str().unwrap()],
+        ]
+        .concat(),
+    );
+    assert!(
+        !ok && text.contains(
+            "odometry.json: the estimate beside it was made on a sequence whose poses.txt"
+        ),
+        "{text}"
+    );
+
     // An estimate of another length is refused, naming the file.
     let short = odo.join(format!("seq_{SEED}/estimate.txt"));
     let lines: Vec<String> = std::fs::read_to_string(&short)

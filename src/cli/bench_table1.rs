@@ -66,14 +66,20 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
     let progress = |m: &str| eprintln!("{m}");
     if let Some(spec) = plan_spec {
         let b = table1_floorplan::block(&spec, names, &progress)?;
-        write(a, "table1_floorplan", "2d", &b)?;
+        // Every row the block can have, OMCL_GT_exact by --variants.
+        let rows: Vec<&str> = table1_floorplan::OMCL_ROWS
+            .into_iter()
+            .chain(["OMCL_GT_exact"])
+            .chain(table1_floorplan::BASELINES.map(|b| b.name()))
+            .collect();
+        write(a, "table1_floorplan", "2d", &rows, &b)?;
         println!("{}", b.markdown);
     }
     if let Some(spec) = six_spec {
         let motion = block_overrides(&a.plan.set)?.sixdof;
         let odometry = a.sixdof.rgbd_odometry.as_deref();
         let b = table1_6dof::block(&spec, &motion, names, odometry, &progress)?;
-        write(a, "table1_6dof", "6dof", &b)?;
+        write(a, "table1_6dof", "6dof", &table1_6dof::ROWS, &b)?;
         println!("{}", b.markdown);
     }
     Ok(true)
@@ -254,14 +260,18 @@ fn block_spec(
 /// Writes `<out>/<name>.md`, `<name>.json` and each row's Figure 4,
 /// `figure4_<tag>_<variant>.png` and `.svg` (the variant's name without
 /// `*`).
-fn write(a: &BenchArgs, name: &str, tag: &str, b: &BlockResult) -> anyhow::Result<()> {
+fn write(
+    a: &BenchArgs,
+    name: &str,
+    tag: &str,
+    block_rows: &[&str],
+    b: &BlockResult,
+) -> anyhow::Result<()> {
     // SeDAR*_GT -> SeDAR_GT: no shell pattern in a file name.
-    let stems: Vec<String> = b
-        .rows
-        .iter()
-        .map(|row| format!("figure4_{tag}_{}", row.variant.replace('*', "")))
-        .collect();
-    remove_stale_figures(&a.out, name, &format!("figure4_{tag}_"), &stems)?;
+    let stem = |variant: &str| format!("figure4_{tag}_{}", variant.replace('*', ""));
+    let stems: Vec<String> = b.rows.iter().map(|row| stem(&row.variant)).collect();
+    let known: Vec<String> = block_rows.iter().map(|v| stem(v)).collect();
+    remove_stale_figures(&a.out, name, &known, &stems)?;
     let p = a.out.join(format!("{name}.md"));
     omcl::io::atomic::write(&p, b.markdown.as_bytes())
         .with_context(|| format!("writing {}", p.display()))?;
@@ -275,15 +285,16 @@ fn write(a: &BenchArgs, name: &str, tag: &str, b: &BlockResult) -> anyhow::Resul
     Ok(())
 }
 
-/// Removes the block's Figure 4 files of an earlier run in `out` (names
-/// starting `prefix`, drawn by omcl) whose rows this run does not write:
-/// a second run of other variants into the same folder had left the
-/// first run's figures beside a table without their rows. Said when any
-/// is removed.
+/// Removes the block's Figure 4 files of an earlier run in `out` (the
+/// `known` stems of the block's rows, `.png` or `.svg`, drawn by omcl)
+/// whose rows this run does not write (`stems`): a second run of other
+/// variants into the same folder had left the first run's figures beside
+/// a table without their rows. No other file is touched (a renamed copy,
+/// a figure of `omcl localize --plot`). Said when any is removed.
 fn remove_stale_figures(
     out: &std::path::Path,
     name: &str,
-    prefix: &str,
+    known: &[String],
     stems: &[String],
 ) -> anyhow::Result<()> {
     let Ok(entries) = std::fs::read_dir(out) else {
@@ -293,11 +304,11 @@ fn remove_stale_figures(
     for e in entries.flatten() {
         let p = e.path();
         let file = e.file_name().to_string_lossy().into_owned();
-        let stale = file.starts_with(prefix)
-            && (file.ends_with(".png") || file.ends_with(".svg"))
-            && !stems
-                .iter()
-                .any(|s| p.file_stem().is_some_and(|f| f == s.as_str()))
+        let stem = p.file_stem().and_then(|f| f.to_str()).unwrap_or("");
+        let stale = (file.ends_with(".png") || file.ends_with(".svg"))
+            && known.iter().any(|k| k == stem)
+            && !stems.iter().any(|s| s == stem)
+            && e.file_type().is_ok_and(|t| t.is_file())
             && omcl::plot::is_omcl_figure(&p);
         if stale {
             std::fs::remove_file(&p).with_context(|| format!("removing {}", p.display()))?;

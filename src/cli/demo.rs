@@ -147,6 +147,9 @@ fn indoor(a: &DemoArgs) -> anyhow::Result<()> {
             &s(&a.out.join("diagnostics.csv")),
             "--plot",
             &s(&a.out.join("trajectory.png")),
+            // The demo's own folder: its outputs of an older build
+            // (figures without the mark) are replaced.
+            "--force",
         ],
     )?;
     step(
@@ -241,6 +244,7 @@ fn outdoor(a: &DemoArgs) -> anyhow::Result<()> {
             &s(&a.out.join("street_metrics.json")),
             "--plot",
             &s(&a.out.join("street_trajectory.png")),
+            "--force",
         ],
     )
 }

@@ -428,14 +428,24 @@ fn load_pair(args: &PairArgs) -> anyhow::Result<Paired> {
             let r = &args.reference;
             let stem = r.file_stem().unwrap_or_default().to_string_lossy();
             let name = format!("{stem}_first{estimate_poses}.txt");
-            // Beside the reference, but not into a sequence's folder (a
+            // Beside the reference, but not into a dataset's folder (a
             // new file among a dataset's): there, in the current folder.
-            let in_sequence = r.parent().is_some_and(|d| {
-                !d.as_os_str().is_empty() && super::outputs::is_sequence_folder(d)
+            // (KITTI's poses/ beside sequences/ is a dataset's folder too.)
+            let parent = r.parent().unwrap_or(Path::new(""));
+            let folder = match parent.as_os_str().is_empty() {
+                true => Path::new("."),
+                false => parent,
+            };
+            let kitti_poses = folder.canonicalize().ok().is_some_and(|d| {
+                d.file_name().is_some_and(|n| n == "poses")
+                    && d.parent().is_some_and(|p| p.join("sequences").is_dir())
             });
-            let mut first = match in_sequence {
-                true => PathBuf::from(&name),
-                false => r.with_file_name(&name),
+            let in_dataset = super::outputs::is_sequence_folder(folder) || kitti_poses;
+            let mut first = match (in_dataset, parent.as_os_str().is_empty()) {
+                (false, _) => r.with_file_name(&name),
+                // Run inside the dataset's folder: one up.
+                (true, true) => Path::new("..").join(&name),
+                (true, false) => PathBuf::from(&name),
             };
             if first == *r {
                 first = r.with_file_name(format!("{stem}_first{estimate_poses}_.txt"));

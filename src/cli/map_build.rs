@@ -704,15 +704,15 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
     if is_sevenscenes {
         return sevenscenes(a);
     }
+    if let Some(why) = omcl::io::rgbd::raw_tum_layout(d) {
+        anyhow::bail!(why);
+    }
     anyhow::ensure!(
         a.frame_step <= 1 && a.frame_offset == 0 && a.drop_depth_edges.is_none(),
         "{}: --frame-step, --frame-offset and --drop-depth-edges apply to 7-Scenes folders \
          (with camera-intrinsics.txt) only",
         d.display()
     );
-    if let Some(why) = omcl::io::rgbd::raw_tum_layout(d) {
-        anyhow::bail!(why);
-    }
     let mut image = super::encoders::open_image_source(&a.encoder)?;
     let use_labels = image.is_none() && !a.use_features && d.join("labels").is_dir();
     ensure!(

@@ -49,26 +49,29 @@ pub fn run(a: &FloorplanArgs) -> anyhow::Result<()> {
     // A band that takes in the floor's or the ceiling's layer makes every
     // cell under it a column (the plan's walls vanish among them): said,
     // as docs/table1.md says it (it had been taken without a word).
-    let res = map.grid().resolution;
-    if a.band_min < res {
+    // A voxel is in the band when its centre is (`FloorPlan::from_map`).
+    let half = map.grid().resolution / 2.0;
+    if a.band_min <= half {
         eprintln!(
-            "note: --band-min {} m reaches into the floor's layer (0 to {res} m above z = \
-             {:.3} m): every floor cell becomes a column of the plan; the default {} m \
-             starts above it",
-            a.band_min,
-            plan.floor_z,
-            FloorPlanParams::default().band_min
+            "note: --band-min {} m takes in the floor's layer (its voxels' centres are {half} m \
+             above z = {:.3} m): every floor cell becomes a column of the plan; a --band-min \
+             above {half} m keeps it out",
+            a.band_min, plan.floor_z,
         );
     }
+    // The top layer only for a band given: a default band above a flat
+    // or outdoor map's top is no ceiling's.
     if let Some(ceiling) = plan.ceiling_height(&map)
-        && a.band_max > ceiling
+        && a.band_max != FloorPlanParams::default().band_max
+        && a.band_max >= ceiling + half
     {
         eprintln!(
-            "note: --band-max {} m reaches into the map's top layer ({ceiling:.2} m above the \
-             floor: a ceiling indoors): every cell under it becomes a column of the plan; the \
-             default {} m stays below a room's ceiling",
+            "note: --band-max {} m takes in the map's top layer ({:.2} m above the floor: a \
+             ceiling indoors): every cell under it becomes a column of the plan; a \
+             --band-max under {:.2} m keeps it out",
             a.band_max,
-            FloorPlanParams::default().band_max
+            ceiling + half,
+            ceiling + half
         );
     }
     floorplan::save(&plan, &a.out)?;

@@ -281,24 +281,37 @@ impl TextOutput {
     }
 }
 
-/// Whether `p` is a file a dataset's readers read: one of
-/// [`sequence_files`] in a camera sequence's folder (RGB-D, KITTI or
-/// 7-Scenes), or any file of KITTI's `poses/` beside `sequences/`.
+/// Files of a TUM RGB-D sequence as published, beside [`sequence_files`].
+const TUM_FILES: [&str; 4] = [
+    "groundtruth.txt",
+    "rgb.txt",
+    "depth.txt",
+    "accelerometer.txt",
+];
+
+/// Whether `p` (links followed: a link is the file it names) is a file a
+/// dataset's readers read: one of [`sequence_files`] or of a TUM
+/// sequence's lists in a camera sequence's folder (RGB-D, KITTI, 7-Scenes,
+/// TUM), or a KITTI ground truth `poses/NN.txt` beside `sequences/`.
 fn is_dataset_file(p: &Path) -> bool {
+    let p = omcl::io::atomic::follow_links(p).unwrap_or_else(|_| p.to_path_buf());
     let dir = match p.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    let sequence = is_sequence_folder(dir);
+    let Some(name) = p.file_name().and_then(|n| n.to_str()) else {
+        return false;
+    };
     let kitti_poses = dir.file_name().is_some_and(|n| n == "poses")
-        && dir.parent().is_some_and(|d| d.join("sequences").is_dir());
-    kitti_poses
-        || (sequence
-            && p.file_name().is_some_and(|n| {
-                sequence_files(Path::new(""))
-                    .iter()
-                    .any(|f| f.as_os_str() == n)
-            }))
+        && dir.parent().is_some_and(|d| d.join("sequences").is_dir())
+        && name.len() == 6
+        && name.ends_with(".txt")
+        && name[..2].bytes().all(|b| b.is_ascii_digit());
+    let listed = sequence_files(Path::new(""))
+        .iter()
+        .any(|f| f.as_os_str() == name)
+        || TUM_FILES.contains(&name);
+    kitti_poses || (listed && is_sequence_folder(dir))
 }
 
 /// Whether `dir` is a camera sequence's folder (RGB-D, KITTI or 7-Scenes):
@@ -323,16 +336,22 @@ pub fn refuse_replacing_unlike(
     kind: TextOutput,
     force: bool,
 ) -> anyhow::Result<()> {
-    let holds_something = std::fs::metadata(p).is_ok_and(|m| m.is_file() && m.len() > 0);
-    if !holds_something || force {
+    if force {
         return Ok(());
     }
+    // A new file of that name too: the dataset's readers would read it
+    // (`-o other_seq/odometry.txt` is that sequence's odometry next time).
     anyhow::ensure!(
         !is_dataset_file(p),
-        "{}: {option} would replace a dataset's file (ground truth, odometry, calibration \
-         or a class table); pass --force to replace it, or choose another name",
+        "{}: {option} would {} a dataset's file (ground truth, odometry, calibration or a \
+         class table); pass --force to write it, or choose another name",
         p.display(),
+        if p.exists() { "replace" } else { "add" }
     );
+    let holds_something = std::fs::metadata(p).is_ok_and(|m| m.is_file() && m.len() > 0);
+    if !holds_something {
+        return Ok(());
+    }
     anyhow::ensure!(
         kind.recognises(p),
         "{}: {option} exists and is not {}; pass --force to replace it, or choose another name",

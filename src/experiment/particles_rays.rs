@@ -68,7 +68,7 @@ impl Ctx<'_> {
         }
         let json: Vec<_> = cells
             .iter()
-            .map(|(n, rays, r)| serde_json::json!({"particles": n, "rays": rays, "rmse": rmse(r), "fps": r.fps, "completed": r.completed, "sequences": r.per_sequence.len()}))
+            .map(|(n, rays, r)| serde_json::json!({"particles": n, "rays": rays, "rmse": rmse(r), "fps": r.fps, "completed": r.completed, "completed_cell": r.completed_cell, "sequences": r.per_sequence.len()}))
             .collect();
         write_json(&self.out.join("ablation_particles_rays.json"), &json)?;
         let mut s = format!(

@@ -41,14 +41,9 @@ impl Ctx<'_> {
                 let rmses: Vec<f64> = row.per_sequence.iter().map(|r| r.stats.rmse).collect();
                 let (mean, std) = crate::eval::ErrorStats::from_errors(&rmses)
                     .map_or((f64::NAN, f64::NAN), |s| (s.mean, s.std));
-                let _ = write!(
-                    s,
-                    " {mean:.3} ({}/{}) |",
-                    row.completed,
-                    row.per_sequence.len()
-                );
+                let _ = write!(s, " {mean:.3} ({}) |", row.completed_cell);
                 bars.push((name.to_string(), mean, Some(std)));
-                json.push(serde_json::json!({"particles": n, "strategy": name, "rmse_mean": mean, "rmse_std": std, "completed": row.completed, "fps": row.fps}));
+                json.push(serde_json::json!({"particles": n, "strategy": name, "rmse_mean": mean, "rmse_std": std, "completed": row.completed, "completed_cell": row.completed_cell, "fps": row.fps}));
             }
             s.push('\n');
             groups.push(BarGroup {

@@ -302,6 +302,41 @@ pub fn export_block(
     Ok(dirs)
 }
 
+/// Refuses an estimate made on another sequence than the block's `seed`
+/// as this call makes it (other `--set sixdof.*`, `--world`, frames): the
+/// `odometry.json` that `tools/rgbd_odometry.py` writes beside
+/// `estimate.txt` records the CRC-32 of the `poses.txt` it read
+/// (`poses_crc32`), which must be that of the `poses.txt` the block's
+/// export writes for `poses`. Without the record (an estimate made
+/// otherwise) nothing is checked but the pose count.
+fn check_odometry_record(
+    seed: u64,
+    estimate: &Path,
+    poses: &[Pose],
+) -> Result<(), ExperimentError> {
+    let record = estimate.with_file_name("odometry.json");
+    let Ok(text) = crate::io::bounded_read::read_text(&record) else {
+        return Ok(());
+    };
+    let json: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| ExperimentError::Config(format!("{}: not JSON: {e}", record.display())))?;
+    let Some(theirs) = json.get("poses_crc32").and_then(|v| v.as_str()) else {
+        return Ok(());
+    };
+    let lines = crate::sim::files::pose_lines(poses, crate::io::poses::PoseFormat::Tum, 30.0);
+    let ours = format!("{:08x}", crc32fast::hash(lines.as_bytes()));
+    if theirs != ours {
+        return Err(ExperimentError::Config(format!(
+            "{}: the estimate beside it was made on a sequence whose poses.txt (CRC-32 {theirs}) \
+             is not the block's sequence {seed} as this call makes it ({ours}): export the \
+             frames with this call's --set sixdof.*, --world, --frames and seeds \
+             (--export-frames) and run the odometry on those",
+            record.display()
+        )));
+    }
+    Ok(())
+}
+
 /// The name of the geometric odometry row.
 pub const ODOMETRY_ROW: &str =
     "geometric RGB-D odometry (Open3D, frame to frame, no map; stand-in for RTAB-Map)";
@@ -327,6 +362,7 @@ pub fn score_estimate(
             seq.len()
         )));
     }
+    check_odometry_record(seed, estimate, seq.poses())?;
     // Paired by index: pose i is frame i's.
     let truth = Trajectory::from_poses(seq.poses().to_vec())
         .map_err(|e| ExperimentError::Config(e.to_string()))?;

@@ -419,15 +419,33 @@ fn fold_standard_names(def: &mut ElementDef) {
         .filter_map(|k| canon(k).map(|c| (k.clone(), c)))
         .filter(|(_, c)| !def.properties.contains_key(*c))
         .collect();
-    let unique = |c: &str| renames.iter().filter(|(_, d)| *d == c).count() == 1;
-    if renames.iter().all(|(_, c)| !unique(c)) {
-        return;
-    }
+    // The property a name is taken from: the only candidate, or of
+    // several (`Red` and `diffuse_red`) the only one without the prefix.
+    let chosen = |c: &str| -> Option<&String> {
+        let all: Vec<&String> = renames
+            .iter()
+            .filter(|(_, d)| *d == c)
+            .map(|(k, _)| k)
+            .collect();
+        match all.as_slice() {
+            [one] => Some(*one),
+            _ => {
+                let plain: Vec<&String> = all
+                    .into_iter()
+                    .filter(|k| k.eq_ignore_ascii_case(c))
+                    .collect();
+                (plain.len() == 1).then(|| plain[0])
+            }
+        }
+    };
     let props = std::mem::take(&mut def.properties);
     def.properties = props
         .into_iter()
         .map(|(k, mut p)| {
-            let name = match renames.iter().find(|(r, c)| *r == k && unique(c)) {
+            let name = match renames
+                .iter()
+                .find(|(r, c)| *r == k && chosen(c) == Some(&k))
+            {
                 Some((_, c)) => c.to_string(),
                 None => k,
             };
@@ -1331,6 +1349,15 @@ mod tests {
         let c = read_ply(&p).unwrap();
         assert_eq!(c.points, vec![[4.0, 5.0, 6.0]]);
         assert_eq!(c.colors, Some(vec![[10, 20, 30]]));
+        // Red beside diffuse_red: Red is the colour.
+        let p = write(
+            d.path(),
+            "amb.ply",
+            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+              property float z\nproperty uchar Red\nproperty uchar Green\nproperty uchar Blue\n\
+              property uchar diffuse_red\nend_header\n0 0 0 1 2 3 9\n",
+        );
+        assert_eq!(read_ply(&p).unwrap().colors, Some(vec![[1, 2, 3]]));
         // A vertex with both x and X keeps x as the coordinate.
         let p = write(
             d.path(),
