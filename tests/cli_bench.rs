@@ -435,6 +435,39 @@ fn table1_blocks_write_tables_and_figure4() {
                 assert!(len > 1000, "{}: {len} bytes", f.display());
             }
         }
+        // Every row's estimates and the ground truth as TUM files: `omcl
+        // eval ape` (horizontal for the 2-D block) gives the row's RMSE
+        // again; and what ran, in <name>.run.json.
+        let traj = dir.path().join(format!("{name}_trajectories/seq_1000"));
+        let truth = traj.join("groundtruth.txt");
+        for r in json.as_array().unwrap() {
+            let v = r["variant"].as_str().unwrap().replace('*', "");
+            let mut args = vec![
+                "eval".to_string(),
+                "ape".into(),
+                truth.to_str().unwrap().into(),
+                traj.join(format!("{v}.txt")).to_str().unwrap().into(),
+            ];
+            if name == "table1_floorplan" {
+                args.push("--horizontal".into());
+            }
+            let args: Vec<&str> = args.iter().map(String::as_str).collect();
+            let e = common::omcl(&args);
+            assert!(e.ok(), "{}", e.text());
+            let rmse = r["per_sequence"][0]["stats"]["rmse"].as_f64().unwrap();
+            assert!(
+                e.stdout.contains(&format!("rmse  {rmse:.6}"))
+                    || e.stdout.contains(&format!("{rmse:.6}")),
+                "{name} {v}: {rmse}\n{}",
+                e.stdout
+            );
+        }
+        let run: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(dir.path().join(format!("{name}.run.json"))).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(run["seeds"], serde_json::json!([1000]), "{run}");
+        assert_eq!(run["spec"]["frames"], 6, "{run}");
         // Six frames are too few for the completion rule: not judged, as
         // `omcl localize` and `omcl eval` say (the benches had counted
         // such runs completed).

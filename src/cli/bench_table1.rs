@@ -72,14 +72,16 @@ pub fn run(a: &BenchArgs) -> anyhow::Result<bool> {
             .chain(["OMCL_GT_exact"])
             .chain(table1_floorplan::BASELINES.map(|b| b.name()))
             .collect();
-        write(a, "table1_floorplan", "2d", &rows, &b)?;
+        let run = serde_json::json!({ "spec": spec });
+        write(a, "table1_floorplan", "2d", &rows, &b, run)?;
         println!("{}", b.markdown);
     }
     if let Some(spec) = six_spec {
         let motion = block_overrides(&a.plan.set)?.sixdof;
         let odometry = a.sixdof.rgbd_odometry.as_deref();
         let b = table1_6dof::block(&spec, &motion, names, odometry, &progress)?;
-        write(a, "table1_6dof", "6dof", &table1_6dof::ROWS, &b)?;
+        let run = serde_json::json!({ "spec": spec, "motion": motion, "rgbd_odometry": odometry });
+        write(a, "table1_6dof", "6dof", &table1_6dof::ROWS, &b, run)?;
         println!("{}", b.markdown);
     }
     Ok(true)
@@ -266,6 +268,7 @@ fn write(
     tag: &str,
     block_rows: &[&str],
     b: &BlockResult,
+    mut run: serde_json::Value,
 ) -> anyhow::Result<()> {
     // SeDAR*_GT -> SeDAR_GT: no shell pattern in a file name.
     let stem = |variant: &str| format!("figure4_{tag}_{}", variant.replace('*', ""));
@@ -281,6 +284,67 @@ fn write(
     for (stem, panels) in stems.iter().zip(&b.figures) {
         write_figure4(&a.out, stem, panels)
             .with_context(|| format!("drawing {}", a.out.join(stem).display()))?;
+    }
+    write_trajectories(&a.out.join(format!("{name}_trajectories")), b)?;
+    // What ran, to run it again: the command, the build, the block's
+    // sequences and filters.
+    run["omcl"] = serde_json::json!(env!("CARGO_PKG_VERSION"));
+    run["command"] = serde_json::json!(std::env::args().collect::<Vec<_>>());
+    run["rows"] = serde_json::json!(b.rows.iter().map(|r| &r.variant).collect::<Vec<_>>());
+    run["seeds"] = serde_json::json!(b.truths.iter().map(|(s, _)| s).collect::<Vec<_>>());
+    let p = a.out.join(format!("{name}.run.json"));
+    omcl::io::atomic::write(&p, serde_json::to_string_pretty(&run)?.as_bytes())
+        .with_context(|| format!("writing {}", p.display()))?;
+    Ok(())
+}
+
+/// Writes each sequence's ground truth and each row's estimate as TUM
+/// files, stamped at 30 frames a second as `--export-frames` stamps its
+/// `poses.txt`, so that `omcl eval ape` (or evo) scores any row again:
+/// `DIR/seq_<seed>/groundtruth.txt` and `DIR/seq_<seed>/<row>.txt` (the
+/// row's name without `*`). The folder of an earlier run is replaced
+/// whole when it holds only such files; anything else in it is refused.
+fn write_trajectories(dir: &std::path::Path, b: &BlockResult) -> anyhow::Result<()> {
+    use omcl::io::poses::PoseFormat;
+    use omcl::sim::files::pose_lines;
+    if dir.exists() {
+        let ours = std::fs::read_dir(dir)?.flatten().all(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            e.file_type().is_ok_and(|t| t.is_dir())
+                && name.starts_with("seq_")
+                && std::fs::read_dir(e.path()).is_ok_and(|d| {
+                    d.flatten().all(|f| {
+                        f.file_type().is_ok_and(|t| t.is_file())
+                            && f.file_name().to_string_lossy().ends_with(".txt")
+                    })
+                })
+        });
+        anyhow::ensure!(
+            ours,
+            "{}: holds files of its own (not only seq_*/ folders of .txt trajectories); \
+             move them away, the bench writes its trajectories there",
+            dir.display()
+        );
+        std::fs::remove_dir_all(dir).with_context(|| format!("removing {}", dir.display()))?;
+    }
+    for (k, (seed, truth)) in b.truths.iter().enumerate() {
+        let d = dir.join(format!("seq_{seed}"));
+        std::fs::create_dir_all(&d).with_context(|| format!("creating {}", d.display()))?;
+        let mut files = vec![("groundtruth".to_string(), truth.as_slice())];
+        for row in &b.rows {
+            if let Some(r) = row.per_sequence.get(k) {
+                let name = match row.variant.as_str() {
+                    table1_6dof::ODOMETRY_ROW => "rgbd_odometry".to_string(),
+                    v => v.replace('*', ""),
+                };
+                files.push((name, r.estimates.as_slice()));
+            }
+        }
+        for (name, poses) in files {
+            let p = d.join(format!("{name}.txt"));
+            omcl::io::atomic::write(&p, pose_lines(poses, PoseFormat::Tum, 30.0).as_bytes())
+                .with_context(|| format!("writing {}", p.display()))?;
+        }
     }
     Ok(())
 }

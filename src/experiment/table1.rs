@@ -59,7 +59,19 @@ pub struct BlockResult {
     pub rows: Vec<TrackingRow>,
     pub markdown: String,
     pub figures: Vec<Vec<Figure4Panel>>,
+    /// Each sequence's seed and ground truth (`world_from_camera` a
+    /// frame), in the rows' sequence order: what their estimates are
+    /// scored against.
+    pub truths: Vec<(u64, Vec<crate::geometry::Pose>)>,
 }
+
+/// A block's rows, their Figure 4 panels and each sequence's seed and
+/// ground truth, as the blocks' runners return them.
+pub(super) type BlockRuns = (
+    Vec<TrackingRow>,
+    Vec<Vec<Figure4Panel>>,
+    Vec<(u64, Vec<crate::geometry::Pose>)>,
+);
 
 /// The (x, y) of each pose, world frame.
 pub(super) fn xy(poses: &[crate::geometry::Pose]) -> Vec<[f64; 2]> {

@@ -145,12 +145,14 @@ pub fn rows_3d(
     motion: &SixDofMotion,
     variants: &[Variant],
     progress: &dyn Fn(&str),
-) -> Result<(Vec<TrackingRow>, Vec<Vec<Figure4Panel>>), ExperimentError> {
+) -> Result<super::table1::BlockRuns, ExperimentError> {
     let table = builtin_table()?;
+    let mut truths = Vec::new();
     let mut runs: Vec<Vec<RunResult>> = vec![Vec::new(); variants.len()];
     let mut panels: Vec<Vec<Figure4Panel>> = vec![Vec::new(); variants.len()];
     for (n, seed) in spec.seeds.clone().enumerate() {
         let seq = sixdof_sequence_in(spec.world, seed, spec.frames, &table, motion)?;
+        truths.push((seed, seq.poses().to_vec()));
         for (k, v) in variants.iter().enumerate() {
             let map = BenchMap::build(&seq, v.map, &spec.map_params, &|_| {})?;
             let filter = spec.filter_for(v, seed);
@@ -180,7 +182,7 @@ pub fn rows_3d(
         .zip(runs)
         .map(|(v, r)| TrackingRow::new(v.name, r))
         .collect();
-    Ok((rows, panels))
+    Ok((rows, panels, truths))
 }
 
 /// Where a 6-DoF run's error lies: RMSE over frames of the horizontal
@@ -437,7 +439,7 @@ pub fn block(
     progress: &dyn Fn(&str),
 ) -> Result<BlockResult, ExperimentError> {
     let variants = spec.variants(&ROWS, names);
-    let (mut rows, mut figures) = rows_3d(spec, motion, &variants, progress)?;
+    let (mut rows, mut figures, truths) = rows_3d(spec, motion, &variants, progress)?;
     let mut markdown = block_markdown(
         "Table I, 3-D block: APE (m) of the full 6-DoF pose",
         &rows,
@@ -500,6 +502,7 @@ pub fn block(
         rows,
         markdown,
         figures,
+        truths,
     })
 }
 

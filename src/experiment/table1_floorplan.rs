@@ -463,7 +463,7 @@ pub fn track_with(
 }
 
 /// What the 2-D block runs.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize)]
 pub struct BlockSpec {
     pub seeds: std::ops::Range<u64>,
     /// The kind of world of every sequence.
@@ -560,13 +560,15 @@ pub fn omcl_rows(
     variants: &[super::variant::Variant],
     baselines: &[crate::mcl::baselines::Baseline],
     progress: &dyn Fn(&str),
-) -> Result<(Vec<TrackingRow>, Vec<Vec<Figure4Panel>>), ExperimentError> {
+) -> Result<super::table1::BlockRuns, ExperimentError> {
     let table = builtin_table()?;
+    let mut truths = Vec::new();
     let mut runs: Vec<Vec<RunResult>> = vec![Vec::new(); variants.len()];
     let mut base_runs: Vec<Vec<RunResult>> = vec![Vec::new(); baselines.len()];
     let mut panels: Vec<Vec<Figure4Panel>> = vec![Vec::new(); variants.len() + baselines.len()];
     for (n, seed) in spec.seeds.clone().enumerate() {
         let seq = SimSequence::generate_in(spec.world, seed, spec.frames, &table)?;
+        truths.push((seed, seq.poses().to_vec()));
         let drawn = n < FIGURE4_PANELS;
         let panel = |name: &str, map: &LanguageMap, r: &RunResult| {
             let title = format!("{name} (2-D) sequence {seed}");
@@ -656,7 +658,7 @@ pub fn omcl_rows(
         .chain(baselines.iter().map(|b| b.name()).zip(base_runs))
         .map(|(name, r)| TrackingRow::new(name, r))
         .collect();
-    Ok((rows, panels))
+    Ok((rows, panels, truths))
 }
 
 /// The class table as a feature database (a row a class): the baselines
@@ -848,7 +850,7 @@ pub fn block(
         .into_iter()
         .filter(|b| named_in(names, b.name()))
         .collect();
-    let (rows, figures) = omcl_rows(spec, &variants, &baselines, progress)?;
+    let (rows, figures, truths) = omcl_rows(spec, &variants, &baselines, progress)?;
     let mut markdown = block_markdown(
         "Table I, 2-D block: APE (m, horizontal) on floor plans",
         &rows,
@@ -915,6 +917,7 @@ pub fn block(
         rows,
         markdown,
         figures,
+        truths,
     })
 }
 
