@@ -633,6 +633,48 @@ fn table4_writes_its_markdown_json_and_figure() {
     assert!(out.join("table4_noise.png").exists());
 }
 
+/// A bench stopped (SIGTERM, as `timeout` or `scancel` send) before it
+/// wrote anything leaves no empty `-o` folder it made (it had).
+#[test]
+fn a_bench_stopped_before_writing_leaves_no_empty_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args([
+            "bench",
+            "table1-floorplan",
+            "--sequences",
+            "1",
+            "--frames",
+            "40",
+            "-o",
+        ])
+        .arg(&out)
+        .stderr(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    while !out.exists() {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "ended before it made {}",
+            out.display()
+        );
+        assert!(t0.elapsed().as_secs() < 120, "no folder in 120 s");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let kill = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let o = child.wait_with_output().unwrap();
+    use std::os::unix::process::ExitStatusExt;
+    assert_eq!(o.status.signal(), Some(15), "{:?}", o.status);
+    assert!(!out.exists(), "{} left behind", out.display());
+}
+
 /// Options of experiments a call does not run are refused before anything
 /// is written, naming who takes them (they had been ignored silently).
 #[test]

@@ -24,6 +24,9 @@ use super::bench_args::{BenchArgs, Experiment, apply_overrides};
 pub fn run(a: BenchArgs) -> anyhow::Result<()> {
     let out = a.out.clone();
     let made = !out.exists();
+    // Stopped before anything is written (SIGTERM, Ctrl-C), a folder this
+    // run made is not left behind empty.
+    let _empty = made.then(|| omcl::io::atomic::remove_if_empty_on_interrupt(&out));
     let result = run_experiments(a);
     if result.is_err() && made {
         // The sweep folder's mark and lock alone are not a result.

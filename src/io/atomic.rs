@@ -25,6 +25,9 @@ use std::sync::Mutex;
 /// Paths to remove if the process is interrupted.
 static ON_INTERRUPT: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
+/// Folders to remove if the process is interrupted while they are empty.
+static ON_INTERRUPT_IF_EMPTY: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
 /// Set once [`remove_interrupted`] has begun.
 static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
@@ -38,19 +41,31 @@ pub fn interrupted() -> bool {
 /// Removes its path from the interrupt list when dropped.
 #[derive(Debug)]
 #[must_use = "the path is removed on an interrupt only while the guard lives"]
-pub struct RemoveOnInterrupt(PathBuf);
+pub struct RemoveOnInterrupt(PathBuf, &'static Mutex<Vec<PathBuf>>);
 
 /// Registers `path` (a file, or a folder and what is in it) for removal
 /// if the process is interrupted while the returned guard lives.
 pub fn remove_on_interrupt(path: &Path) -> RemoveOnInterrupt {
-    let mut list = ON_INTERRUPT.lock().unwrap_or_else(|e| e.into_inner());
-    list.push(path.to_path_buf());
-    RemoveOnInterrupt(path.to_path_buf())
+    register(path, &ON_INTERRUPT)
+}
+
+/// Registers the folder `path` for removal if the process is interrupted
+/// while the returned guard lives and the folder is then empty (a
+/// command's output folder, made and not yet written into; what it holds
+/// by then, a long run's partial results, stays).
+pub fn remove_if_empty_on_interrupt(path: &Path) -> RemoveOnInterrupt {
+    register(path, &ON_INTERRUPT_IF_EMPTY)
+}
+
+fn register(path: &Path, list: &'static Mutex<Vec<PathBuf>>) -> RemoveOnInterrupt {
+    let mut l = list.lock().unwrap_or_else(|e| e.into_inner());
+    l.push(path.to_path_buf());
+    RemoveOnInterrupt(path.to_path_buf(), list)
 }
 
 impl Drop for RemoveOnInterrupt {
     fn drop(&mut self) {
-        let mut list = ON_INTERRUPT.lock().unwrap_or_else(|e| e.into_inner());
+        let mut list = self.1.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(i) = list.iter().rposition(|p| *p == self.0) {
             list.remove(i);
         }
@@ -64,8 +79,16 @@ pub fn remove_interrupted() {
     INTERRUPTED.store(true, std::sync::atomic::Ordering::SeqCst);
     let list = ON_INTERRUPT.lock().unwrap_or_else(|e| e.into_inner());
     remove_all(&list);
+    let if_empty = ON_INTERRUPT_IF_EMPTY
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    for p in if_empty.iter() {
+        // `remove_dir` leaves a folder with anything in it.
+        let _ = std::fs::remove_dir(p);
+    }
     // Held until the process ends.
     std::mem::forget(list);
+    std::mem::forget(if_empty);
 }
 
 /// Removes each of `paths` that is there: a folder with what is in it,
@@ -215,7 +238,7 @@ fn replace_file(
         let mut list = ON_INTERRUPT.lock().unwrap_or_else(|e| e.into_inner());
         let tmp = builder.tempfile_in(dir)?;
         list.push(tmp.path().to_path_buf());
-        let guard = RemoveOnInterrupt(tmp.path().to_path_buf());
+        let guard = RemoveOnInterrupt(tmp.path().to_path_buf(), &ON_INTERRUPT);
         (tmp, guard)
     };
     {
