@@ -202,9 +202,14 @@ impl ModelCard {
     /// Reads the card beside `model` (see [`card_path_for`]).
     pub fn for_model(model: &Path) -> Result<ModelCard, EncodeError> {
         // The model itself first: a mistyped model name is not a missing card.
-        std::fs::metadata(model).map_err(|err| EncodeError::Io {
-            path: model.to_path_buf(),
-            err,
+        std::fs::metadata(model).map_err(|err| match err.kind() {
+            std::io::ErrorKind::NotFound => EncodeError::MissingModel {
+                path: model.to_path_buf(),
+            },
+            _ => EncodeError::Io {
+                path: model.to_path_buf(),
+                err,
+            },
         })?;
         let path = card_path_for(model);
         let text = crate::io::bounded_read::read_text(&path).map_err(|err| {

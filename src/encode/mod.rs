@@ -116,6 +116,14 @@ pub enum EncodeError {
     // would print a `source` twice.
     #[error("{path}: {err}")]
     Io { path: PathBuf, err: std::io::Error },
+    /// The model file is not there.
+    #[error(
+        "{path}: no such model file. omcl's encoders are ONNX models exported once where \
+         torch and the weights are (tools/README_encoders.md: export_clip_text.py, \
+         export_lseg.py; nothing here downloads them), or written by `omcl encode \
+         colour-model`"
+    )]
+    MissingModel { path: PathBuf },
     /// The file exists but ONNX Runtime cannot parse it as a model.
     #[error("{path}: not a loadable ONNX model: {reason}")]
     NotOnnx { path: PathBuf, reason: String },
