@@ -58,128 +58,72 @@ fn refuse_options_of_other_experiments(a: &BenchArgs) -> anyhow::Result<()> {
     let has = |e: Experiment| ex.contains(&e);
     let street = &a.street;
     let scenes = &a.scenes;
-    let checks: [(bool, bool, &str, &str); 20] = [
+    // (who takes them, whether this call runs it, (option, given)).
+    type Group<'a> = (&'a str, bool, &'a [(&'a str, bool)]);
+    let groups: [Group; 6] = [
         (
-            a.jobs != 1,
-            !planned.is_empty(),
-            "--jobs",
             "the planned experiments (table1, table2, table5, particles-rays, sampling, all)",
+            !planned.is_empty(),
+            &[
+                ("--jobs", a.jobs != 1),
+                ("--resume", a.resume),
+                ("--force", a.force),
+            ],
         ),
         (
-            a.resume,
-            !planned.is_empty(),
-            "--resume",
-            "the planned experiments (table1, table2, table5, particles-rays, sampling, all)",
-        ),
-        (
-            a.force,
-            !planned.is_empty(),
-            "--force",
-            "the planned experiments (table1, table2, table5, particles-rays, sampling, all)",
-        ),
-        (a.plan.starts != 3, wants(S::Table5), "--starts", "table5"),
-        (
-            a.plan.max_steps != 60,
-            wants(S::Table5),
-            "--max-steps",
             "table5",
+            wants(S::Table5),
+            &[
+                ("--starts", a.plan.starts != 3),
+                ("--max-steps", a.plan.max_steps != 60),
+            ],
         ),
         (
-            a.plan.ablation_variant != "OMCL_LSeg",
-            wants(S::Table5) || wants(S::ParticlesRays) || wants(S::Sampling),
-            "--ablation-variant",
             "table5, particles-rays and sampling",
+            wants(S::Table5) || wants(S::ParticlesRays) || wants(S::Sampling),
+            &[("--ablation-variant", a.plan.ablation_variant != "OMCL_LSeg")],
         ),
         (
-            a.plan.ablation_sequences != 3,
-            wants(S::ParticlesRays) || wants(S::Sampling),
-            "--ablation-sequences",
             "particles-rays and sampling",
+            wants(S::ParticlesRays) || wants(S::Sampling),
+            &[("--ablation-sequences", a.plan.ablation_sequences != 3)],
         ),
         (
-            street.street_start != 0,
-            has(Experiment::Table4),
-            "--street-start",
             "table4",
-        ),
-        (
-            street.street_frames != 300,
             has(Experiment::Table4),
-            "--street-frames",
-            "table4",
+            &[
+                ("--street-start", street.street_start != 0),
+                ("--street-frames", street.street_frames != 300),
+                ("--street-resolution", street.street_resolution != 0.1),
+                ("--odometry", street.odometry != "noise,orb"),
+                ("--encoder-stride", street.encoder_stride != 1),
+                ("--trajectories", street.trajectories.is_some()),
+            ],
         ),
         (
-            street.street_resolution != 0.1,
-            has(Experiment::Table4),
-            "--street-resolution",
-            "table4",
-        ),
-        (
-            street.odometry != "noise,orb",
-            has(Experiment::Table4),
-            "--odometry",
-            "table4",
-        ),
-        (
-            street.encoder_stride != 1,
-            has(Experiment::Table4),
-            "--encoder-stride",
-            "table4",
-        ),
-        (
-            street.trajectories.is_some(),
-            has(Experiment::Table4),
-            "--trajectories",
-            "table4",
-        ),
-        (
-            scenes.scenes.is_some(),
-            has(Experiment::SevenScenes),
-            "--scenes",
             "sevenscenes",
-        ),
-        (
-            scenes.scenes_frames.is_some(),
             has(Experiment::SevenScenes),
-            "--scenes-frames",
-            "sevenscenes",
-        ),
-        (
-            scenes.localize_every != 4,
-            has(Experiment::SevenScenes),
-            "--localize-every",
-            "sevenscenes",
-        ),
-        (
-            scenes.colour_classes != 10,
-            has(Experiment::SevenScenes),
-            "--colour-classes",
-            "sevenscenes",
-        ),
-        (
-            scenes.edge_radius != 4,
-            has(Experiment::SevenScenes),
-            "--edge-radius",
-            "sevenscenes",
-        ),
-        (
-            scenes.colour_shift != [0, 0],
-            has(Experiment::SevenScenes),
-            "--colour-shift",
-            "sevenscenes",
-        ),
-        (
-            scenes.scenes_seeds != "1000,1001,1002,1003,1004",
-            has(Experiment::SevenScenes),
-            "--scenes-seeds",
-            "sevenscenes",
+            &[
+                ("--scenes", scenes.scenes.is_some()),
+                ("--scenes-frames", scenes.scenes_frames.is_some()),
+                ("--localize-every", scenes.localize_every != 4),
+                ("--colour-classes", scenes.colour_classes != 10),
+                ("--edge-radius", scenes.edge_radius != 4),
+                ("--colour-shift", scenes.colour_shift != [0, 0]),
+                (
+                    "--scenes-seeds",
+                    scenes.scenes_seeds != "1000,1001,1002,1003,1004",
+                ),
+            ],
         ),
     ];
-    for (given, applies, option, who) in checks {
-        anyhow::ensure!(
-            !given || applies,
-            "{option} is an option of {who}, which this call does not run; leave it out"
-        );
+    for (who, applies, options) in groups {
+        for &(option, given) in options {
+            anyhow::ensure!(
+                !given || applies,
+                "{option} is an option of {who}, which this call does not run; leave it out"
+            );
+        }
     }
     // The Table I blocks' own --set paths.
     let set_names = |prefix: &str| {
