@@ -630,13 +630,15 @@ pub fn omcl_rows(
                 let scene = SharedMap::from_parts("3-D map", map.map.clone(), map.caster.clone());
                 let (r3, t3) = track_with(&seq, scene, v.localize, filter, spec.particles, None)?;
                 progress(&format!(
-                    "speed, seed {seed} {}, {} particles x {} pixels: 3-D (RMSE {:.3} m) {:.1} steps/s, cast {:.1} ms a step; 2-D {:.1} steps/s, cast {:.1} ms a step ({:.1}x faster step, {:.1}x faster cast)\n  3-D step: {}\n  2-D step: {}",
+                    "speed, seed {seed} {}, {} particles x {} pixels drawn: 3-D (RMSE {:.3} m, {:.0} distinct pixels a frame) {:.1} steps/s, cast {:.1} ms a step; 2-D ({:.0} distinct pixels) {:.1} steps/s, cast {:.1} ms a step ({:.1}x faster step, {:.1}x faster cast)\n  3-D step: {}\n  2-D step: {}",
                     v.name,
                     spec.particles,
                     filter.sampling.rays,
                     r3.stats.rmse,
+                    r3.mean_rays,
                     r3.fps(),
                     cast_ms(&t3),
+                    r.mean_rays,
                     r.fps(),
                     cast_ms(&t2),
                     r.fps() / r3.fps(),
