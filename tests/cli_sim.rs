@@ -72,6 +72,31 @@ fn a_folder_of_other_files_is_refused_with_or_without_force_and_left_intact() {
     assert_eq!(count(&seq), 2, "nothing was added");
     assert_eq!(count(&seq.join("labels")), 1);
 
+    // A sim.json omcl's simulator did not write (empty, the user's own
+    // JSON, another program's) does not make the folder a simulation's:
+    // --force must not remove the folder's files.
+    let mine = dir.path().join("mine");
+    std::fs::create_dir(&mine).unwrap();
+    std::fs::write(mine.join("poses.txt"), b"my ground truth\n").unwrap();
+    for mark in [
+        &b""[..],
+        b"{}",
+        br#"{"generator": "my recorder", "config": {}}"#,
+    ] {
+        std::fs::write(mine.join("sim.json"), mark).unwrap();
+        let r = sim_indoor(&mine, 2, &["--force"]);
+        refused(
+            &r,
+            &[s(&mine), "not one omcl's simulator wrote", "poses.txt"],
+        );
+        assert_eq!(
+            std::fs::read(mine.join("poses.txt")).unwrap(),
+            b"my ground truth\n"
+        );
+        assert_eq!(std::fs::read(mine.join("sim.json")).unwrap(), mark);
+        assert_eq!(count(&mine), 2, "nothing was added");
+    }
+
     // A file where the folder should be.
     let file = dir.path().join("file");
     std::fs::write(&file, b"x").unwrap();
@@ -103,6 +128,23 @@ fn an_earlier_simulation_is_replaced_only_with_force_and_whole() {
     assert_eq!(count(&seq.join("labels")), 8);
     assert!(seq.join("sim.json").is_file());
     assert_eq!(count(dir.path()), 1, "only the simulation's folder");
+
+    // The simulation's mark is a dataset file: no estimate or metrics
+    // replace it without --force.
+    let r = omcl(&[
+        "eval",
+        "ape",
+        s(&seq.join("poses.txt")),
+        s(&seq.join("poses.txt")),
+        "--json",
+        s(&seq.join("sim.json")),
+    ]);
+    refused(&r, &["sim.json", "dataset's file"]);
+    assert!(
+        std::fs::read_to_string(seq.join("sim.json"))
+            .unwrap()
+            .contains("omcl sim indoor")
+    );
 
     // Replaced: four frames, and none of the earlier eight left over.
     let r = sim_indoor(&seq, 4, &["--force"]);

@@ -310,7 +310,8 @@ fn is_dataset_file(p: &Path) -> bool {
     let listed = sequence_files(Path::new(""))
         .iter()
         .any(|f| f.as_os_str() == name)
-        || TUM_FILES.contains(&name);
+        || TUM_FILES.contains(&name)
+        || name == "sim.json";
     kitti_poses || (listed && is_sequence_folder(dir))
 }
 
@@ -615,25 +616,50 @@ pub struct SimStaging {
     _interrupt: omcl::io::atomic::RemoveOnInterrupt,
     temp: tempfile::TempDir,
     /// Entries of an earlier simulation to remove at commit (`--force`).
-    replace: &'static [&'static str],
+    replace: Vec<&'static str>,
+}
+
+/// What an earlier simulation of omcl's in `out` wrote there, by the
+/// `generator` its `sim.json` names (`omcl sim indoor`, `omcl sim
+/// outdoor`, a sequence `omcl bench table1-sixdof --export-frames` wrote
+/// in the indoor layout); `None` when `out` has no such `sim.json` (none,
+/// one another program or the user wrote, one that is not omcl's JSON).
+fn earlier_simulation(out: &Path) -> Option<&'static [&'static str]> {
+    use std::io::Read;
+    let mut text = String::new();
+    // A simulation's sim.json is a few kilobytes; more is not one.
+    std::fs::File::open(out.join("sim.json"))
+        .ok()?
+        .take(1 << 20)
+        .read_to_string(&mut text)
+        .ok()?;
+    let meta: serde_json::Value = serde_json::from_str(&text).ok()?;
+    match meta.get("generator")?.as_str()? {
+        "omcl sim indoor" | "omcl bench table1-sixdof --export-frames" => {
+            Some(&omcl::sim::dataset::INDOOR_ENTRIES)
+        }
+        "omcl sim outdoor" => Some(&omcl::sim::dataset::OUTDOOR_ENTRIES),
+        _ => None,
+    }
 }
 
 /// Checks `out` for a simulation that writes `entries` into it (`omcl sim
 /// indoor` and `outdoor`, whose frames would otherwise mix with or replace
 /// what is there) and stages its writing. A missing or empty folder is
-/// fine. A folder holding an earlier simulation (its `sim.json`) is
-/// replaced with `force`: at commit its `entries` are removed first, so no
-/// frame of an earlier, longer run is left beside the new one; without
-/// `force` it is refused. Any other folder with something in it (a real
-/// sequence, say) is refused, `force` or not, and nothing in it is
-/// touched.
+/// fine. A folder holding an earlier simulation (a `sim.json` omcl's
+/// simulator wrote, by its content, not its name) is replaced with
+/// `force`: at commit what either simulation writes is removed first, so
+/// no frame of an earlier, longer run (or of the other kind) is left
+/// beside the new one; without `force` it is refused. Any other folder
+/// with something in it (a real sequence, say, even with a `sim.json` of
+/// its own) is refused, `force` or not, and nothing in it is touched.
 pub fn stage_sim_folder(
     out: &Path,
     entries: &'static [&'static str],
     force: bool,
 ) -> anyhow::Result<SimStaging> {
     refuse_read_only("--out", out)?;
-    let mut replace: &'static [&'static str] = &[];
+    let mut replace: Vec<&'static str> = Vec::new();
     match std::fs::read_dir(out) {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
         Err(_) if out.is_file() => {
@@ -648,25 +674,31 @@ pub fn stage_sim_folder(
             names.sort();
             if names.is_empty() {
                 // An empty folder: nothing to keep or replace.
-            } else if !out.join("sim.json").is_file() {
-                let shown = names.iter().take(4).cloned().collect::<Vec<_>>().join(", ");
-                let more = if names.len() > 4 { ", ..." } else { "" };
-                anyhow::bail!(
-                    "{}: --out is a folder with other files in it ({shown}{more}) and no \
-                     earlier simulation (sim.json); a simulation writes {} there and would \
-                     mix with or replace them: choose a new or empty folder",
-                    out.display(),
-                    entries.join(", ")
-                );
-            } else if !force {
-                anyhow::bail!(
+            } else if let Some(earlier) = earlier_simulation(out) {
+                anyhow::ensure!(
+                    force,
                     "{}: --out holds an earlier simulation (sim.json); pass --force to replace \
                      it (its frames and files are removed once the new one is written), or \
                      choose a new folder",
                     out.display()
                 );
+                replace = entries.to_vec();
+                replace.extend(earlier.iter().filter(|e| !entries.contains(e)));
             } else {
-                replace = entries;
+                let shown = names.iter().take(4).cloned().collect::<Vec<_>>().join(", ");
+                let more = if names.len() > 4 { ", ..." } else { "" };
+                let mark = if out.join("sim.json").exists() {
+                    "whose sim.json is not one omcl's simulator wrote"
+                } else {
+                    "and no earlier simulation (sim.json)"
+                };
+                anyhow::bail!(
+                    "{}: --out is a folder with other files in it ({shown}{more}) {mark}; a \
+                     simulation writes {} there and would mix with or replace them: choose a \
+                     new or empty folder",
+                    out.display(),
+                    entries.join(", ")
+                );
             }
         }
     }
@@ -701,7 +733,7 @@ impl SimStaging {
         let fail =
             |what: &str, e: std::io::Error| anyhow::anyhow!("{}: {what}: {e}", out.display());
         omcl::io::atomic::create_folder(out).map_err(|e| fail("cannot create the folder", e))?;
-        for name in self.replace {
+        for name in &self.replace {
             let p = out.join(name);
             let removed = match std::fs::symlink_metadata(&p) {
                 Ok(m) if m.is_dir() => std::fs::remove_dir_all(&p),
