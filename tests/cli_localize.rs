@@ -470,6 +470,29 @@ fn features_of_another_dimension_than_the_map_are_rejected() {
 }
 
 #[test]
+fn nan_and_all_zero_feature_frames_are_named_not_localized_on_odometry() {
+    let f = Fixture::new();
+    let out = f.existing_out("est.txt");
+    let seq = f.copy_seq("nan_features");
+    let bad = seq.join("features").join("000003.npy");
+    let (h, w) = (HEIGHT / 4, WIDTH / 4);
+    let mut data = vec![0.05f32; h * w * MAP_DIM];
+    // Cell (row 2, column 5): NaN in its last channel.
+    data[(2 * w + 5) * MAP_DIM + MAP_DIM - 1] = f32::NAN;
+    npy::write_npy(&bad, &[h, w, MAP_DIM], &data).unwrap();
+    let r = f.localize(&f.map, &seq, &out, &["--frames", "8", "--use-features"]);
+    assert_clean_failure(
+        &r,
+        &out,
+        &[s(&bad), "cell (row 2, column 5) holds NaN", "finite"],
+    );
+    // A frame of zeros: no direction to score.
+    npy::write_npy(&bad, &[h, w, MAP_DIM], &vec![0.0; h * w * MAP_DIM]).unwrap();
+    let r = f.localize(&f.map, &seq, &out, &["--frames", "8", "--use-features"]);
+    assert_clean_failure(&r, &out, &[s(&bad), "every feature is zero"]);
+}
+
+#[test]
 fn an_empty_feature_map_is_an_error_not_a_panic() {
     let f = Fixture::new();
     let out = f.existing_out("est.txt");

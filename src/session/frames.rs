@@ -108,8 +108,11 @@ pub fn label_frame<'a>(
 /// A dense feature map of `h x w x dim` (row-major, features last) for an
 /// image of `width x height` pixels ([`crate::mapping::FeatureMap`], the
 /// crate's one such grid: pixel `(u, v)` reads the cell covering its
-/// centre), checked: every extent above 0 and `data` holding `h * w * dim`
-/// values.
+/// centre), checked: every extent above 0, `data` holding `h * w * dim`
+/// values, every value finite and not all of them zero. A frame of NaN or
+/// zero features has no direction to compare with the map: localized, it
+/// scored every particle alike and the estimate was the odometry's, with
+/// full confidence and no word (mapping refuses such features too).
 pub fn feature_grid(
     width: u32,
     height: u32,
@@ -118,11 +121,46 @@ pub fn feature_grid(
 ) -> Result<FeatureMap<'_>, SessionError> {
     let [h, w, dim] = shape;
     let extent = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
-    FeatureMap::new(extent(h), extent(w), dim, data, width, height).map_err(|e| {
+    let map = FeatureMap::new(extent(h), extent(w), dim, data, width, height).map_err(|e| {
         SessionError::BadFrame(format!(
             "{e} (features of shape {shape:?} for a {width}x{height} image)"
         ))
-    })
+    })?;
+    finite_and_not_all_zero(shape, data)?;
+    Ok(map)
+}
+
+/// [`feature_grid`]'s check of the values.
+fn finite_and_not_all_zero(shape: [usize; 3], data: &[f32]) -> Result<(), SessionError> {
+    let [_, w, dim] = shape;
+    // Whole blocks folded without a branch (vectorized); the first bad
+    // value found only in a block that has one.
+    const BLOCK: usize = 4096;
+    let mut any_nonzero = false;
+    for (b, block) in data.chunks(BLOCK).enumerate() {
+        let (finite, nonzero) = block.iter().fold((true, false), |(f, n), &x| {
+            (f & x.is_finite(), n | (x != 0.0))
+        });
+        any_nonzero |= nonzero;
+        if !finite {
+            let i = b * BLOCK + block.iter().position(|x| !x.is_finite()).unwrap_or(0);
+            let cell = i / dim.max(1);
+            return Err(SessionError::BadFrame(format!(
+                "the feature of cell (row {}, column {}) holds {} (features of shape {shape:?}): \
+                 features must be finite",
+                cell / w.max(1),
+                cell % w.max(1),
+                data[i]
+            )));
+        }
+    }
+    if !any_nonzero && !data.is_empty() {
+        return Err(SessionError::BadFrame(format!(
+            "every feature is zero (features of shape {shape:?}): a zero feature has no \
+             direction to compare with the map"
+        )));
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -157,6 +195,35 @@ mod tests {
         assert!(e.to_string().contains("needs 8 values, got 6"), "{e}");
         let e = feature_grid(4, 4, [0, 2, 3], &data).err().unwrap();
         assert!(e.to_string().contains("at least 1"), "{e}");
+        // Non-finite values are named by their cell; all-zero frames refused;
+        // one zero feature among others is fine.
+        let mut data = [1.0f32; 8];
+        data[7] = f32::NAN;
+        let e = feature_grid(4, 4, [2, 2, 2], &data).err().unwrap();
+        assert!(
+            e.to_string().contains("cell (row 1, column 1) holds NaN"),
+            "{e}"
+        );
+        data[7] = 1.0;
+        data[2] = f32::NEG_INFINITY;
+        let e = feature_grid(4, 4, [2, 2, 2], &data).err().unwrap();
+        assert!(
+            e.to_string().contains("cell (row 0, column 1) holds -inf"),
+            "{e}"
+        );
+        let e = feature_grid(4, 4, [2, 2, 2], &[0.0; 8]).err().unwrap();
+        assert!(e.to_string().contains("every feature is zero"), "{e}");
+        let mut data = [0.0f32; 8];
+        data[5] = 0.5;
+        assert!(feature_grid(4, 4, [2, 2, 2], &data).is_ok());
+        // Past a block of 4096 values too.
+        let mut big = vec![1.0f32; 3 * 4096];
+        big[2 * 4096 + 3] = f32::INFINITY;
+        let e = feature_grid(64, 64, [64, 64, 3], &big).err().unwrap();
+        assert!(
+            e.to_string().contains("cell (row 42, column 43) holds inf"),
+            "{e}"
+        );
         let table = LabelTable::new(
             EmbeddingTable::new(vec![7], vec!["x".into()], 2, vec![1.0, 0.0]).unwrap(),
             &one_row_map(),
