@@ -492,6 +492,68 @@ fn nan_and_all_zero_feature_frames_are_named_not_localized_on_odometry() {
     assert_clean_failure(&r, &out, &[s(&bad), "every feature is zero"]);
 }
 
+/// With --use-features the frames come from features/: a class table in
+/// another feature space than the map, or none at all, only loses the
+/// words (a note), not the run.
+#[test]
+fn use_features_runs_without_a_class_table_that_fits_the_map() {
+    let f = Fixture::new();
+    let seq = f.copy_seq("features16");
+    // Every feature map cut to its first 16 channels, normalized.
+    for e in std::fs::read_dir(seq.join("features")).unwrap() {
+        let p = e.unwrap().path();
+        let a = npy::read_npy(&p).unwrap();
+        let (h, w) = (a.shape[0], a.shape[1]);
+        let mut cut = Vec::with_capacity(h * w * 16);
+        for px in a.data.chunks(a.shape[2]) {
+            let n = px[..16].iter().map(|x| x * x).sum::<f32>().sqrt().max(1e-6);
+            cut.extend(px[..16].iter().map(|x| x / n));
+        }
+        npy::write_npy(&p, &[h, w, 16], &cut).unwrap();
+    }
+    let map = f.dir.path().join("f16.omcl");
+    let r = omcl(&[
+        "map",
+        "rgbd",
+        s(&seq),
+        "-o",
+        s(&map),
+        "--resolution",
+        "0.1",
+        "--use-features",
+    ]);
+    assert!(r.ok(), "{}", r.text());
+    let out = f.dir.path().join("est16.txt");
+    let r = f.localize(&map, &seq, &out, &["--frames", "6", "--use-features"]);
+    assert!(r.ok(), "{}", r.text());
+    assert!(
+        r.stderr
+            .contains("512-d class features, not the map's 16-d"),
+        "{}",
+        r.text()
+    );
+    assert!(
+        r.stderr.contains("features/ (--use-features)"),
+        "{}",
+        r.text()
+    );
+    // No embeddings.npy at all: the same run, the note says why.
+    std::fs::remove_file(seq.join("embeddings.npy")).unwrap();
+    let r = f.localize(
+        &map,
+        &seq,
+        &out,
+        &["--frames", "6", "--use-features", "--force"],
+    );
+    assert!(r.ok(), "{}", r.text());
+    assert!(r.stderr.contains("class table is not used"), "{}", r.text());
+    assert!(r.stderr.contains("embeddings.npy"), "{}", r.text());
+    // Label frames need the table: refused, naming the file.
+    let r = f.localize(&map, &seq, &out, &["--frames", "6", "--force"]);
+    assert_eq!(r.code, Some(1), "{}", r.text());
+    assert!(r.stderr.contains("embeddings.npy"), "{}", r.text());
+}
+
 #[test]
 fn an_empty_feature_map_is_an_error_not_a_panic() {
     let f = Fixture::new();

@@ -855,23 +855,44 @@ fn class_table(
 ) -> anyhow::Result<Option<LabelTable>> {
     let classes = &inputs.classes;
     let is_kitti = inputs.kitti.is_some();
-    let wants_table = inputs.labels_dir.is_dir() && (!has_image_encoder || classes.exists());
+    // Frames from the image model or from features/: the table would only
+    // give words, so one that cannot serve the map is left out with a note.
+    let frames_from = match (has_image_encoder, a.use_features) {
+        (true, _) => Some("the image model"),
+        (false, true) => Some("features/ (--use-features)"),
+        (false, false) => None,
+    };
+    let wants_table = inputs.labels_dir.is_dir() && (frames_from.is_none() || classes.exists());
     if !wants_table || (is_kitti && a.use_features) {
         return Ok(None);
     }
-    let t = EmbeddingTable::read(classes, &inputs.embeddings)?;
-    if has_image_encoder && t.dim != m.db().dim() {
-        // The frames come from the image model; the table would only give
-        // words, and it lives in another feature space than the map (one
-        // built with the image model). With --text-model the words come
-        // from it: nothing to say.
+    let t = match (
+        EmbeddingTable::read(classes, &inputs.embeddings),
+        frames_from,
+    ) {
+        (Ok(t), _) => t,
+        (Err(e), Some(from)) => {
+            eprintln!(
+                "note: the class table is not used (the frames come from {from}): {e}; words \
+                 (--init prompt or global, recovery) need a class table or --text-model"
+            );
+            return Ok(None);
+        }
+        (Err(e), None) => return Err(e.into()),
+    };
+    if let Some(from) = frames_from
+        && t.dim != m.db().dim()
+    {
+        // The table lives in another feature space than the map (one built
+        // with the image model, or from the feature files). With
+        // --text-model the words come from it: nothing to say.
         if a.text_model.is_some() {
             return Ok(None);
         }
         eprintln!(
             "note: {}: {}-d class features, not the map's {}-d (its encoder {}): the frames \
-             come from the image model and this table is not used; words (--init prompt or \
-             global, recovery) need --text-model in the map's feature space",
+             come from {from} and this table is not used; words (--init prompt or global, \
+             recovery) need --text-model in the map's feature space",
             inputs.embeddings.display(),
             t.dim,
             m.db().dim(),
