@@ -554,6 +554,29 @@ fn use_features_runs_without_a_class_table_that_fits_the_map() {
     assert!(r.stderr.contains("embeddings.npy"), "{}", r.text());
 }
 
+/// A map file with no voxels (with or without feature rows) is named as
+/// the problem, not the sequence's class table.
+#[test]
+fn a_map_without_voxels_is_named() {
+    use omcl::map::{FeatureDb, GridSpec, LanguageMap};
+    let f = Fixture::new();
+    let out = f.existing_out("est.txt");
+    let full = omcl::map::load(&f.map).unwrap();
+    let grid = GridSpec {
+        resolution: 0.1,
+        origin: nalgebra::Vector3::zeros(),
+    };
+    let no_rows = FeatureDb::new(MAP_DIM, 0.02).unwrap();
+    for (name, db) in [("empty.omcl", full.db().clone()), ("norows.omcl", no_rows)] {
+        let p = f.dir.path().join(name);
+        let m = LanguageMap::from_sorted(grid, db, full.encoder(), vec![], vec![]).unwrap();
+        omcl::map::save(&m, &p).unwrap();
+        let r = f.localize(&p, &f.seq, &out, &["--frames", "4"]);
+        assert_clean_failure(&r, &out, &[s(&p), "the map has no voxels"]);
+        assert!(!r.stderr.contains("embeddings.npy"), "{}", r.text());
+    }
+}
+
 #[test]
 fn an_empty_feature_map_is_an_error_not_a_panic() {
     let f = Fixture::new();

@@ -1143,6 +1143,11 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     check_plan_and_ground_args(&a)?;
     refuse_replacing_inputs(&a)?;
     let map3 = map::load(&a.map)?;
+    ensure!(
+        !map3.is_empty(),
+        "{}: the map has no voxels: there is nothing to localize against",
+        a.map.display()
+    );
     let m = &map3;
     let d = &a.sequence;
     let mut image = super::encoders::open_image_source(&a.encoder)?;

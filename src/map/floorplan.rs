@@ -95,6 +95,8 @@ pub enum FloorPlanError {
     EmptyBand(f64, f64),
     #[error("column indices must be strictly increasing in (j, i) (at column {0})")]
     Unsorted(usize),
+    #[error("the encoder's name {0:?} holds control characters")]
+    BadEncoderName(String),
     #[error("{cells} cells but {rows} row indices")]
     LengthMismatch { cells: usize, rows: usize },
     #[error("column {cell} points at feature row {row}, but the database has {rows} rows")]
@@ -183,6 +185,10 @@ impl FloorPlan {
                     resolution,
                 });
             }
+        }
+        let encoder = encoder.into();
+        if encoder.chars().any(char::is_control) {
+            return Err(FloorPlanError::BadEncoderName(encoder));
         }
         if let Some((cell, &row)) = rows
             .iter()
@@ -814,6 +820,10 @@ mod tests {
         let plan = FloorPlan::from_map(&hand_map(), &band()).unwrap();
         let (w, h, rgb) = plan.image();
         assert_eq!((w, h, rgb.len()), (3, 2, 18));
+        // A name with control characters (a plan file's) is refused.
+        let db = hand_map().db().clone();
+        let e = FloorPlan::from_parts(0.5, [0.0; 2], 0.0, band(), db, "a\x1b[2Jb", vec![], vec![]);
+        assert!(matches!(e, Err(FloorPlanError::BadEncoderName(_))), "{e:?}");
     }
 
     /// The hand-made map's columns plus a low one (a table top at z 1 of

@@ -31,6 +31,10 @@ pub enum MapError {
     Unsorted(usize),
     #[error("{codes} codes but {rows} row indices")]
     LengthMismatch { codes: usize, rows: usize },
+    #[error("leaf {leaf}'s code {code:#x} is beyond the {bits}-bit cell keys (no cell has it)")]
+    CodeOutOfRange { leaf: usize, code: u64, bits: u32 },
+    #[error("the encoder's name {0:?} holds control characters")]
+    BadEncoderName(String),
     #[error(transparent)]
     Features(#[from] FeatureDbError),
 }
@@ -80,6 +84,18 @@ impl LanguageMap {
         if let Some(i) = codes.windows(2).position(|w| w[0] >= w[1]) {
             return Err(MapError::Unsorted(i + 1));
         }
+        // Sorted: the last code is the largest.
+        let bits = 3 * super::key::AXIS_BITS;
+        if let Some(&code) = codes.last()
+            && code >> bits != 0
+        {
+            let leaf = codes.len() - 1;
+            return Err(MapError::CodeOutOfRange { leaf, code, bits });
+        }
+        let encoder = encoder.into();
+        if encoder.chars().any(char::is_control) {
+            return Err(MapError::BadEncoderName(encoder));
+        }
         let k = db.len();
         if let Some((leaf, &row)) = rows.iter().enumerate().find(|(_, r)| **r as usize >= k) {
             return Err(MapError::RowOutOfRange { leaf, row, rows: k });
@@ -89,7 +105,7 @@ impl LanguageMap {
             codes,
             rows,
             db,
-            encoder: encoder.into(),
+            encoder,
             georef: None,
         })
     }
@@ -324,6 +340,24 @@ mod tests {
             LanguageMap::from_sorted(grid(), db2(), "t", vec![1], vec![2]),
             Err(MapError::RowOutOfRange { .. })
         ));
+        // Codes past the 63 bits of the cell keys (sorted, so the last).
+        let top = (1u64 << 63) - 1;
+        assert!(LanguageMap::from_sorted(grid(), db2(), "t", vec![1, top], vec![0, 0]).is_ok());
+        let e = LanguageMap::from_sorted(grid(), db2(), "t", vec![1, u64::MAX], vec![0, 0]);
+        assert!(
+            matches!(
+                e,
+                Err(MapError::CodeOutOfRange {
+                    leaf: 1,
+                    code: u64::MAX,
+                    bits: 63
+                })
+            ),
+            "{e:?}"
+        );
+        // Control characters in the encoder's name (printed by `map info`).
+        let e = LanguageMap::from_sorted(grid(), db2(), "clip\x1b[31m\nx", vec![1], vec![0]);
+        assert!(matches!(e, Err(MapError::BadEncoderName(_))), "{e:?}");
         let bad = GridSpec {
             resolution: 0.0,
             origin: Vector3::zeros(),
