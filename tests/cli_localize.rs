@@ -577,6 +577,65 @@ fn a_map_without_voxels_is_named() {
     }
 }
 
+/// Options the run would not use are refused by name, not ignored.
+#[test]
+fn options_the_run_would_not_use_are_refused() {
+    let f = Fixture::new();
+    let out = f.existing_out("est.txt");
+    let cases: [(&[&str], &[&str]); 6] = [
+        (
+            &["--init", "global", "--init-pose", "0 0 1.5 0 0 0 1"],
+            &["--init-pose is for --init local", "--init global"],
+        ),
+        (
+            &[
+                "--init",
+                "global",
+                "--init-sigma-m",
+                "3",
+                "--init-sigma-deg",
+                "9",
+            ],
+            &["--init-sigma-m and --init-sigma-deg are for --init local"],
+        ),
+        (
+            &["--init", "prompt", "--prompt", "bed", "--init-sigma-m", "1"],
+            &["--init-sigma-m is for --init local", "--init prompt"],
+        ),
+        (
+            &["--sampling", "uniform", "--boundary-margin", "5"],
+            &["--boundary-margin is for stratified", "uniform"],
+        ),
+        (
+            &["--ort-lib", "/no/such/libonnxruntime.so"],
+            &["--ort-lib is for --image-model or --text-model"],
+        ),
+        (&["--feature-cache", "cache"], &["--image-model"]),
+    ];
+    for (extra, needles) in cases {
+        let args = [&["--frames", "4"][..], extra].concat();
+        let r = f.localize(&f.map, &f.seq, &out, &args);
+        let text = r.text();
+        assert_eq!(r.code.map(|c| c != 0), Some(true), "{extra:?}:\n{text}");
+        assert!(!text.contains("panicked"), "{text}");
+        for n in needles {
+            assert!(
+                r.stderr.contains(n),
+                "{extra:?}: message lacks {n:?}:\n{text}"
+            );
+        }
+        assert_eq!(std::fs::read_to_string(&out).unwrap(), OLD_OUT, "{text}");
+    }
+    // The same spread with --init local runs.
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &out,
+        &["--frames", "4", "--init-sigma-m", "0.2"],
+    );
+    assert!(r.ok(), "{}", r.text());
+}
+
 #[test]
 fn an_empty_feature_map_is_an_error_not_a_panic() {
     let f = Fixture::new();

@@ -325,6 +325,24 @@ fn times_files_pair_kitti_poses_and_shared_stamps_are_named() {
         by_time.contains("4541 of 4541 / 4541 poses matched by time"),
         "{by_time}"
     );
+    assert!(
+        !by_time.contains("paired by index, not by time"),
+        "{by_time}"
+    );
+    // Times for one side only: paired by index, and said so.
+    let (code, one_side) = run(&[
+        gt.as_os_str(),
+        orb.as_os_str(),
+        "--ref-times".as_ref(),
+        times.as_os_str(),
+    ]);
+    assert_eq!(code, Some(0), "{one_side}");
+    assert!(
+        one_side.contains("KITTI_00_gt.txt carries time stamps")
+            && one_side.contains("KITTI_00_ORB.txt none")
+            && one_side.contains("paired by index, not by time"),
+        "{one_side}"
+    );
 
     let tum = d.join("fr2_desk_groundtruth.txt");
     let (code, text) = run(&[

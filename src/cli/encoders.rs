@@ -21,7 +21,7 @@ pub struct EncoderArgs {
     pub image_model: Option<PathBuf>,
     /// Cache folder for image-encoder features (NNNNNN.npy; reused when
     /// present and made by the same encoder).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_name = "DIR", requires = "image_model")]
     pub feature_cache: Option<PathBuf>,
     /// ONNX Runtime library (overrides ORT_DYLIB_PATH and .deps/).
     #[arg(long, value_name = "PATH")]

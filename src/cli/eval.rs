@@ -117,8 +117,9 @@ pub struct OutArgs {
     /// Write the statistics (and per-pose errors) as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
-    /// Replace --json (and --save-aligned) even when it holds a file that
-    /// is not an earlier output of its kind, or a file of a dataset folder
+    /// Replace --json (and, for `ape`, --save-aligned) even when it holds a
+    /// file that is not an earlier output of its kind, or a file of a
+    /// dataset folder.
     #[arg(long)]
     pub force: bool,
 }
@@ -419,6 +420,18 @@ fn load_pair(args: &PairArgs) -> anyhow::Result<Paired> {
             reference_poses,
             estimate_poses,
         });
+    }
+    if ref_stamped != est_stamped {
+        let (stamped, other) = match ref_stamped {
+            true => (&args.reference, &args.estimate),
+            false => (&args.estimate, &args.reference),
+        };
+        eprintln!(
+            "note: {} carries time stamps and {} none (a KITTI file: --ref-times / \
+             --est-times give it some), so the poses are paired by index, not by time",
+            stamped.display(),
+            other.display()
+        );
     }
     if reference_poses != estimate_poses {
         // A run over a sequence's first frames (a folder with the first

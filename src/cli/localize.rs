@@ -82,7 +82,7 @@ impl FilterArg {
     }
 }
 
-#[derive(Debug, Clone, Copy, ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, ValueEnum)]
 pub enum SamplingArg {
     Stratified,
     Uniform,
@@ -170,11 +170,11 @@ pub struct LocalizeArgs {
     /// sequence, `poses` (camera 0 as poses.txt and --odometry give it).
     #[arg(long, value_enum, default_value = "map", requires = "init_pose")]
     pub init_pose_frame: PoseFrameArg,
-    /// Position spread of --init local, metres (paper: 0.3, with 17 degrees
-    /// of --init-sigma-deg; on a KITTI sequence the authors' 0.3 m and 0.1
-    /// rad).
-    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true, value_parser = super::metres)]
-    pub init_sigma_m: f64,
+    /// Position spread of --init local, metres [default: 0.3] (paper: 0.3,
+    /// with 17 degrees of --init-sigma-deg; on a KITTI sequence the
+    /// authors' 0.3 m and 0.1 rad).
+    #[arg(long, allow_negative_numbers = true, value_parser = super::metres)]
+    pub init_sigma_m: Option<f64>,
     /// Rotation spread of --init local, degrees [default: 17; 5.73 on a
     /// KITTI sequence].
     #[arg(long, allow_negative_numbers = true, value_parser = super::degrees)]
@@ -588,7 +588,7 @@ fn start(
             };
             Start::Pose {
                 pose,
-                sigma_m: a.init_sigma_m,
+                sigma_m: a.init_sigma_m.unwrap_or(DEFAULT_INIT_SIGMA_M),
                 sigma_rad: init_sigma_deg.to_radians(),
             }
         }
@@ -913,6 +913,47 @@ fn class_table(
     Ok(Some(bound))
 }
 
+/// --init local's position spread when --init-sigma-m is not given.
+const DEFAULT_INIT_SIGMA_M: f64 = 0.3;
+
+/// Refuses options the run would not use: a start pose or spread for a
+/// start that is not --init local, pixel-margin for uniform sampling, a
+/// runtime library with no model to run.
+fn check_options_apply(a: &LocalizeArgs) -> anyhow::Result<()> {
+    if a.init != InitArg::Local {
+        let given: Vec<&str> = [
+            (a.init_pose.is_some(), "--init-pose"),
+            (a.init_sigma_m.is_some(), "--init-sigma-m"),
+            (a.init_sigma_deg.is_some(), "--init-sigma-deg"),
+        ]
+        .iter()
+        .filter(|(on, _)| *on)
+        .map(|(_, name)| *name)
+        .collect();
+        ensure!(
+            given.is_empty(),
+            "{} {} for --init local (a start pose and its spread); --init {} places the \
+             particles by itself: leave {} out",
+            given.join(" and "),
+            if given.len() == 1 { "is" } else { "are" },
+            a.init
+                .to_possible_value()
+                .map_or(String::new(), |v| v.get_name().to_string()),
+            if given.len() == 1 { "it" } else { "them" }
+        );
+    }
+    ensure!(
+        a.boundary_margin.is_none() || a.sampling != SamplingArg::Uniform,
+        "--boundary-margin is for stratified and equal sampling (pixels near a cluster's \
+         edge); --sampling uniform draws over the whole image: leave it out"
+    );
+    ensure!(
+        a.encoder.ort_lib.is_none() || a.encoder.image_model.is_some() || a.text_model.is_some(),
+        "--ort-lib is for --image-model or --text-model, and neither is given"
+    );
+    Ok(())
+}
+
 /// The session of the run: its start, filter and floor (with advice when
 /// the start cannot place particles).
 fn open_session(
@@ -1141,6 +1182,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         );
     }
     check_plan_and_ground_args(&a)?;
+    check_options_apply(&a)?;
     refuse_replacing_inputs(&a)?;
     let map3 = map::load(&a.map)?;
     ensure!(

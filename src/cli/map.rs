@@ -21,9 +21,11 @@ pub enum MapCommand {
     /// Ground a map on prompt words: rows become the words' features, voxels
     /// whose best similarity is below a threshold are dropped.
     Ground(GroundArgs),
-    /// Write a PLY of the voxels coloured by similarity to words (heat map).
+    /// Write the voxels coloured by similarity to words (heat map) as PLY or
+    /// LAS/LAZ (by the extension).
     Query(QueryArgs),
-    /// Write a PLY of the voxels coloured by feature row.
+    /// Write the voxels coloured by feature row as PLY or LAS/LAZ (by the
+    /// extension).
     Export(ExportArgs),
     /// Convert a map file of an older format version (1: checksum over the
     /// data only) into the current one (3: header values checksummed too,
