@@ -69,6 +69,30 @@ fn real_files_all_read() {
     let laz = read_las(&dir.join("simple.laz")).unwrap();
     assert_eq!(las.len(), 1065);
     assert_eq!(las, laz);
+    // None of the real files has records past its declared count...
+    for f in ["simple.las", "vegetation_1_3.las", "test1_4.las"] {
+        let c = read_las(&dir.join(f)).unwrap();
+        assert!(
+            !c.notes.iter().any(|n| n.contains("more whole point")),
+            "{f}: {:?}",
+            c.notes
+        );
+    }
+    // ...and one whose header says 10 of its 1,065 reads 10, with a note.
+    let tmp = tempfile::tempdir().unwrap();
+    let short = tmp.path().join("short_count.las");
+    let mut bytes = std::fs::read(dir.join("simple.las")).unwrap();
+    bytes[107..111].copy_from_slice(&10u32.to_le_bytes());
+    std::fs::write(&short, &bytes).unwrap();
+    let c = read_las(&short).unwrap();
+    assert_eq!(c.len(), 10);
+    assert!(
+        c.notes
+            .iter()
+            .any(|n| n.contains("1055 more whole point records follow the 10")),
+        "{:?}",
+        c.notes
+    );
     // Aerial data: coordinates are georeferenced and spread over the tile.
     let xs: Vec<f64> = autzen.points.iter().map(|p| p[0]).collect();
     let (lo, hi) = xs

@@ -48,7 +48,13 @@ fn las_err(path: &Path, e: las::Error) -> CloudError {
 /// Checks the raw header against the file size so that a truncated or
 /// garbage file gets a precise message instead of a short read later.
 /// Returns the file's size and whether its points are LAZ-compressed.
-fn check_raw_header(path: &Path, file: &mut std::fs::File) -> Result<(u64, bool), CloudError> {
+/// Returns the file's size, whether it is compressed, and a note when
+/// whole point records follow the declared ones (a count too small: only
+/// the declared ones are read).
+fn check_raw_header(
+    path: &Path,
+    file: &mut std::fs::File,
+) -> Result<(u64, bool, Option<String>), CloudError> {
     let size = file.metadata().map_err(|e| CloudError::io(path, e))?.len();
     let raw = las::raw::Header::read_from(&mut *file).map_err(|e| {
         CloudError::format(
@@ -125,10 +131,40 @@ fn check_raw_header(path: &Path, file: &mut std::fs::File) -> Result<(u64, bool)
             ),
         ));
     }
+    let note = (!compressed)
+        .then(|| surplus_records(&raw, n, start, size))
+        .flatten()
+        .map(|extra| {
+            format!(
+                "{}: {extra} more whole point records follow the {n} the header declares: \
+                 only the declared {n} are read (a point count written too small?)",
+                path.display()
+            )
+        });
     // The checks above moved the cursor: the decoder starts at byte 0.
     file.seek(SeekFrom::Start(0))
         .map_err(|e| CloudError::io(path, e))?;
-    Ok((size, compressed))
+    Ok((size, compressed, note))
+}
+
+/// Whole point records between the declared ones' end and the point
+/// data's end (the first EVLR or waveform record, else the file's end),
+/// when there are any.
+fn surplus_records(raw: &las::raw::Header, n: u64, start: u64, size: u64) -> Option<u64> {
+    let record = (raw.point_data_record_length as u64).max(1);
+    let mut end = size;
+    let after = [
+        raw.evlr.as_ref().map(|e| e.start_of_first_evlr),
+        raw.start_of_waveform_data_packet_record,
+    ];
+    for at in after.into_iter().flatten() {
+        if at > start && at < end {
+            end = at;
+        }
+    }
+    let data_end = start.saturating_add(record.saturating_mul(n));
+    let extra = end.saturating_sub(data_end) / record;
+    (extra > 0).then_some(extra)
 }
 
 /// Reads `buf.len()` bytes at byte `at` of `file` (`None` past the end).
@@ -356,8 +392,11 @@ impl LasChunks {
     pub fn open(path: &Path) -> Result<Self, CloudError> {
         // Open ourselves so a missing file is an I/O error, not a format error.
         let mut file = std::fs::File::open(path).map_err(|e| CloudError::io(path, e))?;
-        let (size, compressed) = check_raw_header(path, &mut file)?;
-        contain_decoder_panic(path, || Self::open_checked(path, file, size, compressed))
+        let (size, compressed, surplus) = check_raw_header(path, &mut file)?;
+        let mut chunks =
+            contain_decoder_panic(path, || Self::open_checked(path, file, size, compressed))?;
+        chunks.notes.extend(surplus);
+        Ok(chunks)
     }
 
     fn open_checked(
