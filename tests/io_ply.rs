@@ -721,3 +721,44 @@ fn float_coordinates_far_from_zero_get_a_precision_note() {
         assert!(c.notes.is_empty(), "{name}: {:?}", c.notes);
     }
 }
+
+/// A body written little-endian under a big-endian header reads as
+/// absurd floats: said, naming the file; the right header (and the real
+/// big-endian file of plyfile) says nothing.
+#[test]
+fn a_body_in_the_other_byte_order_is_noted() {
+    let d = tempfile::tempdir().unwrap();
+    let header = "element vertex 4\nproperty float x\nproperty float y\nproperty float z\n";
+    let body = le(&[
+        0.0, 0.0, 0.0, 10.0, 0.0, 0.0, 0.0, 10.0, 0.0, 0.3, 1.2, 10.0,
+    ]);
+    let right = d.path().join("le.ply");
+    std::fs::write(&right, binary_ply(header, &body)).unwrap();
+    let c = read_ply(&right).unwrap();
+    assert_eq!(note_count(&c, &right, &["byte order"]), 0, "{:?}", c.notes);
+    let wrong = d.path().join("be.ply");
+    let mut bytes = binary_ply(header, &body);
+    let at = bytes
+        .windows(13)
+        .position(|w| w == b"little_endian")
+        .unwrap();
+    bytes.splice(at..at + 13, b"big_endian".iter().copied());
+    std::fs::write(&wrong, bytes).unwrap();
+    let c = read_ply(&wrong).unwrap();
+    assert_eq!(
+        note_count(
+            &c,
+            &wrong,
+            &["nonzero coordinates are below 1e-30", "byte order"]
+        ),
+        1,
+        "{:?}",
+        c.notes
+    );
+    let real = read_ply(&local("plyfile_binbe_rgb_scalar_label.ply")).unwrap();
+    assert!(
+        !real.notes.iter().any(|n| n.contains("byte order")),
+        "{:?}",
+        real.notes
+    );
+}

@@ -724,6 +724,11 @@ pub fn read_ply_with(path: &Path, opts: &PlyOptions) -> Result<PointCloud, Cloud
     if let Some(note) = float_precision_note(&name, &cloud.points, float_axes) {
         cloud.notes.push(note);
     }
+    if header.encoding != Encoding::Ascii
+        && let Some(note) = byte_order_note(&name, &cloud.points, float_axes)
+    {
+        cloud.notes.push(note);
+    }
     let unlabelled = cloud
         .labels
         .as_ref()
@@ -748,6 +753,30 @@ pub fn read_ply_with(path: &Path, opts: &PlyOptions) -> Result<PointCloud, Cloud
     }
     cloud.validate(&name)?;
     cloud.non_empty(&name, "the file holds no vertices")
+}
+
+/// A note when most nonzero `float` coordinates of a binary file are
+/// absurdly small or large (below 1e-30 or above 1e30 in magnitude), as
+/// floats read in the other byte order come out: a file declared
+/// `binary_big_endian` and written little-endian was mapped as one voxel.
+fn byte_order_note(name: &str, points: &[[f64; 3]], float_axes: [bool; 3]) -> Option<String> {
+    let (mut nonzero, mut absurd) = (0usize, 0usize);
+    for p in points {
+        for a in (0..3).filter(|&a| float_axes[a]) {
+            let v = p[a].abs();
+            if v != 0.0 {
+                nonzero += 1;
+                absurd += usize::from(!(1e-30..=1e30).contains(&v));
+            }
+        }
+    }
+    (nonzero > 0 && 2 * absurd > nonzero).then(|| {
+        format!(
+            "{name}: {absurd} of {nonzero} nonzero coordinates are below 1e-30 or above 1e30 \
+             in magnitude, as floats read in the wrong byte order are: is the header's format \
+             (binary_little_endian or binary_big_endian) the file's?"
+        )
+    })
 }
 
 /// A note when coordinates stored as `float` lie so far from 0 (UTM
