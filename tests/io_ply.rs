@@ -114,6 +114,20 @@ fn corrupt_header_and_garbage_name_file() {
     )
     .unwrap();
     assert_err_names(read_ply(&p).unwrap_err(), &p, "header");
+    // A line the parser cannot read: named with its text, on one line,
+    // without the parser's state dumped after it.
+    let p = d.path().join("negative_count.ply");
+    std::fs::write(
+        &p,
+        b"ply\nformat ascii 1.0\nelement vertex -1\nproperty float x\nend_header\n",
+    )
+    .unwrap();
+    let e = read_ply(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("Line 3") && e.contains("(the line: 'element vertex -1')"),
+        "{e}"
+    );
+    assert!(!e.contains('\n') && !e.contains("ParseError"), "{e}");
     let p = d.path().join("garbage.ply");
     std::fs::write(&p, [0x89u8, 0x50, 0x4e, 0x47, 0, 1, 2, 3, 255, 254]).unwrap();
     assert_err_names(read_ply(&p).unwrap_err(), &p, "header");

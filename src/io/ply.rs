@@ -559,7 +559,7 @@ pub fn read_ply_with(path: &Path, opts: &PlyOptions) -> Result<PointCloud, Cloud
     let parser = Parser::<Vertex>::new();
     let mut header = parser
         .read_header(&mut reader)
-        .map_err(|e| CloudError::format(path, format!("bad PLY header: {e}")))?;
+        .map_err(|e| CloudError::format(path, format!("bad PLY header: {}", header_error(&e))))?;
     let Some(vertex_pos) = header.elements.get_index_of("vertex") else {
         return Err(CloudError::format(path, "no 'vertex' element in header"));
     };
@@ -753,6 +753,20 @@ pub fn read_ply_with(path: &Path, opts: &PlyOptions) -> Result<PointCloud, Cloud
     }
     cloud.validate(&name)?;
     cloud.non_empty(&name, "the file holds no vertices")
+}
+
+/// The PLY parser's header error on one line: its first line and the
+/// text it could not parse, without the parser's internal state (a
+/// `ParseError { location: .., expected: .. }` dump) that follows.
+fn header_error(e: &dyn std::fmt::Display) -> String {
+    let text = e.to_string();
+    let mut lines = text.lines();
+    let first = lines.next().unwrap_or("").trim();
+    match lines.find_map(|l| l.trim().strip_prefix("String:")) {
+        // The parser quotes the line with its newline: `'element x\n'`.
+        Some(line) => format!("{first} (the line: '{}')", line.trim().trim_matches('\'')),
+        None => first.to_string(),
+    }
 }
 
 /// A note when most nonzero `float` coordinates of a binary file are

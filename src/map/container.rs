@@ -73,8 +73,9 @@ impl<'a> Container<'a> {
         }
         if bytes.len() < 8 {
             return Err(HeaderError::NotSafetensors(format!(
-                "{} bytes: truncated or empty",
-                bytes.len()
+                "{} byte{}: truncated or empty",
+                bytes.len(),
+                if bytes.len() == 1 { "" } else { "s" }
             )));
         }
         let declared = u64::from_le_bytes(bytes[..8].try_into().expect("8 bytes"));
@@ -86,8 +87,11 @@ impl<'a> Container<'a> {
         }
         let tensors = SafeTensors::deserialize(bytes).map_err(|e| {
             HeaderError::NotSafetensors(match e.to_string() {
-                m if m.contains("incomplete metadata") || m.contains("not fully covered") => {
-                    format!("{m}: truncated?")
+                m if m.contains("incomplete metadata") => format!("{m}: truncated?"),
+                // Its tensors' data and the file's end differ: cut short,
+                // or bytes appended after it.
+                m if m.contains("not fully covered") => {
+                    format!("{m}: truncated, or bytes appended after its data?")
                 }
                 m => m,
             })
