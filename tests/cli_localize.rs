@@ -577,6 +577,30 @@ fn a_map_without_voxels_is_named() {
     }
 }
 
+/// A folder of colour images only: both commands say which frames they
+/// read and that colour images need --image-model.
+#[test]
+fn a_folder_without_label_or_feature_frames_says_what_frames_are_read() {
+    let f = Fixture::new();
+    let out = f.existing_out("est.txt");
+    let seq = f.copy_seq("rgb_only");
+    std::fs::remove_dir_all(seq.join("labels")).unwrap();
+    std::fs::remove_dir_all(seq.join("features")).unwrap();
+    let r = f.localize(&f.map, &seq, &out, &["--frames", "4"]);
+    assert_clean_failure(
+        &r,
+        &out,
+        &[s(&seq), "no labels/ and no features/", "--image-model"],
+    );
+    let m = f.dir.path().join("rgb_only.omcl");
+    let r = omcl(&["map", "rgbd", s(&seq), "-o", s(&m)]);
+    assert_eq!(r.code, Some(1), "{}", r.text());
+    for n in [s(&seq), "no labels/ and no features/", "--image-model"] {
+        assert!(r.stderr.contains(n), "{n:?}:\n{}", r.text());
+    }
+    assert!(!m.exists());
+}
+
 /// Options the run would not use are refused by name, not ignored.
 #[test]
 fn options_the_run_would_not_use_are_refused() {

@@ -1276,6 +1276,15 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         (false, true) => CameraInput::Labels,
         (false, false) => CameraInput::Features,
     };
+    ensure!(
+        frames_input != CameraInput::Features
+            || inputs.layout() != Layout::Rgbd
+            || inputs.features_dir.is_dir()
+            || (a.use_features && inputs.labels_dir.is_dir()),
+        "{}: {}",
+        d.display(),
+        omcl::session::sequence::NO_FRAMES
+    );
     // An RGB-D folder of more frames than its poses: a short poses.txt
     // (the run had localized the first frames only, without a word).
     if a.frames.is_none()

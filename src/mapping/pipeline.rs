@@ -924,11 +924,15 @@ fn observation_db(
         }
         RgbdFeatures::Files => {
             let f0 = d.join("features").join(format!("{:06}.npy", 0));
+            if !d.join("features").is_dir() {
+                return Err(PipelineError::Input(format!(
+                    "{}: {}",
+                    d.display(),
+                    crate::session::sequence::NO_FRAMES
+                )));
+            }
             let arr = crate::io::npy::read_npy(&f0).map_err(|e| {
-                PipelineError::Input(format!(
-                    "no labels/ folder, so features/ is needed: {}: {e}",
-                    f0.display()
-                ))
+                PipelineError::Input(format!("no labels/ folder, so features/ is needed: {e}"))
             })?;
             FeatureDb::new(arr.as_matrix_dims().1, params.tau)?.with_max_rows(params.max_rows)
         }

@@ -64,6 +64,11 @@ pub enum SequenceError {
     Input(String),
 }
 
+/// What an RGB-D folder with none of its frame folders is told.
+pub const NO_FRAMES: &str = "no labels/ and no features/ folder: the frames are label images \
+     (labels/NNNNNN.png with classes.txt and embeddings.npy), feature grids \
+     (features/NNNNNN.npy) or, through --image-model, colour images (rgb/NNNNNN.png)";
+
 /// The layouts a sequence folder can be in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Layout {
