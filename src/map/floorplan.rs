@@ -209,7 +209,7 @@ impl FloorPlan {
             cells,
             rows,
             db,
-            encoder: encoder.into(),
+            encoder,
         })
     }
 
