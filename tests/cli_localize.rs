@@ -601,6 +601,27 @@ fn a_folder_without_label_or_feature_frames_says_what_frames_are_read() {
     assert!(!m.exists());
 }
 
+/// A folder without odometry.txt runs on ground truth with noise, and
+/// says so unless --odom-from-gt asked for it.
+#[test]
+fn odometry_made_from_ground_truth_is_said_unless_asked_for() {
+    let f = Fixture::new();
+    let seq = f.copy_seq("no_odometry");
+    std::fs::remove_file(seq.join("odometry.txt")).unwrap();
+    let out = f.dir.path().join("est_no_odom.txt");
+    let r = f.localize(&f.map, &seq, &out, &["--frames", "4"]);
+    assert!(r.ok(), "{}", r.text());
+    assert!(
+        r.stderr
+            .contains("has no odometry.txt: the odometry is the ground truth with noise"),
+        "{}",
+        r.text()
+    );
+    let r = f.localize(&f.map, &seq, &out, &["--frames", "4", "--odom-from-gt"]);
+    assert!(r.ok(), "{}", r.text());
+    assert!(!r.stderr.contains("no odometry.txt"), "{}", r.text());
+}
+
 /// Options the run would not use are refused by name, not ignored.
 #[test]
 fn options_the_run_would_not_use_are_refused() {

@@ -78,6 +78,19 @@ fn real_files_all_read() {
             c.notes
         );
     }
+    // A version byte of 9 (or minor 7) is named as the version.
+    let tmp0 = tempfile::tempdir().unwrap();
+    for (at, value, shown) in [(24usize, 9u8, "9.2"), (25, 7, "1.7")] {
+        let p = tmp0.path().join(format!("v{value}.las"));
+        let mut bytes = std::fs::read(dir.join("simple.las")).unwrap();
+        bytes[at] = value;
+        std::fs::write(&p, &bytes).unwrap();
+        let e = read_las(&p).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("LAS version {shown} is not one")),
+            "{e}"
+        );
+    }
     // ...and one whose header says 10 of its 1,065 reads 10, with a note.
     let tmp = tempfile::tempdir().unwrap();
     let short = tmp.path().join("short_count.las");

@@ -553,6 +553,18 @@ fn odometry_source(a: &LocalizeArgs, inputs: &CameraSequence) -> anyhow::Result<
         cfg.sigma_t >= 0.0 && cfg.sigma_r_deg >= 0.0,
         "--odom-noise-m and --odom-noise-deg must be >= 0"
     );
+    if !a.odom_from_gt && inputs.layout() == Layout::Rgbd {
+        // Not asked for: a folder without odometry.txt (one left behind
+        // when copying a sequence) should not pass unseen.
+        eprintln!(
+            "note: {} has no odometry.txt: the odometry is the ground truth with noise \
+             ({} m and {} degrees a frame; --odometry FILE replays a recorded one, \
+             --odom-from-gt says this is meant)",
+            inputs.dir.display(),
+            cfg.sigma_t,
+            cfg.sigma_r_deg
+        );
+    }
     Ok(Odometry::FromTruth(cfg))
 }
 

@@ -68,6 +68,16 @@ fn check_raw_header(
             "not a LAS/LAZ file (no LASF signature)",
         ));
     }
+    let (major, minor) = (raw.version.major, raw.version.minor);
+    if major != 1 || minor > 4 {
+        return Err(CloudError::format(
+            path,
+            format!(
+                "LAS version {major}.{minor} is not one this reader knows (1.0 to 1.4): a \
+                 newer format, or a corrupt header"
+            ),
+        ));
+    }
     let n = raw
         .large_file
         .map(|l| l.number_of_point_records)
