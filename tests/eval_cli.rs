@@ -520,4 +520,19 @@ fn an_alignment_to_positions_on_a_line_is_warned_about() {
     );
     let e = run(&square, &est);
     assert!(!e.contains("warning"), "{e}");
+    // Positions that allow no alignment at all (one point): the failure
+    // names both files.
+    let point = write("point.txt", &[[1.0, 2.0, 0.0]; 3]);
+    let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
+        .args(["eval", "ape"])
+        .args([&point, &est])
+        .args(["--align", "se3"])
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains("aligning") && e.contains("est.txt to") && e.contains("point.txt: Umeyama"),
+        "{e}"
+    );
 }

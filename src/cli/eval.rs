@@ -124,6 +124,17 @@ pub struct OutArgs {
     pub force: bool,
 }
 
+impl PairArgs {
+    /// What an alignment failure is about: the two files.
+    fn aligning(&self) -> String {
+        format!(
+            "aligning {} to {}",
+            self.estimate.display(),
+            self.reference.display()
+        )
+    }
+}
+
 impl OutArgs {
     /// The files written, by option.
     fn outputs(&self) -> Vec<(&'static str, &Path)> {
@@ -236,7 +247,8 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
                 &paired.reference,
                 align.into(),
                 n_to_align,
-            )?;
+            )
+            .with_context(|| pair.aligning())?;
             warn_line_alignment(&paired.reference, &alignment);
             let errors = match horizontal {
                 true => ape(
@@ -308,7 +320,8 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
             pair.refuse_overlaps(&out.outputs(), out.force)?;
             let paired = load_pair(&pair)?;
             let (aligned, alignment) =
-                align_trajectory(&paired.estimate, &paired.reference, align.into(), None)?;
+                align_trajectory(&paired.estimate, &paired.reference, align.into(), None)
+                    .with_context(|| pair.aligning())?;
             warn_line_alignment(&paired.reference, &alignment);
             let options = RpeOptions {
                 relation: relation.into(),
