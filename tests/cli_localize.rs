@@ -599,6 +599,21 @@ fn a_folder_without_label_or_feature_frames_says_what_frames_are_read() {
         assert!(r.stderr.contains(n), "{n:?}:\n{}", r.text());
     }
     assert!(!m.exists());
+    // An empty folder, and a file: what map rgbd reads is said.
+    let empty = f.dir.path().join("empty_folder");
+    std::fs::create_dir(&empty).unwrap();
+    let r = omcl(&["map", "rgbd", s(&empty), "-o", s(&m)]);
+    assert_eq!(r.code, Some(1), "{}", r.text());
+    assert!(
+        r.stderr.contains("not an RGB-D sequence folder")
+            && r.stderr.contains("intrinsics.txt, poses.txt (TUM), depth/"),
+        "{}",
+        r.text()
+    );
+    let r = omcl(&["map", "rgbd", s(&f.map), "-o", s(&m)]);
+    assert_eq!(r.code, Some(1), "{}", r.text());
+    assert!(r.stderr.contains("not a folder"), "{}", r.text());
+    assert!(!m.exists());
 }
 
 /// A folder without odometry.txt runs on ground truth with noise, and

@@ -708,6 +708,26 @@ pub fn rgbd(a: &RgbdArgs) -> anyhow::Result<()> {
         anyhow::bail!(why);
     }
     anyhow::ensure!(
+        d.is_dir(),
+        "{}: {} (map rgbd reads a sequence folder)",
+        d.display(),
+        if d.exists() {
+            "not a folder"
+        } else {
+            "no such folder"
+        }
+    );
+    anyhow::ensure!(
+        ["intrinsics.txt", "poses.txt", "depth"]
+            .iter()
+            .any(|f| d.join(f).exists()),
+        "{}: not an RGB-D sequence folder (no intrinsics.txt, poses.txt or depth/): map rgbd \
+         reads intrinsics.txt, poses.txt (TUM), depth/NNNNNN.png and the frames, label images \
+         (labels/ with classes.txt and embeddings.npy), feature grids (features/) or, through \
+         --image-model, colour images (rgb/); a 7-Scenes folder has camera-intrinsics.txt",
+        d.display()
+    );
+    anyhow::ensure!(
         a.frame_step <= 1 && a.frame_offset == 0 && a.drop_depth_edges.is_none(),
         "{}: --frame-step, --frame-offset and --drop-depth-edges apply to 7-Scenes folders \
          (with camera-intrinsics.txt) only",
