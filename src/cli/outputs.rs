@@ -625,20 +625,15 @@ pub struct SimStaging {
 /// in the indoor layout); `None` when `out` has no such `sim.json` (none,
 /// one another program or the user wrote, one that is not omcl's JSON).
 fn earlier_simulation(out: &Path) -> Option<&'static [&'static str]> {
-    use std::io::Read;
-    let mut text = String::new();
+    use omcl::sim::dataset::{
+        EXPORT_GENERATOR, INDOOR_ENTRIES, INDOOR_GENERATOR, OUTDOOR_ENTRIES, OUTDOOR_GENERATOR,
+    };
     // A simulation's sim.json is a few kilobytes; more is not one.
-    std::fs::File::open(out.join("sim.json"))
-        .ok()?
-        .take(1 << 20)
-        .read_to_string(&mut text)
-        .ok()?;
-    let meta: serde_json::Value = serde_json::from_str(&text).ok()?;
+    let bytes = omcl::io::bounded_read::read_capped(&out.join("sim.json"), 1 << 20).ok()?;
+    let meta: serde_json::Value = serde_json::from_slice(&bytes).ok()?;
     match meta.get("generator")?.as_str()? {
-        "omcl sim indoor" | "omcl bench table1-sixdof --export-frames" => {
-            Some(&omcl::sim::dataset::INDOOR_ENTRIES)
-        }
-        "omcl sim outdoor" => Some(&omcl::sim::dataset::OUTDOOR_ENTRIES),
+        g if g == INDOOR_GENERATOR || g == EXPORT_GENERATOR => Some(&INDOOR_ENTRIES),
+        g if g == OUTDOOR_GENERATOR => Some(&OUTDOOR_ENTRIES),
         _ => None,
     }
 }

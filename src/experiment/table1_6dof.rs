@@ -266,7 +266,7 @@ pub fn export_sequence(
     };
     write_rgbd_sequence(dir, &out, &|i| seq.render(i), progress)?;
     let meta = serde_json::json!({
-        "generator": "omcl bench table1-sixdof --export-frames",
+        "generator": crate::sim::dataset::EXPORT_GENERATOR,
         "version": env!("CARGO_PKG_VERSION"),
         "seed": seed,
         "frames": seq.len(),

@@ -154,6 +154,18 @@ pub fn load_drift(trajectories: &Path) -> Result<(Vec<Pose>, String), SimError> 
     ))
 }
 
+/// The `generator` of an indoor simulation's `sim.json`: with
+/// [`OUTDOOR_GENERATOR`] and [`EXPORT_GENERATOR`], what marks a folder as
+/// omcl's simulation (which `omcl sim --force` may replace).
+pub const INDOOR_GENERATOR: &str = "omcl sim indoor";
+
+/// The `generator` of an outdoor simulation's `sim.json`.
+pub const OUTDOOR_GENERATOR: &str = "omcl sim outdoor";
+
+/// The `generator` of a sequence `omcl bench table1-sixdof
+/// --export-frames` writes (the indoor layout).
+pub const EXPORT_GENERATOR: &str = "omcl bench table1-sixdof --export-frames";
+
 /// What [`write_indoor`] writes into its folder: the sequence's frame
 /// folders and files, the world and `sim.json` (which marks a folder as a
 /// simulation's).
@@ -230,7 +242,7 @@ pub fn write_indoor(
         drift_source: if drift.0.is_empty() { None } else { drift.1 },
     };
     let meta = serde_json::json!({
-        "generator": "omcl sim indoor",
+        "generator": INDOOR_GENERATOR,
         "version": env!("CARGO_PKG_VERSION"),
         "config": cfg,
         "layout": scene.world.layout,
@@ -641,7 +653,7 @@ pub fn write_outdoor(
         drift_source: None,
     };
     let meta = serde_json::json!({
-        "generator": "omcl sim outdoor",
+        "generator": OUTDOOR_GENERATOR,
         "version": env!("CARGO_PKG_VERSION"),
         "config": cfg,
         "path": "KITTI odometry 00 ground truth (CC BY-NC-SA 3.0, Geiger et al.)",
