@@ -536,3 +536,61 @@ fn an_alignment_to_positions_on_a_line_is_warned_about() {
         "{e}"
     );
 }
+
+/// `rpe --horizontal` leaves the heights out, as `ape --horizontal` does:
+/// an estimate held at one height that moves 1.1 m a frame along x where
+/// the reference moves 1 m and bobs up and down has a relative error of
+/// exactly 0.1 m a frame horizontally, more with the heights; with a
+/// rotation angle it is refused.
+#[test]
+fn rpe_horizontal_leaves_the_heights_out() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (r, e) = (tmp.path().join("ref.txt"), tmp.path().join("est.txt"));
+    let pose = |t: usize, x: f64, z: f64| format!("{t} {x} 0 {z} 0 0 0 1\n");
+    let (mut refs, mut ests) = (String::new(), String::new());
+    for i in 0..20 {
+        let x = i as f64;
+        refs += &pose(i, x, 0.1 * (i as f64).sin());
+        ests += &pose(i, 1.1 * x, 1.5);
+    }
+    std::fs::write(&r, refs).unwrap();
+    std::fs::write(&e, ests).unwrap();
+    let run = |extra: &[&str]| {
+        let json = tmp.path().join("rpe.json");
+        let out = Command::new(env!("CARGO_BIN_EXE_omcl"))
+            .args(["eval", "rpe"])
+            .args([&r, &e])
+            .arg("--json")
+            .arg(&json)
+            .arg("--force")
+            .args(extra)
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        let v = out.status.success().then(|| {
+            serde_json::from_str::<serde_json::Value>(&std::fs::read_to_string(&json).unwrap())
+                .unwrap()
+        });
+        (out.status.code(), stdout, stderr, v)
+    };
+    let (code, stdout, stderr, v) = run(&["--horizontal"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(stdout.contains("RPE (horizontal)"), "{stdout}");
+    let v = v.unwrap();
+    assert_eq!(v["horizontal"], true);
+    let rmse = v["stats"]["rmse"].as_f64().unwrap();
+    assert!((rmse - 0.1).abs() < 1e-9, "{v}");
+    let max = v["stats"]["max"].as_f64().unwrap();
+    assert!((max - 0.1).abs() < 1e-9, "{v}");
+    // With the heights: every pair's error at least 0.1 m, most more.
+    let (code, stdout, stderr, v) = run(&[]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(!stdout.contains("horizontal"), "{stdout}");
+    let v = v.unwrap();
+    assert_eq!(v["horizontal"], false);
+    assert!(v["stats"]["rmse"].as_f64().unwrap() > 0.12, "{v}");
+    let (code, _, stderr, _) = run(&["--horizontal", "--relation", "angle-deg"]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("--horizontal"), "{stderr}");
+}

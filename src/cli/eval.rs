@@ -74,6 +74,13 @@ pub enum EvalCommand {
         /// Error measured: translation (m) or rotation angle (deg).
         #[arg(long, value_enum, default_value_t = RelationArg::Trans)]
         relation: RelationArg,
+        /// Horizontal translation errors: heights set to 0 after the
+        /// alignment, as `ape --horizontal` (a floor plan's 2-D estimate
+        /// holds the camera at one height, which the reference's need not
+        /// keep); metric deltas are then horizontal path lengths; with
+        /// --relation trans
+        #[arg(long)]
+        horizontal: bool,
         #[command(flatten)]
         out: OutArgs,
     },
@@ -305,8 +312,13 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
             pairs_from_reference,
             align,
             relation,
+            horizontal,
             out,
         } => {
+            ensure!(
+                !horizontal || relation == RelationArg::Trans,
+                "--horizontal measures translation: it takes --relation trans"
+            );
             let delta = match delta_unit {
                 DeltaUnitArg::F if delta >= 1.0 && delta.fract() == 0.0 => {
                     Delta::Frames(delta as usize)
@@ -329,10 +341,24 @@ pub fn run(cmd: EvalCommand) -> anyhow::Result<()> {
                 all_pairs,
                 pairs_from_reference,
             };
-            let errors = rpe(&paired.reference, &aligned, &options)?;
-            print_errors("RPE", &pair, &paired, &alignment, &errors, Some(&options));
+            let errors = match horizontal {
+                true => rpe(
+                    &paired.reference.horizontal(),
+                    &aligned.horizontal(),
+                    &options,
+                )?,
+                false => rpe(&paired.reference, &aligned, &options)?,
+            };
+            let label = if horizontal {
+                "RPE (horizontal)"
+            } else {
+                "RPE"
+            };
+            print_errors(label, &pair, &paired, &alignment, &errors, Some(&options));
             write_json(out.json.as_deref(), || {
-                errors_json("rpe", &pair, &paired, &alignment, &errors, Some(&options))
+                let mut v = errors_json("rpe", &pair, &paired, &alignment, &errors, Some(&options));
+                v["horizontal"] = serde_json::json!(horizontal);
+                v
             })
         }
         EvalCommand::Kitti { pair, step, out } => {
