@@ -20,10 +20,10 @@
 use omcl::experiment::features::{GridFeatures, SimFrameFeatures, builtin_table, feature_model};
 use omcl::experiment::mapping::{BenchMap, MapParams, MapSource};
 use omcl::experiment::sequence::SimSequence;
-use omcl::experiment::table1_floorplan::{TwoDParams, plan_scene};
+use omcl::experiment::table1_floorplan::{TwoDParams, open_session, plan_scene};
 use omcl::map::FloorPlanParams;
 use omcl::mcl::{FilterConfig, MotionMode, StepTimings};
-use omcl::session::{self, Session, SessionConfig, SharedMap};
+use omcl::session::SharedMap;
 use omcl::sim::features::Preset;
 use std::sync::Arc;
 use std::time::Instant;
@@ -78,20 +78,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             if a.get(5).is_some_and(|m| m != name) {
                 continue;
             }
-            let start = session::Start::Pose {
-                pose: seq.poses()[0],
-                sigma_m: 0.3,
-                sigma_rad: 17f64.to_radians(),
-            };
-            let config = SessionConfig {
-                intrinsics: seq.intrinsics,
-                particles: 1024,
-                filter,
-                floor: Default::default(),
-                floor_feature: None,
-                ground: false,
-            };
-            let mut s = Session::with_init_seed(scene.clone(), config, &start, seed ^ 0x57a7)?;
+            let mut s = open_session(&seq, scene.clone(), filter, 1024)?;
             let (mut tim, mut wall, mut err2) = (StepTimings::default(), 0.0, 0.0);
             let mut hash = 0u64;
             for (i, frame) in grid.iter().enumerate() {

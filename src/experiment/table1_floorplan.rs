@@ -371,28 +371,12 @@ pub fn track_with(
     particles: usize,
     two_d: Option<&TwoDParams>,
 ) -> Result<(RunResult, StepTimings), ExperimentError> {
-    use crate::session::{self, Session, SessionConfig};
     use std::time::Instant;
     let model = feature_model(seq, preset, 0x10c);
     let mut filter = filter;
     filter.motion.mode = MotionMode::Planar;
-    // The session loop, as every run steps it, on this map and caster.
-    let start = session::Start::Pose {
-        pose: seq.poses()[0],
-        sigma_m: 0.3,
-        sigma_rad: 17f64.to_radians(),
-    };
-    let config = SessionConfig {
-        intrinsics: seq.intrinsics,
-        particles,
-        filter,
-        floor: crate::mcl::FloorParams::default(),
-        floor_feature: None,
-        ground: false,
-    };
     let shared = Arc::new(scene);
-    let mut f = Session::with_init_seed(shared.clone(), config, &start, filter.seed ^ 0x57a7)
-        .map_err(super::run::session_error)?;
+    let mut f = open_session(seq, shared.clone(), filter, particles)?;
     let classes: Vec<Vec<f32>> = match two_d {
         Some(t) if t.silence => (0..seq.table.len())
             .map(|c| seq.table.row(c).to_vec())
@@ -460,6 +444,34 @@ pub fn track_with(
         },
         timings,
     ))
+}
+
+/// The session [`track_with`] steps: the paper's local start (0.3 m, 17
+/// degrees) around the sequence's first pose, on `scene`, with `filter`
+/// (its motion mode as given) and `particles` particles, seeded from the
+/// filter's seed.
+pub fn open_session(
+    seq: &SimSequence,
+    scene: Arc<SharedMap>,
+    filter: FilterConfig,
+    particles: usize,
+) -> Result<crate::session::Session, ExperimentError> {
+    use crate::session::{self, Session, SessionConfig};
+    let start = session::Start::Pose {
+        pose: seq.poses()[0],
+        sigma_m: 0.3,
+        sigma_rad: 17f64.to_radians(),
+    };
+    let config = SessionConfig {
+        intrinsics: seq.intrinsics,
+        particles,
+        filter,
+        floor: crate::mcl::FloorParams::default(),
+        floor_feature: None,
+        ground: false,
+    };
+    Session::with_init_seed(scene, config, &start, filter.seed ^ 0x57a7)
+        .map_err(super::run::session_error)
 }
 
 /// What the 2-D block runs.
