@@ -30,8 +30,22 @@ use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let a: Vec<String> = std::env::args().collect();
-    let arg = |i: usize, d: u64| a.get(i).and_then(|s| s.parse().ok()).unwrap_or(d);
-    let (seed, frames, reps, rays) = (arg(1, 1000), arg(2, 40) as usize, arg(3, 2), arg(4, 2048));
+    let usage = "usage: step_speed [SEED] [FRAMES] [REPS] [RAYS] [2-D|3-D]";
+    let arg = |i: usize, d: u64| -> Result<u64, String> {
+        a.get(i).map_or(Ok(d), |s| {
+            s.parse()
+                .map_err(|_| format!("argument {i}, {s:?}: not a whole number; {usage}"))
+        })
+    };
+    let (seed, frames, reps, rays) = (
+        arg(1, 1000)?,
+        arg(2, 40)? as usize,
+        arg(3, 2)?,
+        arg(4, 2048)?,
+    );
+    if a.len() > 6 || a.get(5).is_some_and(|m| m != "2-D" && m != "3-D") {
+        return Err(usage.into());
+    }
     let table = builtin_table()?;
     let seq = SimSequence::generate_in(Default::default(), seed, frames, &table)?;
     let map = BenchMap::build(

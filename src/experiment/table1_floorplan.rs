@@ -449,7 +449,7 @@ pub fn track_with(
 /// The session [`track_with`] steps: the paper's local start (0.3 m, 17
 /// degrees) around the sequence's first pose, on `scene`, with `filter`
 /// (its motion mode as given) and `particles` particles, seeded from the
-/// filter's seed.
+/// filter's seed. A sequence without frames is an error.
 pub fn open_session(
     seq: &SimSequence,
     scene: Arc<SharedMap>,
@@ -457,8 +457,12 @@ pub fn open_session(
     particles: usize,
 ) -> Result<crate::session::Session, ExperimentError> {
     use crate::session::{self, Session, SessionConfig};
+    let pose = *seq
+        .poses()
+        .first()
+        .ok_or_else(|| ExperimentError::Config("the sequence has no frames".into()))?;
     let start = session::Start::Pose {
-        pose: seq.poses()[0],
+        pose,
         sigma_m: 0.3,
         sigma_rad: 17f64.to_radians(),
     };

@@ -106,9 +106,8 @@ pub struct PlanarCaster {
     /// Leaf index per grid cell (row-major, x fastest) or `Hit::MISS`.
     leaf: Vec<u32>,
     /// Chebyshev distance in cells to the nearest occupied cell (0 on an
-    /// occupied cell), capped at 255: what a walk reads a cell, a byte (a
-    /// room's worth of cells stays in the first-level cache; the leaf is
-    /// read only for the occupied cells).
+    /// occupied cell), capped at 255: what a walk reads a cell (the leaf
+    /// only for the occupied ones).
     clearance: Vec<u8>,
     /// Vertical extent `[bottom, top]` (grid-frame z, metres) of each leaf's
     /// column; `None`: infinitely tall prisms.
@@ -368,9 +367,6 @@ impl PlanarCaster {
         'outer: loop {
             let (mut cx, mut cy) = (cell_at(t, 0), cell_at(t, 1));
             let (mut nx, mut ny) = (edge(cx, 0, sx), edge(cy, 1, sy));
-            // Axes and arrays as scalars, the axis of each step chosen
-            // without a branch: a diagonal ray's steps alternate
-            // unpredictably.
             loop {
                 let idx = (cy * w + cx) as usize;
                 let clear = self.clearance[idx] as u32;
