@@ -293,6 +293,7 @@ fn table5_and_ablations_write_tables_and_figures() {
     let out = dir.path().to_str().unwrap();
     let (o, text) = bench(&[
         "table5",
+        "table5-floorplan",
         "particles-rays",
         "sampling",
         "--sequences",
@@ -314,7 +315,13 @@ fn table5_and_ablations_write_tables_and_figures() {
     ]);
     assert!(o.status.success(), "{text}");
     let md = std::fs::read_to_string(dir.path().join("bench.md")).unwrap();
-    for h in ["Table V", "particles x rays", "ray sampling"] {
+    for h in [
+        "Table V",
+        "Table V on the floor plan (2-D: x, y, yaw)",
+        "horizontal errors",
+        "particles x rays",
+        "ray sampling",
+    ] {
         assert!(md.contains(h), "{h} missing in\n{md}");
     }
     for f in [
@@ -353,13 +360,15 @@ fn table5_and_ablations_write_tables_and_figures() {
             .iter()
             .all(|c| c["rmse_mean"].as_f64().unwrap() < 1.5)
     );
-    let t5 = json("table5.json");
-    let t5 = t5.as_array().unwrap();
-    assert_eq!(t5.len(), 2, "without and with a prompt");
-    for (t, prompt) in t5.iter().zip([false, true]) {
-        assert_eq!(t["prompt"], prompt);
-        assert_eq!(t["rows"].as_array().unwrap().len(), 5, "2 .. 0.1 m");
-        assert_eq!(t["runs"].as_array().unwrap().len(), 1);
+    for f in ["table5.json", "table5_floorplan.json"] {
+        let t5 = json(f);
+        let t5 = t5.as_array().unwrap();
+        assert_eq!(t5.len(), 2, "{f}: without and with a prompt");
+        for (t, prompt) in t5.iter().zip([false, true]) {
+            assert_eq!(t["prompt"], prompt);
+            assert_eq!(t["rows"].as_array().unwrap().len(), 5, "{f}: 2 .. 0.1 m");
+            assert_eq!(t["runs"].as_array().unwrap().len(), 1);
+        }
     }
 }
 

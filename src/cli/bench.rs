@@ -54,7 +54,8 @@ fn refuse_options_of_other_experiments(a: &BenchArgs) -> anyhow::Result<()> {
     use omcl::experiment::sweep::Experiment as S;
     let ex = &a.plan.experiments;
     let planned: Vec<S> = ex.iter().filter_map(|e| e.to_library()).collect();
-    let wants = |s: S| planned.contains(&S::All) || planned.contains(&s);
+    let wants =
+        |s: S| (planned.contains(&S::All) && s != S::Table5Floorplan) || planned.contains(&s);
     let has = |e: Experiment| ex.contains(&e);
     let street = &a.street;
     let scenes = &a.scenes;
@@ -62,7 +63,8 @@ fn refuse_options_of_other_experiments(a: &BenchArgs) -> anyhow::Result<()> {
     type Group<'a> = (&'a str, bool, &'a [(&'a str, bool)]);
     let groups: [Group; 6] = [
         (
-            "the planned experiments (table1, table2, table5, particles-rays, sampling, all)",
+            "the planned experiments (table1, table2, table5, table5-floorplan, particles-rays, \
+             sampling, all)",
             !planned.is_empty(),
             &[
                 ("--jobs", a.jobs != 1),
@@ -71,16 +73,19 @@ fn refuse_options_of_other_experiments(a: &BenchArgs) -> anyhow::Result<()> {
             ],
         ),
         (
-            "table5",
-            wants(S::Table5),
+            "table5 and table5-floorplan",
+            wants(S::Table5) || wants(S::Table5Floorplan),
             &[
                 ("--starts", a.plan.starts != 3),
                 ("--max-steps", a.plan.max_steps != 60),
             ],
         ),
         (
-            "table5, particles-rays and sampling",
-            wants(S::Table5) || wants(S::ParticlesRays) || wants(S::Sampling),
+            "table5, table5-floorplan, particles-rays and sampling",
+            wants(S::Table5)
+                || wants(S::Table5Floorplan)
+                || wants(S::ParticlesRays)
+                || wants(S::Sampling),
             &[("--ablation-variant", a.plan.ablation_variant != "OMCL_LSeg")],
         ),
         (
@@ -168,7 +173,10 @@ fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
         let base = match a.plan.experiments.as_slice() {
             [Experiment::Table4] => Table4Params::filter_default(),
             [Experiment::Table1Sixdof] => omcl::mcl::FilterConfig::six_dof(),
-            [Experiment::Table1Floorplan] => omcl::mcl::FilterConfig::floor_plan(),
+            [Experiment::Table1Floorplan]
+            | [Experiment::Planned(sweep::Experiment::Table5Floorplan)] => {
+                omcl::mcl::FilterConfig::floor_plan()
+            }
             _ => omcl::mcl::FilterConfig::default(),
         };
         // The Table I blocks' own paths (plan.*, two_d.*, sixdof.*) are not
@@ -383,7 +391,14 @@ fn describe_task(e: &sweep::RunEntry) -> String {
         .map(|u| match u {
             sweep::Use::Table1 { variant } => format!("table1 {variant}"),
             sweep::Use::Table2 { variant } => format!("table2 {variant}"),
-            sweep::Use::Table5 { prompt } => format!("table5 prompt={prompt}"),
+            sweep::Use::Table5 {
+                prompt,
+                floor_plan: false,
+            } => format!("table5 prompt={prompt}"),
+            sweep::Use::Table5 {
+                prompt,
+                floor_plan: true,
+            } => format!("table5-floorplan prompt={prompt}"),
             sweep::Use::ParticlesRays { particles, rays } => {
                 format!("particles-rays {particles}x{rays}")
             }

@@ -63,6 +63,7 @@ impl ValueEnum for Experiment {
             Experiment::Planned(S::Table1),
             Experiment::Planned(S::Table2),
             Experiment::Planned(S::Table5),
+            Experiment::Planned(S::Table5Floorplan),
             Experiment::Planned(S::ParticlesRays),
             Experiment::Planned(S::Sampling),
             Experiment::Table4,
@@ -170,11 +171,15 @@ pub struct PlanArgs {
 impl PlanArgs {
     /// The filter configuration: defaults, `--rays`, then `--set`.
     pub fn filter(&self) -> anyhow::Result<FilterConfig> {
-        let mut config = FilterConfig::default();
+        self.filter_from(FilterConfig::default())
+    }
+
+    /// `base` with `--rays`, then `--set`.
+    fn filter_from(&self, mut base: FilterConfig) -> anyhow::Result<FilterConfig> {
         if let Some(r) = self.rays {
-            config.sampling.rays = r;
+            base.sampling.rays = r;
         }
-        apply_overrides(config, &self.set)
+        apply_overrides(base, &self.set)
     }
 
     /// Refuses a `--variants` name that is not a variant of the sweep's
@@ -213,6 +218,10 @@ impl PlanArgs {
             .collect();
         experiments.sort();
         experiments.dedup();
+        let floor_plan_filter = experiments
+            .contains(&sweep::Experiment::Table5Floorplan)
+            .then(|| self.filter_from(FilterConfig::floor_plan()))
+            .transpose()?;
         Ok(BenchPlan {
             experiments,
             sequences: self.sequences,
@@ -228,6 +237,7 @@ impl PlanArgs {
             starts: self.starts,
             max_steps: self.max_steps,
             filter: self.filter()?,
+            floor_plan_filter,
             world: self.world,
         })
     }

@@ -353,8 +353,9 @@ pub struct LocalizeArgs {
     /// 2.00 m above its floor.
     /// The filter of Table I's 2-D block (8192 pixels, exponent 240,
     /// estimate radius 0.5 m, pixels stratified over the plan's own rows
-    /// and the words) unless --rays or --sharpen; errors are horizontal. Starts from a
-    /// pose only (--init local). The words "floor" and "ceiling" come from
+    /// and the words) unless --rays or --sharpen; errors are horizontal.
+    /// --init global and prompt and --recovery place level cameras over
+    /// the 3-D map's floor, as without --floorplan. The words "floor" and "ceiling" come from
     /// --text-model or the class table (without them, rays leaving the
     /// plan's height window score only the columns' own floors and
     /// ceilings).
@@ -1327,7 +1328,8 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     // label table bound to it, and the 3-D map kept for the plot.
     let (shared, plan_table, map3) = match &a.floorplan {
         Some(plan) => {
-            let shared = plan_map(&a, plan.as_deref(), &map3, &words)?;
+            let map3 = Arc::new(map3);
+            let shared = plan_map(&a, plan.as_deref(), &map3, &words)?.with_floor_map(map3.clone());
             let t = table
                 .as_ref()
                 .map(|t| LabelTable::new(t.table().clone(), shared.map()))
@@ -1337,7 +1339,7 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         None => (SharedMap::new("map", map3)?, None, None),
     };
     let shared = Arc::new(shared);
-    let m = map3.as_ref().unwrap_or(shared.map());
+    let m = map3.as_deref().unwrap_or(shared.map());
     let frames_table = plan_table.as_ref().or(table.as_ref());
 
     let mut session = open_session(&a, shared.clone(), &inputs, &words)?;
@@ -1559,8 +1561,7 @@ fn refuse_replacing_inputs(a: &LocalizeArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `--floorplan`'s and `--ground`'s limits, by name: planar motion, and
-/// for a floor plan a pose start.
+/// `--floorplan`'s and `--ground`'s limits, by name: planar motion.
 fn check_plan_and_ground_args(a: &LocalizeArgs) -> anyhow::Result<()> {
     ensure!(
         a.prompt.is_none() || a.init == InitArg::Prompt,
@@ -1588,19 +1589,6 @@ fn check_plan_and_ground_args(a: &LocalizeArgs) -> anyhow::Result<()> {
             "--floorplan estimates x, y and yaw: it takes --motion planar only ({what})"
         );
     }
-    if a.floorplan.is_none() {
-        return Ok(());
-    }
-    ensure!(
-        matches!(a.init, InitArg::Local),
-        "--floorplan starts from a pose (--init local, with --init-pose or the first \
-         ground-truth pose): global and prompt starts place particles on the 3-D map's floor \
-         voxels"
-    );
-    ensure!(
-        !a.recovery,
-        "--floorplan does not take --recovery: it injects poses over the 3-D map's floor voxels"
-    );
     Ok(())
 }
 

@@ -46,7 +46,8 @@ pub struct ServeArgs {
     /// as `omcl localize --floorplan`): NAME alone projects the map with the
     /// default band (0.10 to 2.00 m), NAME=PLAN takes the plan file `omcl
     /// map floorplan` made from it. Its sessions hold the camera level at
-    /// the start pose's height, start from a pose only, and default to the
+    /// the start pose's height (a global or prompt start's over the map's
+    /// floor: the 3-D map is kept beside its plan for them), and default to the
     /// block's filter (8192 pixels, exponent 240, estimate radius 0.5 m,
     /// pixels stratified over the plan's own rows); the words "floor" and
     /// "ceiling" come from --classes NAME=DIR. Repeatable.
@@ -410,7 +411,7 @@ fn floor_plan_map(
         ),
         None => format!("--floorplan {name}: the floor plan of {}", path.display()),
     })?;
-    Ok(SharedMap::floor_plan(name, scene))
+    Ok(SharedMap::floor_plan(name, scene).with_floor_map(std::sync::Arc::new(m)))
 }
 
 /// Counts the SIGINTs and SIGTERMs received into `count`.

@@ -230,7 +230,10 @@ fn collect_into(
         md += &ctx.table2()?;
     }
     if b.wants(Experiment::Table5) {
-        md += &ctx.table5()?;
+        md += &ctx.table5(false)?;
+    }
+    if b.wants(Experiment::Table5Floorplan) {
+        md += &ctx.table5(true)?;
     }
     if b.wants(Experiment::ParticlesRays) {
         md += &ctx.particles_rays()?;

@@ -126,6 +126,19 @@ pub fn run(
     model: &FeatureModel,
     spec: &RunSpec,
 ) -> Result<RunResult, ExperimentError> {
+    let shared = SharedMap::from_parts("benchmark", map.clone(), caster);
+    run_on(seq, Arc::new(shared), model, spec)
+}
+
+/// [`run`] on a shared map: a 3-D map, or a floor plan's 2-D scene
+/// ([`SharedMap::floor_plan`], whose errors are then horizontal: its
+/// cameras are held at their start's height).
+pub fn run_on(
+    seq: &dyn BenchSequence,
+    shared: Arc<SharedMap>,
+    model: &FeatureModel,
+    spec: &RunSpec,
+) -> Result<RunResult, ExperimentError> {
     let first = spec.first.min(seq.frames().saturating_sub(1));
     let last = (first + spec.frames).min(seq.frames());
     if last <= first {
@@ -163,10 +176,11 @@ pub fn run(
         floor_feature,
         ground: false,
     };
-    let shared = Arc::new(SharedMap::from_parts("benchmark", map.clone(), caster));
+    let horizontal = shared.is_level();
+    let rows = class_rows(seq, shared.map());
+    let map_rows = shared.map().db().len();
     let mut session = Session::with_init_seed(shared, config, &start, spec.filter.seed ^ 0x57a7)
         .map_err(session_error)?;
-    let rows = class_rows(seq, map);
     let mut estimates = Vec::with_capacity(last - first);
     let mut errors = Vec::with_capacity(last - first);
     let mut step_seconds = Vec::with_capacity(last - first);
@@ -193,8 +207,11 @@ pub fn run(
             .step;
         step_seconds.push(t.elapsed().as_secs_f64());
         rays += r.n_rays;
-        let truth = seq.poses()[i].translation.vector;
-        errors.push((r.estimate.translation.vector - truth).norm());
+        let d = r.estimate.translation.vector - seq.poses()[i].translation.vector;
+        errors.push(match horizontal {
+            true => d.x.hypot(d.y),
+            false => d.norm(),
+        });
         estimates.push(r.estimate);
     }
     let stats = ErrorStats::from_errors(&errors)
@@ -202,7 +219,7 @@ pub fn run(
     Ok(RunResult {
         completed: CompletionRule::default().judge(&errors),
         mean_rays: rays as f64 / estimates.len() as f64,
-        map_rows: map.db().len(),
+        map_rows,
         estimates,
         errors_m: errors,
         stats,
@@ -224,6 +241,8 @@ pub struct GlobalSpec {
     pub max_steps: usize,
     /// Start over the floor voxels matching a prompt (else all floor).
     pub prompt: bool,
+    /// In 2-D, on the map's floor plan ([`super::table5::global_runs`]).
+    pub floor_plan: bool,
 }
 
 /// One global-localization run.

@@ -66,7 +66,10 @@ pub fn plan(bench: &BenchPlan) -> Result<Vec<RunEntry>, SweepError> {
         super::table2::plan(&planner, &variants, &mut out);
     }
     if bench.wants(Experiment::Table5) {
-        super::table5::plan(&planner, &ablation, &mut out);
+        super::table5::plan(&planner, &ablation, false, &mut out);
+    }
+    if bench.wants(Experiment::Table5Floorplan) {
+        super::table5::plan(&planner, &ablation, true, &mut out);
     }
     if bench.wants(Experiment::ParticlesRays) {
         super::particles_rays::plan(&planner, &ablation, &mut out);
@@ -253,7 +256,12 @@ fn check_against_header(
     // lines' (and is not planned: a count edited to a billion would plan a
     // billion runs).
     let b = &header.bench;
-    let tables = [Experiment::Table1, Experiment::Table2, Experiment::Table5];
+    let tables = [
+        Experiment::Table1,
+        Experiment::Table2,
+        Experiment::Table5,
+        Experiment::Table5Floorplan,
+    ];
     let ablations = [Experiment::ParticlesRays, Experiment::Sampling];
     let counts = [
         (&tables[..], b.sequences, "sequences"),
@@ -672,6 +680,7 @@ fn compute(entry: &RunEntry, cache: &Cache) -> Result<RunRecord, SweepError> {
             starts,
             max_steps,
             prompt,
+            floor_plan,
         } => {
             let spec = GlobalSpec {
                 preset: t.preset,
@@ -680,6 +689,7 @@ fn compute(entry: &RunEntry, cache: &Cache) -> Result<RunRecord, SweepError> {
                 starts: *starts,
                 max_steps: *max_steps,
                 prompt: *prompt,
+                floor_plan: *floor_plan,
             };
             Outcome::Global(table5::global_runs(&seq, &map, &spec).map_err(run_err)?)
         }
@@ -828,6 +838,7 @@ mod tests {
             starts: 3,
             max_steps: 60,
             filter: FilterConfig::default(),
+            floor_plan_filter: None,
             world: Default::default(),
         }
     }
@@ -924,6 +935,77 @@ mod tests {
         assert_ne!(run_id(OMCL_VERSION, t), run_id(OMCL_VERSION, &t2));
         assert_ne!(run_id(OMCL_VERSION, t), run_id("0.0.0", t));
         assert_eq!(entries[0].id, run_id(OMCL_VERSION, t));
+    }
+
+    /// `table5-floorplan` plans its own runs beside Table V's (the same
+    /// sequences, starts and steps, `floor_plan` set, the 2-D filter), which
+    /// `all` leaves out; a 3-D run's task is written without the
+    /// `floor_plan` key, so its id is the one planned before the key existed.
+    #[test]
+    fn table5_floorplan_plans_its_own_runs_and_all_leaves_them_out() {
+        let mut b = small_plan();
+        b.experiments = vec![Experiment::Table5, Experiment::Table5Floorplan];
+        b.floor_plan_filter = Some(FilterConfig::floor_plan());
+        let entries = plan(&b).unwrap();
+        // Two sequences, without and with a prompt, 3-D and 2-D.
+        assert_eq!(entries.len(), 8);
+        let two_d: Vec<&RunEntry> = entries
+            .iter()
+            .filter(|e| {
+                matches!(
+                    e.task.work,
+                    Work::Global {
+                        floor_plan: true,
+                        ..
+                    }
+                )
+            })
+            .collect();
+        assert_eq!(two_d.len(), 4);
+        for e in &two_d {
+            let Work::Global { filter, .. } = &e.task.work else {
+                unreachable!()
+            };
+            assert_eq!(
+                filter.sampling.rays,
+                FilterConfig::floor_plan().sampling.rays
+            );
+            assert!(matches!(
+                e.uses[..],
+                [Use::Table5 {
+                    floor_plan: true,
+                    ..
+                }]
+            ));
+        }
+        for e in entries.iter().filter(|e| !two_d.contains(e)) {
+            let json = serde_json::to_string(&e.task).unwrap();
+            assert!(!json.contains("floor_plan"), "{json}");
+            assert!(matches!(
+                e.uses[..],
+                [Use::Table5 {
+                    floor_plan: false,
+                    ..
+                }]
+            ));
+        }
+        b.experiments = vec![Experiment::All];
+        assert!(!b.wants(Experiment::Table5Floorplan));
+        let all = plan(&b).unwrap();
+        assert!(all.iter().all(|e| !matches!(
+            e.task.work,
+            Work::Global {
+                floor_plan: true,
+                ..
+            }
+        )));
+        assert!(all.iter().any(|e| matches!(
+            e.task.work,
+            Work::Global {
+                floor_plan: false,
+                ..
+            }
+        )));
     }
 
     /// A manifest survives writing and reading; a line from another

@@ -3,18 +3,20 @@
 //! as the paper draws them (words of the objects around the start).
 
 use std::fmt::Write as _;
+use std::sync::Arc;
 
 use super::ExperimentError;
 use super::cells::{Ctx, write_json};
 use super::features::feature_model;
 use super::mapping::BenchMap;
 pub use super::run::{GlobalRun, GlobalSpec};
-use super::run::{RunSpec, Start, run};
+use super::run::{RunSpec, Start, run_on};
 use super::sequence::SimSequence;
 use super::task::{Outcome, Planner, SweepError, Task, Use, Work};
 use super::variant::Variant;
 use crate::eval::localization::CONVERGENCE_THRESHOLDS;
 use crate::mcl::FilterConfig;
+use crate::session::SharedMap;
 
 /// Global localization (Table V): from `spec.starts` start frames of `seq`,
 /// the filter starts over all floor voxels (`prompt: false`) or over the
@@ -22,6 +24,12 @@ use crate::mcl::FilterConfig;
 /// of the start (`prompt: true`, as the paper draws its prompts), and runs
 /// for at most `max_steps` frames. Returns, per start, the steps to reach each
 /// of [`crate::eval::localization::CONVERGENCE_THRESHOLDS`].
+///
+/// With `spec.floor_plan` the runs are in 2-D on the map's floor plan
+/// (Table I's 2-D scene, [`super::table1_floorplan::plan_scene`] with the
+/// default band and sight, as `omcl localize --floorplan` runs it): the
+/// particles start level over the same 3-D map's floor voxels, at the
+/// floor's camera height, and the errors are horizontal.
 pub fn global_runs(
     seq: &SimSequence,
     map: &BenchMap,
@@ -35,8 +43,17 @@ pub fn global_runs(
         starts,
         max_steps,
         prompt,
+        floor_plan,
     } = *spec;
     let model = feature_model(seq, preset, 0x10c);
+    let shared = Arc::new(match floor_plan {
+        true => {
+            use super::table1_floorplan::{TwoDParams, plan_scene};
+            let scene = plan_scene(map, &Default::default(), &seq.table, &TwoDParams::default())?;
+            SharedMap::floor_plan("floor plan", scene).with_floor_map(Arc::new(map.map.clone()))
+        }
+        false => SharedMap::from_parts("benchmark", map.map.clone(), map.caster.clone()),
+    });
     let span = seq.len().saturating_sub(max_steps).max(1);
     let mut out = Vec::new();
     for s in 0..starts {
@@ -63,7 +80,7 @@ pub fn global_runs(
             preset,
             encoder_stride: 1,
         };
-        let (steps, error) = match run(seq, &map.map, map.caster.clone(), &model, &spec) {
+        let (steps, error) = match run_on(seq, shared.clone(), &model, &spec) {
             Ok(r) => (steps_to_reach(&r.errors_m, &CONVERGENCE_THRESHOLDS), None),
             Err(ExperimentError::Filter(e)) => (
                 vec![None; CONVERGENCE_THRESHOLDS.len()],
@@ -165,13 +182,15 @@ pub fn steps_rows(runs: &[GlobalRun]) -> Vec<StepsRow> {
 }
 
 impl Ctx<'_> {
-    pub(super) fn table5(&self) -> Result<String, SweepError> {
+    /// Table V (`floor_plan`: on the floor plan, in 2-D) as Markdown, and
+    /// `table5.json` (`table5_floorplan.json`).
+    pub(super) fn table5(&self, floor_plan: bool) -> Result<String, SweepError> {
         let v = self.bench.ablation()?;
         let all: Vec<(bool, Vec<GlobalRun>)> = [false, true]
             .into_iter()
             .map(|prompt| {
                 let runs = self
-                    .records(&Use::Table5 { prompt })
+                    .records(&Use::Table5 { prompt, floor_plan })
                     .filter_map(|r| match &r.outcome {
                         Outcome::Global(g) => Some(g.clone()),
                         _ => None,
@@ -185,9 +204,17 @@ impl Ctx<'_> {
             .iter()
             .map(|(p, runs)| serde_json::json!({"prompt": p, "rows": steps_rows(runs), "runs": runs}))
             .collect();
-        write_json(&self.out.join("table5.json"), &table)?;
+        let (file, title, errors) = match floor_plan {
+            false => ("table5.json", "Table V", ""),
+            true => (
+                "table5_floorplan.json",
+                "Table V on the floor plan (2-D: x, y, yaw)",
+                "; horizontal errors",
+            ),
+        };
+        write_json(&self.out.join(file), &table)?;
         let mut s = format!(
-            "## Table V: steps until global localization reaches each accuracy ({}, {} runs of at most {} steps)\n\n\
+            "## {title}: steps until global localization reaches each accuracy ({}, {} runs of at most {} steps{errors})\n\n\
              | start | accuracy | mean | std | min | max | reached |\n|---|---|---|---|---|---|---|\n",
             v.name,
             all.first().map_or(0, |x| x.1.len()),
@@ -218,21 +245,28 @@ impl Ctx<'_> {
     }
 }
 
-/// Plans Table V: global runs on each sequence, without and with a prompt.
-pub(super) fn plan(p: &Planner, v: &Variant, out: &mut Vec<(Task, Use)>) {
+/// Plans Table V: global runs on each sequence, without and with a prompt;
+/// with `floor_plan` on the floor plan, with the 2-D filter
+/// ([`super::task::BenchPlan::floor_plan_filter`]).
+pub(super) fn plan(p: &Planner, v: &Variant, floor_plan: bool, out: &mut Vec<(Task, Use)>) {
+    let filter = match floor_plan {
+        true => p
+            .bench
+            .floor_plan_filter
+            .unwrap_or_else(FilterConfig::floor_plan),
+        false => p.bench.filter,
+    };
     for prompt in [false, true] {
         for s in p.bench.seeds() {
             let work = Work::Global {
-                filter: FilterConfig {
-                    seed: s,
-                    ..p.bench.filter
-                },
+                filter: FilterConfig { seed: s, ..filter },
                 particles: p.bench.particles,
                 starts: p.bench.starts,
                 max_steps: p.bench.max_steps,
                 prompt,
+                floor_plan,
             };
-            out.push((p.task(s, v, work), Use::Table5 { prompt }));
+            out.push((p.task(s, v, work), Use::Table5 { prompt, floor_plan }));
         }
     }
 }

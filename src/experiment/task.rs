@@ -78,6 +78,7 @@ pub enum Experiment {
     Table1,
     Table2,
     Table5,
+    Table5Floorplan,
     ParticlesRays,
     Sampling,
     All,
@@ -85,10 +86,11 @@ pub enum Experiment {
 
 impl Experiment {
     /// Every experiment, `All` last.
-    pub const ALL: [Experiment; 6] = [
+    pub const ALL: [Experiment; 7] = [
         Experiment::Table1,
         Experiment::Table2,
         Experiment::Table5,
+        Experiment::Table5Floorplan,
         Experiment::ParticlesRays,
         Experiment::Sampling,
         Experiment::All,
@@ -100,6 +102,7 @@ impl Experiment {
             Experiment::Table1 => "table1",
             Experiment::Table2 => "table2",
             Experiment::Table5 => "table5",
+            Experiment::Table5Floorplan => "table5-floorplan",
             Experiment::ParticlesRays => "particles-rays",
             Experiment::Sampling => "sampling",
             Experiment::All => "all",
@@ -120,12 +123,18 @@ impl Experiment {
                 "Table V: steps until global localization reaches 2 ... 0.1 m, without and \
                  with a prompt"
             }
+            Experiment::Table5Floorplan => {
+                "Table V on the floor plan, in 2-D (x, y, yaw, as table1-floorplan and \
+                 `omcl localize --floorplan`): the same starts and prompts over the 3-D \
+                 map's floor, Table I's 2-D filter, horizontal errors. Not part of `all`"
+            }
             Experiment::ParticlesRays => {
                 "Figure: APE and FPS against particles for several ray counts"
             }
             Experiment::Sampling => "Figure: stratified against equal and uniform ray sampling",
             Experiment::All => {
-                "Everything above but table4, table1-floorplan, table1-sixdof and sevenscenes"
+                "Everything above but table5-floorplan, table4, table1-floorplan, \
+                 table1-sixdof and sevenscenes"
             }
         }
     }
@@ -161,6 +170,11 @@ pub struct BenchPlan {
     /// The filter's configuration (overrides applied; the seed is set per
     /// sequence).
     pub filter: FilterConfig,
+    /// The filter of `table5-floorplan` (Table I's 2-D block's,
+    /// [`FilterConfig::floor_plan`], with the same `--rays` and `--set`);
+    /// left out of the manifest when that experiment is not planned.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub floor_plan_filter: Option<FilterConfig>,
     /// The kind of world every sequence is in (left out of the manifest
     /// for the corridor apartment, as before there were kinds).
     #[serde(default, skip_serializing_if = "WorldKind::is_corridor")]
@@ -170,7 +184,8 @@ pub struct BenchPlan {
 impl BenchPlan {
     /// Whether `e` is among the planned experiments.
     pub fn wants(&self, e: Experiment) -> bool {
-        self.experiments.contains(&Experiment::All) || self.experiments.contains(&e)
+        self.experiments.contains(&e)
+            || (self.experiments.contains(&Experiment::All) && e != Experiment::Table5Floorplan)
     }
 
     /// The variants, in table order, with the preset override applied.
@@ -274,18 +289,40 @@ pub enum Work {
         starts: usize,
         max_steps: usize,
         prompt: bool,
+        /// On the floor plan, in 2-D (`table5-floorplan`); left out of the
+        /// manifest for the 3-D runs, so their ids are as before.
+        #[serde(default, skip_serializing_if = "is_false")]
+        floor_plan: bool,
     },
+}
+
+fn is_false(b: &bool) -> bool {
+    !b
 }
 
 /// Where a run's result goes in the tables.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Use {
-    Table1 { variant: String },
-    Table2 { variant: String },
-    Table5 { prompt: bool },
-    ParticlesRays { particles: usize, rays: usize },
-    Sampling { particles: usize, strategy: String },
+    Table1 {
+        variant: String,
+    },
+    Table2 {
+        variant: String,
+    },
+    Table5 {
+        prompt: bool,
+        #[serde(default, skip_serializing_if = "is_false")]
+        floor_plan: bool,
+    },
+    ParticlesRays {
+        particles: usize,
+        rays: usize,
+    },
+    Sampling {
+        particles: usize,
+        strategy: String,
+    },
 }
 
 /// One line of a manifest after line 1.

@@ -10,7 +10,9 @@
 //! confidence. It can be reinitialized from a new pose or prompt at any
 //! time; dropping it closes it. A shared map can also be a floor plan's 2-D
 //! scene ([`SharedMap::floor_plan`], [`floorplan`]): its sessions hold the
-//! camera level and start from a pose. On a 3-D map a session can hold the
+//! camera level, and start from a pose, or globally or from prompt words
+//! on the floor of the 3-D map the plan was projected from
+//! ([`SharedMap::with_floor_map`]). On a 3-D map a session can hold the
 //! camera to the ground as a robot carries it ([`SessionConfig::ground`],
 //! [`ground`]).
 //!
@@ -85,8 +87,9 @@ pub enum SessionError {
     #[error("initialization: {0}")]
     Init(MclError),
     #[error(
-        "map {0:?} is a floor plan: sessions on it start from a pose (global and prompt starts \
-         and recovery use a 3-D map's floor voxels)"
+        "map {0:?} is a floor plan without the 3-D map it was projected from: sessions on it \
+         start from a pose (global and prompt starts and recovery place cameras on a 3-D map's \
+         floor voxels)"
     )]
     PoseStartOnly(String),
     #[error(
@@ -120,6 +123,9 @@ pub struct SharedMap {
     /// ([`crate::mcl::Filter::with_strata`]; a floor plan's own rows and
     /// words); `None`: all.
     strata: Option<Vec<bool>>,
+    /// A floor plan's 3-D map ([`SharedMap::with_floor_map`]), whose floor
+    /// voxels global and prompt starts and recovery use.
+    floor_map: Option<Arc<LanguageMap>>,
     classes: Option<LabelTable>,
     /// The image encoder raw frames go through (one at a time).
     encoder: Option<Mutex<ImageEncoder>>,
@@ -140,6 +146,7 @@ impl SharedMap {
             caster: Arc::new(caster),
             level: false,
             strata: None,
+            floor_map: None,
             classes: None,
             encoder: None,
         })
@@ -158,6 +165,7 @@ impl SharedMap {
             caster,
             level: false,
             strata: None,
+            floor_map: None,
             classes: None,
             encoder: None,
         }
@@ -168,9 +176,9 @@ impl SharedMap {
     /// level, as a robot carries it: its sessions level the start pose at
     /// its own height and every odometry pose and increment
     /// ([`ground::level`]), so the odometry's horizontal motion and
-    /// heading move the particles and its height, roll and pitch do not;
-    /// they start from a pose only (global and prompt starts place
-    /// particles on a 3-D map's floor voxels).
+    /// heading move the particles and its height, roll and pitch do not.
+    /// They start from a pose; global and prompt starts and recovery need
+    /// the 3-D map the plan was projected from ([`SharedMap::with_floor_map`]).
     /// Its pixels are stratified over the plan's own rows and the floor
     /// and ceiling words ([`floorplan::PlanScene::strata`]).
     pub fn floor_plan(name: impl Into<String>, scene: floorplan::PlanScene) -> Self {
@@ -192,6 +200,27 @@ impl SharedMap {
     /// Whether sessions on this map hold the camera level (a floor plan).
     pub fn is_level(&self) -> bool {
         self.level
+    }
+
+    /// For a floor plan: `map3`, the 3-D map it was projected from. Global
+    /// and prompt starts and recovery then find the floor voxels in it and
+    /// place their level cameras over them at the floor's camera height
+    /// ([`FloorParams`]), as on the 3-D map itself, and the sessions hold
+    /// each particle at its own start height. (On a 3-D map this changes
+    /// nothing: its own floor voxels are used.)
+    pub fn with_floor_map(mut self, map3: Arc<LanguageMap>) -> Self {
+        self.floor_map = Some(map3);
+        self
+    }
+
+    /// The map whose floor voxels global and prompt starts and recovery
+    /// use: the map itself, a floor plan's 3-D map, or `None` (a floor plan
+    /// without one).
+    pub fn floor_source(&self) -> Option<&LanguageMap> {
+        match self.level {
+            false => Some(&self.map),
+            true => self.floor_map.as_deref(),
+        }
     }
 
     /// Reads the map file at `path` and builds its scene.
@@ -451,9 +480,6 @@ impl Session {
         start: &Start,
         init_seed: u64,
     ) -> Result<Self, SessionError> {
-        if map.level && config.filter.recovery.is_some() {
-            return Err(SessionError::PoseStartOnly(map.name.clone()));
-        }
         let mount = mount(&map, &config, start)?;
         let mut init_rng = ChaCha8Rng::seed_from_u64(init_seed);
         let particles = initial_particles(&map, &config, start, &mut init_rng)?;
@@ -470,9 +496,12 @@ impl Session {
                 .floor_feature
                 .as_deref()
                 .ok_or(SessionError::NoFloorFeature("recovery"))?;
-            let voxels = mcl::init::floor_voxels(&map.map, floor, config.floor.rho)
+            let floor_map = map
+                .floor_source()
+                .ok_or_else(|| SessionError::PoseStartOnly(map.name.clone()))?;
+            let voxels = mcl::init::floor_voxels(floor_map, floor, config.floor.rho)
                 .map_err(SessionError::Recovery)?;
-            filter = filter.with_injection(FloorSampler::new(&map.map, &voxels, config.floor));
+            filter = filter.with_injection(FloorSampler::new(floor_map, &voxels, config.floor));
         }
         Ok(Session {
             map,
@@ -643,9 +672,10 @@ fn initial_particles(
             .as_deref()
             .ok_or(SessionError::NoFloorFeature(what))
     };
-    if map.level && !matches!(start, Start::Pose { .. }) {
-        return Err(SessionError::PoseStartOnly(map.name.clone()));
-    }
+    let floor_map = || {
+        map.floor_source()
+            .ok_or_else(|| SessionError::PoseStartOnly(map.name.clone()))
+    };
     match start {
         Start::Pose {
             pose,
@@ -673,7 +703,7 @@ fn initial_particles(
             Ok(mcl::local_init(pose, n, *sigma_m, *sigma_rad, rng))
         }
         Start::Global => mcl::global_init(
-            &map.map,
+            floor_map()?,
             floor("global initialization")?,
             &config.floor,
             n,
@@ -681,7 +711,7 @@ fn initial_particles(
         )
         .map_err(SessionError::Init),
         Start::Prompt { words, params } => mcl::prompt_init(
-            &map.map,
+            floor_map()?,
             floor("prompt initialization")?,
             words,
             &config.floor,
