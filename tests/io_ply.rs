@@ -776,3 +776,25 @@ fn a_body_in_the_other_byte_order_is_noted() {
         real.notes
     );
 }
+
+/// A vertex without x, y or z is refused naming the axis and listing the
+/// properties it has (they had not been listed), so a file with other
+/// coordinate names says what to rename.
+#[test]
+fn a_vertex_without_coordinates_lists_what_it_has() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("lonlat.ply");
+    std::fs::write(
+        &p,
+        "ply\nformat ascii 1.0\nelement vertex 1\nproperty double lon\nproperty double lat\n\
+         property float height\nproperty uchar red\nend_header\n1 2 3 4\n",
+    )
+    .unwrap();
+    let e = read_ply(&p).unwrap_err();
+    assert_err_names(&e, &p, "lacks a scalar 'x' property");
+    assert!(
+        e.to_string()
+            .contains("the vertex has lon, lat, height, red"),
+        "{e}"
+    );
+}

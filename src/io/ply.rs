@@ -260,8 +260,13 @@ fn check_vertex_layout(path: &Path, def: &ElementDef) -> Result<Layout, CloudErr
                 )));
             }
             None => {
+                let names: Vec<&str> = def.properties.keys().map(String::as_str).collect();
                 return Err(fmt(format!(
-                    "vertex element lacks a scalar '{axis}' property"
+                    "vertex element lacks a scalar '{axis}' property; the vertex has {}",
+                    match names.is_empty() {
+                        true => "no properties".to_string(),
+                        false => names.join(", "),
+                    }
                 )));
             }
         }
