@@ -732,4 +732,11 @@ fn options_of_experiments_not_run_are_refused() {
         );
         assert!(!out.exists(), "{args:?}: {} was made", out.display());
     }
+    // table5-floorplan's 2-D pose takes planar motion noise only.
+    let (st, text) = bench(&["table5-floorplan", "--set", "motion.mode=\"Full\"", "-o", o]);
+    assert!(
+        st.status.code() == Some(1) && text.contains("table5-floorplan estimates x, y and yaw"),
+        "{text}"
+    );
+    assert!(!out.exists(), "{} was made", out.display());
 }

@@ -156,7 +156,8 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
     // A session on the plan (`SharedMap::floor_plan`, what `omcl localize
     // --floorplan` runs) holds the camera level: a start pose pitched 10
     // degrees and odometry that climbs, pitches and rolls leave every
-    // particle level at the start's height; a global start is refused.
+    // particle level at the start's height (global and prompt starts:
+    // `two_d_starts_globally_and_from_words_over_the_3d_floor`).
     let scene = plan_scene(&map, &FloorPlanParams::default(), &seq.table, &two_d).unwrap();
     let shared = Arc::new(SharedMap::floor_plan("plan", scene));
     let config = SessionConfig {
@@ -167,10 +168,6 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
         floor_feature: None,
         ground: false,
     };
-    let e = Session::new(shared.clone(), config.clone(), &Start::Global)
-        .err()
-        .expect("refused");
-    assert!(matches!(e, SessionError::PoseStartOnly(_)), "{e}");
     let turn = |pitch: f64, roll: f64| {
         UnitQuaternion::from_euler_angles(pitch.to_radians(), 0.0, 0.0)
             * UnitQuaternion::from_euler_angles(0.0, 0.0, roll.to_radians())
@@ -294,14 +291,7 @@ fn two_d_starts_globally_and_from_words_over_the_3d_floor() {
     let two_d = TwoDParams::default();
     let scene = || plan_scene(&map, &FloorPlanParams::default(), &seq.table, &two_d).unwrap();
     let floor = seq.table.text_feature("floor").unwrap().to_vec();
-    let config = SessionConfig {
-        intrinsics: seq.intrinsics,
-        particles: 256,
-        filter: FilterConfig::floor_plan(),
-        floor: Default::default(),
-        floor_feature: Some(floor.clone()),
-        ground: false,
-    };
+    let config = config_global(&seq, &floor);
     let bare = Arc::new(SharedMap::floor_plan("plan", scene()));
     let e = Session::new(bare, config.clone(), &Start::Global)
         .err()
@@ -359,8 +349,61 @@ fn two_d_starts_globally_and_from_words_over_the_3d_floor() {
         words: words.iter().map(feature).collect(),
         params,
     };
-    let s = Session::new(shared.clone(), config, &prompt).unwrap();
+    let s = Session::new(shared.clone(), config.clone(), &prompt).unwrap();
     assert!(s.particles().iter().all(|p| on(p, &near)), "{words:?}");
+
+    // Recovery from a pose start held 0.2 m under the truth: frames seen
+    // from elsewhere (the sequence's frame 30 at the pose of frame k) make
+    // the filter inject, and every injected camera stands at the start's
+    // height, as the tracked ones are held (recovery's own draw puts them
+    // 1.5 m over their voxel's top).
+    let p0 = seq.poses()[0];
+    let z0 = p0.translation.vector.z - 0.2;
+    let mut start_pose = p0;
+    start_pose.translation.vector.z = z0;
+    let with_recovery = SessionConfig {
+        filter: FilterConfig {
+            recovery: Some(omcl::mcl::recovery::RecoveryParams::default()),
+            ..FilterConfig::floor_plan()
+        },
+        ..config_global(&seq, &floor)
+    };
+    let mut s = Session::new(
+        shared.clone(),
+        with_recovery,
+        &Start::Pose {
+            pose: start_pose,
+            sigma_m: 0.1,
+            sigma_rad: 0.1,
+        },
+    )
+    .unwrap();
+    let model = omcl::experiment::features::feature_model(&seq, Preset::Gt, 0x10c);
+    let rows = omcl::experiment::class_rows(&seq, shared.map());
+    let mut injected = 0;
+    for k in 0..12 {
+        let shown = if k < 4 { k } else { 30 };
+        let frame = seq.render(shown);
+        let f = omcl::experiment::GridFeatures::new(
+            omcl::experiment::SimFrameFeatures::new(
+                &model,
+                Preset::Gt,
+                &frame,
+                shown as u64,
+                &rows,
+            ),
+            4,
+        );
+        let r = s.step_by(&seq.increment(k), k as f64, &f).unwrap();
+        injected += r.step.injected;
+        assert!(
+            s.particles()
+                .iter()
+                .all(|p| (p.pose.translation.vector.z - z0).abs() < 1e-9),
+            "frame {k}: a particle off the start's height"
+        );
+    }
+    assert!(injected > 0, "no injection to check");
 
     // 2-D runs from both starts, horizontal errors.
     let model = omcl::experiment::features::feature_model(&seq, Preset::Gt, 0x10c);
@@ -392,5 +435,17 @@ fn two_d_starts_globally_and_from_words_over_the_3d_floor() {
         );
         let last = &r.errors_m[30..];
         assert!(last.iter().all(|&e| e <= 0.3), "{start:?}: {last:.3?}");
+    }
+}
+
+/// 256 particles, the 2-D block's filter, the word "floor" given.
+fn config_global(seq: &SimSequence, floor: &[f32]) -> SessionConfig {
+    SessionConfig {
+        intrinsics: seq.intrinsics,
+        particles: 256,
+        filter: FilterConfig::floor_plan(),
+        floor: Default::default(),
+        floor_feature: Some(floor.to_vec()),
+        ground: false,
     }
 }

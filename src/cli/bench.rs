@@ -54,8 +54,7 @@ fn refuse_options_of_other_experiments(a: &BenchArgs) -> anyhow::Result<()> {
     use omcl::experiment::sweep::Experiment as S;
     let ex = &a.plan.experiments;
     let planned: Vec<S> = ex.iter().filter_map(|e| e.to_library()).collect();
-    let wants =
-        |s: S| (planned.contains(&S::All) && s != S::Table5Floorplan) || planned.contains(&s);
+    let wants = |s: S| (planned.contains(&S::All) && s.in_all()) || planned.contains(&s);
     let has = |e: Experiment| ex.contains(&e);
     let street = &a.street;
     let scenes = &a.scenes;
@@ -199,6 +198,15 @@ fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
                     cloud.sampling.rays, cloud.sharpen
                 );
             }
+        }
+        let t5_plan = Experiment::Planned(sweep::Experiment::Table5Floorplan);
+        if a.plan.experiments.contains(&t5_plan) && a.plan.experiments != [t5_plan] {
+            let plan = with_args(omcl::mcl::FilterConfig::floor_plan())?;
+            eprintln!(
+                "(table5-floorplan has its own, Table I's 2-D filter with --rays and --set \
+                 applied to it too: {} rays, exponent {})",
+                plan.sampling.rays, plan.sharpen
+            );
         }
         if a.plan.experiments == [Experiment::Table1Floorplan] {
             let cloud = with_args(omcl::mcl::FilterConfig::floor_plan_point_cloud())?;

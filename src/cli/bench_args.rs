@@ -125,7 +125,8 @@ pub struct PlanArgs {
     #[arg(long, value_parser = super::count_in::<1, { super::MAX_COUNT }>)]
     pub particles: Option<usize>,
     /// Rays, sampled pixels before duplicates are dropped (default 2048;
-    /// table1-floorplan: 8192; table1-sixdof and table4: 4096; a block's
+    /// table1-floorplan and table5-floorplan: 8192; table1-sixdof and
+    /// table4: 4096; a block's
     /// point-cloud and raw-feature rows have their own: --show-config).
     #[arg(long, value_parser = super::count_in::<1, { super::MAX_COUNT }>)]
     pub rays: Option<usize>,
@@ -174,12 +175,13 @@ impl PlanArgs {
         self.filter_from(FilterConfig::default())
     }
 
-    /// `base` with `--rays`, then `--set`.
+    /// `base` with `--rays`, then `--set` (but the Table I blocks' own
+    /// `plan.*`, `two_d.*` and `sixdof.*`, which are not the filter's).
     fn filter_from(&self, mut base: FilterConfig) -> anyhow::Result<FilterConfig> {
         if let Some(r) = self.rays {
             base.sampling.rays = r;
         }
-        apply_overrides(base, &self.set)
+        apply_overrides(base, &super::bench_table1::block_overrides(&self.set)?.rest)
     }
 
     /// Refuses a `--variants` name that is not a variant of the sweep's
@@ -222,6 +224,14 @@ impl PlanArgs {
             .contains(&sweep::Experiment::Table5Floorplan)
             .then(|| self.filter_from(FilterConfig::floor_plan()))
             .transpose()?;
+        if let Some(f) = &floor_plan_filter {
+            anyhow::ensure!(
+                f.motion.mode == omcl::mcl::MotionMode::Planar,
+                "table5-floorplan estimates x, y and yaw: its motion noise stays planar (--set \
+                 motion.mode={:?} given)",
+                f.motion.mode
+            );
+        }
         Ok(BenchPlan {
             experiments,
             sequences: self.sequences,
@@ -396,4 +406,48 @@ pub fn apply_overrides(config: FilterConfig, sets: &[String]) -> anyhow::Result<
         .validate()
         .context("--set: the filter would refuse this configuration")?;
     Ok(config)
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    fn plan_args(args: &[&str]) -> super::PlanArgs {
+        let cli = crate::cli::Cli::try_parse_from(["omcl", "bench"].iter().chain(args)).unwrap();
+        match cli.command {
+            crate::cli::Command::Bench(b) => b.plan,
+            _ => unreachable!(),
+        }
+    }
+
+    /// The planned experiments' filters leave the Table I blocks' own
+    /// `--set` paths to the blocks (a `plan.*` beside table1-floorplan
+    /// made the planned part fail with "no parameter"); table5-floorplan's
+    /// filter is the 2-D block's with `--rays` and the filter's `--set`
+    /// applied, and only when it is planned.
+    #[test]
+    fn planned_filters_take_the_filters_paths_only() {
+        let a = plan_args(&[
+            "table1",
+            "table1-floorplan",
+            "table5-floorplan",
+            "--set",
+            "plan.band_min=0.2",
+            "--set",
+            "sharpen=50",
+            "--rays",
+            "999",
+            "-o",
+            "x",
+        ]);
+        let b = a.bench_plan().unwrap();
+        assert_eq!((b.filter.sharpen, b.filter.sampling.rays), (50.0, 999));
+        let f = b.floor_plan_filter.unwrap();
+        assert_eq!((f.sharpen, f.sampling.rays), (50.0, 999));
+        let base = omcl::mcl::FilterConfig::floor_plan();
+        assert_eq!(f.estimate, base.estimate);
+        assert_ne!(f, b.filter);
+        let b = plan_args(&["table5", "-o", "x"]).bench_plan().unwrap();
+        assert!(b.floor_plan_filter.is_none());
+    }
 }

@@ -203,7 +203,7 @@ fn plan(c: PlanCmd) -> anyhow::Result<()> {
     anyhow::ensure!(
         in_process.is_empty(),
         "{} {} in one process only, with `omcl bench {}`; a sweep plans table1, table2, \
-         table5, particles-rays, sampling and all",
+         table5, table5-floorplan, particles-rays, sampling and all",
         in_process.join(", "),
         if in_process.len() == 1 { "runs" } else { "run" },
         in_process[0]

@@ -209,13 +209,19 @@ fn collect_into(
     }
     let done = slots.iter().filter(|s| s.record.is_some()).count();
     let b = &manifest.header.bench;
+    // The rays of the 3-D filter; table5-floorplan alone: of its 2-D one
+    // (its table's heading gives them beside others).
+    let rays = match (&b.experiments[..], &b.floor_plan_filter) {
+        ([Experiment::Table5Floorplan], Some(f)) => f.sampling.rays,
+        _ => b.rays,
+    };
     let mut md = format!(
         "# omcl bench ({} sequence{} of {} frames, {} particles, {} rays)\n\n",
         b.sequences,
         if b.sequences == 1 { "" } else { "s" },
         b.frames,
         b.particles,
-        b.rays
+        rays
     );
     let ctx = Ctx {
         bench: b,

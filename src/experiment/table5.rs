@@ -205,11 +205,18 @@ impl Ctx<'_> {
             .map(|(p, runs)| serde_json::json!({"prompt": p, "rows": steps_rows(runs), "runs": runs}))
             .collect();
         let (file, title, errors) = match floor_plan {
-            false => ("table5.json", "Table V", ""),
+            false => ("table5.json", "Table V", String::new()),
             true => (
                 "table5_floorplan.json",
                 "Table V on the floor plan (2-D: x, y, yaw)",
-                "; horizontal errors",
+                format!(
+                    "; {} rays, horizontal errors",
+                    self.bench
+                        .floor_plan_filter
+                        .unwrap_or_else(FilterConfig::floor_plan)
+                        .sampling
+                        .rays
+                ),
             ),
         };
         write_json(&self.out.join(file), &table)?;

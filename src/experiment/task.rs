@@ -96,6 +96,11 @@ impl Experiment {
         Experiment::All,
     ];
 
+    /// Whether `all` plans it (`table5-floorplan` is left out).
+    pub fn in_all(self) -> bool {
+        self != Experiment::Table5Floorplan
+    }
+
     /// The name on the command line and in file names.
     pub fn name(self) -> &'static str {
         match self {
@@ -184,8 +189,7 @@ pub struct BenchPlan {
 impl BenchPlan {
     /// Whether `e` is among the planned experiments.
     pub fn wants(&self, e: Experiment) -> bool {
-        self.experiments.contains(&e)
-            || (self.experiments.contains(&Experiment::All) && e != Experiment::Table5Floorplan)
+        self.experiments.contains(&e) || (self.experiments.contains(&Experiment::All) && e.in_all())
     }
 
     /// The variants, in table order, with the preset override applied.

@@ -470,8 +470,13 @@ impl Filter {
     /// Enables injection of particles drawn by `sampler` when the
     /// likelihood drops (needs `config.recovery`).
     pub fn with_injection(mut self, sampler: FloorSampler) -> Self {
-        self.injection = Some(sampler);
+        self.set_injection(sampler);
         self
+    }
+
+    /// Replaces the injection sampler (e.g. after a new start).
+    pub fn set_injection(&mut self, sampler: FloorSampler) {
+        self.injection = Some(sampler);
     }
 
     /// Stratifies the sampled pixels over the database rows `strata` marks

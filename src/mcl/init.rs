@@ -143,6 +143,9 @@ pub struct FloorSampler {
     tops: Vec<Vector3<f64>>,
     resolution: f64,
     params: FloorParams,
+    /// Every camera at this height instead of `camera_height` over its
+    /// voxel's top ([`FloorSampler::at_height`]).
+    height: Option<f64>,
 }
 
 impl FloorSampler {
@@ -160,7 +163,17 @@ impl FloorSampler {
             tops,
             resolution: res,
             params,
+            height: None,
         }
+    }
+
+    /// The same sampler with every camera at height `z` (world metres):
+    /// for a session that holds its camera at a pose start's height (a
+    /// floor plan, `ground`), so that recovery's cameras stand where the
+    /// tracked ones do.
+    pub fn at_height(mut self, z: f64) -> Self {
+        self.height = Some(z);
+        self
     }
 
     /// Number of voxels.
@@ -183,7 +196,7 @@ impl FloorSampler {
         let p = Vector3::new(
             top.x + (rng.random::<f64>() - 0.5) * res,
             top.y + (rng.random::<f64>() - 0.5) * res,
-            top.z + self.params.camera_height,
+            self.height.unwrap_or(top.z + self.params.camera_height),
         );
         let yaw = self.params.yaw_centre + (rng.random::<f64>() - 0.5) * self.params.yaw_spread;
         Some(level_camera(p, yaw))

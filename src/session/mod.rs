@@ -491,17 +491,8 @@ impl Session {
             particles,
         )?
         .with_strata(map.strata.clone());
-        if config.filter.recovery.is_some() {
-            let floor = config
-                .floor_feature
-                .as_deref()
-                .ok_or(SessionError::NoFloorFeature("recovery"))?;
-            let floor_map = map
-                .floor_source()
-                .ok_or_else(|| SessionError::PoseStartOnly(map.name.clone()))?;
-            let voxels = mcl::init::floor_voxels(floor_map, floor, config.floor.rho)
-                .map_err(SessionError::Recovery)?;
-            filter = filter.with_injection(FloorSampler::new(floor_map, &voxels, config.floor));
+        if let Some(sampler) = injection(&map, &config, start, mount.as_ref())? {
+            filter = filter.with_injection(sampler);
         }
         Ok(Session {
             map,
@@ -539,7 +530,11 @@ impl Session {
     pub fn reinitialize(&mut self, start: &Start) -> Result<(), SessionError> {
         let mount = mount(&self.map, &self.config, start)?;
         let particles = initial_particles(&self.map, &self.config, start, &mut self.init_rng)?;
+        let sampler = injection(&self.map, &self.config, start, mount.as_ref())?;
         self.filter.reinitialize(particles)?;
+        if let Some(sampler) = sampler {
+            self.filter.set_injection(sampler);
+        }
         self.mount = mount;
         self.last_odom = None;
         Ok(())
@@ -643,6 +638,35 @@ fn mount(
         return Err(SessionError::TiltedRecovery(tilt));
     }
     Ok(Some(mount))
+}
+
+/// Recovery's sampler, when `config` asks for recovery: level cameras over
+/// the floor voxels of `map`'s floor source, at the floor's camera height;
+/// for a held camera (`mount`) from a pose start at that pose's height, where
+/// the session holds the tracked ones.
+fn injection(
+    map: &SharedMap,
+    config: &SessionConfig,
+    start: &Start,
+    mount: Option<&Mount>,
+) -> Result<Option<FloorSampler>, SessionError> {
+    if config.filter.recovery.is_none() {
+        return Ok(None);
+    }
+    let floor = config
+        .floor_feature
+        .as_deref()
+        .ok_or(SessionError::NoFloorFeature("recovery"))?;
+    let floor_map = map
+        .floor_source()
+        .ok_or_else(|| SessionError::PoseStartOnly(map.name.clone()))?;
+    let voxels = mcl::init::floor_voxels(floor_map, floor, config.floor.rho)
+        .map_err(SessionError::Recovery)?;
+    let sampler = FloorSampler::new(floor_map, &voxels, config.floor);
+    Ok(Some(match (mount, start) {
+        (Some(_), Start::Pose { pose, .. }) => sampler.at_height(pose.translation.vector.z),
+        _ => sampler,
+    }))
 }
 
 /// A frame's stamp must be finite and its odometry a finite rigid motion.
