@@ -34,13 +34,7 @@ use omcl::session::{Session, SessionConfig, SessionError, SharedMap, Start};
 fn two_d_omcl_tracks_on_the_floor_plan() {
     let table = builtin_table().unwrap();
     let seq = SimSequence::generate(1, 60, &table).unwrap();
-    let map = BenchMap::build(
-        &seq,
-        MapSource::Features(Preset::Gt),
-        &MapParams::default(),
-        &|_| {},
-    )
-    .unwrap();
+    let map = gt_map(&seq);
     let two_d = TwoDParams::default();
     let plan = plan_scene(&map, &FloorPlanParams::default(), &seq.table, &two_d).unwrap();
     // The plan is a one-layer map of the 3-D map's columns.
@@ -218,13 +212,7 @@ fn two_d_omcl_tracks_on_the_floor_plan() {
 fn six_dof_omcl_tracks_height_and_pitch_changes() {
     let table = builtin_table().unwrap();
     let seq = sixdof_sequence(1, 60, &table, &SixDofMotion::default()).unwrap();
-    let map = BenchMap::build(
-        &seq,
-        MapSource::Features(Preset::Gt),
-        &MapParams::default(),
-        &|_| {},
-    )
-    .unwrap();
+    let map = gt_map(&seq);
     // 512 particles x 4096 rays (the block's own default is 1024 x 4096):
     // half the casts, and a cloud sparse enough that the second layer's
     // part shows.
@@ -281,13 +269,7 @@ fn two_d_starts_globally_and_from_words_over_the_3d_floor() {
     use std::collections::HashSet;
     let table = builtin_table().unwrap();
     let seq = SimSequence::generate(0, 40, &table).unwrap();
-    let map = BenchMap::build(
-        &seq,
-        MapSource::Features(Preset::Gt),
-        &MapParams::default(),
-        &|_| {},
-    )
-    .unwrap();
+    let map = gt_map(&seq);
     let two_d = TwoDParams::default();
     let scene = || plan_scene(&map, &FloorPlanParams::default(), &seq.table, &two_d).unwrap();
     let floor = seq.table.text_feature("floor").unwrap().to_vec();
@@ -448,4 +430,15 @@ fn config_global(seq: &SimSequence, floor: &[f32]) -> SessionConfig {
         floor_feature: Some(floor.to_vec()),
         ground: false,
     }
+}
+
+/// The map of `seq` from its ground-truth features, the bench's defaults.
+fn gt_map(seq: &SimSequence) -> BenchMap {
+    BenchMap::build(
+        seq,
+        MapSource::Features(Preset::Gt),
+        &MapParams::default(),
+        &|_| {},
+    )
+    .unwrap()
 }
