@@ -181,7 +181,13 @@ impl PlanArgs {
         if let Some(r) = self.rays {
             base.sampling.rays = r;
         }
-        apply_overrides(base, &super::bench_table1::block_overrides(&self.set)?.rest)
+        let filter_sets: Vec<String> = self
+            .set
+            .iter()
+            .filter(|s| !is_block_path(s))
+            .cloned()
+            .collect();
+        apply_overrides(base, &filter_sets)
     }
 
     /// Refuses a `--variants` name that is not a variant of the sweep's
@@ -379,6 +385,16 @@ pub struct BenchArgs {
     /// `omcl sweep plan` wrote there, with its results and maps).
     #[arg(long)]
     pub force: bool,
+}
+
+/// The path prefixes of `--set` that are the Table I blocks' own (the floor
+/// plan, the 2-D sensor, the 6-DoF sequences), not the filter's.
+pub const BLOCK_PATHS: [&str; 3] = ["plan.", "two_d.", "sixdof."];
+
+/// Whether a `--set PATH=VALUE` is one of the blocks' ([`BLOCK_PATHS`]).
+pub fn is_block_path(set: &str) -> bool {
+    set.split_once('=')
+        .is_some_and(|(path, _)| BLOCK_PATHS.iter().any(|p| path.starts_with(p)))
 }
 
 /// Applies `PATH=VALUE` overrides to a filter configuration through its

@@ -12,7 +12,7 @@ use omcl::experiment::table1_6dof::{self, SixDofMotion};
 use omcl::experiment::table1_floorplan::{self, BlockSpec};
 use omcl::map::FloorPlanParams;
 
-use super::bench_args::{BenchArgs, Experiment};
+use super::bench_args::{BenchArgs, Experiment, is_block_path};
 use omcl::mcl::{FilterConfig, INDOOR_PARTICLES, SIX_DOF_PARTICLES};
 
 /// `--export-frames DIR`: writes the 3-D block's sequences to `DIR` and
@@ -172,15 +172,10 @@ pub(super) fn block_overrides(sets: &[String]) -> anyhow::Result<BlockOverrides>
     })?;
     let mut rest = Vec::new();
     for s in sets {
-        let Some((path, value)) = s.split_once('=') else {
+        let Some((path, value)) = s.split_once('=').filter(|_| is_block_path(s)) else {
             rest.push(s.clone());
             continue;
         };
-        let ours = ["plan.", "two_d.", "sixdof."];
-        if !ours.iter().any(|p| path.starts_with(p)) {
-            rest.push(s.clone());
-            continue;
-        }
         let value: serde_json::Value = serde_json::from_str(value)
             .with_context(|| format!("--set {s:?}: VALUE must be JSON"))?;
         let mut slot = &mut v;
