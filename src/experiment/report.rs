@@ -211,8 +211,8 @@ fn collect_into(
     let b = &manifest.header.bench;
     // The rays of the 3-D filter; table5-floorplan alone: of its 2-D one
     // (its table's heading gives them beside others).
-    let rays = match (&b.experiments[..], &b.floor_plan_filter) {
-        ([Experiment::Table5Floorplan], Some(f)) => f.sampling.rays,
+    let rays = match b.experiments[..] {
+        [Experiment::Table5Floorplan] => b.two_d_filter().sampling.rays,
         _ => b.rays,
     };
     let mut md = format!(

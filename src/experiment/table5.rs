@@ -211,11 +211,7 @@ impl Ctx<'_> {
                 "Table V on the floor plan (2-D: x, y, yaw)",
                 format!(
                     "; {} rays, horizontal errors",
-                    self.bench
-                        .floor_plan_filter
-                        .unwrap_or_else(FilterConfig::floor_plan)
-                        .sampling
-                        .rays
+                    self.bench.two_d_filter().sampling.rays
                 ),
             ),
         };
@@ -254,13 +250,10 @@ impl Ctx<'_> {
 
 /// Plans Table V: global runs on each sequence, without and with a prompt;
 /// with `floor_plan` on the floor plan, with the 2-D filter
-/// ([`super::task::BenchPlan::floor_plan_filter`]).
+/// ([`super::task::BenchPlan::two_d_filter`]).
 pub(super) fn plan(p: &Planner, v: &Variant, floor_plan: bool, out: &mut Vec<(Task, Use)>) {
     let filter = match floor_plan {
-        true => p
-            .bench
-            .floor_plan_filter
-            .unwrap_or_else(FilterConfig::floor_plan),
+        true => p.bench.two_d_filter(),
         false => p.bench.filter,
     };
     for prompt in [false, true] {

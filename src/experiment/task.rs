@@ -187,6 +187,14 @@ pub struct BenchPlan {
 }
 
 impl BenchPlan {
+    /// The filter of `table5-floorplan`: [`BenchPlan::floor_plan_filter`],
+    /// or the 2-D block's own ([`FilterConfig::floor_plan`]) in a plan
+    /// made without one.
+    pub fn two_d_filter(&self) -> FilterConfig {
+        self.floor_plan_filter
+            .unwrap_or_else(FilterConfig::floor_plan)
+    }
+
     /// Whether `e` is among the planned experiments.
     pub fn wants(&self, e: Experiment) -> bool {
         self.experiments.contains(&e) || (self.experiments.contains(&Experiment::All) && e.in_all())
