@@ -250,7 +250,14 @@ pub fn prompt_floor_voxels(
     let (lo, hi) = map
         .cell_bounds()
         .ok_or(MclError::NoFloor { rho: floor_rho })?;
-    let cell = res.max(params.radius / 32.0);
+    // A radius wider than the map's horizontal diagonal counts every voxel
+    // of the map, as that diagonal does: capped to it, a huge radius
+    // (1e308) neither overflows its square nor makes the plan's cells
+    // coarser than the map.
+    let diag = res * f64::hypot((hi[0] - lo[0] + 1) as f64, (hi[1] - lo[1] + 1) as f64);
+    let whole_map = params.radius > diag;
+    let radius = params.radius.min(diag);
+    let cell = res.max(radius / 32.0);
     // Plan cell of a leaf: its centre's horizontal offset from the map's
     // lower corner, in plan cells.
     let to_plan = |c: [i32; 3]| -> (usize, usize) {
@@ -264,11 +271,11 @@ pub fn prompt_floor_voxels(
         .iter()
         .map(|&l| (l, to_plan(crate::map::key::decode(map.codes()[l]))))
         .collect();
-    let r = (params.radius / cell).ceil() as i64;
+    let r = (radius / cell).ceil() as i64;
     let half: Vec<usize> = (-r..=r)
         .map(|dj| {
             let d = dj as f64 * cell;
-            ((params.radius * params.radius - d * d).max(0.0).sqrt() / cell).floor() as usize
+            ((radius * radius - d * d).max(0.0).sqrt() / cell).floor() as usize
         })
         .collect();
     let k = params.k_at(res);
@@ -311,7 +318,8 @@ pub fn prompt_floor_voxels(
     if out.is_empty() {
         return Err(MclError::NoPromptMatch {
             k,
-            radius: params.radius,
+            radius,
+            whole_map,
         });
     }
     Ok(out)

@@ -110,10 +110,17 @@ pub enum MclError {
         "no map voxel is similar enough to \"floor\" (similarity >= {rho}); cannot place particles"
     )]
     NoFloor { rho: f32 },
+    /// `radius`: the one searched, at most the map's horizontal diagonal
+    /// (`whole_map` when the asked one was wider and so capped).
     #[error(
-        "no floor voxel has at least {k:.0} voxels matching every prompt word within {radius} m"
+        "no floor voxel has at least {k:.0} voxels matching every prompt word within {radius:.2} m{}",
+        if *whole_map { " (the whole map: the radius asked for is wider than it)" } else { "" }
     )]
-    NoPromptMatch { k: f64, radius: f64 },
+    NoPromptMatch {
+        k: f64,
+        radius: f64,
+        whole_map: bool,
+    },
     #[error("prompt word {index} has dimension {got}, the map's database has {expected}")]
     PromptDim {
         index: usize,

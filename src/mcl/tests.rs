@@ -901,6 +901,64 @@ fn prompt_counts_match_a_brute_force_count() {
     assert!(checked > 100);
 }
 
+/// A radius wider than the map counts every voxel of the map: all the
+/// word's voxels are near every floor voxel, one more than all of them
+/// near none; and a radius of 1e308 is searched (and told) as the map's
+/// diagonal, not squared to infinity or printed in 309 digits.
+#[test]
+fn a_radius_wider_than_the_map_counts_the_whole_map() {
+    let w = world();
+    let floor = w.map.db().row(scene::FLOOR as usize).to_vec();
+    let word = w.map.db().row(scene::FURNITURE_BASE as usize + 2).to_vec();
+    let total = w
+        .map
+        .rows()
+        .iter()
+        .filter(|&&r| r == scene::FURNITURE_BASE + 2)
+        .count();
+    assert!(total > 0);
+    let n_floor = w.map.rows().iter().filter(|&&r| r == scene::FLOOR).count();
+    for radius in [1e308, f64::MAX, 1e4] {
+        let params = |k: usize| PromptParams {
+            radius,
+            rho: 0.9,
+            k: k as f64,
+            k_resolution: 0.05,
+        };
+        let all = init::prompt_floor_voxels(
+            &w.map,
+            &floor,
+            std::slice::from_ref(&word),
+            0.9,
+            &params(total),
+        )
+        .unwrap();
+        assert_eq!(all.len(), n_floor, "radius {radius}");
+        match init::prompt_floor_voxels(
+            &w.map,
+            &floor,
+            std::slice::from_ref(&word),
+            0.9,
+            &params(total + 1),
+        ) {
+            Err(
+                e @ MclError::NoPromptMatch {
+                    radius: r,
+                    whole_map: true,
+                    ..
+                },
+            ) => {
+                let (lo, hi) = w.map.world_bounds().unwrap();
+                let diag = (hi[0] - lo[0]).hypot(hi[1] - lo[1]);
+                assert!((r - diag).abs() < 0.1, "{r} against {diag}");
+                let text = e.to_string();
+                assert!(text.len() < 200 && text.contains("the whole map"), "{text}");
+            }
+            other => panic!("radius {radius}: {other:?}"),
+        }
+    }
+}
+
 #[test]
 fn a_caster_of_another_map_or_a_failed_cast_is_an_error() {
     let w = world();
