@@ -286,7 +286,8 @@ fn overrides_reach_the_filter_and_bad_ones_are_refused() {
 
 /// Table V and both ablations in one call (maps shared), on a tiny
 /// benchmark: one combined report, every JSON table with its cells and
-/// values in range, every figure.
+/// values in range, every figure; the floor plan's band set for
+/// table5-floorplan, which its heading gives.
 #[test]
 fn table5_and_ablations_write_tables_and_figures() {
     let dir = tempfile::tempdir().unwrap();
@@ -310,6 +311,8 @@ fn table5_and_ablations_write_tables_and_figures() {
         "1",
         "--max-steps",
         "4",
+        "--set",
+        "plan.band_max=1.5",
         "-o",
         out,
     ]);
@@ -318,7 +321,7 @@ fn table5_and_ablations_write_tables_and_figures() {
     for h in [
         "Table V",
         "Table V on the floor plan (2-D: x, y, yaw)",
-        "horizontal errors",
+        "horizontal errors; plans of the band 0.10 to 1.50 m)",
         "particles x rays",
         "ray sampling",
     ] {
@@ -722,7 +725,7 @@ fn options_of_experiments_not_run_are_refused() {
         ),
         (
             vec!["table1", "--set", "plan.band_min=0.2"],
-            "--set plan.band_min=0.2 is the Table I blocks'",
+            "--set plan.band_min=0.2 is the floor plans'",
         ),
     ] {
         let (st, text) = bench(&[&args[..], &["-o", o]].concat());
@@ -732,6 +735,14 @@ fn options_of_experiments_not_run_are_refused() {
         );
         assert!(!out.exists(), "{args:?}: {} was made", out.display());
     }
+    // table5-floorplan's plans take the block's band, checked before any
+    // run.
+    let (st, text) = bench(&["table5-floorplan", "--set", "plan.band_min=3", "-o", o]);
+    assert!(
+        st.status.code() == Some(1) && text.contains("height band [3, 2]"),
+        "{text}"
+    );
+    assert!(!out.exists(), "{} was made", out.display());
     // table5-floorplan's 2-D pose takes planar motion noise only.
     let (st, text) = bench(&["table5-floorplan", "--set", "motion.mode=\"Full\"", "-o", o]);
     assert!(

@@ -442,3 +442,38 @@ fn gt_map(seq: &SimSequence) -> BenchMap {
     )
     .unwrap()
 }
+
+/// Table V on the floor plan projects each map with its settings
+/// (`omcl bench table5-floorplan --set plan.* two_d.*`): the defaults
+/// run; a band above everything the map holds is refused by the plan's
+/// projection, naming the band, so the settings reach it.
+#[test]
+fn table5_on_the_plan_projects_with_its_settings() {
+    use omcl::experiment::plan_settings::PlanSettings;
+    use omcl::experiment::run::GlobalSpec;
+    use omcl::experiment::table5::global_runs;
+    let table = builtin_table().unwrap();
+    let seq = SimSequence::generate(0, 20, &table).unwrap();
+    let map = gt_map(&seq);
+    let spec = |plan: FloorPlanParams| GlobalSpec {
+        preset: Preset::Gt,
+        filter: FilterConfig::floor_plan(),
+        particles: 64,
+        starts: 1,
+        max_steps: 2,
+        prompt: false,
+        floor_plan: Some(PlanSettings {
+            plan,
+            two_d: TwoDParams::default(),
+        }),
+    };
+    let runs = global_runs(&seq, &map, &spec(FloorPlanParams::default())).unwrap();
+    assert_eq!(runs.len(), 1);
+    assert_eq!(runs[0].error, None);
+    let high = FloorPlanParams {
+        band_min: 50.0,
+        band_max: 60.0,
+    };
+    let e = global_runs(&seq, &map, &spec(high)).expect_err("refused");
+    assert!(e.to_string().contains("height band [50, 60]"), "{e}");
+}

@@ -146,9 +146,12 @@ fn refuse_options_of_other_experiments(a: &BenchArgs) -> anyhow::Result<()> {
     );
     let plan_sets = [set_names("plan."), set_names("two_d.")].concat();
     anyhow::ensure!(
-        plan_sets.is_empty() || has(Experiment::Table1Floorplan) || has(Experiment::Table1Sixdof),
-        "--set {} is the Table I blocks' (table1-floorplan, table1-sixdof), which this call \
-         does not run; leave it out",
+        plan_sets.is_empty()
+            || has(Experiment::Table1Floorplan)
+            || has(Experiment::Table1Sixdof)
+            || has(Experiment::Planned(sweep::Experiment::Table5Floorplan)),
+        "--set {} is the floor plans' (table1-floorplan, table1-sixdof, table5-floorplan), \
+         which this call does not run; leave it out",
         plan_sets.join(", ")
     );
     Ok(())
@@ -180,7 +183,7 @@ fn run_experiments(a: BenchArgs) -> anyhow::Result<()> {
         };
         // The Table I blocks' own paths (plan.*, two_d.*, sixdof.*) are not
         // the filter's.
-        let sets = super::bench_table1::block_overrides(&a.plan.set)?.rest;
+        let sets = super::bench_args::block_overrides(&a.plan.set)?.rest;
         let with_args = |mut f: omcl::mcl::FilterConfig| {
             if let Some(r) = a.plan.rays {
                 f.sampling.rays = r;

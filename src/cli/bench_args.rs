@@ -8,8 +8,12 @@ use std::path::PathBuf;
 use anyhow::Context;
 use clap::{Args, ValueEnum};
 
+use omcl::experiment::plan_settings::PlanSettings;
 use omcl::experiment::sweep::{self, BenchPlan};
+use omcl::experiment::table1_6dof::SixDofMotion;
+use omcl::experiment::table1_floorplan::TwoDParams;
 use omcl::experiment::variant::named_in;
+use omcl::map::FloorPlanParams;
 use omcl::mcl::FilterConfig;
 
 /// The experiments on the command line: the library's planned ones
@@ -161,9 +165,10 @@ pub struct PlanArgs {
     pub world: omcl::sim::indoor::WorldKind,
     /// Override any filter parameter: `--set sharpen=40 --set
     /// sensor.miss_score=0.2` (paths into the filter configuration's JSON,
-    /// printed by `--show-config`; VALUE is JSON). table1-floorplan and
-    /// table1-sixdof also take `plan.*` and `two_d.*` (the floor plan and
-    /// 2-D sensor) and `sixdof.*` (the 3-D block's sequences: `height_m`,
+    /// printed by `--show-config`; VALUE is JSON). table1-floorplan,
+    /// table1-sixdof and table5-floorplan also take `plan.*` and `two_d.*`
+    /// (the floor plan's band and the 2-D sensor), and table1-sixdof
+    /// `sixdof.*` (the 3-D block's sequences: `height_m`,
     /// `pitch_deg`, `roll_deg`, `sigma_translation`, `sigma_rotation_deg`).
     #[arg(long = "set", value_name = "PATH=VALUE")]
     pub set: Vec<String>,
@@ -238,6 +243,22 @@ impl PlanArgs {
                 f.motion.mode
             );
         }
+        // table5-floorplan's plans: the 2-D block's `plan.*` and `two_d.*`,
+        // kept only where they change the defaults (so that a plan without
+        // them gives the runs' ids of before).
+        let floor_plan_scene = match floor_plan_filter {
+            Some(_) => {
+                let b = block_overrides(&self.set)?;
+                b.plan.validate().context("--set plan.*")?;
+                b.two_d.validate().context("--set")?;
+                Some(PlanSettings {
+                    plan: b.plan,
+                    two_d: b.two_d,
+                })
+                .filter(|s| *s != PlanSettings::default())
+            }
+            None => None,
+        };
         Ok(BenchPlan {
             experiments,
             sequences: self.sequences,
@@ -254,6 +275,7 @@ impl PlanArgs {
             max_steps: self.max_steps,
             filter: self.filter()?,
             floor_plan_filter,
+            floor_plan_scene,
             world: self.world,
         })
     }
@@ -397,6 +419,52 @@ pub fn is_block_path(set: &str) -> bool {
         .is_some_and(|(path, _)| BLOCK_PATHS.iter().any(|p| path.starts_with(p)))
 }
 
+/// The blocks' own `--set` paths: `plan.band_min`, `plan.band_max` (the
+/// floor plan's height band, m), `two_d.max_elevation_deg`,
+/// `two_d.silence_rho`, `two_d.heights` (OMCL's 2-D pixel selection and
+/// sensor) and `sixdof.*` (the 3-D block's sequences: `height_m`,
+/// `pitch_deg`, `roll_deg`, `periods`, `sigma_translation`,
+/// `sigma_rotation_deg`; [`SixDofMotion`]); every other path goes to the
+/// filter.
+#[derive(serde::Serialize, serde::Deserialize)]
+pub(super) struct BlockOverrides {
+    pub(super) plan: FloorPlanParams,
+    pub(super) two_d: TwoDParams,
+    pub(super) sixdof: SixDofMotion,
+    /// The `--set` paths that are the filter's.
+    #[serde(skip)]
+    pub(super) rest: Vec<String>,
+}
+
+pub(super) fn block_overrides(sets: &[String]) -> anyhow::Result<BlockOverrides> {
+    let mut v = serde_json::to_value(BlockOverrides {
+        plan: FloorPlanParams::default(),
+        two_d: Default::default(),
+        sixdof: SixDofMotion::default(),
+        rest: Vec::new(),
+    })?;
+    let mut rest = Vec::new();
+    for s in sets {
+        let Some((path, value)) = s.split_once('=').filter(|_| is_block_path(s)) else {
+            rest.push(s.clone());
+            continue;
+        };
+        let value: serde_json::Value = serde_json::from_str(value)
+            .with_context(|| format!("--set {s:?}: VALUE must be JSON"))?;
+        let mut slot = &mut v;
+        for key in path.split('.') {
+            slot = slot
+                .get_mut(key)
+                .with_context(|| format!("--set {s:?}: no parameter {path:?}"))?;
+        }
+        *slot = value;
+    }
+    let mut b: BlockOverrides =
+        serde_json::from_value(v).context("--set: the block's parameters are invalid")?;
+    b.rest = rest;
+    Ok(b)
+}
+
 /// Applies `PATH=VALUE` overrides to a filter configuration through its
 /// JSON form (`VALUE` is JSON; a bare word is taken as a string).
 pub fn apply_overrides(config: FilterConfig, sets: &[String]) -> anyhow::Result<FilterConfig> {
@@ -426,6 +494,7 @@ pub fn apply_overrides(config: FilterConfig, sets: &[String]) -> anyhow::Result<
 
 #[cfg(test)]
 mod tests {
+    use super::TwoDParams;
     use clap::Parser;
 
     fn plan_args(args: &[&str]) -> super::PlanArgs {
@@ -465,5 +534,43 @@ mod tests {
         assert_ne!(f, b.filter);
         let b = plan_args(&["table5", "-o", "x"]).bench_plan().unwrap();
         assert!(b.floor_plan_filter.is_none());
+    }
+
+    /// table5-floorplan projects its plans with the 2-D block's `plan.*`
+    /// and `two_d.*`, kept in the plan only where they change the
+    /// defaults (and only with table5-floorplan); an invalid `two_d` is
+    /// refused by name.
+    #[test]
+    fn table5_floorplan_takes_the_blocks_plan_settings() {
+        let planned = |args: &[&str]| plan_args(args).bench_plan();
+        let s = planned(&[
+            "table5-floorplan",
+            "--set",
+            "plan.band_min=0.2",
+            "--set",
+            "two_d.max_elevation_deg=20",
+            "-o",
+            "x",
+        ])
+        .unwrap()
+        .floor_plan_scene
+        .unwrap();
+        assert_eq!((s.plan.band_min, s.plan.band_max), (0.2, 2.0));
+        assert_eq!(s.two_d.max_elevation_deg, 20.0);
+        assert_eq!(
+            TwoDParams {
+                max_elevation_deg: TwoDParams::default().max_elevation_deg,
+                ..s.two_d
+            },
+            TwoDParams::default()
+        );
+        let none = planned(&["table5-floorplan", "-o", "x"]).unwrap();
+        assert!(none.floor_plan_scene.is_none());
+        let elsewhere = planned(&["table5", "--set", "plan.band_min=0.2", "-o", "x"]).unwrap();
+        assert!(elsewhere.floor_plan_scene.is_none());
+        let e = planned(&["table5-floorplan", "--set", "two_d.skirt=-1", "-o", "x"]).unwrap_err();
+        assert!(format!("{e:#}").contains("two_d.skirt"), "{e:#}");
+        let e = planned(&["table5-floorplan", "--set", "plan.band_min=3", "-o", "x"]).unwrap_err();
+        assert!(format!("{e:#}").contains("height band [3, 2]"), "{e:#}");
     }
 }

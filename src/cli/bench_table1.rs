@@ -8,11 +8,10 @@ use std::path::Path;
 use anyhow::Context;
 
 use omcl::experiment::table1::{BlockResult, write_figure4};
-use omcl::experiment::table1_6dof::{self, SixDofMotion};
+use omcl::experiment::table1_6dof;
 use omcl::experiment::table1_floorplan::{self, BlockSpec};
-use omcl::map::FloorPlanParams;
 
-use super::bench_args::{BenchArgs, Experiment, is_block_path};
+use super::bench_args::{BenchArgs, BlockOverrides, Experiment, block_overrides};
 use omcl::mcl::{FilterConfig, INDOOR_PARTICLES, SIX_DOF_PARTICLES};
 
 /// `--export-frames DIR`: writes the 3-D block's sequences to `DIR` and
@@ -146,52 +145,6 @@ fn check_variants(a: &BenchArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The blocks' own `--set` paths: `plan.band_min`, `plan.band_max` (the
-/// floor plan's height band, m), `two_d.max_elevation_deg`,
-/// `two_d.silence_rho`, `two_d.heights` (OMCL's 2-D pixel selection and
-/// sensor) and `sixdof.*` (the 3-D block's sequences: `height_m`,
-/// `pitch_deg`, `roll_deg`, `periods`, `sigma_translation`,
-/// `sigma_rotation_deg`; [`SixDofMotion`]); every other path goes to the
-/// filter.
-#[derive(serde::Serialize, serde::Deserialize)]
-pub(super) struct BlockOverrides {
-    plan: FloorPlanParams,
-    two_d: table1_floorplan::TwoDParams,
-    sixdof: SixDofMotion,
-    /// The `--set` paths that are the filter's.
-    #[serde(skip)]
-    pub(super) rest: Vec<String>,
-}
-
-pub(super) fn block_overrides(sets: &[String]) -> anyhow::Result<BlockOverrides> {
-    let mut v = serde_json::to_value(BlockOverrides {
-        plan: FloorPlanParams::default(),
-        two_d: Default::default(),
-        sixdof: SixDofMotion::default(),
-        rest: Vec::new(),
-    })?;
-    let mut rest = Vec::new();
-    for s in sets {
-        let Some((path, value)) = s.split_once('=').filter(|_| is_block_path(s)) else {
-            rest.push(s.clone());
-            continue;
-        };
-        let value: serde_json::Value = serde_json::from_str(value)
-            .with_context(|| format!("--set {s:?}: VALUE must be JSON"))?;
-        let mut slot = &mut v;
-        for key in path.split('.') {
-            slot = slot
-                .get_mut(key)
-                .with_context(|| format!("--set {s:?}: no parameter {path:?}"))?;
-        }
-        *slot = value;
-    }
-    let mut b: BlockOverrides =
-        serde_json::from_value(v).context("--set: the block's parameters are invalid")?;
-    b.rest = rest;
-    Ok(b)
-}
-
 /// The 6-DoF block's filters: the frame-built maps' and the point-cloud
 /// map's.
 fn six_dof_filters() -> [FilterConfig; 3] {
@@ -234,6 +187,7 @@ fn block_spec(
     });
     let (filter, point_cloud_filter, raw_feature_filter) =
         (filter?, point_cloud_filter?, raw_feature_filter?);
+    plan.validate().context("--set plan.*")?;
     two_d.validate().context("--set")?;
     Ok(BlockSpec {
         seeds: a.plan.first_seed..a.plan.first_seed + a.plan.sequences,

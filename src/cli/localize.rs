@@ -183,7 +183,8 @@ pub struct LocalizeArgs {
     #[arg(long)]
     pub prompt: Option<String>,
     /// --init prompt: horizontal radius around a floor voxel in which the
-    /// words' voxels are counted, metres [default: 2, the paper's].
+    /// words' voxels are counted, metres [default: 2, the paper's]; one
+    /// wider than the map counts the whole map.
     #[arg(long, requires = "prompt", value_parser = super::positive)]
     pub prompt_radius: Option<f64>,
     /// --init prompt: a voxel matches a word at this cosine similarity or

@@ -19,6 +19,7 @@ pub mod cells;
 pub mod features;
 pub mod mapping;
 pub mod particles_rays;
+pub mod plan_settings;
 pub mod report;
 pub mod run;
 pub mod sampling;

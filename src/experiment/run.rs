@@ -241,8 +241,9 @@ pub struct GlobalSpec {
     pub max_steps: usize,
     /// Start over the floor voxels matching a prompt (else all floor).
     pub prompt: bool,
-    /// In 2-D, on the map's floor plan ([`super::table5::global_runs`]).
-    pub floor_plan: bool,
+    /// In 2-D, on the map's floor plan projected and cast with these
+    /// settings ([`super::table5::global_runs`]); `None`: in 3-D.
+    pub floor_plan: Option<super::plan_settings::PlanSettings>,
 }
 
 /// One global-localization run.

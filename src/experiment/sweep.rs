@@ -681,6 +681,7 @@ fn compute(entry: &RunEntry, cache: &Cache) -> Result<RunRecord, SweepError> {
             max_steps,
             prompt,
             floor_plan,
+            plan,
         } => {
             let spec = GlobalSpec {
                 preset: t.preset,
@@ -689,7 +690,7 @@ fn compute(entry: &RunEntry, cache: &Cache) -> Result<RunRecord, SweepError> {
                 starts: *starts,
                 max_steps: *max_steps,
                 prompt: *prompt,
-                floor_plan: *floor_plan,
+                floor_plan: floor_plan.then(|| plan.unwrap_or_default()),
             };
             Outcome::Global(table5::global_runs(&seq, &map, &spec).map_err(run_err)?)
         }
@@ -839,6 +840,7 @@ mod tests {
             max_steps: 60,
             filter: FilterConfig::default(),
             floor_plan_filter: None,
+            floor_plan_scene: None,
             world: Default::default(),
         }
     }
@@ -988,6 +990,39 @@ mod tests {
                     ..
                 }]
             ));
+        }
+        // The plans' settings (`--set plan.*`) go into the 2-D runs' tasks
+        // and so their ids, and into no 3-D run's.
+        let mut set = b.clone();
+        let settings = super::super::plan_settings::PlanSettings {
+            plan: crate::map::FloorPlanParams {
+                band_min: 0.2,
+                ..Default::default()
+            },
+            two_d: Default::default(),
+        };
+        set.floor_plan_scene = Some(settings);
+        let with = plan(&set).unwrap();
+        assert_eq!(with.len(), entries.len());
+        for (a, e) in entries.iter().zip(&with) {
+            match &e.task.work {
+                Work::Global {
+                    floor_plan: true,
+                    plan,
+                    ..
+                } => {
+                    assert_eq!(*plan, Some(settings));
+                    assert_ne!(a.id, e.id);
+                }
+                Work::Global { plan, .. } => {
+                    assert_eq!(*plan, None);
+                    assert_eq!(a.id, e.id);
+                }
+                w => panic!("{w:?}"),
+            }
+        }
+        for e in &two_d {
+            assert!(matches!(e.task.work, Work::Global { plan: None, .. }));
         }
         b.experiments = vec![Experiment::All];
         assert!(!b.wants(Experiment::Table5Floorplan));

@@ -26,8 +26,9 @@ use crate::session::SharedMap;
 /// of [`crate::eval::localization::CONVERGENCE_THRESHOLDS`].
 ///
 /// With `spec.floor_plan` the runs are in 2-D on the map's floor plan
-/// (Table I's 2-D scene, [`super::table1_floorplan::plan_scene`] with the
-/// default band and sight, as `omcl localize --floorplan` runs it): the
+/// (Table I's 2-D scene, [`super::table1_floorplan::plan_scene`] with its
+/// settings, by default the band and sight `omcl localize --floorplan`
+/// projects with): the
 /// particles start level over the same 3-D map's floor voxels, at the
 /// floor's camera height, and the errors are horizontal.
 pub fn global_runs(
@@ -47,12 +48,11 @@ pub fn global_runs(
     } = *spec;
     let model = feature_model(seq, preset, 0x10c);
     let shared = Arc::new(match floor_plan {
-        true => {
-            use super::table1_floorplan::{TwoDParams, plan_scene};
-            let scene = plan_scene(map, &Default::default(), &seq.table, &TwoDParams::default())?;
+        Some(s) => {
+            let scene = super::table1_floorplan::plan_scene(map, &s.plan, &seq.table, &s.two_d)?;
             SharedMap::floor_plan("floor plan", scene).with_floor_map(Arc::new(map.map.clone()))
         }
-        false => SharedMap::from_parts("benchmark", map.map.clone(), map.caster.clone()),
+        None => SharedMap::from_parts("benchmark", map.map.clone(), map.caster.clone()),
     });
     let span = seq.len().saturating_sub(max_steps).max(1);
     let mut out = Vec::new();
@@ -210,8 +210,20 @@ impl Ctx<'_> {
                 "table5_floorplan.json",
                 "Table V on the floor plan (2-D: x, y, yaw)",
                 format!(
-                    "; {} rays, horizontal errors",
-                    self.bench.two_d_filter().sampling.rays
+                    "; {} rays, horizontal errors{}",
+                    self.bench.two_d_filter().sampling.rays,
+                    self.bench
+                        .floor_plan_scene
+                        .map_or(String::new(), |s| format!(
+                            "; plans of the band {:.2} to {:.2} m{}",
+                            s.plan.band_min,
+                            s.plan.band_max,
+                            if s.two_d == Default::default() {
+                                ""
+                            } else {
+                                ", two_d.* as --set gave them (the manifest's floor_plan_scene)"
+                            }
+                        ))
                 ),
             ),
         };
@@ -250,7 +262,8 @@ impl Ctx<'_> {
 
 /// Plans Table V: global runs on each sequence, without and with a prompt;
 /// with `floor_plan` on the floor plan, with the 2-D filter
-/// ([`super::task::BenchPlan::two_d_filter`]).
+/// ([`super::task::BenchPlan::two_d_filter`]) and the plans' settings
+/// ([`super::task::BenchPlan::floor_plan_scene`]).
 pub(super) fn plan(p: &Planner, v: &Variant, floor_plan: bool, out: &mut Vec<(Task, Use)>) {
     let filter = match floor_plan {
         true => p.bench.two_d_filter(),
@@ -265,6 +278,7 @@ pub(super) fn plan(p: &Planner, v: &Variant, floor_plan: bool, out: &mut Vec<(Ta
                 max_steps: p.bench.max_steps,
                 prompt,
                 floor_plan,
+                plan: p.bench.floor_plan_scene.filter(|_| floor_plan),
             };
             out.push((p.task(s, v, work), Use::Table5 { prompt, floor_plan }));
         }

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 
 use super::ExperimentError;
 use super::mapping::{MapParams, MapSource};
+use super::plan_settings::PlanSettings;
 use super::run::{GlobalRun, RunResult};
 use super::variant::{TABLE1_VARIANTS, Variant};
 use crate::eval::ConsistencyMetrics;
@@ -180,6 +181,11 @@ pub struct BenchPlan {
     /// left out of the manifest when that experiment is not planned.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub floor_plan_filter: Option<FilterConfig>,
+    /// How `table5-floorplan` projects its plans and casts on them, where
+    /// `--set plan.*` or `two_d.*` changed the defaults; left out of the
+    /// manifest otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub floor_plan_scene: Option<PlanSettings>,
     /// The kind of world every sequence is in (left out of the manifest
     /// for the corridor apartment, as before there were kinds).
     #[serde(default, skip_serializing_if = "WorldKind::is_corridor")]
@@ -305,6 +311,11 @@ pub enum Work {
         /// manifest for the 3-D runs, so their ids are as before.
         #[serde(default, skip_serializing_if = "is_false")]
         floor_plan: bool,
+        /// With `floor_plan`, the plans' settings where they are not the
+        /// defaults ([`BenchPlan::floor_plan_scene`]); left out of the
+        /// manifest otherwise, so the ids are as before they could be set.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        plan: Option<PlanSettings>,
     },
 }
 

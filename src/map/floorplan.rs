@@ -86,6 +86,18 @@ impl Default for FloorPlanParams {
     }
 }
 
+impl FloorPlanParams {
+    /// Refuses a band that is empty or not finite
+    /// ([`FloorPlanError::BadBand`]).
+    pub fn validate(&self) -> Result<(), FloorPlanError> {
+        let (lo, hi) = (self.band_min, self.band_max);
+        if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+            return Err(FloorPlanError::BadBand(lo, hi));
+        }
+        Ok(())
+    }
+}
+
 /// Errors building a floor plan.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum FloorPlanError {
@@ -215,10 +227,8 @@ impl FloorPlan {
 
     /// Projects `map` to a floor plan (see the module documentation).
     pub fn from_map(map: &LanguageMap, params: &FloorPlanParams) -> Result<Self, FloorPlanError> {
+        params.validate()?;
         let (lo, hi) = (params.band_min, params.band_max);
-        if !(lo.is_finite() && hi.is_finite() && lo < hi) {
-            return Err(FloorPlanError::BadBand(lo, hi));
-        }
         let g = map.grid();
         let r = g.resolution;
         let Some((min, _)) = map.cell_bounds() else {
