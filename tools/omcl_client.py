@@ -37,6 +37,7 @@ import os
 import queue
 import signal
 import sys
+import threading
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PROTO_DIR = os.path.join(ROOT, "proto")
@@ -298,7 +299,8 @@ def main():
     if a.frames is not None and a.frames < 1:
         ap.error(f"--frames {a.frames}: give at least 1 (leave it out for every frame)")
     # SIGTERM ends the run as Ctrl-C does: the session is closed first.
-    signal.signal(signal.SIGTERM, terminated)
+    signal.signal(signal.SIGINT, interrupted)
+    signal.signal(signal.SIGTERM, interrupted)
     # One line for what went wrong, not a traceback: the server's status,
     # or the file that could not be read.
     try:
@@ -318,8 +320,26 @@ class Terminated(BaseException):
     Ctrl-C) so that the session is closed on the way out."""
 
 
-def terminated(signum, frame):
-    raise Terminated()
+# The frame stream in progress, and the signal that stopped it.
+_stream = {"call": None, "signal": None}
+
+
+def _stop(signum):
+    raise KeyboardInterrupt() if signum == signal.SIGINT else Terminated()
+
+
+def interrupted(signum, frame):
+    """SIGINT or SIGTERM. While frames stream, the stream is cancelled from
+    another thread and the main loop, woken by the cancellation, stops
+    (closing the session) on its own: an exception raised here, inside
+    grpc's iteration, could leave grpc's lock held and the close waiting
+    for it for ever (seen once in CI, 2026-12-02). Otherwise, or on a
+    second signal, at once."""
+    call = _stream["call"]
+    if call is None or _stream["signal"] is not None:
+        _stop(signum)
+    _stream["signal"] = signum
+    threading.Thread(target=call.cancel, daemon=True).start()
 
 
 def run(a):
@@ -381,6 +401,7 @@ def run(a):
 
     count, refused, precondition = 0, 0, None
     call = client.stream(frames())
+    _stream["call"] = call
     try:
         for r in call:
             i, path = sent.get()
@@ -403,6 +424,8 @@ def run(a):
                   f"confidence {r.pose.confidence:.3f} step_ms {r.pose.step_ms:.1f}", flush=True)
             count += 1
     except grpc.RpcError as e:
+        if _stream["signal"] is not None:
+            _stop(_stream["signal"])
         if e.code() == grpc.StatusCode.UNAVAILABLE:
             sys.exit(f"omcl_client: UNAVAILABLE: {e.details()} (server {a.target}), after "
                      f"{count} poses from session {sid}")
@@ -411,11 +434,15 @@ def run(a):
         # Also on Ctrl-C and SIGTERM. The session is the server's to expire
         # if it has gone meanwhile (the stream's own error is the one to
         # report).
+        _stream["call"] = None
         call.cancel()
         try:
             client.close_session(sid)
         except grpc.RpcError:
             pass
+    if _stream["signal"] is not None:
+        # The signal came as the stream ended.
+        _stop(_stream["signal"])
     if precondition:
         sys.exit(f"omcl_client: FAILED_PRECONDITION: {precondition}; stopped (after "
                  f"{count} poses)")
