@@ -247,16 +247,8 @@ impl PlanArgs {
         // kept only where they change the defaults (so that a plan without
         // them gives the runs' ids of before).
         let floor_plan_scene = match floor_plan_filter {
-            Some(_) => {
-                let b = block_overrides(&self.set)?;
-                b.plan.validate().context("--set plan.*")?;
-                b.two_d.validate().context("--set")?;
-                Some(PlanSettings {
-                    plan: b.plan,
-                    two_d: b.two_d,
-                })
-                .filter(|s| *s != PlanSettings::default())
-            }
+            Some(_) => Some(block_overrides(&self.set)?.plan_settings()?)
+                .filter(|s| *s != PlanSettings::default()),
             None => None,
         };
         Ok(BenchPlan {
@@ -434,6 +426,19 @@ pub(super) struct BlockOverrides {
     /// The `--set` paths that are the filter's.
     #[serde(skip)]
     pub(super) rest: Vec<String>,
+}
+
+impl BlockOverrides {
+    /// The floor plans' band and 2-D sensor, each checked (by its `--set`
+    /// paths' names).
+    pub(super) fn plan_settings(&self) -> anyhow::Result<PlanSettings> {
+        self.plan.validate().context("--set plan.*")?;
+        self.two_d.validate().context("--set")?;
+        Ok(PlanSettings {
+            plan: self.plan,
+            two_d: self.two_d,
+        })
+    }
 }
 
 pub(super) fn block_overrides(sets: &[String]) -> anyhow::Result<BlockOverrides> {

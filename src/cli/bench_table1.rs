@@ -7,11 +7,12 @@ use std::path::Path;
 
 use anyhow::Context;
 
+use omcl::experiment::plan_settings::PlanSettings;
 use omcl::experiment::table1::{BlockResult, write_figure4};
 use omcl::experiment::table1_6dof;
 use omcl::experiment::table1_floorplan::{self, BlockSpec};
 
-use super::bench_args::{BenchArgs, BlockOverrides, Experiment, block_overrides};
+use super::bench_args::{BenchArgs, Experiment, block_overrides};
 use omcl::mcl::{FilterConfig, INDOOR_PARTICLES, SIX_DOF_PARTICLES};
 
 /// `--export-frames DIR`: writes the 3-D block's sequences to `DIR` and
@@ -176,9 +177,9 @@ fn block_spec(
     base: [FilterConfig; 3],
     particles: usize,
 ) -> anyhow::Result<BlockSpec> {
-    let BlockOverrides {
-        plan, two_d, rest, ..
-    } = block_overrides(&a.plan.set)?;
+    let overrides = block_overrides(&a.plan.set)?;
+    let PlanSettings { plan, two_d } = overrides.plan_settings()?;
+    let rest = overrides.rest;
     let [filter, point_cloud_filter, raw_feature_filter] = base.map(|mut f| {
         if let Some(r) = a.plan.rays {
             f.sampling.rays = r;
@@ -187,8 +188,6 @@ fn block_spec(
     });
     let (filter, point_cloud_filter, raw_feature_filter) =
         (filter?, point_cloud_filter?, raw_feature_filter?);
-    plan.validate().context("--set plan.*")?;
-    two_d.validate().context("--set")?;
     Ok(BlockSpec {
         seeds: a.plan.first_seed..a.plan.first_seed + a.plan.sequences,
         world: a.plan.world,
