@@ -45,7 +45,11 @@
 //!
 //! The occupied columns are a dense grid over their bounding box (a leaf
 //! index per cell) with each free cell's Chebyshev distance `D` to the
-//! nearest occupied one. From a cell with `D` of 6 or more the ray jumps
+//! nearest occupied one, and, per octant of directions, its distance to
+//! the nearest occupied cell in the cone a ray of that octant can reach
+//! ([`crate::chebyshev::cone_distance`]); `D` below is the larger of the
+//! two for the walk's octant (a ray leaving a wall behind it looks only
+//! ahead). From a cell with `D` of 6 or more the ray jumps
 //! `D - 2` cells along its longer axis (no occupied cell can lie within);
 //! from one with a smaller `D` it takes `D` DDA steps before it looks at a
 //! cell again (each step reaches a neighbour, and every cell within `D - 1`
@@ -105,9 +109,13 @@ pub struct PlanarCaster {
     size: [i32; 2],
     /// Leaf index per grid cell (row-major, x fastest) or `Hit::MISS`.
     leaf: Vec<u32>,
-    /// Chebyshev distance in cells to the nearest occupied cell (0 on an
-    /// occupied cell), capped at 255: what a walk reads a cell (the leaf
-    /// only for the occupied ones).
+    /// Per octant of walk directions ([`crate::chebyshev::Octant::index`]),
+    /// then per grid cell (as `leaf`): how many cells a walk in that octant
+    /// may go from the cell without looking (0 on an occupied cell, at
+    /// least 1 on a free one), capped at 255: the larger of the cell's
+    /// Chebyshev distance to the nearest occupied cell and its distance
+    /// to one in the octant's cone ([`crate::chebyshev::cone_distance`]).
+    /// What a walk reads a cell (the leaf only for the occupied ones).
     clearance: Vec<u8>,
     /// Vertical extent `[bottom, top]` (grid-frame z, metres) of each leaf's
     /// column; `None`: infinitely tall prisms.
@@ -163,9 +171,19 @@ impl PlanarCaster {
                 leaf[idx] = k as u32;
             }
         }
-        let clearance = crate::chebyshev::distance(size[0] as usize, size[1] as usize, |i| {
-            leaf[i] != Hit::MISS
-        });
+        let (w, h) = (size[0].max(0) as usize, size[1].max(0) as usize);
+        let occupied = |i: usize| leaf[i] != Hit::MISS;
+        let around = crate::chebyshev::distance(w, h, occupied);
+        let mut clearance = Vec::with_capacity(8 * total);
+        for octant in crate::chebyshev::Octant::all() {
+            let cone = crate::chebyshev::cone_distance(w, h, octant, occupied);
+            clearance.extend(
+                around
+                    .iter()
+                    .zip(&cone)
+                    .map(|(&a, &c)| if a == 0 { 0 } else { a.max(c) }),
+            );
+        }
         PlanarCaster {
             resolution: resolution as f64,
             lo,
@@ -350,6 +368,13 @@ impl PlanarCaster {
         let inv_r = 1.0 / r;
         let inv_d = [1.0 / d[0], 1.0 / d[1]];
         let (w, h) = (self.size[0], self.size[1]);
+        let octant = crate::chebyshev::Octant {
+            neg_x: sx < 0,
+            neg_y: sy < 0,
+            y_major: d[1].abs() > d[0].abs(),
+        };
+        let cells = (w as usize) * (h as usize);
+        let clearance = &self.clearance[octant.index() * cells..(octant.index() + 1) * cells];
         // The cell at a parameter, kept inside the box against rounding,
         // and the parameter of its next edge along an axis.
         let cell_at = |t: f64, a: usize| -> i32 {
@@ -369,7 +394,7 @@ impl PlanarCaster {
             let (mut nx, mut ny) = (edge(cx, 0, sx), edge(cy, 1, sy));
             loop {
                 let idx = (cy * w + cx) as usize;
-                let clear = self.clearance[idx] as u32;
+                let clear = clearance[idx] as u32;
                 // DDA steps to take before looking at a cell again: one
                 // from an occupied cell, and from a free one its clearance
                 // (every cell within clearance - 1 of it is free, and the
