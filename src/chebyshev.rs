@@ -85,8 +85,11 @@ pub fn cone_distance(w: usize, h: usize, octant: Octant, seed: impl Fn(usize) ->
     // longer axis in the octant's sense, `minor` along the other.
     let (nm, nn) = if octant.y_major { (h, w) } else { (w, h) };
     let cell = |major: usize, minor: usize| -> usize {
-        let (a, b) = (major, minor);
-        let (x, y) = if octant.y_major { (b, a) } else { (a, b) };
+        let (x, y) = if octant.y_major {
+            (minor, major)
+        } else {
+            (major, minor)
+        };
         let x = if octant.neg_x { w - 1 - x } else { x };
         let y = if octant.neg_y { h - 1 - y } else { y };
         y * w + x

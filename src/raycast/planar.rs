@@ -397,8 +397,8 @@ impl PlanarCaster {
                 let clear = clearance[idx] as u32;
                 // DDA steps to take before looking at a cell again: one
                 // from an occupied cell, and from a free one its clearance
-                // (every cell within clearance - 1 of it is free, and the
-                // DDA moves to a neighbour a step).
+                // (every cell the walk can reach in clearance - 1 steps is
+                // free: see the field's documentation).
                 let steps = if clear == 0 {
                     let next = if nx < ny { nx } else { ny };
                     let out = if next < t1 { next } else { t1 };
