@@ -7,8 +7,16 @@
 //! an old and a new build of it interleaved).
 //!
 //! ```sh
-//! cargo run --release --example step_speed -- [SEED] [FRAMES] [REPS] [RAYS] [2-D|3-D]
+//! cargo run --release --example step_speed -- [SEED] [FRAMES] [REPS] [RAYS] [2-D|3-D|2-D-nocast]
 //! ```
+//!
+//! `2-D-nocast` (only when named) is the 2-D step with a caster that does
+//! no work: every pixel of every particle "hits" the plan's first leaf at
+//! once, so what remains is the rest of the step (the features stage, the
+//! motion, the fans' set-up and the scoring, with the most cache-friendly
+//! hits there are). It is the floor under any planar caster: the 2-D step
+//! cannot be faster than it whatever the cast costs (its APE is
+//! meaningless).
 //!
 //! Defaults: held-out sequence 1000, 40 frames, 2 repetitions, 2048
 //! pixels drawn a frame, both modes; 1024 particles, the 2-D block's
@@ -21,8 +29,10 @@ use omcl::experiment::features::{GridFeatures, SimFrameFeatures, builtin_table, 
 use omcl::experiment::mapping::{BenchMap, MapParams, MapSource};
 use omcl::experiment::sequence::SimSequence;
 use omcl::experiment::table1_floorplan::{TwoDParams, open_session, plan_scene};
+use omcl::geometry::Ray;
 use omcl::map::FloorPlanParams;
 use omcl::mcl::{FilterConfig, MotionMode, StepTimings};
+use omcl::raycast::{Fan, Hit, RayCaster};
 use omcl::session::SharedMap;
 use omcl::sim::features::Preset;
 use std::sync::Arc;
@@ -30,7 +40,7 @@ use std::time::Instant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let a: Vec<String> = std::env::args().collect();
-    let usage = "usage: step_speed [SEED] [FRAMES] [REPS] [RAYS] [2-D|3-D]";
+    let usage = "usage: step_speed [SEED] [FRAMES] [REPS] [RAYS] [2-D|3-D|2-D-nocast]";
     let arg = |i: usize, d: u64| -> Result<u64, String> {
         a.get(i).map_or(Ok(d), |s| {
             s.parse()
@@ -43,7 +53,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         arg(3, 2)?,
         arg(4, 2048)?,
     );
-    if a.len() > 6 || a.get(5).is_some_and(|m| m != "2-D" && m != "3-D") {
+    let modes = ["2-D", "3-D", "2-D-nocast"];
+    if a.len() > 6 || a.get(5).is_some_and(|m| !modes.contains(&m.as_str())) {
         return Err(usage.into());
     }
     let table = builtin_table()?;
@@ -85,11 +96,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "3-D",
             SharedMap::from_parts("map", map.map.clone(), map.caster.clone()),
         ),
+        (
+            "2-D-nocast",
+            SharedMap::from_parts(
+                "plan",
+                plan.sighted_map.clone(),
+                Arc::new(NoCast(plan.sighted.len())),
+            )
+            .with_strata(Some(plan.strata.clone())),
+        ),
     ];
     let scenes: Vec<_> = scenes.into_iter().map(|(n, s)| (n, Arc::new(s))).collect();
     for rep in 0..reps {
         for (name, scene) in &scenes {
-            if a.get(5).is_some_and(|m| m != name) {
+            // Each mode when named; without a name, the two real ones.
+            if a.get(5).map_or(*name == "2-D-nocast", |m| m != name) {
                 continue;
             }
             let mut s = open_session(&seq, scene.clone(), filter, 1024)?;
@@ -114,4 +135,34 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     Ok(())
+}
+
+/// A caster that does no work (`2-D-nocast`): every ray hits leaf 0 at
+/// `t` 1, through the fan path as the planar caster's pixels go.
+struct NoCast(usize);
+
+impl RayCaster for NoCast {
+    fn cast_serial(&self, _rays: &[Ray], hits: &mut [Hit]) {
+        hits.fill(Hit { leaf: 0, t: 1.0 });
+    }
+
+    fn wants_column_order(&self) -> bool {
+        true
+    }
+
+    fn cast_fans(
+        &self,
+        _origin: [f32; 3],
+        _fans: &[Fan],
+        _slopes: &[f32],
+        _t_max: &[f32],
+        hits: &mut [Hit],
+    ) -> bool {
+        hits.fill(Hit { leaf: 0, t: 1.0 });
+        true
+    }
+
+    fn len(&self) -> usize {
+        self.0
+    }
 }
