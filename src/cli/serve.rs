@@ -79,9 +79,11 @@ pub struct ServeArgs {
     /// Open sessions at most, in total.
     #[arg(long, default_value_t = Limits::default().max_sessions, value_parser = super::count_in::<1, { usize::MAX }>)]
     pub max_sessions: usize,
-    /// Open gRPC connections at most; a connection past it is closed at
-    /// once (the client's call fails with a transport error). Each may hold
-    /// up to 17 MiB of unread stream data.
+    /// Open gRPC connections at most. A connection past it is refused:
+    /// for 5 s its calls are answered RESOURCE_EXHAUSTED naming the cap,
+    /// then it is closed (with 8 such refusals under way, further ones are
+    /// closed at once: a transport error). Each open connection may hold up
+    /// to 17 MiB of unread stream data.
     #[arg(long, default_value_t = Limits::default().max_connections, value_parser = super::count_in::<1, { usize::MAX }>)]
     pub max_connections: usize,
     /// Open sessions at most on one map.

@@ -23,9 +23,9 @@ pub struct Service {
     pub state: Arc<State>,
 }
 
-/// The bearer-token check of every gRPC call, as a tonic interceptor (a
-/// tower layer in front of the service): refused calls never reach a
-/// handler.
+/// The bearer-token check of every gRPC call, and the refusal of calls on
+/// a connection past the cap, as a tonic interceptor (a tower layer in
+/// front of the service): refused calls never reach a handler.
 pub fn interceptor(
     state: Arc<State>,
     token: Token,
@@ -38,13 +38,22 @@ pub fn interceptor(
         let md: &MetadataMap = req.metadata();
         let value = md.get("authorization").map(|v| v.as_bytes());
         let elsewhere = MISPLACED.iter().find(|k| md.contains_key(**k)).copied();
-        match token.check(value, elsewhere) {
-            Ok(()) => Ok(req),
-            Err(e) => {
-                state.metrics.reject("unauthenticated");
-                Err(Status::unauthenticated(e.to_string()))
-            }
+        if let Err(e) = token.check(value, elsewhere) {
+            state.metrics.reject("unauthenticated");
+            return Err(Status::unauthenticated(e.to_string()));
         }
+        // A connection past the cap (counted once, when it came).
+        let c = &state.connections;
+        if req.remote_addr().is_some_and(|peer| c.refused(peer)) {
+            return Err(Status::resource_exhausted(format!(
+                "connection cap: {} gRPC connections open (--max-connections {}); \
+                 this connection closes in {} s, retry when one has gone",
+                c.open(),
+                c.max(),
+                super::connections::REFUSAL_GRACE.as_secs()
+            )));
+        }
+        Ok(req)
     }
 }
 

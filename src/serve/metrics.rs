@@ -24,7 +24,7 @@ pub const REASONS: [&str; 9] = [
     // A frame whose caller had gone (call cancelled or timed out, stream
     // closed) when its turn came, not stepped.
     "abandoned",
-    // A gRPC connection past --max-connections, closed at once.
+    // A gRPC connection past --max-connections (refused or dropped).
     "connection_cap",
     // A frame that arrived before its session was reinitialized, answered
     // ABORTED at its turn, not stepped.

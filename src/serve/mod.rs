@@ -330,16 +330,23 @@ fn grpc_server(
     }
     // Small answers go out at once: without TCP_NODELAY, Nagle's algorithm
     // and the client's delayed ACK add about 40 ms to every pose.
-    // Past --max-connections a connection is closed at once (dropped).
+    // Past --max-connections a connection is refused: served a few
+    // seconds with every call answered RESOURCE_EXHAUSTED, then closed
+    // (dropped at once when too many are being refused; `connections`).
     let st = state.clone();
     let incoming = TcpListenerStream::new(listener).filter_map(move |s| {
         let s = match s.and_then(|s| s.set_nodelay(true).map(|()| s)) {
             Ok(s) => s,
             Err(e) => return Some(Err(e)),
         };
+        use connections::Admission;
         match st.connections.admit(s) {
-            Some(c) => Some(Ok::<_, std::io::Error>(c)),
-            None => {
+            Admission::Open(c) => Some(Ok::<_, std::io::Error>(c)),
+            Admission::Refused(c) => {
+                st.metrics.reject("connection_cap");
+                Some(Ok(c))
+            }
+            Admission::Dropped => {
                 st.metrics.reject("connection_cap");
                 None
             }
