@@ -83,6 +83,55 @@ async fn grpc_over_tls_with_a_token() {
     }
 }
 
+/// Over TLS too a connection past `--max-connections` is refused by name
+/// (the refusal finds the peer behind the TLS layer's connection info).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_tls_connection_past_the_cap_is_refused_by_name() {
+    let f = Fixture::new();
+    let key = rcgen::generate_simple_self_signed(vec!["localhost".to_string()]).unwrap();
+    let cert_pem = key.cert.pem();
+    let (cert, pkey) = (f.dir.path().join("cert.pem"), f.dir.path().join("key.pem"));
+    std::fs::write(&cert, &cert_pem).unwrap();
+    std::fs::write(&pkey, key.signing_key.serialize_pem()).unwrap();
+    let server = Server::start(
+        &f,
+        &[
+            "--tls-cert",
+            cert.to_str().unwrap(),
+            "--tls-key",
+            pkey.to_str().unwrap(),
+            "--max-connections",
+            "1",
+        ],
+    );
+    let connect = || async {
+        let tls = ClientTlsConfig::new()
+            .ca_certificate(Certificate::from_pem(&cert_pem))
+            .domain_name("localhost");
+        let ch = Channel::from_shared(format!("https://{}", server.grpc))
+            .unwrap()
+            .tls_config(tls)
+            .unwrap()
+            .connect()
+            .await
+            .unwrap();
+        LocalizationClient::with_interceptor(ch, Auth::good())
+    };
+    let mut first = connect().await;
+    first.list_maps(proto::ListMapsRequest {}).await.unwrap();
+    let mut second = connect().await;
+    let e = tokio::time::timeout(
+        std::time::Duration::from_secs(20),
+        second.list_maps(proto::ListMapsRequest {}),
+    )
+    .await
+    .expect("the refused call was answered")
+    .expect_err("a second connection was served");
+    assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{e:?}");
+    assert!(e.message().contains("--max-connections 1"), "{e:?}");
+    first.list_maps(proto::ListMapsRequest {}).await.unwrap();
+}
+
 /// GET `path` over HTTPS from the control plane, trusting `cert_pem`:
 /// the status line and the body.
 async fn https_get(
