@@ -12,30 +12,8 @@ use omcl::serve::proto::{self, localization_client::LocalizationClient};
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn grpc_over_tls_with_a_token() {
     let f = Fixture::new();
-    let key = rcgen::generate_simple_self_signed(vec!["localhost".to_string()]).unwrap();
-    let cert_pem = key.cert.pem();
-    let (cert, pkey) = (f.dir.path().join("cert.pem"), f.dir.path().join("key.pem"));
-    std::fs::write(&cert, &cert_pem).unwrap();
-    std::fs::write(&pkey, key.signing_key.serialize_pem()).unwrap();
-    let server = Server::start(
-        &f,
-        &[
-            "--tls-cert",
-            cert.to_str().unwrap(),
-            "--tls-key",
-            pkey.to_str().unwrap(),
-        ],
-    );
-    let tls = ClientTlsConfig::new()
-        .ca_certificate(Certificate::from_pem(&cert_pem))
-        .domain_name("localhost");
-    let ch = Channel::from_shared(format!("https://{}", server.grpc))
-        .unwrap()
-        .tls_config(tls)
-        .unwrap()
-        .connect()
-        .await
-        .unwrap();
+    let (server, cert_pem) = tls_server(&f, &[]);
+    let ch = tls_channel(&server, &cert_pem).await;
     let mut c = LocalizationClient::with_interceptor(ch.clone(), Auth::good());
     let maps = c
         .list_maps(proto::ListMapsRequest {})
@@ -88,34 +66,9 @@ async fn grpc_over_tls_with_a_token() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_tls_connection_past_the_cap_is_refused_by_name() {
     let f = Fixture::new();
-    let key = rcgen::generate_simple_self_signed(vec!["localhost".to_string()]).unwrap();
-    let cert_pem = key.cert.pem();
-    let (cert, pkey) = (f.dir.path().join("cert.pem"), f.dir.path().join("key.pem"));
-    std::fs::write(&cert, &cert_pem).unwrap();
-    std::fs::write(&pkey, key.signing_key.serialize_pem()).unwrap();
-    let server = Server::start(
-        &f,
-        &[
-            "--tls-cert",
-            cert.to_str().unwrap(),
-            "--tls-key",
-            pkey.to_str().unwrap(),
-            "--max-connections",
-            "1",
-        ],
-    );
+    let (server, cert_pem) = tls_server(&f, &["--max-connections", "1"]);
     let connect = || async {
-        let tls = ClientTlsConfig::new()
-            .ca_certificate(Certificate::from_pem(&cert_pem))
-            .domain_name("localhost");
-        let ch = Channel::from_shared(format!("https://{}", server.grpc))
-            .unwrap()
-            .tls_config(tls)
-            .unwrap()
-            .connect()
-            .await
-            .unwrap();
-        LocalizationClient::with_interceptor(ch, Auth::good())
+        LocalizationClient::with_interceptor(tls_channel(&server, &cert_pem).await, Auth::good())
     };
     let mut first = connect().await;
     first.list_maps(proto::ListMapsRequest {}).await.unwrap();
@@ -130,6 +83,39 @@ async fn a_tls_connection_past_the_cap_is_refused_by_name() {
     assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{e:?}");
     assert!(e.message().contains("--max-connections 1"), "{e:?}");
     first.list_maps(proto::ListMapsRequest {}).await.unwrap();
+}
+
+/// A server over TLS with a fresh self-signed certificate for
+/// `localhost` (and `extra` arguments), and that certificate's PEM.
+fn tls_server(f: &Fixture, extra: &[&str]) -> (Server, String) {
+    let key = rcgen::generate_simple_self_signed(vec!["localhost".to_string()]).unwrap();
+    let cert_pem = key.cert.pem();
+    let (cert, pkey) = (f.dir.path().join("cert.pem"), f.dir.path().join("key.pem"));
+    std::fs::write(&cert, &cert_pem).unwrap();
+    std::fs::write(&pkey, key.signing_key.serialize_pem()).unwrap();
+    let mut args = vec![
+        "--tls-cert",
+        cert.to_str().unwrap(),
+        "--tls-key",
+        pkey.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    (Server::start(f, &args), cert_pem)
+}
+
+/// A gRPC channel over TLS to `server` on a connection of its own,
+/// trusting `cert_pem`.
+async fn tls_channel(server: &Server, cert_pem: &str) -> Channel {
+    let tls = ClientTlsConfig::new()
+        .ca_certificate(Certificate::from_pem(cert_pem))
+        .domain_name("localhost");
+    Channel::from_shared(format!("https://{}", server.grpc))
+        .unwrap()
+        .tls_config(tls)
+        .unwrap()
+        .connect()
+        .await
+        .unwrap()
 }
 
 /// GET `path` over HTTPS from the control plane, trusting `cert_pem`:

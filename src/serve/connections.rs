@@ -17,7 +17,7 @@ use std::future::Future;
 use std::io;
 use std::net::SocketAddr;
 use std::pin::Pin;
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::task::{Context, Poll};
 use std::time::Duration;
 
@@ -80,7 +80,7 @@ impl Connections {
         else {
             return Admission::Dropped;
         };
-        self.lock().insert(peer);
+        peers(&self.refused).insert(peer);
         Admission::Refused(Counted {
             io: s,
             _permit: permit,
@@ -92,19 +92,16 @@ impl Connections {
         })
     }
 
-    /// Whether the connection from `peer` is one past the cap.
+    /// Whether the connection from `peer` is one past the cap. Without a
+    /// lock while none is (every call asks): a refused connection holds
+    /// its refusal permit from before it is served until it goes.
     pub fn refused(&self, peer: SocketAddr) -> bool {
-        self.lock().contains(&peer)
+        self.refusals.available_permits() < REFUSALS && peers(&self.refused).contains(&peer)
     }
 
     /// The cap.
     pub fn max(&self) -> usize {
         self.max
-    }
-
-    fn lock(&self) -> std::sync::MutexGuard<'_, HashSet<SocketAddr>> {
-        // The set stays whole whatever panicked while it was held.
-        self.refused.lock().unwrap_or_else(PoisonError::into_inner)
     }
 
     /// Connections open now.
@@ -130,11 +127,14 @@ struct Refusal {
 
 impl Drop for Refusal {
     fn drop(&mut self) {
-        self.set
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .remove(&self.peer);
+        peers(&self.set).remove(&self.peer);
     }
+}
+
+/// The refused peers, locked; the set stays whole whatever panicked while
+/// it was held.
+fn peers(set: &Mutex<HashSet<SocketAddr>>) -> MutexGuard<'_, HashSet<SocketAddr>> {
+    set.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 impl Counted {
