@@ -156,7 +156,6 @@ use crate::session::SharedMap;
 pub use crate::session::floorplan::{EXIT_WORDS, PlanScene, PlanSight};
 use crate::sim::embeddings::ClassEmbeddings;
 use crate::sim::features::Preset;
-use crate::sim::render::Frame;
 
 /// Projects a benchmark map to its [`PlanScene`], the exit rows from the
 /// sequence's class table.
@@ -624,29 +623,8 @@ fn class_db(table: &ClassEmbeddings) -> Result<crate::map::FeatureDb, Experiment
     )?)
 }
 
-/// The baselines' observations of the sampled pixels: each pixel's
-/// direction, nearest class and (simulated sensor) depth.
-fn observe(
-    f: &dyn FrameFeatures,
-    frame: &Frame,
-    pixels: &[(u32, u32)],
-    classes: &crate::map::FeatureDb,
-    k: &crate::geometry::Intrinsics,
-) -> Result<Vec<crate::mcl::baselines::PixelObservation>, ExperimentError> {
-    use crate::mcl::baselines::{NO_LABEL, observations};
-    let mut buf = vec![0.0f32; classes.dim()];
-    let mut labels = Vec::with_capacity(pixels.len());
-    let mut depths = Vec::with_capacity(pixels.len());
-    for &(u, v) in pixels {
-        f.feature(u, v, &mut buf);
-        labels.push(classes.nearest(&buf)?.map_or(NO_LABEL, |(c, _)| c as u16));
-        depths.push(frame.depth[(v * frame.width + u) as usize]);
-    }
-    Ok(observations(k, pixels, &labels, &depths))
-}
-
 /// Tracks `seq` on `plan` with a baseline sensor model
-/// ([`crate::mcl::baselines`]): the same local start, planar motion
+/// ([`crate::mcl::baseline_filter`]): the same local start, planar motion
 /// model, pixel sampling (on the plan's database), estimate and
 /// resampling policy as OMCL's 2-D rows, the pixels' labels the classes
 /// nearest to their `preset` features.
@@ -659,47 +637,43 @@ pub fn track_baseline(
     filter: FilterConfig,
     particles: usize,
 ) -> Result<RunResult, ExperimentError> {
-    use crate::mcl::baselines::{self, LabelledPlan};
-    use crate::mcl::{estimate, local_init, motion::MotionModel, resample, sampling};
+    use crate::mcl::baseline_filter::{BaselineFilter, BaselinePlan};
+    use crate::mcl::local_init;
     use rand::SeedableRng;
-    use rayon::prelude::*;
     use std::time::Instant;
 
     let model = feature_model(seq, preset, 0x10c);
-    let classes = class_db(&seq.table)?;
-    let cells = plan.map.cells();
-    let labelled = LabelledPlan::new(
+    let labelled = BaselinePlan::new(
         &plan.plan,
-        &cells,
-        plan.map.rows(),
-        &classes,
-        params.max_distance,
-    );
-    let origin = plan.map.grid().origin;
-    let motion = MotionModel {
-        mode: MotionMode::Planar,
-        ..filter.motion
-    };
+        &plan.map,
+        plan.caster.clone(),
+        class_db(&seq.table)?,
+        params,
+    )?;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(filter.seed ^ 0x57a7);
     let start = super::run::Start::paper_local();
     let super::run::Start::Local { sigma_m, sigma_deg } = start else {
         unreachable!("the paper's start is local")
     };
-    let mut ps = local_init(
+    let ps = local_init(
         &seq.poses()[0],
         particles,
         sigma_m,
         sigma_deg.to_radians(),
         &mut rng,
     );
+    let mut tracker = BaselineFilter::new(
+        baseline,
+        *params,
+        std::sync::Arc::new(labelled),
+        seq.intrinsics,
+        filter,
+        ps,
+        rng,
+    )?;
     let rows = super::run::class_rows(seq, &plan.map);
     let (mut estimates, mut step_seconds, mut encoder_seconds) = (vec![], vec![], vec![]);
     let mut rays = 0usize;
-    // The filter's sampling with the baselines' own pixel count.
-    let pixel_sampling = crate::mcl::SamplingParams {
-        rays: params.pixels,
-        ..filter.sampling
-    };
     for i in 0..seq.len() {
         let frame = seq.render(i);
         let t = Instant::now();
@@ -709,34 +683,11 @@ pub fn track_baseline(
         );
         encoder_seconds.push(t.elapsed().as_secs_f64());
         let t = Instant::now();
-        if i > 0 {
-            motion.predict(&mut ps, &seq.increment(i), &mut rng)?;
-        }
-        let pixels = sampling::sample_pixels(&f, plan.map.db(), &pixel_sampling, &mut rng)?;
-        let obs = observe(&f, &frame, &pixels, &classes, &seq.intrinsics)?;
-        let log_l: Vec<f64> = ps
-            .par_iter()
-            .map(|p| {
-                baselines::log_likelihood(
-                    baseline,
-                    &p.pose,
-                    &obs,
-                    &labelled,
-                    &plan.caster,
-                    &origin,
-                    params,
-                )
-            })
-            .collect();
-        baselines::weigh(&mut ps, &log_l);
-        let est = estimate(&ps, &filter.estimate).ok_or(crate::mcl::MclError::NoParticles)?;
-        if filter.resample.due(&ps) {
-            let n = ps.len();
-            resample::resample(&mut ps, n, filter.resample.reset_weights, &mut rng);
-        }
+        let increment = (i > 0).then(|| seq.increment(i));
+        let step = tracker.step(increment.as_ref(), &f, Some(&frame.depth))?;
         step_seconds.push(t.elapsed().as_secs_f64());
-        rays += pixels.len();
-        estimates.push(est.pose);
+        rays += step.n_rays;
+        estimates.push(step.estimate);
     }
     let n = estimates.len().max(1);
     let mut r = RunResult {

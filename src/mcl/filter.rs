@@ -397,6 +397,19 @@ pub struct StepReport {
     pub timings: StepTimings,
 }
 
+/// A frame must have the camera `k`'s size.
+pub(crate) fn check_frame_size(k: &Intrinsics, frame: &dyn FrameFeatures) -> Result<(), MclError> {
+    if (frame.width(), frame.height()) != (k.width, k.height) {
+        return Err(MclError::ImageSize {
+            got_w: frame.width(),
+            got_h: frame.height(),
+            want_w: k.width,
+            want_h: k.height,
+        });
+    }
+    Ok(())
+}
+
 /// The particle filter.
 pub struct Filter {
     config: FilterConfig,
@@ -525,16 +538,7 @@ impl Filter {
 
     /// The frame must have the camera's size.
     fn check_frame_size(&self, frame: &dyn FrameFeatures) -> Result<(), MclError> {
-        let k = self.sensor.intrinsics();
-        if (frame.width(), frame.height()) != (k.width, k.height) {
-            return Err(MclError::ImageSize {
-                got_w: frame.width(),
-                got_h: frame.height(),
-                want_w: k.width,
-                want_h: k.height,
-            });
-        }
-        Ok(())
+        check_frame_size(self.sensor.intrinsics(), frame)
     }
 
     /// Measurement update (Eq. 5-7): each particle's weight times its

@@ -45,6 +45,7 @@
 //! lost: re-initialize with [`Filter::reinitialize`] (e.g. from a new prompt).
 
 pub mod anneal;
+pub mod baseline_filter;
 pub mod baselines;
 pub mod estimate;
 pub mod filter;
