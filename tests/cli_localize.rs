@@ -1179,6 +1179,166 @@ fn floorplan_refuses_foreign_and_future_plans_and_what_it_cannot_do() {
     assert_clean_failure(&r, &out, &["--motion planar only"]);
 }
 
+/// `--floorplan --baseline`: Table I's baselines on a recorded sequence.
+/// Both run to the last frame with level estimates at one height, stamped
+/// like the ground truth, and print their setup and the horizontal APE of
+/// what they wrote. SIMP* (the RGB-D frames' depth against per-class
+/// distance fields) stays near the truth; SeDAR* (labels only) within
+/// what it gave here. The two trajectories differ from each other and
+/// from OMCL's, so the option reaches the sensor.
+#[test]
+fn floorplan_baselines_track_the_sequence_to_its_end() {
+    let f = Fixture::new();
+    let frames = FRAMES.to_string();
+    let gt = read_tum(&f.seq.join("poses.txt"));
+    let run = |name: &str, extra: &[&str]| {
+        let out = f.dir.path().join(name);
+        let args = [
+            &[
+                "localize",
+                "--map",
+                s(&f.map),
+                "--sequence",
+                s(&f.seq),
+                "-o",
+                s(&out),
+                "--particles",
+                PARTICLES,
+                "--frames",
+                &frames,
+                "--floorplan",
+            ][..],
+            extra,
+        ]
+        .concat();
+        let r = omcl(&args);
+        assert!(r.ok(), "{extra:?}: {}", r.text());
+        let est = read_tum(&out);
+        assert_eq!(est.len(), FRAMES, "{}", r.text());
+        let mut errors = Vec::new();
+        for (i, ((te, e), (tg, g))) in est.iter().zip(&gt).enumerate() {
+            assert!((te - tg).abs() < 1e-6, "frame {i}: stamp {te}, truth {tg}");
+            assert!(
+                tilt_deg(e) < 1e-4,
+                "{extra:?} frame {i}: {e:?} is not level"
+            );
+            assert!(
+                (e[2] - est[0].1[2]).abs() < 1e-9,
+                "frame {i}: height {}",
+                e[2]
+            );
+            errors.push(horizontal(e, g));
+        }
+        assert_printed_rmse(&r, "APE (horizontal) rmse ", &errors);
+        (r, est, errors)
+    };
+    let stats = |e: &[f64]| {
+        let rmse = (e.iter().map(|d| d * d).sum::<f64>() / e.len() as f64).sqrt();
+        (rmse, e.iter().copied().fold(0.0, f64::max))
+    };
+
+    let (r, simp, errors) = run("simp.txt", &["--baseline", "simp"]);
+    assert!(
+        r.stdout
+            .contains("64 particles x 2048 pixels a frame (Table I's baselines")
+            && r.stdout.contains("baseline SIMP*: each pixel at its depth"),
+        "{}",
+        r.text()
+    );
+    // Measured on this fixture (64 x 48 px, 64 particles, 2048 pixels,
+    // 10 cm map), seeds 1-6 of the filter: RMSE 0.073 to 0.103 m, max
+    // 0.136 to 0.208 m.
+    let (rmse, max) = stats(&errors);
+    assert!(rmse < 0.15 && max < 0.35, "SIMP*: {errors:.3?}");
+
+    let (r, sedar, errors) = run("sedar.txt", &["--baseline", "sedar", "--rays", "1024"]);
+    assert!(
+        r.stdout.contains("64 particles x 1024 pixels a frame\n")
+            && r.stdout
+                .contains("baseline SeDAR*: each pixel's planar ray"),
+        "{}",
+        r.text()
+    );
+    // Labels alone fix the pose less well (the paper's SeDAR* 0.79 m).
+    // Measured here with 2048 pixels, seeds 1-6: RMSE 0.37 to 0.84 m, max
+    // 0.69 to 1.16 m; with 1024 pixels, seeds 0-5: 0.31 to 0.74 m, max
+    // 0.48 to 1.25 m.
+    let (rmse, max) = stats(&errors);
+    assert!(rmse < 1.2 && max < 2.0, "SeDAR*: {errors:.3?}");
+
+    let (_, omcl_est, _) = run("omcl.txt", &["--rays", "128"]);
+    let moved = |a: &[(f64, [f64; 7])], b: &[(f64, [f64; 7])]| {
+        a.iter()
+            .zip(b)
+            .map(|((_, p), (_, q))| horizontal(p, q))
+            .fold(0.0, f64::max)
+    };
+    assert!(moved(&simp, &sedar) > 0.01 && moved(&simp, &omcl_est) > 0.01);
+    assert!(moved(&sedar, &omcl_est) > 0.01);
+}
+
+/// What the baselines cannot do is refused by name, writing nothing: no
+/// floor plan, a start other than a pose, recovery, a depth scale without
+/// SIMP*, SIMP* without depth images, either without a class table.
+#[test]
+fn floorplan_baselines_refuse_what_they_cannot_do() {
+    let f = Fixture::new();
+    let out = f.existing_out("est.txt");
+    let r = f.localize(&f.map, &f.seq, &out, &["--baseline", "sedar"]);
+    assert_eq!(r.code, Some(2), "{}", r.text());
+    assert!(r.stderr.contains("--floorplan"), "{}", r.text());
+    fn with<'a>(extra: &[&'a str]) -> Vec<&'a str> {
+        [&["--floorplan", "--baseline"][..], extra].concat()
+    }
+    let r = f.localize(&f.map, &f.seq, &out, &with(&["sedar", "--init", "global"]));
+    assert_clean_failure(&r, &out, &["SeDAR* starts from a pose", "--init local"]);
+    let r = f.localize(&f.map, &f.seq, &out, &with(&["simp", "--recovery"]));
+    assert_clean_failure(&r, &out, &["SIMP* has no recovery"]);
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &out,
+        &with(&["sedar", "--depth-scale", "1000"]),
+    );
+    assert_clean_failure(&r, &out, &["--depth-scale is for --baseline simp"]);
+    // OMCL's sensor options, which the baselines do not use.
+    let r = f.localize(
+        &f.map,
+        &f.seq,
+        &out,
+        &with(&["sedar", "--sharpen", "5", "--every-ray"]),
+    );
+    assert_clean_failure(
+        &r,
+        &out,
+        &[
+            "--sharpen and --every-ray set OMCL's sensor",
+            "leave them out",
+        ],
+    );
+    // SIMP* with one depth image missing: found before the first frame.
+    let seq = f.copy_seq("depth_gap");
+    let gap = seq.join("depth").join("000005.png");
+    std::fs::remove_file(&gap).unwrap();
+    let r = f.localize(&f.map, &seq, &out, &with(&["simp", "--frames", "8"]));
+    assert_clean_failure(&r, &out, &[s(&gap), "is missing", "localizes 8 frames"]);
+    assert!(!r.stdout.contains("localizing"), "{}", r.text());
+
+    let seq = f.copy_seq("no_depth");
+    std::fs::remove_dir_all(seq.join("depth")).unwrap();
+    let r = f.localize(&f.map, &seq, &out, &with(&["simp"]));
+    let depth = seq.join("depth");
+    assert_clean_failure(&r, &out, &["--baseline simp", s(&depth), "is missing"]);
+
+    // Feature files and no class table: nothing to label with.
+    let seq = f.copy_seq("no_classes");
+    std::fs::remove_dir_all(seq.join("labels")).unwrap();
+    std::fs::remove_file(seq.join("embeddings.npy")).unwrap();
+    let r = f.localize(&f.map, &seq, &out, &with(&["sedar"]));
+    let table = seq.join("embeddings.npy");
+    assert_clean_failure(&r, &out, &["labels the floor plan's columns", s(&table)]);
+}
+
 /// Global and prompt starts and recovery on a floor plan (refused until
 /// 2026-12-01) run: every estimate of each run is level, at one height.
 /// A global or prompt start's is the floor's camera height (1.5 m over the

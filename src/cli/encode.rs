@@ -4,7 +4,7 @@
 use omcl::encode::Encoder as _;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
+use anyhow::{Context, bail, ensure};
 use clap::{Args, Subcommand};
 
 use omcl::encode::runtime::find_library;
@@ -60,6 +60,13 @@ pub struct ColourModelArgs {
     /// Output model (.onnx); the card is written beside it (.card.json).
     #[arg(short, long)]
     pub out: PathBuf,
+    /// Also write the classes as a class table in this folder
+    /// (classes.txt, one `<id> colour-<id>` line a class, and embeddings.npy,
+    /// `K x F`): the table `omcl localize --baseline --baseline-classes`
+    /// labels pixels and plan columns with (a 7-Scenes folder has none).
+    /// An existing table there is refused, never replaced.
+    #[arg(long, value_name = "DIR")]
+    pub class_table: Option<PathBuf>,
 }
 
 /// Options every command that runs a model shares.
@@ -378,8 +385,30 @@ fn colour_model(a: &ColourModelArgs) -> anyhow::Result<()> {
     use omcl::experiment::sevenscenes::{TrackSpec, fit_colour_model, split};
     let size = parse_size(&a.size)?;
     let card = omcl::encode::card::card_path_for(&a.out);
-    let outputs = [("--out", a.out.as_path()), ("--out's card", card.as_path())];
+    let table = a
+        .class_table
+        .as_ref()
+        .map(|d| (d.join("classes.txt"), d.join("embeddings.npy")));
+    let mut outputs = vec![("--out", a.out.as_path()), ("--out's card", card.as_path())];
+    if let Some((c, e)) = &table {
+        outputs.push(("--class-table's classes.txt", c.as_path()));
+        outputs.push(("--class-table's embeddings.npy", e.as_path()));
+    }
     super::outputs::refuse_overlaps(&outputs, &[] as &[(&str, &Path)])?;
+    if let Some((c, e)) = &table {
+        // A class table is data (a sequence's labels are read through it):
+        // never replaced, and its folder made before the fit.
+        for f in [c, e] {
+            ensure!(
+                !f.exists(),
+                "{} exists: --class-table writes a new class table and replaces none (a \
+                 sequence's labels are read through its table); give a new folder",
+                f.display()
+            );
+        }
+        let dir = a.class_table.as_deref().unwrap_or(Path::new("."));
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
     super::outputs::refuse_inside_sequence(&outputs, &a.frames)?;
     let seq = omcl::io::sevenscenes::SevenScenes::open(&a.frames)?;
     let n = seq.len().min(a.first.unwrap_or(usize::MAX));
@@ -402,6 +431,16 @@ fn colour_model(a: &ColourModelArgs) -> anyhow::Result<()> {
     );
     for (i, c) in classes.centroids.iter().enumerate() {
         println!("class {i}: L {:.1} a {:.1} b {:.1}", c[0], c[1], c[2]);
+    }
+    if let Some((c, e)) = &table {
+        let list: String = (0..classes.len())
+            .map(|i| format!("{i} colour-{i}\n"))
+            .collect();
+        omcl::io::atomic::write(c, list.as_bytes())
+            .with_context(|| format!("writing {}", c.display()))?;
+        omcl::io::npy::write_npy(e, &[classes.len(), classes.dim], &classes.embeddings)
+            .with_context(|| format!("writing {}", e.display()))?;
+        println!("wrote the class table {} and {}", c.display(), e.display());
     }
     Ok(())
 }

@@ -15,10 +15,12 @@ use omcl::io::poses::{self, PoseFormat};
 use omcl::io::rgbd;
 use omcl::io::sevenscenes::FramePick;
 use omcl::map;
+use omcl::mcl::baselines::BaselineParams;
 use omcl::mcl::{
     self, EarlyReject, FilterConfig, FilterPreset, FloorParams, MotionMode, PromptParams,
     SamplingStrategy,
 };
+use omcl::session::baseline::BaselineSession;
 use omcl::session::floorplan::{EXIT_WORDS, PlanScene};
 use omcl::session::ground;
 use omcl::session::sequence::{
@@ -370,6 +372,60 @@ pub struct LocalizeArgs {
     /// streets climb). --floorplan always does, with the camera level.
     #[arg(long)]
     pub ground: bool,
+    /// With --floorplan: track the camera with one of Table I's two
+    /// semantic MCL baselines instead of OMCL's sensor, on the same floor
+    /// plan, with the same motion noise, estimate and start and the same
+    /// stratified pixel sampler (over every row of the plan's database, as
+    /// in `omcl bench table1-floorplan`; docs/table1.md says what was
+    /// adapted). sedar (SeDAR*): each pixel's
+    /// planar ray, the class of the column it reaches against the pixel's
+    /// class. simp (SIMP*): each pixel placed at its depth, scored by its
+    /// distance to the plan's nearest column of its class; needs the
+    /// sequence's depth images (depth/NNNNNN.png, --depth-scale; 7-Scenes'
+    /// own). Both label the plan's columns and the pixels with the nearest
+    /// class of the sequence's class table (classes.txt + embeddings.npy,
+    /// in the map's feature space). 2048 pixels a frame unless --rays;
+    /// from a pose only (--init local); OMCL's sensor options (--sharpen,
+    /// --layers, --expand, --no-contrast, --early-reject, --every-ray,
+    /// --miss-score) and --recovery are refused.
+    #[arg(long, value_enum, requires = "floorplan")]
+    pub baseline: Option<BaselineArg>,
+    /// --baseline: the class table to label with, a folder holding
+    /// classes.txt and embeddings.npy (`omcl encode colour-model
+    /// --class-table` writes one for its classes) [default: the
+    /// sequence's own].
+    #[arg(long, value_name = "DIR", requires = "baseline")]
+    pub baseline_classes: Option<PathBuf>,
+    /// --baseline simp: depth PNG units per metre [default: 5000, TUM's
+    /// and `omcl map rgbd`'s; 7-Scenes folders are read in millimetres].
+    #[arg(long, value_name = "UNITS", value_parser = super::positive)]
+    pub depth_scale: Option<f64>,
+}
+
+/// Table I's baselines, by `--baseline`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum BaselineArg {
+    /// SeDAR* (Mendez et al., ICRA 2018): semantic ray casting.
+    Sedar,
+    /// SIMP* (Zimmerman et al., 2023): a per-class likelihood field.
+    Simp,
+}
+
+impl BaselineArg {
+    /// The method's name, starred as in Table I.
+    fn label(self) -> &'static str {
+        match self {
+            BaselineArg::Sedar => "SeDAR*",
+            BaselineArg::Simp => "SIMP*",
+        }
+    }
+
+    fn baseline(self) -> omcl::mcl::baselines::Baseline {
+        match self {
+            BaselineArg::Sedar => omcl::mcl::baselines::Baseline::Sedar,
+            BaselineArg::Simp => omcl::mcl::baselines::Baseline::Simp,
+        }
+    }
 }
 
 /// What to do when global or prompt initialization cannot place particles,
@@ -930,20 +986,61 @@ fn class_table(
 /// --init local's position spread when --init-sigma-m is not given.
 const DEFAULT_INIT_SIGMA_M: f64 = 0.3;
 
+/// The names of the options `flags` marks as given.
+fn given(flags: &[(bool, &'static str)]) -> Vec<&'static str> {
+    flags
+        .iter()
+        .filter(|(on, _)| *on)
+        .map(|(_, o)| *o)
+        .collect()
+}
+
 /// Refuses options the run would not use: a start pose or spread for a
 /// start that is not --init local, pixel-margin for uniform sampling, a
-/// runtime library with no model to run.
+/// runtime library with no model to run, OMCL's sensor options, another
+/// start or recovery with --baseline, a depth scale without SIMP*.
 fn check_options_apply(a: &LocalizeArgs) -> anyhow::Result<()> {
+    if let Some(b) = a.baseline {
+        let name = b.label();
+        ensure!(
+            a.init == InitArg::Local,
+            "--baseline: {name} starts from a pose (--init local, the paper's start for both \
+             baselines); its sensor scores class labels, and --init global and prompt place \
+             cameras with the floor's feature"
+        );
+        ensure!(
+            !a.recovery,
+            "--baseline: {name} has no recovery (it injects floor poses scored by OMCL's \
+             sensor); leave --recovery out"
+        );
+        let omcl_only = given(&[
+            (a.sharpen.is_some(), "--sharpen"),
+            (a.layers.is_some(), "--layers"),
+            (a.expand.is_some(), "--expand"),
+            (a.no_contrast, "--no-contrast"),
+            (a.early_reject, "--early-reject"),
+            (a.every_ray, "--every-ray"),
+            (a.miss_score.is_some(), "--miss-score"),
+        ]);
+        ensure!(
+            omcl_only.is_empty(),
+            "--baseline: {} set{} OMCL's sensor, which {name} does not use (its likelihood is \
+             its own, tempered with 30 beams); leave {} out",
+            omcl_only.join(" and "),
+            if omcl_only.len() == 1 { "s" } else { "" },
+            if omcl_only.len() == 1 { "it" } else { "them" }
+        );
+    }
+    ensure!(
+        a.depth_scale.is_none() || a.baseline == Some(BaselineArg::Simp),
+        "--depth-scale is for --baseline simp (the only sensor here that reads depth images)"
+    );
     if a.init != InitArg::Local {
-        let given: Vec<&str> = [
+        let given = given(&[
             (a.init_pose.is_some(), "--init-pose"),
             (a.init_sigma_m.is_some(), "--init-sigma-m"),
             (a.init_sigma_deg.is_some(), "--init-sigma-deg"),
-        ]
-        .iter()
-        .filter(|(on, _)| *on)
-        .map(|(_, name)| *name)
-        .collect();
+        ]);
         ensure!(
             given.is_empty(),
             "{} {} for --init local (a start pose and its spread); --init {} places the \
@@ -1327,10 +1424,15 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     // The session's map: the 3-D map with its Embree scene, or (with
     // --floorplan) the floor plan's sighted map with its planar caster, the
     // label table bound to it, and the 3-D map kept for the plot.
+    let mut baseline = None;
     let (shared, plan_table, map3) = match &a.floorplan {
         Some(plan) => {
             let map3 = Arc::new(map3);
-            let shared = plan_map(&a, plan.as_deref(), &map3, &words)?.with_floor_map(map3.clone());
+            let scene = plan_scene(&a, plan.as_deref(), &map3, &words)?;
+            if let Some(b) = a.baseline {
+                baseline = Some(open_baseline(&a, b, &scene, &inputs, &words, n)?);
+            }
+            let shared = SharedMap::floor_plan("floor plan", scene).with_floor_map(map3.clone());
             let t = table
                 .as_ref()
                 .map(|t| LabelTable::new(t.table().clone(), shared.map()))
@@ -1343,8 +1445,14 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
     let m = map3.as_deref().unwrap_or(shared.map());
     let frames_table = plan_table.as_ref().or(table.as_ref());
 
-    let mut session = open_session(&a, shared.clone(), &inputs, &words)?;
-    print_setup(&a, &inputs);
+    let mut session = match baseline {
+        Some(b) => Err(b),
+        None => Ok(open_session(&a, shared.clone(), &inputs, &words)?),
+    };
+    match &session {
+        Ok(_) => print_setup(&a, &inputs),
+        Err(b) => print_baseline_setup(&a, &inputs, b),
+    }
     let stamps = inputs.stamps(n);
     let mut source = match (image.as_mut(), frames_table) {
         (Some(src), _) => FrameSource::Images(src),
@@ -1352,14 +1460,25 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         _ => FrameSource::Features,
     };
     let pb = super::progress::bar(n as u64, "localizing");
-    let frames = sequence::localize(
-        &mut session,
-        &inputs,
-        &mut source,
-        &read.poses[..n],
-        &stamps,
-        &mut |_| pb.inc(1),
-    )?;
+    let frames = match &mut session {
+        Ok(session) => sequence::localize(
+            session,
+            &inputs,
+            &mut source,
+            &read.poses[..n],
+            &stamps,
+            &mut |_| pb.inc(1),
+        )?,
+        Err(b) => sequence::localize_baseline(
+            b,
+            &inputs,
+            &mut source,
+            &read.poses[..n],
+            &stamps,
+            depth_scale(&a),
+            &mut |_| pb.inc(1),
+        )?,
+    };
     super::progress::finish(&pb);
     let (estimates, diag, filter_s, input_s) = diagnostics(&frames);
     let est = Trajectory::new(stamps.clone(), estimates)?;
@@ -1524,6 +1643,11 @@ fn refuse_replacing_inputs(a: &LocalizeArgs) -> anyhow::Result<()> {
             .map(|p| ("the floor plan".to_string(), p.clone())),
     );
     inputs.extend(a.odometry.clone().map(|p| ("the odometry".to_string(), p)));
+    for d in a.baseline_classes.iter() {
+        for f in ["classes.txt", "embeddings.npy"] {
+            inputs.push((format!("--baseline-classes' {f}"), d.join(f)));
+        }
+    }
     inputs.extend(
         files
             .into_iter()
@@ -1593,16 +1717,16 @@ fn check_plan_and_ground_args(a: &LocalizeArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The floor-plan map of `--floorplan`: the plan file `plan` checked
+/// The floor-plan scene of `--floorplan`: the plan file `plan` checked
 /// against `map3` (the map it must have been made from), or `map3`
 /// projected with the default band; its sighted map and planar caster,
 /// with the words "floor" and "ceiling" when `words` has them.
-fn plan_map(
+fn plan_scene(
     a: &LocalizeArgs,
     plan: Option<&Path>,
     map3: &omcl::map::LanguageMap,
     words: &Words,
-) -> anyhow::Result<SharedMap> {
+) -> anyhow::Result<PlanScene> {
     let exits = words
         .available()
         .then(|| words.features(&EXIT_WORDS.join(","), "map word"))
@@ -1637,7 +1761,147 @@ fn plan_map(
             None => String::new(),
         }
     );
-    Ok(SharedMap::floor_plan("floor plan", scene))
+    Ok(scene)
+}
+
+/// `--baseline b`'s session on `scene` for `n` frames: the sequence's
+/// class table labels the plan's columns and the pixels; the start,
+/// particles and filter are the OMCL run's, the pixels 2048 unless --rays.
+fn open_baseline(
+    a: &LocalizeArgs,
+    b: BaselineArg,
+    scene: &PlanScene,
+    inputs: &CameraSequence,
+    words: &Words,
+    n: usize,
+) -> anyhow::Result<BaselineSession> {
+    let name = b.label();
+    ensure!(
+        a.depth_scale.is_none() || inputs.sevenscenes.is_none(),
+        "--depth-scale: {} is a 7-Scenes folder, whose depth images are read in millimetres; \
+         leave --depth-scale out",
+        inputs.dir.display()
+    );
+    let (list, npy, whose) = match &a.baseline_classes {
+        Some(d) => (
+            d.join("classes.txt"),
+            d.join("embeddings.npy"),
+            "--baseline-classes",
+        ),
+        None => (
+            inputs.classes.clone(),
+            inputs.embeddings.clone(),
+            "the sequence's class table",
+        ),
+    };
+    let classes = EmbeddingTable::read(&list, &npy).with_context(|| {
+        format!(
+            "--baseline: {name} labels the floor plan's columns and the pixels by class, from \
+             {whose} ({} and {}; --baseline-classes DIR names another)",
+            list.display(),
+            npy.display()
+        )
+    })?;
+    if let Some(scale) = depth_scale(a)
+        && inputs.sevenscenes.is_none()
+    {
+        // Every frame's depth image is there (not found at frame 17).
+        let png = |i: usize| inputs.dir.join("depth").join(format!("{i:06}.png"));
+        if let Some(i) = (0..n).find(|&i| !png(i).is_file()) {
+            bail!(
+                "--baseline simp places each pixel at its depth: {} is missing (the run \
+                 localizes {n} frames; --frames N localizes fewer; --baseline sedar needs no \
+                 depth)",
+                png(i).display()
+            );
+        }
+        // The first depth image read as the run will read them: a scale
+        // that makes a room kilometres deep, or millimetres, is named.
+        let d = inputs.read_depth(0, scale)?;
+        if let Some(doubt) = rgbd::depth_scale_doubt(&d.depth, scale) {
+            eprintln!("note: {}: {doubt}", png(0).display());
+        }
+    }
+    let start = start(a, inputs.ground_truth.as_ref(), words, None)?;
+    if let Start::Pose { pose, .. } = &start {
+        let tilt = ground::tilt_deg(pose);
+        if tilt > 2.0 {
+            eprintln!(
+                "note: the start pose is {tilt:.1} degrees from level; on a floor plan the \
+                 camera is held level at its height, and {name} places its pixels from a level \
+                 camera"
+            );
+        }
+    }
+    let config = SessionConfig {
+        intrinsics: inputs.intrinsics,
+        particles: particle_count(a, false),
+        filter: filter_config(a, inputs),
+        floor: FloorParams::default(),
+        floor_feature: None,
+        ground: false,
+    };
+    let params = BaselineParams {
+        pixels: a.rays.unwrap_or(BaselineParams::default().pixels),
+        ..BaselineParams::default()
+    };
+    BaselineSession::new(scene, &classes, b.baseline(), params, &config, &start).with_context(
+        || {
+            format!(
+                "--baseline {name} with {} and {}",
+                list.display(),
+                npy.display()
+            )
+        },
+    )
+}
+
+/// The depth scale `--baseline simp` reads depth images with (`None`:
+/// the run reads none).
+fn depth_scale(a: &LocalizeArgs) -> Option<f64> {
+    (a.baseline == Some(BaselineArg::Simp))
+        .then(|| a.depth_scale.unwrap_or(rgbd::TUM_DEPTH_UNITS_PER_METRE))
+}
+
+/// A baseline run's setup on standard output, before its first frame.
+fn print_baseline_setup(a: &LocalizeArgs, inputs: &CameraSequence, session: &BaselineSession) {
+    let params = BaselineParams::default();
+    let pixels = a.rays.unwrap_or(params.pixels);
+    println!(
+        "{} particle{} x {pixels} pixel{} a frame{}",
+        session.particles().len(),
+        if session.particles().len() == 1 {
+            ""
+        } else {
+            "s"
+        },
+        if pixels == 1 { "" } else { "s" },
+        if a.rays.is_none() {
+            " (Table I's baselines; --particles, --rays)"
+        } else {
+            ""
+        }
+    );
+    println!(
+        "baseline {}: {} on the floor plan, planar motion noise, beams {}, z_rand {}",
+        a.baseline.map_or("", BaselineArg::label),
+        match a.baseline {
+            Some(BaselineArg::Simp) => format!(
+                "each pixel at its depth ({}) against the nearest column of its class, sigma {} m",
+                match inputs.layout() {
+                    Layout::SevenScenes => "7-Scenes' depth images, millimetres".to_string(),
+                    _ => format!(
+                        "depth/, --depth-scale {}",
+                        depth_scale(a).unwrap_or_default()
+                    ),
+                },
+                params.sigma
+            ),
+            _ => "each pixel's planar ray against the class of the column it reaches".into(),
+        },
+        params.beams,
+        params.z_rand
+    );
 }
 
 /// What the camera gives: images through --encoder, else label images

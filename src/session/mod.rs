@@ -25,6 +25,7 @@
 //! made from ground truth has one definition in the library,
 //! [`crate::sim::paths::odometry`].
 
+pub mod baseline;
 pub mod floorplan;
 pub mod frames;
 pub mod ground;
@@ -92,6 +93,11 @@ pub enum SessionError {
          floor voxels)"
     )]
     PoseStartOnly(String),
+    #[error(
+        "{0} starts from a pose (the paper's local start): its sensor scores class labels, and \
+         global and prompt starts place cameras with the floor's feature"
+    )]
+    BaselineStart(&'static str),
     #[error(
         "a camera held to the ground (a floor plan, or `ground`) moves with planar motion noise, \
          not {0:?}"
@@ -447,6 +453,20 @@ pub struct PoseReport {
     pub step: StepReport,
 }
 
+impl PoseReport {
+    /// The report of frame `frame` (stamped `stamp`) from its filter
+    /// step and the particles after it.
+    pub(crate) fn of(stamp: f64, frame: u64, step: StepReport, particles: &[Particle]) -> Self {
+        PoseReport {
+            stamp,
+            frame,
+            pose: step.estimate,
+            covariance: covariance(particles, &step.estimate),
+            step,
+        }
+    }
+}
+
 /// One camera localized in a shared map.
 pub struct Session {
     map: Arc<SharedMap>,
@@ -603,13 +623,12 @@ impl Session {
         })?;
         self.last_odom = None;
         self.frames += 1;
-        Ok(PoseReport {
+        Ok(PoseReport::of(
             stamp,
-            frame: self.frames,
-            pose: step.estimate,
-            covariance: covariance(self.filter.particles(), &step.estimate),
+            self.frames,
             step,
-        })
+            self.filter.particles(),
+        ))
     }
 }
 

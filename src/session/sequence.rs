@@ -27,10 +27,12 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use super::baseline::BaselineSession;
 use super::{LabelTable, PoseReport, Session, SessionError, feature_grid, label_frame};
 use crate::encode::EncodeError;
 use crate::encode::cache::ImageSource;
 use crate::encode::image::EncodedFrame;
+use crate::frame::FrameFeatures;
 use crate::geometry::{Intrinsics, Pose};
 use crate::io::cloud::CloudError;
 use crate::io::kitti_camera::{CameraInput, KittiCameraSequence};
@@ -198,23 +200,68 @@ impl CameraSequence {
         }
     }
 
+    /// The position in a 7-Scenes folder's frames of the run's frame `i`.
+    fn picked(&self, s: &SevenScenesFrames, i: usize) -> Result<usize, SequenceError> {
+        s.picked.get(i).copied().ok_or_else(|| {
+            SequenceError::Input(format!(
+                "{}: frame {i} asked for, {} picked",
+                self.dir.display(),
+                s.picked.len()
+            ))
+        })
+    }
+
     /// The RGB image of frame `i` (7-Scenes: the picked frame's colour
     /// JPEG, checked whole and of the dataset's size).
     pub fn image_path(&self, i: usize) -> Result<PathBuf, SequenceError> {
         match &self.sevenscenes {
             Some(s) => {
-                let j = *s.picked.get(i).ok_or_else(|| {
-                    SequenceError::Input(format!(
-                        "{}: frame {i} asked for, {} picked",
-                        self.dir.display(),
-                        s.picked.len()
-                    ))
-                })?;
+                let j = self.picked(s, i)?;
                 s.seq.check_color(j)?;
                 Ok(s.seq.frames[j].color.clone())
             }
             None => Ok(self.rgb_dir.join(format!("{i:06}.png"))),
         }
+    }
+
+    /// The depth image of frame `i`, in metres: an RGB-D folder's
+    /// `depth/NNNNNN.png` in `units_per_metre`, a 7-Scenes folder's picked
+    /// frame in millimetres (whatever `units_per_metre` says); it must be
+    /// of the camera's size. KITTI sequences have none.
+    pub fn read_depth(
+        &self,
+        i: usize,
+        units_per_metre: f64,
+    ) -> Result<rgbd::DepthImage, SequenceError> {
+        let k = self.intrinsics;
+        let (path, d) = match (&self.sevenscenes, &self.kitti) {
+            (Some(s), _) => {
+                let j = self.picked(s, i)?;
+                (s.seq.frames[j].depth.clone(), s.seq.read_depth(j)?)
+            }
+            (None, Some(_)) => {
+                return Err(SequenceError::Input(format!(
+                    "{}: a KITTI sequence has no depth images",
+                    self.dir.display()
+                )));
+            }
+            (None, None) => {
+                let p = self.dir.join("depth").join(format!("{i:06}.png"));
+                let d = rgbd::read_depth_png(&p, units_per_metre)?;
+                (p, d)
+            }
+        };
+        if (d.width, d.height) != (k.width, k.height) {
+            return Err(SequenceError::Input(format!(
+                "{}: a {} x {} depth image, the camera is {} x {} (intrinsics)",
+                path.display(),
+                d.width,
+                d.height,
+                k.width,
+                k.height
+            )));
+        }
+        Ok(d)
     }
 
     /// An RGB-D folder.
@@ -594,6 +641,48 @@ pub fn step_frame(
     odom: &Pose,
     stamp: f64,
 ) -> Result<LocalizedFrame, SequenceError> {
+    let (report, input_seconds) =
+        with_frame(seq, source, i, &mut |f| session.step(odom, stamp, f))?;
+    Ok(LocalizedFrame {
+        report,
+        input_seconds,
+    })
+}
+
+/// Reads frame `i` of `seq` as `source` says (and, with `depth_scale`,
+/// its depth image: depth PNG units per metre, 7-Scenes folders in
+/// millimetres whatever it says) and steps the baseline's `session` with
+/// it.
+pub fn step_baseline_frame(
+    session: &mut BaselineSession,
+    seq: &CameraSequence,
+    source: &mut FrameSource<'_>,
+    i: usize,
+    odom: &Pose,
+    stamp: f64,
+    depth_scale: Option<f64>,
+) -> Result<LocalizedFrame, SequenceError> {
+    let t = Instant::now();
+    let depth = depth_scale.map(|d| seq.read_depth(i, d)).transpose()?;
+    let depth_seconds = t.elapsed().as_secs_f64();
+    let depth = depth.as_ref().map(|d| d.depth.as_slice());
+    let (report, input_seconds) =
+        with_frame(seq, source, i, &mut |f| session.step(odom, stamp, f, depth))?;
+    Ok(LocalizedFrame {
+        report,
+        input_seconds: input_seconds + depth_seconds,
+    })
+}
+
+/// Reads frame `i` of `seq` as `source` says and gives it to `step`;
+/// returns what `step` did and the seconds spent reading the frame (and
+/// encoding it, for images).
+fn with_frame(
+    seq: &CameraSequence,
+    source: &mut FrameSource<'_>,
+    i: usize,
+    step: &mut dyn FnMut(&dyn FrameFeatures) -> Result<PoseReport, SessionError>,
+) -> Result<(PoseReport, f64), SequenceError> {
     let k = seq.intrinsics;
     let t_in = Instant::now();
     let frame_error = |path: &Path, source: SessionError| SequenceError::Frame {
@@ -601,7 +690,7 @@ pub fn step_frame(
         path: path.display().to_string(),
         source: Box::new(source),
     };
-    let (report, input_seconds) = match source {
+    match source {
         FrameSource::Images(src) => {
             let p = seq.image_path(i)?;
             let fm = src.encode(&p, i).map_err(|source| SequenceError::Encode {
@@ -614,20 +703,16 @@ pub fn step_frame(
                 width: k.width,
                 height: k.height,
             };
-            let r = session
-                .step(odom, stamp, &f)
-                .map_err(|e| frame_error(&p, e))?;
-            (r, input)
+            let r = step(&f).map_err(|e| frame_error(&p, e))?;
+            Ok((r, input))
         }
         FrameSource::Labels(t) => {
             let p = seq.labels_dir.join(format!("{i:06}.png"));
             let (w, h, labels) = rgbd::read_label_png(&p)?;
             let input = t_in.elapsed().as_secs_f64();
             let f = label_frame(w, h, &labels, t).map_err(|e| frame_error(&p, e))?;
-            let r = session
-                .step(odom, stamp, &f)
-                .map_err(|e| frame_error(&p, e))?;
-            (r, input)
+            let r = step(&f).map_err(|e| frame_error(&p, e))?;
+            Ok((r, input))
         }
         FrameSource::Features => {
             let p = seq.features_dir.join(format!("{i:06}.npy"));
@@ -643,16 +728,10 @@ pub fn step_frame(
             let shape = [arr.shape[0], arr.shape[1], arr.shape[2]];
             let f = feature_grid(k.width, k.height, shape, &arr.data)
                 .map_err(|e| frame_error(&p, e))?;
-            let r = session
-                .step(odom, stamp, &f)
-                .map_err(|e| frame_error(&p, e))?;
-            (r, input)
+            let r = step(&f).map_err(|e| frame_error(&p, e))?;
+            Ok((r, input))
         }
-    };
-    Ok(LocalizedFrame {
-        report,
-        input_seconds,
-    })
+    }
 }
 
 /// Localizes frames `0..odom.len()` of `seq`: every frame read as
@@ -669,6 +748,32 @@ pub fn localize(
     let mut out = Vec::with_capacity(odom.len());
     for (i, (o, &stamp)) in odom.iter().zip(stamps).enumerate() {
         out.push(step_frame(session, seq, source, i, o, stamp)?);
+        progress(i);
+    }
+    Ok(out)
+}
+
+/// [`localize`] with a baseline's session ([`step_baseline_frame`]).
+pub fn localize_baseline(
+    session: &mut BaselineSession,
+    seq: &CameraSequence,
+    source: &mut FrameSource<'_>,
+    odom: &[Pose],
+    stamps: &[f64],
+    depth_scale: Option<f64>,
+    progress: &mut dyn FnMut(usize),
+) -> Result<Vec<LocalizedFrame>, SequenceError> {
+    let mut out = Vec::with_capacity(odom.len());
+    for (i, (o, &stamp)) in odom.iter().zip(stamps).enumerate() {
+        out.push(step_baseline_frame(
+            session,
+            seq,
+            source,
+            i,
+            o,
+            stamp,
+            depth_scale,
+        )?);
         progress(i);
     }
     Ok(out)
