@@ -1193,6 +1193,7 @@ fn floorplan_baselines_track_the_sequence_to_its_end() {
     let gt = read_tum(&f.seq.join("poses.txt"));
     let run = |name: &str, extra: &[&str]| {
         let out = f.dir.path().join(name);
+        let metrics = f.dir.path().join(format!("{name}.json"));
         let args = [
             &[
                 "localize",
@@ -1207,6 +1208,8 @@ fn floorplan_baselines_track_the_sequence_to_its_end() {
                 "--frames",
                 &frames,
                 "--floorplan",
+                "--metrics",
+                s(&metrics),
             ][..],
             extra,
         ]
@@ -1230,6 +1233,16 @@ fn floorplan_baselines_track_the_sequence_to_its_end() {
             errors.push(horizontal(e, g));
         }
         assert_printed_rmse(&r, "APE (horizontal) rmse ", &errors);
+        // --metrics names the method that made the estimate.
+        let m: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&metrics).unwrap()).unwrap();
+        let method = match extra.iter().position(|&x| x == "--baseline") {
+            Some(i) if extra[i + 1] == "simp" => "SIMP*",
+            Some(_) => "SeDAR*",
+            None => "OMCL (2-D, floor plan)",
+        };
+        assert_eq!(m["method"], method, "{extra:?}");
+        assert_eq!(m["horizontal"], true);
         (r, est, errors)
     };
     let stats = |e: &[f64]| {

@@ -171,6 +171,8 @@ fn a_short_street_localizes_in_kitti_layout() {
     direct /= est.len() as f64;
     let m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&metrics).unwrap()).unwrap();
+    assert_eq!(m["method"], "OMCL (3-D map)");
+    assert_eq!(m["horizontal"], false);
     let t_mean = m["translation_m"]["mean"].as_f64().unwrap();
     let r_mean = m["rotation_deg"]["mean"].as_f64().unwrap();
     eprintln!("translation mean {t_mean} m, rotation mean {r_mean} deg, direct {direct} m");

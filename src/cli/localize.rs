@@ -794,12 +794,23 @@ fn filter_config(a: &LocalizeArgs, inputs: &CameraSequence) -> FilterConfig {
     config
 }
 
+/// The method a run localizes with, as `--metrics` names it: Table I's
+/// names, a baseline starred.
+fn method_name(a: &LocalizeArgs) -> &'static str {
+    match (a.baseline, a.floorplan.is_some()) {
+        (Some(b), _) => b.label(),
+        (None, true) => "OMCL (2-D, floor plan)",
+        (None, false) => "OMCL (3-D map)",
+    }
+}
+
 /// Writes `--metrics`: the outdoor metric of the run as JSON.
 fn write_metrics(
     p: &Path,
     d: &Path,
     n: usize,
     mt: &omcl::eval::OutdoorMetric,
+    method: &str,
     horizontal: bool,
     steps_per_s: f64,
 ) -> anyhow::Result<()> {
@@ -812,6 +823,7 @@ fn write_metrics(
     };
     let json = serde_json::json!({
         "sequence": d.display().to_string(),
+        "method": method,
         "frames": n,
         "metric": format!(
             "per-frame {translation} and rotation error angle(R_gt^T R_est) (deg) of the \
@@ -1509,7 +1521,8 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
             .with_context(|| format!("writing {}", p.display()))?;
     }
     if let (Some(p), Some(mt)) = (&a.metrics, &metric) {
-        write_metrics(p, d, n, mt, horizontal, n as f64 / filter_s.max(1e-12))?;
+        let steps_per_s = n as f64 / filter_s.max(1e-12);
+        write_metrics(p, d, n, mt, method_name(&a), horizontal, steps_per_s)?;
     }
     println!(
         "{:.1} filter steps/s; {:.1} frames/s with reading the frames{}",
