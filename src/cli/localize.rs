@@ -414,10 +414,7 @@ pub enum BaselineArg {
 impl BaselineArg {
     /// The method's name, starred as in Table I.
     fn label(self) -> &'static str {
-        match self {
-            BaselineArg::Sedar => "SeDAR*",
-            BaselineArg::Simp => "SIMP*",
-        }
+        self.baseline().label()
     }
 
     fn baseline(self) -> omcl::mcl::baselines::Baseline {

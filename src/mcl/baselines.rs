@@ -57,7 +57,15 @@ pub enum Baseline {
 }
 
 impl Baseline {
-    /// The row name of Table I.
+    /// The method's name, starred as in Table I: what a message names.
+    pub fn label(self) -> &'static str {
+        match self {
+            Baseline::Sedar => "SeDAR*",
+            Baseline::Simp => "SIMP*",
+        }
+    }
+
+    /// The row name of Table I: the method on ground-truth labels.
     pub fn name(self) -> &'static str {
         match self {
             Baseline::Sedar => "SeDAR*_GT",
@@ -370,7 +378,7 @@ pub fn weigh(particles: &mut [Particle], log_l: &[f64]) {
 }
 
 #[cfg(test)]
-pub(super) mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::map::key::GridSpec;
     use crate::map::{FloorPlanParams, LanguageMap};
@@ -379,7 +387,7 @@ pub(super) mod tests {
     /// Three classes (unit axes). A 0.5 m plan: a wall of class 0 at
     /// column x 8 (x 4.0..4.5 m), y 0..=7, and a column of class 1 at
     /// (3, 7) (x 1.5..2.0, y 3.5..4.0).
-    pub(in crate::mcl) fn scene() -> (FloorPlan, LanguageMap, FeatureDb) {
+    pub(crate) fn scene() -> (FloorPlan, LanguageMap, FeatureDb) {
         let classes =
             FeatureDb::from_rows(3, 0.0, vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])
                 .unwrap();
@@ -408,7 +416,7 @@ pub(super) mod tests {
 
     /// A camera at (x, y, 0.75) looking along world +x (camera z) with
     /// camera y down (world -z).
-    pub(in crate::mcl) fn camera(x: f64, y: f64) -> Pose {
+    pub(crate) fn camera(x: f64, y: f64) -> Pose {
         let r = nalgebra::Matrix3::new(0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0);
         let q = UnitQuaternion::from_matrix(&r);
         Pose::from_parts(nalgebra::Translation3::new(x, y, 0.75), q)

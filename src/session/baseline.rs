@@ -55,7 +55,7 @@ impl BaselineSession {
             sigma_rad,
         } = start
         else {
-            return Err(SessionError::BaselineStart(baseline.name()));
+            return Err(SessionError::BaselineStart(baseline.label()));
         };
         mcl::motion::check_pose(pose).map_err(SessionError::Init)?;
         if !(sigma_m.is_finite() && *sigma_m >= 0.0 && sigma_rad.is_finite() && *sigma_rad >= 0.0) {
@@ -73,7 +73,7 @@ impl BaselineSession {
                  columns and the pixels with the classes nearest to their features",
                 classes.dim,
                 scene.map.db().dim(),
-                baseline.name()
+                baseline.label()
             )));
         }
         let db = FeatureDb::from_rows(classes.dim, 0.0, classes.data.clone())
@@ -149,5 +149,163 @@ impl BaselineSession {
             step,
             self.filter.particles(),
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frame::DenseFeatures;
+    use crate::geometry::Intrinsics;
+    use crate::mcl::baselines::tests::{camera, scene};
+    use crate::mcl::{FilterConfig, FloorParams, SamplingParams};
+    use nalgebra::{Translation3, UnitQuaternion, Vector3};
+
+    /// The baselines' test scene (a class-0 wall at x 4.0 to 4.5 m, a
+    /// class-1 column) as a plan scene, and its three classes' table.
+    fn plan_scene() -> (PlanScene, EmbeddingTable) {
+        let (plan, _, classes) = scene();
+        let table = EmbeddingTable::new(
+            vec![0, 1, 2],
+            vec!["wall".into(), "column".into(), "floor".into()],
+            3,
+            classes.rows().to_vec(),
+        )
+        .unwrap();
+        (PlanScene::from_plan(plan).unwrap(), table)
+    }
+
+    fn config() -> SessionConfig {
+        SessionConfig {
+            intrinsics: Intrinsics::from_hfov(64, 48, 90.0),
+            particles: 256,
+            filter: FilterConfig {
+                sampling: SamplingParams {
+                    boundary_margin: Some(0),
+                    ..SamplingParams::default()
+                },
+                seed: 5,
+                ..FilterConfig::floor_plan()
+            },
+            floor: FloorParams::default(),
+            floor_feature: None,
+            ground: true,
+        }
+    }
+
+    /// A 64 x 48 frame of one class, or of `dim` zeros-but-one values.
+    fn frame(class: usize, dim: usize) -> DenseFeatures {
+        let mut f = vec![0.0f32; dim];
+        f[class] = 1.0;
+        DenseFeatures {
+            width: 64,
+            height: 48,
+            dim,
+            data: f.repeat(64 * 48),
+        }
+    }
+
+    fn start(pose: Pose) -> Start {
+        Start::Pose {
+            pose,
+            sigma_m: 0.4,
+            sigma_rad: 0.0,
+        }
+    }
+
+    /// SIMP\* behind the session: a start pitched 10 degrees is levelled,
+    /// every pixel seeing the wall at 2 m pulls the estimate into x 2.0 to
+    /// 2.5 m, odometry 0.5 m forward (pitched too) moves it on with the
+    /// wall at 1.5 m; a frame of another dimension and an odometry jump
+    /// are rejected and leave the session as it was.
+    #[test]
+    fn simp_session_tracks_level_and_rejects_bad_frames() {
+        let (scene, table) = plan_scene();
+        let pitch = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 10f64.to_radians());
+        let truth = camera(1.5, 1.0);
+        let pitched = Pose::from_parts(truth.translation, truth.rotation * pitch);
+        let mut s = BaselineSession::new(
+            &scene,
+            &table,
+            Baseline::Simp,
+            BaselineParams::default(),
+            &config(),
+            &start(pitched),
+        )
+        .unwrap();
+        let level = |p: &Pose| {
+            // Camera y (down in the image) is world -z: no roll, no pitch.
+            let down = p.rotation * Vector3::y();
+            (down + Vector3::z()).norm()
+        };
+        for p in s.particles() {
+            assert!(level(&p.pose) < 1e-9, "{:?}", p.pose);
+            assert!((p.pose.translation.z - 0.75).abs() < 1e-9);
+        }
+        let r = s
+            .step(&pitched, 0.0, &frame(0, 3), Some(&vec![2.0; 64 * 48]))
+            .unwrap();
+        let x = r.pose.translation.x;
+        assert!((1.95..2.55).contains(&x), "estimate x {x:.3}");
+        assert!(level(&r.pose) < 1e-9 && (r.pose.translation.z - 0.75).abs() < 1e-9);
+        assert_eq!((r.frame, s.frames()), (1, 1));
+
+        // A 2-d frame: rejected, nothing stepped.
+        let before: Vec<Pose> = s.particles().iter().map(|p| p.pose).collect();
+        // The odometry pitched 20 degrees now, and 0.5 m forward: held
+        // level, its motion is 0.5 m along x.
+        let forward = Pose::from_parts(
+            Translation3::new(2.0, 1.0, 0.75),
+            truth.rotation * pitch * pitch,
+        );
+        let e = s
+            .step(&forward, 0.1, &frame(0, 2), Some(&vec![1.5; 64 * 48]))
+            .unwrap_err();
+        assert!(matches!(e, SessionError::BadFrame(_)), "{e}");
+        // An odometry jump: rejected too.
+        let far = Pose::from_parts(Translation3::new(5000.0, 1.0, 0.75), truth.rotation * pitch);
+        let e = s
+            .step(&far, 0.1, &frame(0, 3), Some(&vec![1.5; 64 * 48]))
+            .unwrap_err();
+        assert!(matches!(e, SessionError::OdometryJump(_)), "{e}");
+        assert_eq!(s.frames(), 1);
+        let after: Vec<Pose> = s.particles().iter().map(|p| p.pose).collect();
+        assert_eq!(before, after);
+
+        // 0.5 m forward, the wall 1.5 m ahead: x 2.5 to 3.0.
+        let r = s
+            .step(&forward, 0.1, &frame(0, 3), Some(&vec![1.5; 64 * 48]))
+            .unwrap();
+        let x = r.pose.translation.x;
+        assert!((2.4..3.1).contains(&x), "estimate x {x:.3}");
+        assert!(level(&r.pose) < 1e-9);
+        assert_eq!((r.frame, s.frames()), (2, 2));
+    }
+
+    /// What a baseline cannot start from, or label with, is refused by
+    /// the method's name.
+    #[test]
+    fn a_baseline_session_refuses_by_name() {
+        let (scene, table) = plan_scene();
+        let new = |b: Baseline, t: &EmbeddingTable, st: &Start| {
+            BaselineSession::new(&scene, t, b, BaselineParams::default(), &config(), st)
+                .err()
+                .unwrap()
+                .to_string()
+        };
+        let e = new(Baseline::Sedar, &table, &Start::Global);
+        assert!(e.starts_with("SeDAR* starts from a pose"), "{e}");
+        let two = EmbeddingTable::new(
+            vec![0, 1],
+            vec!["a".into(), "b".into()],
+            2,
+            vec![1.0, 0.0, 0.0, 1.0],
+        )
+        .unwrap();
+        let e = new(Baseline::Simp, &two, &start(camera(1.5, 1.0)));
+        assert!(
+            e.contains("2-d class embeddings, the floor plan's features are 3-d: SIMP* labels"),
+            "{e}"
+        );
     }
 }
