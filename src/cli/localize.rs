@@ -20,7 +20,7 @@ use omcl::mcl::{
     self, EarlyReject, FilterConfig, FilterPreset, FloorParams, MotionMode, PromptParams,
     SamplingStrategy,
 };
-use omcl::session::baseline::BaselineSession;
+use omcl::session::baseline::{BaselineMap, BaselineSession};
 use omcl::session::floorplan::{EXIT_WORDS, PlanScene};
 use omcl::session::ground;
 use omcl::session::sequence::{
@@ -1438,10 +1438,10 @@ pub fn run(a: LocalizeArgs) -> anyhow::Result<()> {
         Some(plan) => {
             let map3 = Arc::new(map3);
             let scene = plan_scene(&a, plan.as_deref(), &map3, &words)?;
-            if let Some(b) = a.baseline {
-                baseline = Some(open_baseline(&a, b, &scene, &inputs, &words, n)?);
-            }
             let shared = SharedMap::floor_plan("floor plan", scene).with_floor_map(map3.clone());
+            if let (Some(b), Some(on)) = (a.baseline, shared.baseline_map()) {
+                baseline = Some(open_baseline(&a, b, on, &inputs, &words, n)?);
+            }
             let t = table
                 .as_ref()
                 .map(|t| LabelTable::new(t.table().clone(), shared.map()))
@@ -1780,7 +1780,7 @@ fn plan_scene(
 fn open_baseline(
     a: &LocalizeArgs,
     b: BaselineArg,
-    scene: &PlanScene,
+    scene: &BaselineMap,
     inputs: &CameraSequence,
     words: &Words,
     n: usize,

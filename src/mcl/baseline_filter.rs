@@ -164,6 +164,30 @@ impl BaselineFilter {
         self.baseline
     }
 
+    /// The camera the frames must match.
+    pub fn intrinsics(&self) -> Intrinsics {
+        self.intrinsics
+    }
+
+    /// Replaces the particles with `n` drawn about `pose` (the local
+    /// start: `sigma_m` on the ground plane, `sigma_rad` on yaw), from
+    /// the filter's own generator, and forgets the confidence's history.
+    pub fn reinitialize(
+        &mut self,
+        pose: &Pose,
+        n: usize,
+        sigma_m: f64,
+        sigma_rad: f64,
+    ) -> Result<(), MclError> {
+        if n == 0 {
+            return Err(MclError::NoParticles);
+        }
+        self.particles = super::local_init(pose, n, sigma_m, sigma_rad, &mut self.rng);
+        normalize(&mut self.particles);
+        self.recovery = Recovery::default();
+        Ok(())
+    }
+
     /// One step: the motion by `increment` (`None`: the first frame, no
     /// motion yet), the frame's pixels sampled, labelled by their nearest
     /// class and, for SIMP\*, placed at `depth` (`width * height`

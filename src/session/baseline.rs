@@ -23,13 +23,37 @@ use crate::frame::FrameFeatures;
 use crate::geometry::Pose;
 use crate::io::labels::EmbeddingTable;
 use crate::map::FeatureDb;
+use crate::map::{FloorPlan, LanguageMap};
 use crate::mcl::baseline_filter::{BaselineFilter, BaselinePlan};
 use crate::mcl::baselines::{Baseline, BaselineParams};
 use crate::mcl::{self, MclError, Particle};
+use crate::raycast::PlanarCaster;
+
+/// What the baselines localize on: a floor plan, the plan as a one-layer
+/// map and its columns as infinitely tall prisms ([`PlanScene`]'s `plan`,
+/// `map` and `caster`; a floor-plan [`super::SharedMap`] keeps them for
+/// its baseline sessions).
+pub struct BaselineMap {
+    pub plan: FloorPlan,
+    pub map: LanguageMap,
+    pub caster: Arc<PlanarCaster>,
+}
+
+impl From<PlanScene> for BaselineMap {
+    fn from(scene: PlanScene) -> Self {
+        BaselineMap {
+            plan: scene.plan,
+            map: scene.map,
+            caster: scene.caster,
+        }
+    }
+}
 
 /// One camera tracked by a baseline on a floor plan.
 pub struct BaselineSession {
     filter: BaselineFilter,
+    /// Particles at the start and after each reinitialization.
+    particles: usize,
     mount: Mount,
     last_odom: Option<Pose>,
     frames: u64,
@@ -42,28 +66,14 @@ impl BaselineSession {
     /// camera, particle count and filter (motion noise, sampling, estimate,
     /// resampling; `config.filter.seed` seeds every draw).
     pub fn new(
-        scene: &PlanScene,
+        scene: &BaselineMap,
         classes: &EmbeddingTable,
         baseline: Baseline,
         params: BaselineParams,
         config: &SessionConfig,
         start: &Start,
     ) -> Result<Self, SessionError> {
-        let Start::Pose {
-            pose,
-            sigma_m,
-            sigma_rad,
-        } = start
-        else {
-            return Err(SessionError::BaselineStart(baseline.label()));
-        };
-        mcl::motion::check_pose(pose).map_err(SessionError::Init)?;
-        if !(sigma_m.is_finite() && *sigma_m >= 0.0 && sigma_rad.is_finite() && *sigma_rad >= 0.0) {
-            return Err(SessionError::Init(MclError::BadParam {
-                name: "initial spread",
-                why: format!("must be finite and >= 0, got {sigma_m} m, {sigma_rad} rad"),
-            }));
-        }
+        let (level, sigma_m, sigma_rad) = pose_start(baseline, start)?;
         if config.particles == 0 {
             return Err(SessionError::Init(MclError::NoParticles));
         }
@@ -80,9 +90,8 @@ impl BaselineSession {
             .map_err(|e| SessionError::ClassTable(e.to_string()))?;
         let plan = BaselinePlan::new(&scene.plan, &scene.map, scene.caster.clone(), db, &params)?;
         let mut rng = ChaCha8Rng::seed_from_u64(config.filter.seed);
-        let level = ground::level(pose, pose.translation.vector.z);
         let particles: Vec<Particle> =
-            mcl::local_init(&level, config.particles, *sigma_m, *sigma_rad, &mut rng);
+            mcl::local_init(&level, config.particles, sigma_m, sigma_rad, &mut rng);
         let filter = BaselineFilter::new(
             baseline,
             params,
@@ -94,10 +103,34 @@ impl BaselineSession {
         )?;
         Ok(BaselineSession {
             filter,
+            particles: config.particles,
             mount: Mount::level(),
             last_odom: None,
             frames: 0,
         })
+    }
+
+    /// Replaces the particles about `start`'s pose (levelled), as many as
+    /// the session started with; the next frame's odometry is the new
+    /// reference (it moves nothing). Only a pose start: global and prompt
+    /// starts are refused, and the session is left as it was.
+    pub fn reinitialize(&mut self, start: &Start) -> Result<(), SessionError> {
+        let (level, sigma_m, sigma_rad) = pose_start(self.filter.baseline(), start)?;
+        self.filter
+            .reinitialize(&level, self.particles, sigma_m, sigma_rad)
+            .map_err(SessionError::Init)?;
+        self.last_odom = None;
+        Ok(())
+    }
+
+    /// The camera the frames must match.
+    pub fn intrinsics(&self) -> crate::geometry::Intrinsics {
+        self.filter.intrinsics()
+    }
+
+    /// Which baseline tracks the camera.
+    pub fn baseline(&self) -> Baseline {
+        self.filter.baseline()
     }
 
     /// The particles (normalized weights).
@@ -152,6 +185,32 @@ impl BaselineSession {
     }
 }
 
+/// `start`'s pose levelled at its own height, and its spreads; refused
+/// by `baseline`'s name unless it is a pose start with a valid pose and
+/// finite, non-negative spreads.
+fn pose_start(baseline: Baseline, start: &Start) -> Result<(Pose, f64, f64), SessionError> {
+    let Start::Pose {
+        pose,
+        sigma_m,
+        sigma_rad,
+    } = start
+    else {
+        return Err(SessionError::BaselineStart(baseline.label()));
+    };
+    mcl::motion::check_pose(pose).map_err(SessionError::Init)?;
+    if !(sigma_m.is_finite() && *sigma_m >= 0.0 && sigma_rad.is_finite() && *sigma_rad >= 0.0) {
+        return Err(SessionError::Init(MclError::BadParam {
+            name: "initial spread",
+            why: format!("must be finite and >= 0, got {sigma_m} m, {sigma_rad} rad"),
+        }));
+    }
+    Ok((
+        ground::level(pose, pose.translation.vector.z),
+        *sigma_m,
+        *sigma_rad,
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -163,7 +222,7 @@ mod tests {
 
     /// The baselines' test scene (a class-0 wall at x 4.0 to 4.5 m, a
     /// class-1 column) as a plan scene, and its three classes' table.
-    fn plan_scene() -> (PlanScene, EmbeddingTable) {
+    fn plan_scene() -> (BaselineMap, EmbeddingTable) {
         let (plan, _, classes) = scene();
         let table = EmbeddingTable::new(
             vec![0, 1, 2],
@@ -172,7 +231,7 @@ mod tests {
             classes.rows().to_vec(),
         )
         .unwrap();
-        (PlanScene::from_plan(plan).unwrap(), table)
+        (PlanScene::from_plan(plan).unwrap().into(), table)
     }
 
     fn config() -> SessionConfig {
@@ -295,6 +354,37 @@ mod tests {
         };
         let e = new(Baseline::Sedar, &table, &Start::Global);
         assert!(e.starts_with("SeDAR* starts from a pose"), "{e}");
+        // Restarted: from a pose only, levelled, as many particles as at
+        // the start; a global restart leaves the session as it was.
+        let mut s = BaselineSession::new(
+            &scene,
+            &table,
+            Baseline::Sedar,
+            BaselineParams::default(),
+            &config(),
+            &start(camera(1.5, 1.0)),
+        )
+        .unwrap();
+        let before: Vec<Pose> = s.particles().iter().map(|p| p.pose).collect();
+        let e = s.reinitialize(&Start::Global).unwrap_err().to_string();
+        assert!(e.starts_with("SeDAR* starts from a pose"), "{e}");
+        let after: Vec<Pose> = s.particles().iter().map(|p| p.pose).collect();
+        assert_eq!(before, after);
+        let pitch = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 0.2);
+        let target = camera(3.0, 2.5);
+        let pitched = Pose::from_parts(target.translation, target.rotation * pitch);
+        s.reinitialize(&Start::Pose {
+            pose: pitched,
+            sigma_m: 0.0,
+            sigma_rad: 0.0,
+        })
+        .unwrap();
+        assert_eq!(s.particles().len(), 256);
+        for p in s.particles() {
+            let d = (p.pose.translation.vector - target.translation.vector).norm();
+            let r = p.pose.rotation.angle_to(&target.rotation);
+            assert!(d < 1e-9 && r < 1e-9, "{:?}", p.pose);
+        }
         let two = EmbeddingTable::new(
             vec![0, 1],
             vec!["a".into(), "b".into()],

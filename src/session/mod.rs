@@ -135,6 +135,9 @@ pub struct SharedMap {
     classes: Option<LabelTable>,
     /// The image encoder raw frames go through (one at a time).
     encoder: Option<Mutex<ImageEncoder>>,
+    /// A floor plan's plan, one-layer map and caster, for baseline
+    /// sessions ([`baseline::BaselineSession`]).
+    baseline_map: Option<Arc<baseline::BaselineMap>>,
 }
 
 impl SharedMap {
@@ -155,6 +158,7 @@ impl SharedMap {
             floor_map: None,
             classes: None,
             encoder: None,
+            baseline_map: None,
         })
     }
 
@@ -174,6 +178,7 @@ impl SharedMap {
             floor_map: None,
             classes: None,
             encoder: None,
+            baseline_map: None,
         }
     }
 
@@ -187,12 +192,29 @@ impl SharedMap {
     /// the 3-D map the plan was projected from ([`SharedMap::with_floor_map`]).
     /// Its pixels are stratified over the plan's own rows and the floor
     /// and ceiling words ([`floorplan::PlanScene::strata`]).
+    /// The plan itself, its one-layer map and caster are kept for the
+    /// baselines' sessions ([`SharedMap::baseline_map`]).
     pub fn floor_plan(name: impl Into<String>, scene: floorplan::PlanScene) -> Self {
+        let floorplan::PlanScene {
+            plan,
+            map,
+            caster,
+            sighted_map,
+            sighted,
+            strata,
+        } = scene;
         SharedMap {
             level: true,
-            strata: Some(scene.strata),
-            ..Self::from_parts(name, scene.sighted_map, scene.sighted)
+            strata: Some(strata),
+            baseline_map: Some(Arc::new(baseline::BaselineMap { plan, map, caster })),
+            ..Self::from_parts(name, sighted_map, sighted)
         }
+    }
+
+    /// A floor plan's plan, one-layer map and caster, which Table I's
+    /// baselines localize on (`None`: not a floor plan).
+    pub fn baseline_map(&self) -> Option<&Arc<baseline::BaselineMap>> {
+        self.baseline_map.as_ref()
     }
 
     /// The same map with its sessions' pixels stratified over the rows
