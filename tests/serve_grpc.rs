@@ -925,6 +925,160 @@ async fn a_floor_plan_session_gives_the_trajectory_of_the_cli() {
     assert_session_gives(&mut c, &f, &g.session_id, &cli_global).await;
 }
 
+/// Table I's baselines behind `omcl serve --floorplan`
+/// (`CreateSessionRequest.baseline`): a SeDAR* session gives `omcl
+/// localize --floorplan --baseline sedar`'s trajectory with the same seed,
+/// a SIMP* session fed each frame's depth gives `--baseline simp`'s (a
+/// frame without depth, or with depth of another size, is refused and
+/// steps nothing). SetInitialPose restarts a baseline session; what a
+/// baseline cannot do is refused by name: a global restart or start,
+/// OMCL's options, an unknown method, a 3-D map.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn baseline_sessions_give_the_trajectories_of_the_cli() {
+    let f = Fixture::new();
+    let sedar = cli_localize(&f, 3, &["--floorplan", "--baseline", "sedar"]);
+    let simp = cli_localize(&f, 4, &["--floorplan", "--baseline", "simp"]);
+    assert_eq!((sedar.len(), simp.len()), (FRAMES, FRAMES));
+    let moved = sedar
+        .iter()
+        .zip(&simp)
+        .map(|(a, b)| (a[0] - b[0]).hypot(a[1] - b[1]))
+        .fold(0.0, f64::max);
+    assert!(
+        moved > 1e-3,
+        "the two baselines' trajectories agree: {moved}"
+    );
+
+    let server = Server::start(&f, &["--floorplan", "room"]);
+    let mut c = server.client(Auth::good()).await;
+    let create = |seed: u64, b: &str| proto::CreateSessionRequest {
+        baseline: b.into(),
+        ..f.create(seed)
+    };
+    let a_id = c
+        .create_session(create(3, "sedar"))
+        .await
+        .unwrap()
+        .into_inner()
+        .session_id;
+    assert_session_gives(&mut c, &f, &a_id, &sedar).await;
+
+    let b = c
+        .create_session(create(4, "simp"))
+        .await
+        .unwrap()
+        .into_inner()
+        .session_id;
+    let with_depth = |i: usize, depth: Option<proto::DepthImage>| proto::Frame {
+        depth,
+        ..f.frame(&b, i)
+    };
+    let e = c.localize(with_depth(0, None)).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    assert!(e.message().contains("depth"), "{e:?}");
+    let small = proto::DepthImage {
+        width: 2,
+        height: 2,
+        depth: vec![1.0; 4],
+    };
+    let e = c.localize(with_depth(0, Some(small))).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    assert!(
+        e.message()
+            .contains("depth image of 2x2, the session's camera is 64x48"),
+        "{e:?}"
+    );
+    for (i, want) in simp.iter().enumerate() {
+        let u = c
+            .localize(with_depth(i, Some(f.depth(i))))
+            .await
+            .unwrap()
+            .into_inner();
+        assert_eq!(u.frame, i as u64 + 1);
+        assert_close(&pose_of(&u), want, 7, i);
+    }
+
+    // Restarted at the first frame's pose: the session steps on from it.
+    let (_, gt) = f.poses("poses.txt");
+    c.set_initial_pose(initial_pose(&b, &gt[0])).await.unwrap();
+    let u = c
+        .localize(with_depth(0, Some(f.depth(0))))
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!(u.frame, FRAMES as u64 + 1);
+    let p = pose_of(&u);
+    let off = (p[0] - gt[0].translation.x).hypot(p[1] - gt[0].translation.y);
+    assert!(off < 0.5, "{off} m from the restart pose");
+    let listed = c
+        .list_sessions(proto::ListSessionsRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .sessions;
+    let method = |id: &str| {
+        listed
+            .iter()
+            .find(|s| s.session_id == id)
+            .map(|s| s.method.clone())
+    };
+    assert_eq!(method(&a_id).as_deref(), Some("SeDAR*"), "{listed:?}");
+    assert_eq!(method(&b).as_deref(), Some("SIMP*"), "{listed:?}");
+    let (_, http) = server.get(
+        "/v1/sessions",
+        &[("authorization", &format!("Bearer {TOKEN}"))],
+    );
+    assert!(http.contains("\"method\":\"SIMP*\""), "{http}");
+    let e = c
+        .global_localization(proto::GlobalLocalizationRequest {
+            session_id: b.clone(),
+            prompt: None,
+        })
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
+    assert!(e.message().contains("SIMP* starts from a pose"), "{e:?}");
+
+    let refused = |req: proto::CreateSessionRequest| {
+        let mut c = c.clone();
+        async move { c.create_session(req).await.unwrap_err() }
+    };
+    let e = refused(proto::CreateSessionRequest {
+        start: Some(proto::create_session_request::Start::Global(
+            proto::GlobalStart {},
+        )),
+        ..create(3, "sedar")
+    })
+    .await;
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    assert!(
+        e.message().contains("SeDAR* starts from initial_pose"),
+        "{e:?}"
+    );
+    let e = refused(proto::CreateSessionRequest {
+        recovery: true,
+        early_reject: true,
+        ..create(3, "simp")
+    })
+    .await;
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    assert!(
+        e.message()
+            .contains("recovery, early_reject set OMCL's filter, which SIMP* does not use"),
+        "{e:?}"
+    );
+    let e = refused(create(3, "amcl")).await;
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    assert!(e.message().contains("unknown baseline \"amcl\""), "{e:?}");
+    drop(server);
+
+    let server = Server::start(&f, &[]);
+    let mut c = server.client(Auth::good()).await;
+    let e = c.create_session(create(3, "sedar")).await.unwrap_err();
+    assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
+    assert!(e.message().contains("is a 3-D map"), "{e:?}");
+}
+
 /// A session created with `ground` holds the camera at the start's height
 /// and tilt: fed odometry that sinks 2 cm a frame, it gives the trajectory
 /// of `omcl localize` on the undrifted odometry (positions to 1e-9 m), where

@@ -241,6 +241,8 @@ pub struct FrameInput {
     pub stamp: Option<Stamp>,
     pub stamp_msg: Option<proto::Time>,
     pub features: Features,
+    /// z-depths of the camera's pixels (metres, 0 none), for SIMP\*.
+    pub depth: Option<Vec<f32>>,
     pub want_particles: bool,
     pub received: Instant,
 }
@@ -300,14 +302,44 @@ pub fn frame_input(f: proto::Frame, k: &Intrinsics, map: &SharedMap) -> Result<F
         Some(proto::frame::Features::Compressed(c)) => compressed_features(c, k, map)?,
         None => return Err(Status::invalid_argument("frame without features")),
     };
+    let depth = f.depth.map(|d| depth_image(d, k)).transpose()?;
     Ok(FrameInput {
         odom,
         stamp,
         stamp_msg,
         features,
+        depth,
         want_particles: f.want_particles,
         received,
     })
+}
+
+/// A depth image of the camera's size, every depth finite and >= 0.
+fn depth_image(d: proto::DepthImage, k: &Intrinsics) -> Result<Vec<f32>, Status> {
+    if (d.width, d.height) != (k.width, k.height) {
+        return Err(Status::invalid_argument(format!(
+            "depth image of {}x{}, the session's camera is {}x{}",
+            d.width, d.height, k.width, k.height
+        )));
+    }
+    let want = k.width as usize * k.height as usize;
+    if d.depth.len() != want {
+        return Err(Status::invalid_argument(format!(
+            "depth image of {}x{} needs {want} values, got {}",
+            d.width,
+            d.height,
+            d.depth.len()
+        )));
+    }
+    if let Some(i) = d.depth.iter().position(|z| !(z.is_finite() && *z >= 0.0)) {
+        return Err(Status::invalid_argument(format!(
+            "depth value {i} (row {}, column {}) must be finite and >= 0 (0: no depth), got {}",
+            i / k.width as usize,
+            i % k.width as usize,
+            d.depth[i]
+        )));
+    }
+    Ok(d.depth)
 }
 
 /// A feature grid of the map's dimension, every value finite, some cell

@@ -11,13 +11,16 @@ use tonic::metadata::MetadataMap;
 use tonic::{Request, Response, Status, Streaming};
 
 use crate::geometry::{Intrinsics, Pose};
+use crate::mcl::baselines::{Baseline, BaselineParams};
 use crate::mcl::{FilterConfig, FilterPreset};
-use crate::session::{Session, SessionConfig, SharedMap, Start};
+use crate::session::baseline::BaselineSession;
+use crate::session::{Session, SessionConfig, SessionError, SharedMap, Start};
 
 use super::auth::{MISPLACED, Token};
 use super::convert;
 use super::proto::{self, localization_server::Localization};
 use super::state::{Reply, Slot, State};
+use super::tracker::Tracker;
 
 pub struct Service {
     pub state: Arc<State>,
@@ -155,6 +158,95 @@ fn blind_start(map: &SharedMap, pose: &Pose, config: &SessionConfig) -> Option<S
     })
 }
 
+/// `CreateSessionRequest.baseline`'s method (`None`: OMCL), refused with
+/// what a baseline cannot do: a map that is not a floor plan or has no
+/// class table, a start but a pose, and OMCL's own options.
+fn baseline_of(
+    r: &proto::CreateSessionRequest,
+    map: &SharedMap,
+) -> Result<Option<Baseline>, Status> {
+    let b = match r.baseline.as_str() {
+        "" => return Ok(None),
+        "sedar" => Baseline::Sedar,
+        "simp" => Baseline::Simp,
+        other => {
+            return Err(Status::invalid_argument(format!(
+                "baseline: unknown baseline {}: expected \"sedar\" or \"simp\" (empty: OMCL)",
+                convert::quoted(other)
+            )));
+        }
+    };
+    let name = b.label();
+    if map.baseline_map().is_none() {
+        return Err(Status::failed_precondition(format!(
+            "baseline: {name} localizes on a floor plan, and map {} is a 3-D map (serve its \
+             floor plan: omcl serve --floorplan)",
+            convert::quoted(map.name())
+        )));
+    }
+    if map.classes().is_none() {
+        return Err(Status::failed_precondition(format!(
+            "baseline: {name} labels the plan's columns and the pixels with a class table, and \
+             map {} has none",
+            convert::quoted(map.name())
+        )));
+    }
+    if !matches!(
+        r.start,
+        Some(proto::create_session_request::Start::InitialPose(_))
+    ) {
+        return Err(Status::invalid_argument(format!(
+            "baseline: {name} starts from initial_pose (the paper's local start): its sensor \
+             scores class labels, and global and prompt starts place cameras with the floor's \
+             feature"
+        )));
+    }
+    let omcl_only = [
+        (r.recovery, "recovery"),
+        (r.early_reject, "early_reject"),
+        (!r.filter.is_empty(), "filter"),
+    ];
+    let given: Vec<&str> = omcl_only
+        .iter()
+        .filter(|(g, _)| *g)
+        .map(|(_, f)| *f)
+        .collect();
+    if !given.is_empty() {
+        return Err(Status::invalid_argument(format!(
+            "baseline: {} set{} OMCL's filter, which {name} does not use",
+            given.join(", "),
+            if given.len() == 1 { "s" } else { "" }
+        )));
+    }
+    Ok(Some(b))
+}
+
+/// A session of baseline `b` on `map` (a floor plan with a class table,
+/// [`baseline_of`]) with `pixels` sampled a frame.
+fn baseline_session(
+    map: &SharedMap,
+    b: Baseline,
+    pixels: usize,
+    config: SessionConfig,
+    start: &Start,
+) -> Result<Tracker, SessionError> {
+    let (Some(on), Some(classes)) = (map.baseline_map(), map.classes()) else {
+        return Err(SessionError::ClassTable(format!(
+            "map {:?} is not a floor plan with a class table",
+            map.name()
+        )));
+    };
+    let params = BaselineParams {
+        pixels,
+        ..BaselineParams::default()
+    };
+    let session = BaselineSession::new(on, classes.table(), b, params, &config, start)?;
+    Ok(Tracker::Baseline {
+        session: Box::new(session),
+        config: Box::new(config),
+    })
+}
+
 /// Who settles a reinitialization waiting for its session's lock: the
 /// task that runs it ([`Claim::start`]) or the call that asked for it,
 /// giving up ([`Claim::abandon`]; also when the call is dropped, its
@@ -252,6 +344,7 @@ impl Localization for Service {
     ) -> Result<Response<proto::CreateSessionResponse>, Status> {
         let r = req.into_inner();
         let map = self.state.map(&r.map)?.clone();
+        let baseline = baseline_of(&r, &map)?;
         let intrinsics = camera(r.camera.as_ref())?;
         let particles = r
             .particles
@@ -262,8 +355,9 @@ impl Localization for Service {
                 crate::mcl::MAX_COUNT
             )));
         }
-        // A floor plan's sessions default to Table I's 2-D filter.
-        let base = if r.filter.is_empty() {
+        // A floor plan's sessions default to Table I's 2-D filter, as the
+        // baselines do (theirs: 2048 pixels).
+        let base = if r.filter.is_empty() || baseline.is_some() {
             if map.is_level() {
                 FilterConfig::floor_plan()
             } else {
@@ -281,7 +375,11 @@ impl Localization for Service {
                 })?
                 .config()
         };
-        let rays = r.rays.map_or(base.sampling.rays, |r| r as usize);
+        let default_rays = match baseline {
+            Some(_) => BaselineParams::default().pixels,
+            None => base.sampling.rays,
+        };
+        let rays = r.rays.map_or(default_rays, |r| r as usize);
         if !(1..=crate::mcl::MAX_COUNT).contains(&rays) {
             return Err(Status::invalid_argument(format!(
                 "rays: {rays}, expected 1..={}",
@@ -338,7 +436,11 @@ impl Localization for Service {
                 Start::Pose { pose, .. } => blind_start(&m, pose, &config),
                 _ => None,
             };
-            Session::new(m, config, &start).map(|s| (s, warning))
+            match baseline {
+                None => Session::new(m, config, &start).map(|s| Tracker::Omcl(Box::new(s))),
+                Some(b) => baseline_session(&m, b, rays, config, &start),
+            }
+            .map(|s| (s, warning))
         });
         let (session, warning) = self
             .within_deadline("no session", made)
@@ -351,9 +453,10 @@ impl Localization for Service {
         };
         let id = self.state.add_session(map.clone(), session, frame_id)?;
         super::log::event(format_args!(
-            "session {id} opened on map {}: {}, {particles} particles x {rays} rays{}",
+            "session {id} opened on map {}: {}{}, {particles} particles x {rays} rays{}",
             convert::quoted(map.name()),
             start_kind(r.start.as_ref()),
+            baseline.map_or(String::new(), |b| format!(", {}", b.label())),
             if warning.is_some() {
                 " (warned: the camera cannot see the map from the start pose)"
             } else {

@@ -133,7 +133,7 @@ async fn sessions(AxState(ctx): AxState<Ctx>) -> Response {
         .map(|s| {
             serde_json::json!({
                 "session_id": s.session_id, "map": s.map, "frames": s.frames,
-                "frames_dropped": s.frames_dropped, "idle_s": s.idle_s,
+                "frames_dropped": s.frames_dropped, "idle_s": s.idle_s, "method": s.method,
             })
         })
         .collect();

@@ -10,6 +10,7 @@
 //! - [`state`]: sessions, the bounded compute pool, latest-frame-wins
 //!   queues, caps and idle expiry;
 //! - [`stamp`]: frame stamps, which move forward within a session;
+//! - [`tracker`]: what a session steps, OMCL's filter or a baseline;
 //! - [`auth`]: bearer tokens on every call but the health checks.
 //!
 //! Filter steps and initializations run on a dedicated rayon pool, never
@@ -26,6 +27,7 @@ pub mod log;
 pub mod metrics;
 pub mod stamp;
 pub mod state;
+pub mod tracker;
 
 /// Messages and the client and server stubs generated from
 /// `proto/omcl.proto`.
@@ -143,6 +145,7 @@ pub fn session_infos(state: &State) -> Vec<proto::SessionInfo> {
             frames: s.frames(),
             frames_dropped: s.frames_dropped.load(Ordering::Relaxed),
             idle_s: s.idle().as_secs_f64(),
+            method: s.method.into(),
         })
         .collect()
 }

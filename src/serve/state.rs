@@ -27,8 +27,9 @@ use std::time::{Duration, Instant};
 use tokio::sync::{mpsc, oneshot};
 use tonic::Status;
 
+use super::tracker::Tracker;
 use crate::geometry::Intrinsics;
-use crate::session::{Session, SessionError, SharedMap, feature_grid, label_frame};
+use crate::session::{SessionError, SharedMap, feature_grid, label_frame};
 
 use super::convert::{Features, FrameInput};
 use super::metrics::Metrics;
@@ -152,8 +153,10 @@ pub struct Slot {
     pub map: Arc<SharedMap>,
     /// frame_id of the estimates.
     pub frame_id: String,
+    /// What tracks the camera ([`Tracker::method`]).
+    pub method: &'static str,
     camera: Intrinsics,
-    session: Mutex<Session>,
+    session: Mutex<Tracker>,
     queue: Mutex<Queue>,
     pub frames_dropped: AtomicU64,
     /// Frames stepped, as the session counts them after each step: read
@@ -274,6 +277,7 @@ pub fn status_of(e: &SessionError) -> Status {
         | SessionError::Init(_)
         | SessionError::Recovery(_)
         | SessionError::PoseStartOnly(_)
+        | SessionError::BaselineStart(_)
         | SessionError::GroundMotion(_)
         | SessionError::TiltedRecovery(_) => Status::failed_precondition(e.to_string()),
         _ => Status::internal(e.to_string()),
@@ -363,7 +367,7 @@ impl State {
     pub fn add_session(
         &self,
         map: Arc<SharedMap>,
-        session: Session,
+        session: Tracker,
         frame_id: String,
     ) -> Result<String, Status> {
         let mut all = lock(&self.sessions);
@@ -390,6 +394,7 @@ impl State {
                 id: id.clone(),
                 map,
                 frame_id,
+                method: session.method(),
                 camera: session.config().intrinsics,
                 frames: AtomicU64::new(session.frames()),
                 session: Mutex::new(session),
@@ -470,7 +475,7 @@ impl State {
     pub async fn with_session<T: Send + 'static>(
         &self,
         slot: Arc<Slot>,
-        f: impl FnOnce(&mut Session) -> T + Send + 'static,
+        f: impl FnOnce(&mut Tracker) -> T + Send + 'static,
     ) -> Result<T, Status> {
         tokio::task::spawn_blocking(move || f(&mut lock(&slot.session)))
             .await
@@ -656,11 +661,12 @@ impl State {
         }
         let classes = slot.map.classes();
         let seconds = frame.seconds();
+        let depth = frame.depth.as_deref();
         let result = match &frame.features {
             Features::Grid { shape, data } => {
                 let k = session.config().intrinsics;
                 feature_grid(k.width, k.height, *shape, data)
-                    .and_then(|f| session.step(&frame.odom, seconds, &f))
+                    .and_then(|f| session.step(&frame.odom, seconds, &f, depth))
             }
             Features::Labels {
                 width,
@@ -668,7 +674,7 @@ impl State {
                 labels,
             } => match classes {
                 Some(t) => label_frame(*width, *height, labels, t)
-                    .and_then(|f| session.step(&frame.odom, seconds, &f)),
+                    .and_then(|f| session.step(&frame.odom, seconds, &f, depth)),
                 None => Err(SessionError::BadFrame(format!(
                     "map {:?} has no class table for label images",
                     slot.map.name()
@@ -685,7 +691,7 @@ impl State {
                         width: k.width,
                         height: k.height,
                     };
-                    session.step(&frame.odom, seconds, &f)
+                    session.step(&frame.odom, seconds, &f, depth)
                 })
             }
         };

@@ -218,6 +218,20 @@ impl Fixture {
         }
     }
 
+    /// Frame `i`'s depth image (TUM's 5000 units a metre).
+    pub fn depth(&self, i: usize) -> proto::DepthImage {
+        let d = omcl::io::rgbd::read_depth_png(
+            &self.seq.join(format!("depth/{i:06}.png")),
+            omcl::io::rgbd::TUM_DEPTH_UNITS_PER_METRE,
+        )
+        .unwrap();
+        proto::DepthImage {
+            width: d.width,
+            height: d.height,
+            depth: d.depth,
+        }
+    }
+
     /// Frame `i` for `session`: labels, the sequence's odometry, the ground
     /// truth's stamp.
     pub fn frame(&self, session: &str, i: usize) -> proto::Frame {
@@ -229,6 +243,7 @@ impl Fixture {
             odometry: Some(pose_msg(&odom[i])),
             features: Some(proto::frame::Features::Labels(self.labels(i))),
             want_particles: false,
+            depth: None,
         }
     }
 
@@ -256,6 +271,7 @@ impl Fixture {
             early_reject: false,
             ground: false,
             filter: String::new(),
+            baseline: String::new(),
         }
     }
 }
