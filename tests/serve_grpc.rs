@@ -988,6 +988,19 @@ async fn baseline_sessions_give_the_trajectories_of_the_cli() {
             .contains("depth image of 2x2, the session's camera is 64x48"),
         "{e:?}"
     );
+    let mut bad = f.depth(0);
+    bad.depth[64 + 3] = f32::NAN;
+    let e = c.localize(with_depth(0, Some(bad))).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    assert!(
+        e.message()
+            .contains("depth value 67 (row 1, column 3) must be finite"),
+        "{e:?}"
+    );
+    let mut bad = f.depth(0);
+    bad.depth.pop();
+    let e = c.localize(with_depth(0, Some(bad))).await.unwrap_err();
+    assert!(e.message().contains("needs 3072 values, got 3071"), "{e:?}");
     for (i, want) in simp.iter().enumerate() {
         let u = c
             .localize(with_depth(i, Some(f.depth(i))))
