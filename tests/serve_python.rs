@@ -2,8 +2,9 @@
 //! from proto/omcl.proto) against the real server: it streams the synthetic
 //! sequence's feature frames and prints the same poses as `omcl localize
 //! --use-features` with the same seed, or sends the camera images for the
-//! server to encode and prints the poses of `omcl localize --image-model`;
-//! its PNG reader gives the pixels omcl reads from real images. Needs
+//! server to encode and prints the poses of `omcl localize --image-model`,
+//! or tracks with a baseline on a floor plan as `omcl localize --baseline`
+//! does; its depth PNG reader gives the pixels omcl reads from real images. Needs
 //! grpcio and grpcio-tools in .deps/python (`make deps`); fails if they are
 //! missing.
 
@@ -352,4 +353,120 @@ fn python_client_writes_its_stubs_to_the_user_cache_when_deps_is_not_writable() 
         .collect();
     assert_eq!(dirs.len(), 1, "{dirs:?}");
     assert!(dirs[0].join("omcl_pb2_grpc.py").exists(), "{dirs:?}");
+}
+
+/// `--baseline simp`: the client opens a SIMP* session on a map served on
+/// its floor plan and sends each frame's depth/NNNNNN.png with its
+/// features; the poses are those of `omcl localize --floorplan --baseline
+/// simp --use-features` with the same seed. A baseline on a 3-D map is
+/// refused in one line.
+#[test]
+fn python_client_tracks_with_a_baseline_on_a_floor_plan() {
+    let f = Fixture::with_features();
+    let frames = "8";
+    let out = f.dir.path().join("simp.txt");
+    let r = omcl(&[
+        "localize",
+        "--map",
+        s(&f.map),
+        "--sequence",
+        s(&f.seq),
+        "-o",
+        s(&out),
+        "--particles",
+        &PARTICLES.to_string(),
+        "--rays",
+        &RAYS.to_string(),
+        "--seed",
+        "5",
+        "--frames",
+        frames,
+        "--use-features",
+        "--floorplan",
+        "--baseline",
+        "simp",
+    ]);
+    assert!(r.status.success(), "{r:?}");
+    let want = read_tum(&out);
+    let client = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/omcl_client.py");
+    let run = |server: &Server, baseline: &str| {
+        Command::new("python3")
+            .arg(&client)
+            .args(["--target", &server.grpc.to_string(), "--map", "room"])
+            .args(["--sequence", s(&f.seq), "--frames", frames, "--seed", "5"])
+            .args(["--particles", &PARTICLES.to_string()])
+            .args(["--rays", &RAYS.to_string()])
+            .args(["--baseline", baseline])
+            .env("OMCL_TOKEN", TOKEN)
+            .output()
+            .unwrap()
+    };
+    let server = Server::start(&f, &["--floorplan", "room"]);
+    let r = run(&server, "simp");
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(r.status.success(), "{stdout}\n{stderr}");
+    let got = client_poses(&stdout);
+    assert_eq!(got.len(), want.len(), "{stdout}\n{stderr}");
+    for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+        for k in 0..7 {
+            assert!(
+                (g[k] - w[k]).abs() < 1e-9,
+                "frame {i}: client {g:?}, CLI {w:?}"
+            );
+        }
+    }
+    drop(server);
+    let server = Server::start(&f, &[]);
+    let r = run(&server, "sedar");
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("FAILED_PRECONDITION") && stderr.contains("is a 3-D map"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("Traceback"), "{stderr}");
+}
+
+/// The client's depth reader (pure Python: zlib and PNG's row filters)
+/// gives the values omcl reads from real 16-bit depth PNGs: TUM fr1/xyz
+/// and 7-Scenes redkitchen, every pixel.
+#[test]
+fn python_client_reads_real_depth_pngs_as_omcl_does() {
+    let client = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/omcl_client.py");
+    let dir = tempfile::tempdir().unwrap();
+    for png in [
+        common::shared("rgbd_tum_fr1_xyz/case_1/dep_curr.png"),
+        common::shared("rgbd_7scenes/frame-000150.depth.png"),
+    ] {
+        let text = dir.path().join("values.txt");
+        let script = format!(
+            "import importlib.util, sys\n\
+             spec = importlib.util.spec_from_file_location('c', {client:?})\n\
+             c = importlib.util.module_from_spec(spec); spec.loader.exec_module(c)\n\
+             w, h, v = c.read_png_gray16({png:?})\n\
+             open({text:?}, 'w').write(f'{{w}} {{h}}\\n' + ' '.join(map(str, v)))\n",
+        );
+        let r = Command::new("python3")
+            .args(["-c", &script])
+            .output()
+            .unwrap();
+        assert!(r.status.success(), "{r:?}");
+        let got = std::fs::read_to_string(&text).unwrap();
+        let (head, values) = got.split_once('\n').unwrap();
+        // 1.0 units a metre: the PNG's own values.
+        let d = omcl::io::rgbd::read_depth_png(&png, 1.0).unwrap();
+        assert_eq!(head, format!("{} {}", d.width, d.height), "{png:?}");
+        let values: Vec<f32> = values
+            .split(' ')
+            .map(|x| x.parse::<u16>().unwrap() as f32)
+            .collect();
+        assert_eq!(values.len(), d.depth.len(), "{png:?}");
+        let differ = values.iter().zip(&d.depth).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "{png:?}: {differ} pixels differ");
+        assert!(
+            values.iter().filter(|&&x| x > 0.0).count() > 100_000,
+            "{png:?}"
+        );
+    }
 }

@@ -26,6 +26,11 @@ rgb/NNNNNN.png or .jpg as they are), which the server decodes and encodes
 with the map's image encoder (`omcl serve --image-model NAME=MODEL`): the
 client needs no model and no imaging library.
 
+With --baseline sedar|simp the session tracks the camera with one of
+Table I's baselines on a map served on its floor plan (`omcl serve
+--floorplan NAME`, with its class table); SIMP* frames carry the depth of
+depth/NNNNNN.png (16-bit PNG, --depth-scale units a metre).
+
 The token is read from --token-file or the OMCL_TOKEN environment variable,
 never from the command line.
 """
@@ -151,7 +156,7 @@ class OmclClient:
 
     def open_session(self, map_name, camera, initial_pose=None, prompt=None,
                      particles=None, rays=None, seed=0, recovery=False,
-                     early_reject=False, ground=False, filter_name=""):
+                     early_reject=False, ground=False, filter_name="", baseline=""):
         """A CreateSessionResponse: session_id, and warnings about the
         start (a pose from which the camera cannot see the map).
         camera: (fx, fy, cx, cy, width, height); initial_pose: (t, q);
@@ -159,7 +164,8 @@ class OmclClient:
         likelihoods (omcl localize --early-reject); ground: the camera held
         at its start's height and tilt (omcl localize --ground); filter_name:
         a tuned filter by name (omcl localize --filter; empty: the map's
-        default)."""
+        default); baseline: "sedar" or "simp" for one of Table I's
+        baselines on a floor plan (empty: OMCL)."""
         fx, fy, cx, cy, w, h = camera
         req = pb.CreateSessionRequest(
             map=map_name,
@@ -169,6 +175,7 @@ class OmclClient:
             early_reject=early_reject,
             ground=ground,
             filter=filter_name,
+            baseline=baseline,
         )
         if particles is not None:
             req.particles = particles
@@ -196,13 +203,16 @@ class OmclClient:
 
 
 def frame(session_id, stamp, odom_t, odom_q, grid=None, labels=None, rgb=None,
-          compressed=None, want_particles=False):
+          compressed=None, want_particles=False, depth=None):
     """A Frame: grid = (height, width, dim, floats), labels = (width,
     height, ints), rgb = (width, height, bytes: row-major RGB, 3 a pixel)
     or compressed = (format, bytes of a PNG or JPEG file); images are
-    encoded on the server."""
+    encoded on the server. depth = (width, height, metres: row-major, 0
+    none), for a SIMP* session."""
     f = pb.Frame(session_id=session_id, header=header(stamp),
                  odometry=pose_msg(odom_t, odom_q), want_particles=want_particles)
+    if depth is not None:
+        set_depth(f, depth)
     if grid is not None:
         h, w, d, data = grid
         f.grid.height, f.grid.width, f.grid.dim = h, w, d
@@ -217,6 +227,13 @@ def frame(session_id, stamp, odom_t, odom_q, grid=None, labels=None, rgb=None,
     elif compressed is not None:
         f.compressed.format, f.compressed.data = compressed
     return f
+
+
+def set_depth(f, depth):
+    """Gives Frame f depth = (width, height, metres)."""
+    w, h, metres = depth
+    f.depth.width, f.depth.height = w, h
+    f.depth.depth.extend(metres)
 
 
 # --- reading a synthetic sequence, without numpy ---------------------------
@@ -249,6 +266,85 @@ def read_npy_f32(path):
     if sys.byteorder != "little":
         data.byteswap()
     return tuple(head["shape"]), data
+
+
+def _paeth(a, b, c):
+    p = a + b - c
+    pa, pb_, pc = abs(p - a), abs(p - b), abs(p - c)
+    if pa <= pb_ and pa <= pc:
+        return a
+    return b if pb_ <= pc else c
+
+
+def read_png_gray16(path):
+    """(width, height, values) of a 16-bit greyscale PNG (a depth image),
+    without an imaging library: zlib and PNG's five row filters."""
+    import struct
+    import zlib
+    with open(path, "rb") as f:
+        data = f.read()
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        raise ValueError(f"{path}: not a PNG file")
+    pos, idat, head = 8, [], None
+    while pos + 8 <= len(data):
+        n, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + n]
+        if kind == b"IHDR":
+            head = struct.unpack(">IIBBBBB", body)
+        elif kind == b"IDAT":
+            idat.append(body)
+        elif kind == b"IEND":
+            break
+        pos += 12 + n
+    if head is None:
+        raise ValueError(f"{path}: no IHDR chunk")
+    w, h, bits, colour, _, _, interlace = head
+    if (bits, colour, interlace) != (16, 0, 0):
+        raise ValueError(f"{path}: a depth image must be a 16-bit greyscale PNG, not "
+                         f"interlaced (bit depth {bits}, colour type {colour}, "
+                         f"interlace {interlace})")
+    try:
+        raw = zlib.decompress(b"".join(idat))
+    except zlib.error as e:
+        raise ValueError(f"{path}: corrupt image data: {e}") from None
+    stride, bpp = 2 * w, 2
+    if len(raw) != h * (stride + 1):
+        raise ValueError(f"{path}: {len(raw)} bytes of pixels, expected {h * (stride + 1)}")
+    out, prev = array.array("H"), bytearray(stride)
+    for y in range(h):
+        kind = raw[y * (stride + 1)]
+        row = bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
+        if kind == 1:
+            for x in range(bpp, stride):
+                row[x] = (row[x] + row[x - bpp]) & 255
+        elif kind == 2:
+            for x in range(stride):
+                row[x] = (row[x] + prev[x]) & 255
+        elif kind == 3:
+            for x in range(stride):
+                left = row[x - bpp] if x >= bpp else 0
+                row[x] = (row[x] + ((left + prev[x]) >> 1)) & 255
+        elif kind == 4:
+            for x in range(stride):
+                left = row[x - bpp] if x >= bpp else 0
+                up_left = prev[x - bpp] if x >= bpp else 0
+                row[x] = (row[x] + _paeth(left, prev[x], up_left)) & 255
+        elif kind != 0:
+            raise ValueError(f"{path}: row {y} has unknown filter {kind}")
+        vals = array.array("H")
+        vals.frombytes(bytes(row))
+        if sys.byteorder == "little":
+            vals.byteswap()  # PNG samples are big-endian
+        out.extend(vals)
+        prev = row
+    return w, h, out
+
+
+def read_depth(seq, i, units_per_metre):
+    """(width, height, metres) of frame i's depth/NNNNNN.png."""
+    path = os.path.join(seq, "depth", f"{i:06}.png")
+    w, h, v = read_png_gray16(path)
+    return w, h, [x / units_per_metre for x in v]
 
 
 def image_file(seq, i):
@@ -295,7 +391,15 @@ def main():
                          "default: the map's)")
     ap.add_argument("--global", dest="global_", action="store_true",
                     help="start globally instead of at the first ground-truth pose")
+    ap.add_argument("--baseline", choices=["sedar", "simp"], default="",
+                    help="track with one of Table I's baselines on a map served on its "
+                         "floor plan (omcl serve --floorplan NAME; omcl localize "
+                         "--baseline): SeDAR* or SIMP*, which also sends depth/NNNNNN.png")
+    ap.add_argument("--depth-scale", type=float, default=5000.0,
+                    help="--baseline simp: depth PNG units per metre (default 5000, TUM's)")
     a = ap.parse_args()
+    if not a.depth_scale > 0:
+        ap.error(f"--depth-scale {a.depth_scale}: give a positive number of units a metre")
     if a.frames is not None and a.frames < 1:
         ap.error(f"--frames {a.frames}: give at least 1 (leave it out for every frame)")
     # SIGTERM ends the run as Ctrl-C does: the session is closed first.
@@ -364,7 +468,7 @@ def run(a):
     created = client.open_session(a.map, camera, initial_pose=init,
                                   particles=a.particles, rays=a.rays, seed=a.seed,
                                   early_reject=a.early_reject, ground=a.ground,
-                                  filter_name=a.filter)
+                                  filter_name=a.filter, baseline=a.baseline)
     sid = created.session_id
     for w in created.warnings:
         print(f"omcl_client: warning from the server: {w}", file=sys.stderr)
@@ -392,6 +496,8 @@ def run(a):
                     shape, data = read_npy_f32(path)
                     h, w, d = shape
                     f = frame(sid, gt[i][0], odom[i][1], odom[i][2], grid=(h, w, d, data))
+                if a.baseline == "simp":
+                    set_depth(f, read_depth(a.sequence, i, a.depth_scale))
             except (OSError, ValueError) as e:
                 unreadable.append(str(e))
                 return
