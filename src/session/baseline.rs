@@ -168,11 +168,9 @@ impl BaselineSession {
             .filter
             .step(increment.as_ref(), frame, depth)
             .map_err(|e| match e {
-                MclError::DimMismatch { .. }
-                | MclError::ImageSize { .. }
-                | MclError::BadParam { .. } => SessionError::BadFrame(e.to_string()),
-                MclError::BadOdometry(s) => SessionError::BadOdometry(s),
-                e => SessionError::Filter(e),
+                // The frame's depth (SIMP*: missing, or of another size).
+                MclError::BadParam { .. } => SessionError::BadFrame(e.to_string()),
+                e => super::step_error(e),
             })?;
         self.last_odom = Some(odom);
         self.frames += 1;

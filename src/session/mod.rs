@@ -475,6 +475,18 @@ pub struct PoseReport {
     pub step: StepReport,
 }
 
+/// A filter step's refusal in the session's terms: a frame of the wrong
+/// size or dimension is the frame's fault, bad odometry the odometry's.
+pub(crate) fn step_error(e: MclError) -> SessionError {
+    match e {
+        MclError::DimMismatch { .. } | MclError::ImageSize { .. } => {
+            SessionError::BadFrame(e.to_string())
+        }
+        MclError::BadOdometry(s) => SessionError::BadOdometry(s),
+        e => SessionError::Filter(e),
+    }
+}
+
 impl PoseReport {
     /// The report of frame `frame` (stamped `stamp`) from its filter
     /// step and the particles after it.
@@ -636,13 +648,7 @@ impl Session {
         if moved > MAX_ODOMETRY_STEP_M {
             return Err(SessionError::OdometryJump(moved));
         }
-        let step = self.filter.step(increment, frame).map_err(|e| match e {
-            MclError::DimMismatch { .. } | MclError::ImageSize { .. } => {
-                SessionError::BadFrame(e.to_string())
-            }
-            MclError::BadOdometry(s) => SessionError::BadOdometry(s),
-            e => SessionError::Filter(e),
-        })?;
+        let step = self.filter.step(increment, frame).map_err(step_error)?;
         self.last_odom = None;
         self.frames += 1;
         Ok(PoseReport::of(
