@@ -949,7 +949,12 @@ async fn baseline_sessions_give_the_trajectories_of_the_cli() {
         "the two baselines' trajectories agree: {moved}"
     );
 
-    let server = Server::start(&f, &["--floorplan", "room"]);
+    // "bare": the same map on its floor plan, without a class table.
+    let bare = format!("bare={}", f.map.display());
+    let server = Server::start(
+        &f,
+        &["--floorplan", "room", "--map", &bare, "--floorplan", "bare"],
+    );
     let mut c = server.client(Auth::good()).await;
     let create = |seed: u64, b: &str| proto::CreateSessionRequest {
         baseline: b.into(),
@@ -1083,6 +1088,17 @@ async fn baseline_sessions_give_the_trajectories_of_the_cli() {
     let e = refused(create(3, "amcl")).await;
     assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
     assert!(e.message().contains("unknown baseline \"amcl\""), "{e:?}");
+    let e = refused(proto::CreateSessionRequest {
+        map: "bare".into(),
+        ..create(3, "sedar")
+    })
+    .await;
+    assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
+    assert!(
+        e.message()
+            .contains("SeDAR* labels the plan's columns and the pixels with a class table, and map \"bare\" has none"),
+        "{e:?}"
+    );
     drop(server);
 
     let server = Server::start(&f, &[]);
