@@ -416,6 +416,19 @@ fn python_client_tracks_with_a_baseline_on_a_floor_plan() {
             );
         }
     }
+    // A truncated depth image ends the run naming it, after the poses
+    // before it.
+    let depth = f.seq.join("depth/000002.png");
+    let bytes = std::fs::read(&depth).unwrap();
+    std::fs::write(&depth, &bytes[..bytes.len() / 2]).unwrap();
+    let r = run(&server, "simp");
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("000002.png") && stderr.contains("(after 2 poses)"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("Traceback"), "{stderr}");
     drop(server);
     let server = Server::start(&f, &[]);
     let r = run(&server, "sedar");

@@ -276,9 +276,10 @@ def _paeth(a, b, c):
     return b if pb_ <= pc else c
 
 
-def read_png_gray16(path):
+def read_png_gray16(path, size=None):
     """(width, height, values) of a 16-bit greyscale PNG (a depth image),
-    without an imaging library: zlib and PNG's five row filters."""
+    without an imaging library: zlib and PNG's five row filters. size:
+    the (width, height) it must have, checked before any pixel is read."""
     import struct
     import zlib
     with open(path, "rb") as f:
@@ -290,6 +291,8 @@ def read_png_gray16(path):
         n, kind = struct.unpack(">I4s", data[pos:pos + 8])
         body = data[pos + 8:pos + 8 + n]
         if kind == b"IHDR":
+            if len(body) != 13:
+                raise ValueError(f"{path}: an IHDR chunk of {len(body)} bytes, not 13")
             head = struct.unpack(">IIBBBBB", body)
         elif kind == b"IDAT":
             idat.append(body)
@@ -299,17 +302,24 @@ def read_png_gray16(path):
     if head is None:
         raise ValueError(f"{path}: no IHDR chunk")
     w, h, bits, colour, _, _, interlace = head
+    if w == 0 or h == 0:
+        raise ValueError(f"{path}: a {w} x {h} image")
+    if size is not None and (w, h) != tuple(size):
+        raise ValueError(f"{path}: a {w} x {h} depth image, the camera is {size[0]} x {size[1]}")
     if (bits, colour, interlace) != (16, 0, 0):
         raise ValueError(f"{path}: a depth image must be a 16-bit greyscale PNG, not "
                          f"interlaced (bit depth {bits}, colour type {colour}, "
                          f"interlace {interlace})")
+    stride, bpp = 2 * w, 2
+    # Never more than the image holds: a small file cannot inflate to
+    # gigabytes.
+    want = h * (stride + 1)
     try:
-        raw = zlib.decompress(b"".join(idat))
+        raw = zlib.decompressobj().decompress(b"".join(idat), want + 1)
     except zlib.error as e:
         raise ValueError(f"{path}: corrupt image data: {e}") from None
-    stride, bpp = 2 * w, 2
-    if len(raw) != h * (stride + 1):
-        raise ValueError(f"{path}: {len(raw)} bytes of pixels, expected {h * (stride + 1)}")
+    if len(raw) != want:
+        raise ValueError(f"{path}: {len(raw)} bytes of pixels, expected {want}")
     out, prev = array.array("H"), bytearray(stride)
     for y in range(h):
         kind = raw[y * (stride + 1)]
@@ -340,10 +350,11 @@ def read_png_gray16(path):
     return w, h, out
 
 
-def read_depth(seq, i, units_per_metre):
-    """(width, height, metres) of frame i's depth/NNNNNN.png."""
+def read_depth(seq, i, units_per_metre, size):
+    """(width, height, metres) of frame i's depth/NNNNNN.png, which must
+    be of the camera's size = (width, height)."""
     path = os.path.join(seq, "depth", f"{i:06}.png")
-    w, h, v = read_png_gray16(path)
+    w, h, v = read_png_gray16(path, size)
     return w, h, [x / units_per_metre for x in v]
 
 
@@ -497,7 +508,7 @@ def run(a):
                     h, w, d = shape
                     f = frame(sid, gt[i][0], odom[i][1], odom[i][2], grid=(h, w, d, data))
                 if a.baseline == "simp":
-                    set_depth(f, read_depth(a.sequence, i, a.depth_scale))
+                    set_depth(f, read_depth(a.sequence, i, a.depth_scale, camera[4:6]))
             except (OSError, ValueError) as e:
                 unreadable.append(str(e))
                 return
