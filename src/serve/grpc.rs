@@ -355,9 +355,9 @@ impl Localization for Service {
                 crate::mcl::MAX_COUNT
             )));
         }
-        // A floor plan's sessions default to Table I's 2-D filter, as the
-        // baselines do (theirs: 2048 pixels).
-        let base = if r.filter.is_empty() || baseline.is_some() {
+        // A floor plan's sessions default to Table I's 2-D filter (a
+        // baseline's too: it names no filter, and samples 2048 pixels).
+        let base = if r.filter.is_empty() {
             if map.is_level() {
                 FilterConfig::floor_plan()
             } else {
