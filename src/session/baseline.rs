@@ -11,7 +11,7 @@
 //! their sensors score labels, not the floor's feature that global and
 //! prompt starts place cameras with.
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -37,15 +37,68 @@ pub struct BaselineMap {
     pub plan: FloorPlan,
     pub map: LanguageMap,
     pub caster: Arc<PlanarCaster>,
+    /// The plan labelled by each class table its sessions used (with the
+    /// likelihood field's cap): built once and shared, since its per-class
+    /// distance fields cover the plan (a server's sessions on one map
+    /// would each hold a copy otherwise).
+    labelled: Mutex<Vec<(LabelKey, Arc<BaselinePlan>)>>,
+}
+
+/// What a [`BaselinePlan`] is built from besides the map: the class rows
+/// (dimension and values, bit for bit) and the distance cap's bits.
+#[derive(PartialEq)]
+struct LabelKey {
+    dim: usize,
+    rows: Vec<u32>,
+    max_distance: u64,
+}
+
+impl BaselineMap {
+    /// A baseline map of `plan`, its one-layer map `map` and `map`'s
+    /// caster of infinitely tall prisms.
+    pub fn new(plan: FloorPlan, map: LanguageMap, caster: Arc<PlanarCaster>) -> Self {
+        BaselineMap {
+            plan,
+            map,
+            caster,
+            labelled: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// The plan labelled with `classes` for `params` (built on the first
+    /// call for those classes and that cap, then shared).
+    fn labelled(
+        &self,
+        classes: &EmbeddingTable,
+        params: &BaselineParams,
+    ) -> Result<Arc<BaselinePlan>, SessionError> {
+        let key = LabelKey {
+            dim: classes.dim,
+            rows: classes.data.iter().map(|x| x.to_bits()).collect(),
+            max_distance: params.max_distance.to_bits(),
+        };
+        // A poisoned lock only means a build panicked: the list is whole.
+        let mut cache = self.labelled.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, plan)) = cache.iter().find(|(k, _)| *k == key) {
+            return Ok(plan.clone());
+        }
+        let db = FeatureDb::from_rows(classes.dim, 0.0, classes.data.clone())
+            .map_err(|e| SessionError::ClassTable(e.to_string()))?;
+        let plan = Arc::new(BaselinePlan::new(
+            &self.plan,
+            &self.map,
+            self.caster.clone(),
+            db,
+            params,
+        )?);
+        cache.push((key, plan.clone()));
+        Ok(plan)
+    }
 }
 
 impl From<PlanScene> for BaselineMap {
     fn from(scene: PlanScene) -> Self {
-        BaselineMap {
-            plan: scene.plan,
-            map: scene.map,
-            caster: scene.caster,
-        }
+        BaselineMap::new(scene.plan, scene.map, scene.caster)
     }
 }
 
@@ -86,16 +139,14 @@ impl BaselineSession {
                 baseline.label()
             )));
         }
-        let db = FeatureDb::from_rows(classes.dim, 0.0, classes.data.clone())
-            .map_err(|e| SessionError::ClassTable(e.to_string()))?;
-        let plan = BaselinePlan::new(&scene.plan, &scene.map, scene.caster.clone(), db, &params)?;
+        let plan = scene.labelled(classes, &params)?;
         let mut rng = ChaCha8Rng::seed_from_u64(config.filter.seed);
         let particles: Vec<Particle> =
             mcl::local_init(&level, config.particles, sigma_m, sigma_rad, &mut rng);
         let filter = BaselineFilter::new(
             baseline,
             params,
-            Arc::new(plan),
+            plan,
             config.intrinsics,
             config.filter,
             particles,
@@ -275,6 +326,27 @@ mod tests {
     /// 2.5 m, odometry 0.5 m forward (pitched too) moves it on with the
     /// wall at 1.5 m; a frame of another dimension and an odometry jump
     /// are rejected and leave the session as it was.
+    /// Sessions on one map share its labelled plan (the per-class
+    /// distance fields are built once); another class table or cap gets
+    /// its own, and both give the same sessions.
+    #[test]
+    fn sessions_share_the_labelled_plan() {
+        let (scene, table) = plan_scene();
+        let p = BaselineParams::default();
+        let a = scene.labelled(&table, &p).unwrap();
+        let b = scene.labelled(&table, &p).unwrap();
+        assert!(Arc::ptr_eq(&a, &b));
+        let wider = BaselineParams {
+            max_distance: 3.0,
+            ..p
+        };
+        assert!(!Arc::ptr_eq(&a, &scene.labelled(&table, &wider).unwrap()));
+        let mut other = table.clone();
+        other.data[0] = 0.5;
+        assert!(!Arc::ptr_eq(&a, &scene.labelled(&other, &p).unwrap()));
+        assert_eq!(scene.labelled.lock().unwrap().len(), 3);
+    }
+
     #[test]
     fn simp_session_tracks_level_and_rejects_bad_frames() {
         let (scene, table) = plan_scene();

@@ -206,7 +206,7 @@ impl SharedMap {
         SharedMap {
             level: true,
             strata: Some(strata),
-            baseline_map: Some(Arc::new(baseline::BaselineMap { plan, map, caster })),
+            baseline_map: Some(Arc::new(baseline::BaselineMap::new(plan, map, caster))),
             ..Self::from_parts(name, sighted_map, sighted)
         }
     }
