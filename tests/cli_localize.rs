@@ -1263,6 +1263,19 @@ fn floorplan_baselines_track_the_sequence_to_its_end() {
     // 0.136 to 0.208 m.
     let (rmse, max) = stats(&errors);
     assert!(rmse < 0.15 && max < 0.35, "SIMP*: {errors:.3?}");
+    // --max-depth: beyond every depth of the room it changes nothing, to
+    // the bit; below every depth it leaves SIMP* no pixel to place, and the
+    // particles go on odometry alone (another trajectory).
+    let (r, far, _) = run(
+        "simp_far.txt",
+        &["--baseline", "simp", "--max-depth", "100"],
+    );
+    assert!(r.stdout.contains(", at most 100 m deep)"), "{}", r.text());
+    assert_eq!(far, simp, "--max-depth 100 changed SIMP*'s estimates");
+    let (_, near, _) = run(
+        "simp_near.txt",
+        &["--baseline", "simp", "--max-depth", "0.05"],
+    );
 
     let (r, sedar, errors) = run("sedar.txt", &["--baseline", "sedar", "--rays", "1024"]);
     assert!(
@@ -1287,12 +1300,17 @@ fn floorplan_baselines_track_the_sequence_to_its_end() {
             .fold(0.0, f64::max)
     };
     assert!(moved(&simp, &sedar) > 0.01 && moved(&simp, &omcl_est) > 0.01);
+    assert!(
+        moved(&simp, &near) > 0.01,
+        "--max-depth 0.05 changed nothing"
+    );
     assert!(moved(&sedar, &omcl_est) > 0.01);
 }
 
 /// What the baselines cannot do is refused by name, writing nothing: no
-/// floor plan, a start other than a pose, recovery, a depth scale without
-/// SIMP*, SIMP* without depth images, either without a class table.
+/// floor plan, a start other than a pose, recovery, a depth scale or
+/// range without SIMP*, SIMP* without depth images, either without a
+/// class table.
 #[test]
 fn floorplan_baselines_refuse_what_they_cannot_do() {
     let f = Fixture::new();
@@ -1314,6 +1332,8 @@ fn floorplan_baselines_refuse_what_they_cannot_do() {
         &with(&["sedar", "--depth-scale", "1000"]),
     );
     assert_clean_failure(&r, &out, &["--depth-scale is for --baseline simp"]);
+    let r = f.localize(&f.map, &f.seq, &out, &with(&["sedar", "--max-depth", "3"]));
+    assert_clean_failure(&r, &out, &["--max-depth is for --baseline simp"]);
     // OMCL's sensor options, which the baselines do not use.
     let r = f.localize(
         &f.map,

@@ -1016,6 +1016,38 @@ async fn baseline_sessions_give_the_trajectories_of_the_cli() {
         assert_close(&pose_of(&u), want, 7, i);
     }
 
+    // max_depth reaches the sensor: beyond every depth of the room the
+    // poses are the CLI's, below every depth SIMP* places no pixel and
+    // the poses are others.
+    for (max_depth, same) in [(100.0, true), (0.05, false)] {
+        let id = c
+            .create_session(proto::CreateSessionRequest {
+                max_depth: Some(max_depth),
+                ..create(4, "simp")
+            })
+            .await
+            .unwrap()
+            .into_inner()
+            .session_id;
+        let mut moved = 0.0f64;
+        for (i, want) in simp.iter().enumerate() {
+            let frame = proto::Frame {
+                depth: Some(f.depth(i)),
+                ..f.frame(&id, i)
+            };
+            let u = c.localize(frame).await.unwrap().into_inner();
+            let p = pose_of(&u);
+            if same {
+                assert_close(&p, want, 7, i);
+            }
+            moved = moved.max((p[0] - want[0]).hypot(p[1] - want[1]));
+        }
+        assert_eq!(moved > 0.01, !same, "max_depth {max_depth}: {moved} m");
+        c.close_session(proto::CloseSessionRequest { session_id: id })
+            .await
+            .unwrap();
+    }
+
     // Restarted at the first frame's pose: the session steps on from it.
     let (_, gt) = f.poses("poses.txt");
     c.set_initial_pose(initial_pose(&b, &gt[0])).await.unwrap();
@@ -1085,6 +1117,20 @@ async fn baseline_sessions_give_the_trajectories_of_the_cli() {
             .contains("recovery, early_reject set OMCL's filter, which SIMP* does not use"),
         "{e:?}"
     );
+    for (b, max_depth, why) in [
+        ("sedar", 3.0, "max_depth: 3 m given for baseline \"sedar\""),
+        ("", 3.0, "given for an OMCL session"),
+        ("simp", -1.0, "max_depth: -1 m, expected a positive number"),
+        ("simp", f64::NAN, "max_depth: NaN m"),
+    ] {
+        let e = refused(proto::CreateSessionRequest {
+            max_depth: Some(max_depth),
+            ..create(3, b)
+        })
+        .await;
+        assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+        assert!(e.message().contains(why), "{e:?}");
+    }
     let e = refused(create(3, "amcl")).await;
     assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
     assert!(e.message().contains("unknown baseline \"amcl\""), "{e:?}");

@@ -400,6 +400,11 @@ pub struct LocalizeArgs {
     /// and `omcl map rgbd`'s; 7-Scenes folders are read in millimetres].
     #[arg(long, value_name = "UNITS", value_parser = super::positive)]
     pub depth_scale: Option<f64>,
+    /// --baseline simp: place only pixels at most this deep (z-depth,
+    /// metres), as SIMP's detector sees objects only so far [default:
+    /// every pixel with a depth, as Table I's SIMP* rows].
+    #[arg(long, value_name = "METRES", value_parser = super::positive)]
+    pub max_depth: Option<f64>,
 }
 
 /// Table I's baselines, by `--baseline`.
@@ -1007,7 +1012,7 @@ fn given(flags: &[(bool, &'static str)]) -> Vec<&'static str> {
 /// Refuses options the run would not use: a start pose or spread for a
 /// start that is not --init local, pixel-margin for uniform sampling, a
 /// runtime library with no model to run, OMCL's sensor options, another
-/// start or recovery with --baseline, a depth scale without SIMP*.
+/// start or recovery with --baseline, a depth scale or range without SIMP*.
 fn check_options_apply(a: &LocalizeArgs) -> anyhow::Result<()> {
     if let Some(b) = a.baseline {
         let name = b.label();
@@ -1043,6 +1048,11 @@ fn check_options_apply(a: &LocalizeArgs) -> anyhow::Result<()> {
     ensure!(
         a.depth_scale.is_none() || a.baseline == Some(BaselineArg::Simp),
         "--depth-scale is for --baseline simp (the only sensor here that reads depth images)"
+    );
+    ensure!(
+        a.max_depth.is_none() || a.baseline == Some(BaselineArg::Simp),
+        "--max-depth is for --baseline simp (the only sensor here that places pixels at \
+         their depth)"
     );
     if a.init != InitArg::Local {
         let given = given(&[
@@ -1851,10 +1861,7 @@ fn open_baseline(
         floor_feature: None,
         ground: false,
     };
-    let params = BaselineParams {
-        pixels: a.rays.unwrap_or(BaselineParams::default().pixels),
-        ..BaselineParams::default()
-    };
+    let params = baseline_params(a);
     BaselineSession::new(scene, &classes, b.baseline(), params, &config, &start).with_context(
         || {
             format!(
@@ -1866,6 +1873,16 @@ fn open_baseline(
     )
 }
 
+/// The baselines' parameters with the run's pixel count and depth range.
+fn baseline_params(a: &LocalizeArgs) -> BaselineParams {
+    let defaults = BaselineParams::default();
+    BaselineParams {
+        pixels: a.rays.unwrap_or(defaults.pixels),
+        max_depth: a.max_depth,
+        ..defaults
+    }
+}
+
 /// The depth scale `--baseline simp` reads depth images with (`None`:
 /// the run reads none).
 fn depth_scale(a: &LocalizeArgs) -> Option<f64> {
@@ -1875,8 +1892,8 @@ fn depth_scale(a: &LocalizeArgs) -> Option<f64> {
 
 /// A baseline run's setup on standard output, before its first frame.
 fn print_baseline_setup(a: &LocalizeArgs, inputs: &CameraSequence, session: &BaselineSession) {
-    let params = BaselineParams::default();
-    let pixels = a.rays.unwrap_or(params.pixels);
+    let params = baseline_params(a);
+    let pixels = params.pixels;
     println!(
         "{} particle{} x {pixels} pixel{} a frame{}",
         session.particles().len(),
@@ -1897,7 +1914,8 @@ fn print_baseline_setup(a: &LocalizeArgs, inputs: &CameraSequence, session: &Bas
         a.baseline.map_or("", BaselineArg::label),
         match a.baseline {
             Some(BaselineArg::Simp) => format!(
-                "each pixel at its depth ({}) against the nearest column of its class, sigma {} m",
+                "each pixel at its depth ({}{}) against the nearest column of its class, sigma {} \
+                 m",
                 match inputs.layout() {
                     Layout::SevenScenes => "7-Scenes' depth images, millimetres".to_string(),
                     _ => format!(
@@ -1905,6 +1923,9 @@ fn print_baseline_setup(a: &LocalizeArgs, inputs: &CameraSequence, session: &Bas
                         depth_scale(a).unwrap_or_default()
                     ),
                 },
+                params
+                    .max_depth
+                    .map_or(String::new(), |m| format!(", at most {m} m deep")),
                 params.sigma
             ),
             _ => "each pixel's planar ray against the class of the column it reaches".into(),

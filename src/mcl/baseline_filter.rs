@@ -59,6 +59,15 @@ impl BaselinePlan {
                     .into(),
             });
         }
+        if classes.len() > usize::from(NO_LABEL) {
+            return Err(MclError::BadParam {
+                name: "baseline classes",
+                why: format!(
+                    "{} classes: SeDAR* and SIMP* label with at most {NO_LABEL}",
+                    classes.len()
+                ),
+            });
+        }
         if classes.dim() != map.db().dim() {
             return Err(MclError::DimMismatch {
                 expected: map.db().dim(),
@@ -130,6 +139,12 @@ impl BaselineFilter {
             return Err(MclError::BadParam {
                 name: "baseline pixels",
                 why: "must be at least 1".into(),
+            });
+        }
+        if let Some(m) = params.max_depth.filter(|m| !(m.is_finite() && *m > 0.0)) {
+            return Err(MclError::BadParam {
+                name: "baseline max depth",
+                why: format!("{m} m: must be a positive number of metres"),
             });
         }
         let mut particles = particles;
@@ -236,7 +251,14 @@ impl BaselineFilter {
         }
         let t1 = Instant::now();
         let pixels = sample_pixels(frame, &self.plan.db, &self.sampling, &mut self.rng)?;
-        let obs = observe(frame, depth, &pixels, &self.plan.classes, &k)?;
+        let obs = observe(
+            frame,
+            depth,
+            &pixels,
+            &self.plan.classes,
+            &k,
+            self.params.max_depth,
+        )?;
         let t2 = Instant::now();
         let plan = &self.plan;
         let (baseline, params) = (self.baseline, &self.params);
@@ -261,7 +283,12 @@ impl BaselineFilter {
         let beams = self.params.beams.max(f64::MIN_POSITIVE);
         let mean_l =
             log_l.iter().map(|l| (l / beams).exp()).sum::<f64>() / log_l.len().max(1) as f64;
-        self.recovery.update(mean_l, &RecoveryParams::default());
+        // A frame none of whose pixels enters the likelihood (SIMP*: no
+        // depth, say a sensor's first frames) weighs every particle alike
+        // and says nothing of the confidence.
+        if baselines::evidence(baseline, &obs, &plan.labelled) > 0 {
+            self.recovery.update(mean_l, &RecoveryParams::default());
+        }
         let resampled = self.config.resample.due(&moved);
         if resampled {
             let n = moved.len();
@@ -297,13 +324,14 @@ impl BaselineFilter {
 
 /// The baselines' observations of the sampled pixels: each pixel's
 /// direction, nearest class and depth (`depth`: `width * height`
-/// z-depths, metres, 0 none).
+/// z-depths, metres, 0 none; one beyond `max_depth` counts as none).
 pub fn observe(
     f: &dyn FrameFeatures,
     depth: Option<&[f32]>,
     pixels: &[(u32, u32)],
     classes: &FeatureDb,
     k: &Intrinsics,
+    max_depth: Option<f64>,
 ) -> Result<Vec<PixelObservation>, MclError> {
     if f.dim() != classes.dim() {
         return Err(MclError::DimMismatch {
@@ -327,7 +355,9 @@ pub fn observe(
         );
         depths.push(depth.map_or(0.0, |d| d[(v * f.width() + u) as usize]));
     }
-    Ok(baselines::observations(k, pixels, &labels, &depths))
+    Ok(baselines::observations(
+        k, pixels, &labels, &depths, max_depth,
+    ))
 }
 
 #[cfg(test)]
@@ -358,6 +388,15 @@ mod tests {
     }
 
     fn filter(baseline: Baseline, start: &Pose, sigma_m: f64) -> BaselineFilter {
+        with_params(baseline, start, sigma_m, BaselineParams::default()).unwrap()
+    }
+
+    fn with_params(
+        baseline: Baseline,
+        start: &Pose,
+        sigma_m: f64,
+        params: BaselineParams,
+    ) -> Result<BaselineFilter, MclError> {
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         let ps = crate::mcl::local_init(start, 256, sigma_m, 0.0, &mut rng);
         let config = FilterConfig {
@@ -369,14 +408,13 @@ mod tests {
         };
         BaselineFilter::new(
             baseline,
-            BaselineParams::default(),
+            params,
             Arc::new(plan()),
             Intrinsics::from_hfov(64, 48, 90.0),
             config,
             ps,
             rng,
         )
-        .unwrap()
     }
 
     /// SIMP*: every pixel sees the wall at 2 m, whose column spans x 4.0
@@ -408,6 +446,66 @@ mod tests {
             );
         }
         assert!(r.mean_likelihood > 0.0 && r.mean_likelihood <= 1.0);
+    }
+
+    /// SIMP*'s depth range: every pixel at z-depth 2 m, so a range of 2 m
+    /// keeps them all (the estimate pulled to the wall distance, as
+    /// without a range) and one of 1.99 m none: every particle weighs the
+    /// same, and nothing pulls the estimate.
+    /// Ranges that are no positive number are refused by name.
+    #[test]
+    fn simp_places_no_pixel_beyond_its_depth_range() {
+        let start = camera(1.5, 1.0);
+        let depth = vec![2.0f32; 64 * 48];
+        let run = |max_depth: Option<f64>| {
+            let params = BaselineParams {
+                max_depth,
+                ..BaselineParams::default()
+            };
+            let mut f = with_params(Baseline::Simp, &start, 0.4, params).unwrap();
+            let r = f.step(None, &frame(0), Some(&depth)).unwrap();
+            (r, f.particles().to_vec())
+        };
+        let (all, _) = run(None);
+        let (kept, _) = run(Some(2.0));
+        assert_eq!(kept.estimate, all.estimate);
+        assert!((1.95..2.55).contains(&kept.estimate.translation.x));
+        let (none, particles) = run(Some(1.99));
+        assert!((none.ess - 256.0).abs() < 1e-6, "ESS {}", none.ess);
+        assert!(
+            particles
+                .iter()
+                .all(|p| (p.weight - 1.0 / 256.0).abs() < 1e-12)
+        );
+        assert!(none.estimate.translation.x < 1.95, "{:?}", none.estimate);
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let params = BaselineParams {
+                max_depth: Some(bad),
+                ..BaselineParams::default()
+            };
+            let e = with_params(Baseline::Simp, &start, 0.4, params)
+                .err()
+                .unwrap();
+            assert!(e.to_string().contains("baseline max depth"), "{bad}: {e}");
+        }
+    }
+
+    /// A SIMP* frame without depth anywhere (a sensor's first frames)
+    /// weighs every particle alike and leaves the confidence as it was.
+    #[test]
+    fn a_frame_without_evidence_leaves_the_confidence() {
+        // A frame that fits, then class 1 at the wall's distance (the
+        // class-1 column is elsewhere): the likelihood drops, and with it
+        // the confidence.
+        let truth = camera(2.0, 1.0);
+        let mut f = filter(Baseline::Simp, &truth, 0.3);
+        let depth = vec![2.0f32; 64 * 48];
+        f.step(None, &frame(0), Some(&depth)).unwrap();
+        let first = f.step(None, &frame(1), Some(&depth)).unwrap();
+        assert!(first.confidence < 0.9, "{}", first.confidence);
+        let blank = f.step(None, &frame(1), Some(&[0.0; 64 * 48])).unwrap();
+        assert_eq!(blank.confidence, first.confidence);
+        assert!((blank.ess - first.ess).abs() < 1e-9 || first.resampled);
     }
 
     /// SeDAR*: a frame all of class 0 (the wall) seen from the truth

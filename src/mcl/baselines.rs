@@ -26,7 +26,8 @@
 //! OMCL's 2-D mode, [`crate::raycast::PlanarCaster`]) and its label is any
 //! of the table's classes. Per ray
 //! `p = (1 - z_rand) [label(hit) = label(pixel)] + z_rand / C` (C classes),
-//! a ray that reaches nothing counting as a mismatch.
+//! a ray that reaches nothing counting as a mismatch and a pixel without
+//! a class (a zero feature: a label the table lacks) skipped.
 //!
 //! **SIMP\*** (Zimmerman et al., 2023, "Constructing Metric-Semantic Maps
 //! using Floor Plan Priors for Long-Term Indoor Localization"): objects
@@ -40,7 +41,10 @@
 //! `p = (1 - z_rand) exp(-d^2 / (2 sigma^2)) + z_rand`, `d` the distance (m)
 //! to the nearest column of the pixel's class (capped at `max_distance`;
 //! pixels without depth or of a class the plan lacks, such as floor and
-//! ceiling outside the plan's height band, are skipped).
+//! ceiling outside the plan's height band, are skipped). SIMP's detector
+//! sees objects only so far; [`BaselineParams::max_depth`] skips pixels
+//! deeper than a range too (unset in Table I's rows: the synthetic
+//! rooms' true depth is exact at every range).
 
 use nalgebra::Vector3;
 
@@ -92,6 +96,11 @@ pub struct BaselineParams {
     /// sequences, with 2048 one (docs/table1.md, "More pixels, sharper").
     #[serde(default = "default_pixels")]
     pub pixels: usize,
+    /// SIMP\*: pixels deeper than this (z-depth, metres) are not placed,
+    /// as a detector sees objects only so far; `None` (the default, and
+    /// Table I's rows): every pixel with a depth.
+    #[serde(default)]
+    pub max_depth: Option<f64>,
 }
 
 fn default_pixels() -> usize {
@@ -106,6 +115,7 @@ impl Default for BaselineParams {
             max_distance: 2.0,
             beams: 30.0,
             pixels: 2048,
+            max_depth: None,
         }
     }
 }
@@ -185,6 +195,11 @@ impl LabelledPlan {
             .get(leaf as usize)
             .copied()
             .unwrap_or(NO_LABEL)
+    }
+
+    /// Whether the plan has a column of class `c`.
+    pub fn has_class(&self, c: u16) -> bool {
+        self.dist.get(c as usize).is_some_and(|f| !f.is_empty())
     }
 
     /// Distance (m, capped) from world point `(x, y)` to the nearest column
@@ -286,23 +301,42 @@ pub struct PixelObservation {
 }
 
 /// Builds the observations of `pixels` from their labels and z-depths
-/// (0: none).
+/// (0: none); a depth beyond `max_depth` counts as none.
 pub fn observations(
     intrinsics: &Intrinsics,
     pixels: &[(u32, u32)],
     labels: &[u16],
     depths: &[f32],
+    max_depth: Option<f64>,
 ) -> Vec<PixelObservation> {
+    let max = max_depth.unwrap_or(f64::INFINITY);
     pixels
         .iter()
         .zip(labels.iter().zip(depths))
         .map(|(&(u, v), (&label, &z))| PixelObservation {
             dir: intrinsics.pixel_dir(u, v),
             label,
-            point: (z > 0.0 && z.is_finite())
+            point: (z > 0.0 && z.is_finite() && f64::from(z) <= max)
                 .then(|| intrinsics.back_project(u, v, z as f64).coords),
         })
         .collect()
+}
+
+/// How many of `observations` enter `baseline`'s likelihood, whatever
+/// the pose: SeDAR\*'s pixels with a class, SIMP\*'s with a depth and a
+/// class the plan has.
+pub fn evidence(
+    baseline: Baseline,
+    observations: &[PixelObservation],
+    plan: &LabelledPlan,
+) -> usize {
+    observations
+        .iter()
+        .filter(|o| match baseline {
+            Baseline::Sedar => o.label != NO_LABEL,
+            Baseline::Simp => o.point.is_some() && plan.has_class(o.label),
+        })
+        .count()
 }
 
 /// The tempered log-likelihood of `pose` under `baseline` for
@@ -323,6 +357,9 @@ pub fn log_likelihood(
     let mut sedar_rays: Vec<(Ray, u16)> = Vec::new();
     for o in observations {
         match baseline {
+            // A pixel without a class says nothing of the pose (and would
+            // match a column without one).
+            Baseline::Sedar if o.label == NO_LABEL => {}
             Baseline::Sedar => {
                 let w = pose.rotation * o.dir;
                 let p = pose.translation.vector - origin;
@@ -454,7 +491,7 @@ pub(crate) mod tests {
         let pixels: Vec<(u32, u32)> = (28..36).map(|u| (u, 24)).collect();
         let truth = camera(2.0, 1.0);
         // Every pixel sees the wall (class 0) at z-depth 2.0.
-        let obs = observations(&k, &pixels, &[0; 8], &[2.0; 8]);
+        let obs = observations(&k, &pixels, &[0; 8], &[2.0; 8], None);
         let origin = one.grid().origin;
         let p = BaselineParams::default();
         let l = |b: Baseline, pose: &Pose| log_likelihood(b, pose, &obs, &lp, &caster, &origin, &p);
@@ -478,8 +515,19 @@ pub(crate) mod tests {
         );
         let miss = p.beams * (0.1f64 / 3.0).ln();
         assert!((l(Baseline::Sedar, &turned) - miss).abs() < 1e-9);
+        // SeDAR*: pixels without a class add nothing (nor match a column
+        // without one); evidence counts the pixels that enter.
+        let void = observations(&k, &pixels, &[NO_LABEL; 8], &[2.0; 8], None);
+        assert_eq!(l(Baseline::Sedar, &truth), {
+            let mixed: Vec<_> = obs.iter().chain(&void).copied().collect();
+            log_likelihood(Baseline::Sedar, &truth, &mixed, &lp, &caster, &origin, &p)
+        });
+        assert_eq!(evidence(Baseline::Sedar, &void, &lp), 0);
+        assert_eq!(evidence(Baseline::Sedar, &obs, &lp), 8);
+        assert_eq!(evidence(Baseline::Simp, &obs, &lp), 8);
+        assert_eq!(evidence(Baseline::Simp, &void, &lp), 0);
         // Pixels without depth or of a class the plan lacks add nothing.
-        let none = observations(&k, &pixels, &[2; 8], &[0.0; 8]);
+        let none = observations(&k, &pixels, &[2; 8], &[0.0; 8], None);
         assert_eq!(
             log_likelihood(Baseline::Simp, &truth, &none, &lp, &caster, &origin, &p),
             0.0

@@ -165,6 +165,23 @@ fn baseline_of(
     r: &proto::CreateSessionRequest,
     map: &SharedMap,
 ) -> Result<Option<Baseline>, Status> {
+    if let Some(m) = r.max_depth {
+        if r.baseline != "simp" {
+            return Err(Status::invalid_argument(format!(
+                "max_depth: {m} m given for {}: it is for a SIMP* session (baseline \"simp\", \
+                 the only sensor here that places pixels at their depth)",
+                match r.baseline.as_str() {
+                    "" => "an OMCL session".to_string(),
+                    other => format!("baseline {}", convert::quoted(other)),
+                }
+            )));
+        }
+        if !(m.is_finite() && m > 0.0) {
+            return Err(Status::invalid_argument(format!(
+                "max_depth: {m} m, expected a positive number of metres"
+            )));
+        }
+    }
     let b = match r.baseline.as_str() {
         "" => return Ok(None),
         "sedar" => Baseline::Sedar,
@@ -213,7 +230,9 @@ fn baseline_of(
         .collect();
     if !given.is_empty() {
         return Err(Status::invalid_argument(format!(
-            "baseline: {} set{} OMCL's filter, which {name} does not use",
+            "baseline: {} set{} OMCL's filter, which {name} does not use (a baseline \
+             session has the floor-plan filter's motion noise, sampling, estimate and \
+             resampling)",
             given.join(", "),
             if given.len() == 1 { "s" } else { "" }
         )));
@@ -222,11 +241,13 @@ fn baseline_of(
 }
 
 /// A session of baseline `b` on `map` (a floor plan with a class table,
-/// [`baseline_of`]) with `pixels` sampled a frame.
+/// [`baseline_of`]) with `pixels` sampled a frame, placing (SIMP\*) pixels
+/// at most `max_depth` deep.
 fn baseline_session(
     map: &SharedMap,
     b: Baseline,
     pixels: usize,
+    max_depth: Option<f64>,
     config: SessionConfig,
     start: &Start,
 ) -> Result<Tracker, SessionError> {
@@ -238,6 +259,7 @@ fn baseline_session(
     };
     let params = BaselineParams {
         pixels,
+        max_depth,
         ..BaselineParams::default()
     };
     let session = BaselineSession::new(on, classes.table(), b, params, &config, start)?;
@@ -345,6 +367,7 @@ impl Localization for Service {
         let r = req.into_inner();
         let map = self.state.map(&r.map)?.clone();
         let baseline = baseline_of(&r, &map)?;
+        let max_depth = r.max_depth;
         let intrinsics = camera(r.camera.as_ref())?;
         let particles = r
             .particles
@@ -438,7 +461,7 @@ impl Localization for Service {
             };
             match baseline {
                 None => Session::new(m, config, &start).map(|s| Tracker::Omcl(Box::new(s))),
-                Some(b) => baseline_session(&m, b, rays, config, &start),
+                Some(b) => baseline_session(&m, b, rays, max_depth, config, &start),
             }
             .map(|s| (s, warning))
         });

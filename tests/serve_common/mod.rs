@@ -272,6 +272,7 @@ impl Fixture {
             ground: false,
             filter: String::new(),
             baseline: String::new(),
+            max_depth: None,
         }
     }
 }
