@@ -389,20 +389,21 @@ fn python_client_tracks_with_a_baseline_on_a_floor_plan() {
     assert!(r.status.success(), "{r:?}");
     let want = read_tum(&out);
     let client = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/omcl_client.py");
-    let run = |server: &Server, baseline: &str| {
+    let run = |server: &Server, baseline: &[&str]| {
         Command::new("python3")
             .arg(&client)
             .args(["--target", &server.grpc.to_string(), "--map", "room"])
             .args(["--sequence", s(&f.seq), "--frames", frames, "--seed", "5"])
             .args(["--particles", &PARTICLES.to_string()])
             .args(["--rays", &RAYS.to_string()])
-            .args(["--baseline", baseline])
+            .arg("--baseline")
+            .args(baseline)
             .env("OMCL_TOKEN", TOKEN)
             .output()
             .unwrap()
     };
     let server = Server::start(&f, &["--floorplan", "room"]);
-    let r = run(&server, "simp");
+    let r = run(&server, &["simp"]);
     let stdout = String::from_utf8_lossy(&r.stdout);
     let stderr = String::from_utf8_lossy(&r.stderr);
     assert!(r.status.success(), "{stdout}\n{stderr}");
@@ -416,12 +417,22 @@ fn python_client_tracks_with_a_baseline_on_a_floor_plan() {
             );
         }
     }
+    // --max-depth reaches the server, which refuses it for SeDAR* in one
+    // line.
+    let r = run(&server, &["sedar", "--max-depth", "3"]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("INVALID_ARGUMENT") && stderr.contains("max_depth: 3 m given for baseline"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("Traceback"), "{stderr}");
     // A truncated depth image ends the run naming it, after the poses
     // before it.
     let depth = f.seq.join("depth/000002.png");
     let bytes = std::fs::read(&depth).unwrap();
     std::fs::write(&depth, &bytes[..bytes.len() / 2]).unwrap();
-    let r = run(&server, "simp");
+    let r = run(&server, &["simp"]);
     let stderr = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(1), "{stderr}");
     assert!(
@@ -431,7 +442,7 @@ fn python_client_tracks_with_a_baseline_on_a_floor_plan() {
     assert!(!stderr.contains("Traceback"), "{stderr}");
     drop(server);
     let server = Server::start(&f, &[]);
-    let r = run(&server, "sedar");
+    let r = run(&server, &["sedar"]);
     let stderr = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(1), "{stderr}");
     assert!(
@@ -443,7 +454,7 @@ fn python_client_tracks_with_a_baseline_on_a_floor_plan() {
 
 /// The client's depth reader (pure Python: zlib and PNG's row filters)
 /// gives the values omcl reads from real 16-bit depth PNGs: TUM fr1/xyz
-/// and 7-Scenes redkitchen, every pixel.
+/// and 7-Scenes redkitchen, every pixel, as samples and in metres.
 #[test]
 fn python_client_reads_real_depth_pngs_as_omcl_does() {
     let client = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/omcl_client.py");
@@ -481,5 +492,42 @@ fn python_client_reads_real_depth_pngs_as_omcl_does() {
             values.iter().filter(|&&x| x > 0.0).count() > 100_000,
             "{png:?}"
         );
+        // In metres, to the bit (float32, as omcl scales them), at TUM's
+        // 5000 units a metre and at millimetres.
+        let seq = dir.path().join("seq");
+        std::fs::create_dir_all(seq.join("depth")).unwrap();
+        std::fs::copy(&png, seq.join("depth/000000.png")).unwrap();
+        for units in [5000.0, 1000.0] {
+            let script = format!(
+                "import importlib.util, sys\n\
+                 spec = importlib.util.spec_from_file_location('c', {client:?})\n\
+                 c = importlib.util.module_from_spec(spec); spec.loader.exec_module(c)\n\
+                 w, h, v = c.read_depth({seq:?}, 0, {units:?}, ({w}, {h}))\n\
+                 open({text:?}, 'w').write(' '.join(map(repr, v)))\n",
+                w = d.width,
+                h = d.height,
+            );
+            let r = Command::new("python3")
+                .args(["-c", &script])
+                .output()
+                .unwrap();
+            assert!(r.status.success(), "{r:?}");
+            let got: Vec<f32> = std::fs::read_to_string(&text)
+                .unwrap()
+                .split(' ')
+                .map(|x| x.parse::<f64>().unwrap() as f32)
+                .collect();
+            let want = omcl::io::rgbd::read_depth_png(&png, units).unwrap();
+            assert_eq!(got.len(), want.depth.len(), "{png:?}");
+            let differ = got
+                .iter()
+                .zip(&want.depth)
+                .filter(|(a, b)| a.to_bits() != b.to_bits())
+                .count();
+            assert_eq!(
+                differ, 0,
+                "{png:?} at {units} a metre: {differ} pixels differ"
+            );
+        }
     }
 }

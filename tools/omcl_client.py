@@ -38,6 +38,7 @@ never from the command line.
 import argparse
 import array
 import ast
+import math
 import os
 import queue
 import signal
@@ -156,7 +157,8 @@ class OmclClient:
 
     def open_session(self, map_name, camera, initial_pose=None, prompt=None,
                      particles=None, rays=None, seed=0, recovery=False,
-                     early_reject=False, ground=False, filter_name="", baseline=""):
+                     early_reject=False, ground=False, filter_name="", baseline="",
+                     max_depth=None):
         """A CreateSessionResponse: session_id, and warnings about the
         start (a pose from which the camera cannot see the map).
         camera: (fx, fy, cx, cy, width, height); initial_pose: (t, q);
@@ -165,7 +167,8 @@ class OmclClient:
         at its start's height and tilt (omcl localize --ground); filter_name:
         a tuned filter by name (omcl localize --filter; empty: the map's
         default); baseline: "sedar" or "simp" for one of Table I's
-        baselines on a floor plan (empty: OMCL)."""
+        baselines on a floor plan (empty: OMCL); max_depth: a SIMP*
+        session places only pixels at most this deep (metres)."""
         fx, fy, cx, cy, w, h = camera
         req = pb.CreateSessionRequest(
             map=map_name,
@@ -181,6 +184,8 @@ class OmclClient:
             req.particles = particles
         if rays is not None:
             req.rays = rays
+        if max_depth is not None:
+            req.max_depth = max_depth
         if initial_pose is not None:
             req.initial_pose.pose.pose.CopyFrom(pose_msg(*initial_pose))
         elif prompt:
@@ -355,7 +360,11 @@ def read_depth(seq, i, units_per_metre, size):
     be of the camera's size = (width, height)."""
     path = os.path.join(seq, "depth", f"{i:06}.png")
     w, h, v = read_png_gray16(path, size)
-    return w, h, [x / units_per_metre for x in v]
+    # As omcl reads it, in float32: the sample times float32(1 / units).
+    # The product of two float32 values is exact in a double, so one
+    # rounding to float32 (the array) gives omcl's value to the bit.
+    scale = array.array("f", [1.0 / units_per_metre])[0]
+    return w, h, array.array("f", [x * scale for x in v])
 
 
 def image_file(seq, i):
@@ -408,8 +417,11 @@ def main():
                          "--baseline): SeDAR* or SIMP*, which also sends depth/NNNNNN.png")
     ap.add_argument("--depth-scale", type=float, default=5000.0,
                     help="--baseline simp: depth PNG units per metre (default 5000, TUM's)")
+    ap.add_argument("--max-depth", type=float, default=None, metavar="METRES",
+                    help="--baseline simp: place only pixels at most this deep (omcl "
+                         "localize --max-depth; default: every pixel with a depth)")
     a = ap.parse_args()
-    if not a.depth_scale > 0:
+    if not (a.depth_scale > 0 and math.isfinite(a.depth_scale)):
         ap.error(f"--depth-scale {a.depth_scale}: give a positive number of units a metre")
     if a.frames is not None and a.frames < 1:
         ap.error(f"--frames {a.frames}: give at least 1 (leave it out for every frame)")
@@ -479,7 +491,8 @@ def run(a):
     created = client.open_session(a.map, camera, initial_pose=init,
                                   particles=a.particles, rays=a.rays, seed=a.seed,
                                   early_reject=a.early_reject, ground=a.ground,
-                                  filter_name=a.filter, baseline=a.baseline)
+                                  filter_name=a.filter, baseline=a.baseline,
+                                  max_depth=a.max_depth)
     sid = created.session_id
     for w in created.warnings:
         print(f"omcl_client: warning from the server: {w}", file=sys.stderr)
