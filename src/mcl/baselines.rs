@@ -205,10 +205,10 @@ impl LabelledPlan {
     /// Distance (m, capped) from world point `(x, y)` to the nearest column
     /// of class `c`; `None` when the plan has no column of that class.
     pub fn distance(&self, c: u16, x: f64, y: f64, cap: f64) -> Option<f64> {
-        let field = self.dist.get(c as usize)?;
-        if field.is_empty() {
+        if !self.has_class(c) {
             return None;
         }
+        let field = &self.dist[c as usize];
         let i = ((x - self.corner[0]) / self.resolution).floor();
         let j = ((y - self.corner[1]) / self.resolution).floor();
         if i < 0.0 || j < 0.0 || i >= self.size[0] as f64 || j >= self.size[1] as f64 {
@@ -332,11 +332,16 @@ pub fn evidence(
 ) -> usize {
     observations
         .iter()
-        .filter(|o| match baseline {
-            Baseline::Sedar => o.label != NO_LABEL,
-            Baseline::Simp => o.point.is_some() && plan.has_class(o.label),
-        })
+        .filter(|o| enters(baseline, o, plan))
         .count()
+}
+
+/// Whether `o` enters `baseline`'s likelihood (see [`evidence`]).
+fn enters(baseline: Baseline, o: &PixelObservation, plan: &LabelledPlan) -> bool {
+    match baseline {
+        Baseline::Sedar => o.label != NO_LABEL,
+        Baseline::Simp => o.point.is_some() && plan.has_class(o.label),
+    }
 }
 
 /// The tempered log-likelihood of `pose` under `baseline` for
@@ -356,10 +361,13 @@ pub fn log_likelihood(
     let c = plan.classes().max(1) as f64;
     let mut sedar_rays: Vec<(Ray, u16)> = Vec::new();
     for o in observations {
+        // A pixel without a class (SeDAR*: it would match a column without
+        // one), or without a depth or of a class the plan lacks (SIMP*),
+        // says nothing of the pose.
+        if !enters(baseline, o, plan) {
+            continue;
+        }
         match baseline {
-            // A pixel without a class says nothing of the pose (and would
-            // match a column without one).
-            Baseline::Sedar if o.label == NO_LABEL => {}
             Baseline::Sedar => {
                 let w = pose.rotation * o.dir;
                 let p = pose.translation.vector - origin;
