@@ -161,9 +161,18 @@ impl LabelledPlan {
             })
             .collect();
         let leaf_labels: Vec<u16> = rows.iter().map(|&r| row_label[r as usize]).collect();
-        let (lo, hi) = crate::raycast::column_bounds(cells);
-        let size = [(hi[0] - lo[0] + 1) as usize, (hi[1] - lo[1] + 1) as usize];
         let r = plan.resolution;
+        // The fields reach `max_distance` past the outermost columns, so a
+        // point just outside an outer wall scores its distance to the wall
+        // as one just inside does (not the cap).
+        let pad = if max_distance.is_finite() && max_distance > 0.0 {
+            (max_distance / r).ceil().min(1e6) as i32
+        } else {
+            0
+        };
+        let (lo, hi) = crate::raycast::column_bounds(cells);
+        let (lo, hi) = ([lo[0] - pad, lo[1] - pad], [hi[0] + pad, hi[1] + pad]);
+        let size = [(hi[0] - lo[0] + 1) as usize, (hi[1] - lo[1] + 1) as usize];
         let k = classes.len();
         let mut seeds = vec![Vec::new(); k];
         for (c, &l) in cells.iter().zip(&leaf_labels) {
@@ -222,7 +231,7 @@ impl LabelledPlan {
         self.classes
     }
 
-    /// Lowest column index of the grid.
+    /// Lowest column index of the grid (the fields' padding included).
     pub fn lo(&self) -> [i32; 2] {
         self.lo
     }
@@ -483,6 +492,18 @@ pub(crate) mod tests {
         assert!((d - 2f64.sqrt()).abs() < 1e-5, "{d}");
         // Capped far away.
         assert_eq!(lp.distance(1, 2.75, 0.25, 1.0), Some(1.0));
+        // Past the outer wall (column 9, outside the columns' bounds) as
+        // far as inside it (column 7): 0.5 m both, not the cap; the
+        // fields reach the cap past the bounds, and beyond it the cap.
+        let outside = lp.distance(0, 4.75, 1.25, 2.0).unwrap();
+        let inside = lp.distance(0, 3.75, 1.25, 2.0).unwrap();
+        assert!(
+            (outside - 0.5).abs() < 1e-6 && (inside - 0.5).abs() < 1e-6,
+            "{outside} {inside}"
+        );
+        assert!((lp.distance(0, 5.75, 1.25, 2.0).unwrap() - 1.5).abs() < 1e-6);
+        assert_eq!(lp.distance(0, 7.0, 1.25, 2.0), Some(2.0));
+        assert_eq!(lp.lo(), [3 - 4, -4]);
     }
 
     /// Each baseline's likelihood prefers the true pose: pixels straight
