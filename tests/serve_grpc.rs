@@ -1088,6 +1088,23 @@ async fn baseline_sessions_give_the_trajectories_of_the_cli() {
         .unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
     assert!(e.message().contains("SIMP* starts from a pose"), "{e:?}");
+    // A prompt start, its words the map's or not: the same refusal (the
+    // words were looked up first, and one the map lacks answered
+    // INVALID_ARGUMENT as if another word would do).
+    for word in ["floor", "no such word"] {
+        let e = c
+            .global_localization(proto::GlobalLocalizationRequest {
+                session_id: b.clone(),
+                prompt: Some(proto::PromptStart {
+                    words: vec![word.into()],
+                    ..Default::default()
+                }),
+            })
+            .await
+            .unwrap_err();
+        assert_eq!(e.code(), Code::FailedPrecondition, "{word}: {e:?}");
+        assert!(e.message().contains("SIMP* starts from a pose"), "{e:?}");
+    }
 
     let refused = |req: proto::CreateSessionRequest| {
         let mut c = c.clone();

@@ -527,6 +527,13 @@ impl Localization for Service {
     ) -> Result<Response<proto::ReinitializeResponse>, Status> {
         let r = req.into_inner();
         let slot = self.state.session(&r.session_id)?;
+        // A baseline starts from a pose only: said before a prompt's words
+        // are looked up (a word the map lacks is not what to change).
+        if slot.is_baseline() {
+            return Err(super::state::status_of(
+                &crate::session::SessionError::BaselineStart(slot.method),
+            ));
+        }
         let start = match &r.prompt {
             Some(p) if !p.words.is_empty() => convert::prompt(p, &slot.map)?,
             _ => Start::Global,

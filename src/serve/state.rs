@@ -171,6 +171,10 @@ pub struct Slot {
 }
 
 impl Slot {
+    /// Whether a baseline (SeDAR*, SIMP*) tracks the camera, not OMCL.
+    pub fn is_baseline(&self) -> bool {
+        self.method != super::tracker::OMCL
+    }
     /// The session's camera.
     pub fn camera(&self) -> Intrinsics {
         self.camera

@@ -8,6 +8,9 @@ use crate::mcl::Particle;
 use crate::session::baseline::BaselineSession;
 use crate::session::{PoseReport, Session, SessionConfig, SessionError, Start};
 
+/// [`Tracker::method`] of OMCL's own filter.
+pub const OMCL: &str = "OMCL";
+
 /// One session's filter.
 pub enum Tracker {
     Omcl(Box<Session>),
@@ -31,7 +34,7 @@ impl Tracker {
     /// What tracks the camera, as `SessionInfo.method` names it.
     pub fn method(&self) -> &'static str {
         match self {
-            Tracker::Omcl(_) => "OMCL",
+            Tracker::Omcl(_) => OMCL,
             Tracker::Baseline { session, .. } => session.baseline().label(),
         }
     }

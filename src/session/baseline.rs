@@ -84,13 +84,18 @@ impl BaselineMap {
         }
         let db = FeatureDb::from_rows(classes.dim, 0.0, classes.data.clone())
             .map_err(|e| SessionError::ClassTable(e.to_string()))?;
-        let plan = Arc::new(BaselinePlan::new(
-            &self.plan,
-            &self.map,
-            self.caster.clone(),
-            db,
-            params,
-        )?);
+        // What the class table is refused for (none, too many, another
+        // dimension) is the caller's to change, not a fault of the filter.
+        let plan = Arc::new(
+            BaselinePlan::new(&self.plan, &self.map, self.caster.clone(), db, params).map_err(
+                |e| match e {
+                    MclError::BadParam { .. } | MclError::DimMismatch { .. } => {
+                        SessionError::ClassTable(e.to_string())
+                    }
+                    e => SessionError::Filter(e),
+                },
+            )?,
+        );
         cache.push((key, plan.clone()));
         Ok(plan)
     }
@@ -321,11 +326,6 @@ mod tests {
         }
     }
 
-    /// SIMP\* behind the session: a start pitched 10 degrees is levelled,
-    /// every pixel seeing the wall at 2 m pulls the estimate into x 2.0 to
-    /// 2.5 m, odometry 0.5 m forward (pitched too) moves it on with the
-    /// wall at 1.5 m; a frame of another dimension and an odometry jump
-    /// are rejected and leave the session as it was.
     /// Sessions on one map share its labelled plan (the per-class
     /// distance fields are built once); another class table or cap gets
     /// its own, and both give the same sessions.
@@ -347,6 +347,11 @@ mod tests {
         assert_eq!(scene.labelled.lock().unwrap().len(), 3);
     }
 
+    /// SIMP\* behind the session: a start pitched 10 degrees is levelled,
+    /// every pixel seeing the wall at 2 m pulls the estimate into x 2.0 to
+    /// 2.5 m, odometry 0.5 m forward (pitched too) moves it on with the
+    /// wall at 1.5 m; a frame of another dimension and an odometry jump
+    /// are rejected and leave the session as it was.
     #[test]
     fn simp_session_tracks_level_and_rejects_bad_frames() {
         let (scene, table) = plan_scene();
@@ -467,5 +472,20 @@ mod tests {
             e.contains("2-d class embeddings, the floor plan's features are 3-d: SIMP* labels"),
             "{e}"
         );
+        // A class table without classes: the table's fault (the server
+        // answers FAILED_PRECONDITION for it), not the filter's.
+        let empty = EmbeddingTable::new(vec![], vec![], 3, vec![]).unwrap();
+        let e = BaselineSession::new(
+            &scene,
+            &empty,
+            Baseline::Sedar,
+            BaselineParams::default(),
+            &config(),
+            &start(camera(1.5, 1.0)),
+        )
+        .err()
+        .unwrap();
+        assert!(matches!(e, SessionError::ClassTable(_)), "{e:?}");
+        assert!(e.to_string().contains("has no classes"), "{e}");
     }
 }
