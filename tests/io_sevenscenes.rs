@@ -55,6 +55,16 @@ fn real_frames_read_with_their_poses_depth_and_colour() {
             .iter()
             .all(|z| ((z * 1000.0) - (z * 1000.0).round()).abs() < 1e-3)
     );
+    // 7-Scenes' invalid depth, 65535 mm, reads as none: frame 33 stores
+    // it at 46 pixels (besides its zeros), its largest reading 3.390 m.
+    let png = omcl::io::rgbd::read_depth_png(&seq.frames[33].depth, 1000.0).unwrap();
+    let raw_invalid = png.depth.iter().filter(|&&z| z > 65.0).count();
+    let d = seq.read_depth(33).unwrap();
+    let hi = d.depth.iter().copied().fold(0.0, f32::max);
+    assert_eq!(raw_invalid, 46);
+    assert!((hi - 3.390).abs() < 1e-4, "{hi}");
+    let zeros = |d: &[f32]| d.iter().filter(|&&z| z == 0.0).count();
+    assert_eq!(zeros(&d.depth), zeros(&png.depth) + 46);
     let c = seq.read_color(0).unwrap();
     assert_eq!(c.dimensions(), (640, 480));
     // Gravity: mostly along the first camera's +y (down in the image).

@@ -1,6 +1,6 @@
 //! Microsoft 7-Scenes sequences as the dataset ships them: one folder of
 //! `frame-NNNNNN.color.jpg` (640 x 480 colour), `frame-NNNNNN.depth.png`
-//! (640 x 480 16-bit depth in millimetres, 0 = no reading) and
+//! (640 x 480 16-bit depth in millimetres, 0 or 65535 = no reading) and
 //! `frame-NNNNNN.pose.txt` (a 4 x 4 `world_from_camera`, metres, OpenCV
 //! camera: x right, y down, z forward), with `camera-intrinsics.txt` (a
 //! 3 x 3 K) and optionally `gravity-direction.txt` beside them.
@@ -25,6 +25,10 @@ pub const IMAGE_SIZE: (u32, u32) = (640, 480);
 
 /// Depth PNG units per metre (millimetres).
 pub const DEPTH_UNITS_PER_METRE: f64 = 1000.0;
+
+/// The depth 7-Scenes stores where the sensor had no reading, besides 0
+/// (the dataset's documentation: "invalid depth is set to 65535").
+pub const INVALID_DEPTH: u16 = u16::MAX;
 
 /// Largest deviation of `R^T R` from the identity, and of `det R` from 1,
 /// accepted in a pose file (the dataset's files are within 2.5e-4).
@@ -163,11 +167,20 @@ impl SevenScenes {
         self.frames.is_empty()
     }
 
-    /// The depth of frame `i` (position in `frames`), metres, 0 = none.
+    /// The depth of frame `i` (position in `frames`), metres, 0 = none:
+    /// the dataset's invalid value, 65535 mm, reads as none too (not as a
+    /// point 65.5 m away).
     pub fn read_depth(&self, i: usize) -> Result<DepthImage, CloudError> {
         let f = self.frame(i)?;
-        let d = read_depth_png(&f.depth, DEPTH_UNITS_PER_METRE)?;
+        let mut d = read_depth_png(&f.depth, DEPTH_UNITS_PER_METRE)?;
         check_size(&f.depth, "depth image", (d.width, d.height))?;
+        // The same product `read_depth_png` forms for the stored 65535.
+        let invalid = f32::from(INVALID_DEPTH) * (1.0 / DEPTH_UNITS_PER_METRE) as f32;
+        for z in &mut d.depth {
+            if *z == invalid {
+                *z = 0.0;
+            }
+        }
         Ok(d)
     }
 
