@@ -81,7 +81,7 @@ impl BaselinePlan {
             });
         }
         let cells = map.cells();
-        let labelled = LabelledPlan::new(plan, &cells, map.rows(), &classes, params.max_distance);
+        let labelled = LabelledPlan::new(plan, &cells, map.rows(), &classes, params.max_distance)?;
         Ok(BaselinePlan {
             labelled,
             caster,

@@ -48,6 +48,7 @@
 
 use nalgebra::Vector3;
 
+use super::MclError;
 use super::particles::Particle;
 use crate::geometry::{Intrinsics, Pose, Ray};
 use crate::map::{FeatureDb, FloorPlan};
@@ -143,14 +144,23 @@ pub struct LabelledPlan {
 impl LabelledPlan {
     /// Labels the leaves of `plan`'s one-layer map `cells` (leaf order, as
     /// the caster indexes them) by the class of `classes` nearest to their
-    /// row's feature.
+    /// row's feature. Fails on a `max_distance` that is not a positive
+    /// number of metres, or whose fields (the columns' extent and
+    /// `max_distance` past it) would hold more than
+    /// [`crate::map::floorplan::MAX_PLAN_CELLS`] cells.
     pub fn new(
         plan: &FloorPlan,
         cells: &[crate::map::Cell],
         rows: &[u32],
         classes: &FeatureDb,
         max_distance: f64,
-    ) -> Self {
+    ) -> Result<Self, MclError> {
+        if !(max_distance.is_finite() && max_distance > 0.0) {
+            return Err(MclError::BadParam {
+                name: "baseline max distance",
+                why: format!("{max_distance} m: expected a positive number of metres"),
+            });
+        }
         let row_label: Vec<u16> = (0..plan.db().len())
             .map(|r| {
                 classes
@@ -165,12 +175,23 @@ impl LabelledPlan {
         // The fields reach `max_distance` past the outermost columns, so a
         // point just outside an outer wall scores its distance to the wall
         // as one just inside does (not the cap).
-        let pad = if max_distance.is_finite() && max_distance > 0.0 {
-            (max_distance / r).ceil().min(1e6) as i32
-        } else {
-            0
-        };
         let (lo, hi) = crate::raycast::column_bounds(cells);
+        let pad = (max_distance / r).ceil();
+        let span = |a: usize| (hi[a] - lo[a] + 1) as f64 + 2.0 * pad;
+        let most = crate::map::floorplan::MAX_PLAN_CELLS as f64;
+        if span(0) * span(1) > most {
+            return Err(MclError::BadParam {
+                name: "baseline max distance",
+                why: format!(
+                    "{max_distance} m past the plan's columns makes distance fields of {} x {} \
+                     cells of {r} m, more than {most} in all",
+                    span(0),
+                    span(1)
+                ),
+            });
+        }
+        // At most MAX_PLAN_CELLS cells: `pad` fits an i32.
+        let pad = pad as i32;
         let (lo, hi) = ([lo[0] - pad, lo[1] - pad], [hi[0] + pad, hi[1] + pad]);
         let size = [(hi[0] - lo[0] + 1) as usize, (hi[1] - lo[1] + 1) as usize];
         let k = classes.len();
@@ -184,7 +205,7 @@ impl LabelledPlan {
             .iter()
             .map(|s| distance_field(s, size, r, max_distance))
             .collect();
-        LabelledPlan {
+        Ok(LabelledPlan {
             resolution: r,
             corner: [
                 plan.origin[0] + lo[0] as f64 * r,
@@ -195,7 +216,7 @@ impl LabelledPlan {
             leaf_labels,
             dist,
             classes: k,
-        }
+        })
     }
 
     /// Label of leaf `leaf`.
@@ -479,7 +500,7 @@ pub(crate) mod tests {
     #[test]
     fn labelled_plan_and_distance_field_by_hand() {
         let (plan, one, classes) = scene();
-        let lp = LabelledPlan::new(&plan, &one.cells(), one.rows(), &classes, 2.0);
+        let lp = LabelledPlan::new(&plan, &one.cells(), one.rows(), &classes, 2.0).unwrap();
         // The floor (class 2) is outside the band: no column, no field.
         assert_eq!(lp.distance(2, 1.0, 1.0, 2.0), None);
         // Class 0 wall starts at x 4.0 (centre of column 8: 4.25). From
@@ -504,6 +525,19 @@ pub(crate) mod tests {
         assert!((lp.distance(0, 5.75, 1.25, 2.0).unwrap() - 1.5).abs() < 1e-6);
         assert_eq!(lp.distance(0, 7.0, 1.25, 2.0), Some(2.0));
         assert_eq!(lp.lo(), [3 - 4, -4]);
+        // A cap that is not a positive distance, or fields past the plan
+        // cells' limit: refused by name.
+        let cap = |d: f64| {
+            LabelledPlan::new(&plan, &one.cells(), one.rows(), &classes, d)
+                .err()
+                .map(|e| e.to_string())
+        };
+        for d in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            assert!(cap(d).unwrap().contains("baseline max distance"), "{d}");
+        }
+        let far = cap(1e5).unwrap();
+        assert!(far.contains("400006 x 400008 cells of 0.5 m"), "{far}");
+        assert_eq!(cap(100.0), None);
     }
 
     /// Each baseline's likelihood prefers the true pose: pixels straight
@@ -514,7 +548,7 @@ pub(crate) mod tests {
     #[test]
     fn baselines_prefer_the_true_pose() {
         let (plan, one, classes) = scene();
-        let lp = LabelledPlan::new(&plan, &one.cells(), one.rows(), &classes, 2.0);
+        let lp = LabelledPlan::new(&plan, &one.cells(), one.rows(), &classes, 2.0).unwrap();
         let caster = PlanarCaster::new(0.5, &one.cells());
         let k = Intrinsics::from_hfov(64, 48, 90.0);
         let pixels: Vec<(u32, u32)> = (28..36).map(|u| (u, 24)).collect();

@@ -158,6 +158,18 @@ fn blind_start(map: &SharedMap, pose: &Pose, config: &SessionConfig) -> Option<S
     })
 }
 
+/// Refuses a global or prompt start on a floor plan served without the
+/// 3-D map it was projected from (its starts place cameras on the 3-D
+/// map's floor voxels), as the session would.
+fn pose_start_only(map: &SharedMap) -> Result<(), Status> {
+    match map.floor_source() {
+        Some(_) => Ok(()),
+        None => Err(super::state::status_of(&SessionError::PoseStartOnly(
+            map.name().to_string(),
+        ))),
+    }
+}
+
 /// `CreateSessionRequest.baseline`'s method (`None`: OMCL), refused with
 /// what a baseline cannot do: a map that is not a floor plan or has no
 /// class table, a start but a pose, and OMCL's own options.
@@ -424,7 +436,10 @@ impl Localization for Service {
         let start = match &r.start {
             Some(proto::create_session_request::Start::InitialPose(p)) => convert::initial_pose(p)?,
             Some(proto::create_session_request::Start::Global(_)) => Start::Global,
-            Some(proto::create_session_request::Start::Prompt(p)) => convert::prompt(p, &map)?,
+            Some(proto::create_session_request::Start::Prompt(p)) => {
+                pose_start_only(&map)?;
+                convert::prompt(p, &map)?
+            }
             None => {
                 return Err(Status::invalid_argument(
                     "start: give initial_pose, global or prompt",
@@ -527,13 +542,16 @@ impl Localization for Service {
     ) -> Result<Response<proto::ReinitializeResponse>, Status> {
         let r = req.into_inner();
         let slot = self.state.session(&r.session_id)?;
-        // A baseline starts from a pose only: said before a prompt's words
-        // are looked up (a word the map lacks is not what to change).
+        slot.touch();
+        // A baseline, or a floor plan without its 3-D map, starts from a
+        // pose only: said before a prompt's words are looked up (a word
+        // the map lacks is not what to change).
         if slot.is_baseline() {
-            return Err(super::state::status_of(
-                &crate::session::SessionError::BaselineStart(slot.method),
-            ));
+            return Err(super::state::status_of(&SessionError::BaselineStart(
+                slot.method,
+            )));
         }
+        pose_start_only(&slot.map)?;
         let start = match &r.prompt {
             Some(p) if !p.words.is_empty() => convert::prompt(p, &slot.map)?,
             _ => Start::Global,
@@ -705,5 +723,31 @@ fn ready_now<F: std::future::Future>(f: F) -> Option<F::Output> {
     match f.as_mut().poll(&mut cx) {
         std::task::Poll::Ready(v) => Some(v),
         std::task::Poll::Pending => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::session::floorplan::PlanScene;
+
+    /// A floor plan served without its 3-D map refuses global and prompt
+    /// starts as its session would (`FAILED_PRECONDITION`, naming the map),
+    /// before a prompt's words are looked up; with the 3-D map beside it,
+    /// they go on.
+    #[test]
+    fn a_plan_without_its_3d_map_starts_from_a_pose_only() {
+        let (plan, one, _) = crate::mcl::baselines::tests::scene();
+        let bare = SharedMap::floor_plan("plan", PlanScene::from_plan(plan.clone()).unwrap());
+        let e = pose_start_only(&bare).unwrap_err();
+        assert_eq!(e.code(), tonic::Code::FailedPrecondition, "{e:?}");
+        assert!(
+            e.message()
+                .contains("map \"plan\" is a floor plan without the 3-D map"),
+            "{e:?}"
+        );
+        let with = SharedMap::floor_plan("plan", PlanScene::from_plan(plan).unwrap())
+            .with_floor_map(Arc::new(one));
+        assert!(pose_start_only(&with).is_ok());
     }
 }

@@ -89,9 +89,12 @@ impl BaselineMap {
         let plan = Arc::new(
             BaselinePlan::new(&self.plan, &self.map, self.caster.clone(), db, params).map_err(
                 |e| match e {
-                    MclError::BadParam { .. } | MclError::DimMismatch { .. } => {
-                        SessionError::ClassTable(e.to_string())
+                    MclError::BadParam {
+                        name: "baseline classes",
+                        ..
                     }
+                    | MclError::DimMismatch { .. } => SessionError::ClassTable(e.to_string()),
+                    MclError::BadParam { .. } => SessionError::Init(e),
                     e => SessionError::Filter(e),
                 },
             )?,
@@ -487,5 +490,22 @@ mod tests {
         .unwrap();
         assert!(matches!(e, SessionError::ClassTable(_)), "{e:?}");
         assert!(e.to_string().contains("has no classes"), "{e}");
+        // A distance cap that is no distance: the start's parameters'
+        // fault, named as such.
+        let e = BaselineSession::new(
+            &scene,
+            &table,
+            Baseline::Simp,
+            BaselineParams {
+                max_distance: f64::NAN,
+                ..BaselineParams::default()
+            },
+            &config(),
+            &start(camera(1.5, 1.0)),
+        )
+        .err()
+        .unwrap();
+        assert!(matches!(e, SessionError::Init(_)), "{e:?}");
+        assert!(e.to_string().contains("baseline max distance"), "{e}");
     }
 }
