@@ -39,6 +39,10 @@ pub struct BaselinePlan {
     classes: FeatureDb,
 }
 
+/// [`MclError::BadParam`]'s name when the class table is refused (none,
+/// or more than the labels hold): the caller's table to change.
+pub const CLASSES_PARAM: &str = "baseline classes";
+
 impl BaselinePlan {
     /// `plan`, its one-layer map `map` and that map's caster `caster`
     /// (columns as prisms, leaves in `map`'s order), labelled with
@@ -53,7 +57,7 @@ impl BaselinePlan {
     ) -> Result<Self, MclError> {
         if classes.is_empty() {
             return Err(MclError::BadParam {
-                name: "baseline classes",
+                name: CLASSES_PARAM,
                 why: "the class table has no classes: SeDAR* and SIMP* label the plan and the \
                       pixels by class"
                     .into(),
@@ -61,7 +65,7 @@ impl BaselinePlan {
         }
         if classes.len() > usize::from(NO_LABEL) {
             return Err(MclError::BadParam {
-                name: "baseline classes",
+                name: CLASSES_PARAM,
                 why: format!(
                     "{} classes: SeDAR* and SIMP* label with at most {NO_LABEL}",
                     classes.len()

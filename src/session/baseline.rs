@@ -24,7 +24,7 @@ use crate::geometry::Pose;
 use crate::io::labels::EmbeddingTable;
 use crate::map::FeatureDb;
 use crate::map::{FloorPlan, LanguageMap};
-use crate::mcl::baseline_filter::{BaselineFilter, BaselinePlan};
+use crate::mcl::baseline_filter::{BaselineFilter, BaselinePlan, CLASSES_PARAM};
 use crate::mcl::baselines::{Baseline, BaselineParams};
 use crate::mcl::{self, MclError, Particle};
 use crate::raycast::PlanarCaster;
@@ -90,7 +90,7 @@ impl BaselineMap {
             BaselinePlan::new(&self.plan, &self.map, self.caster.clone(), db, params).map_err(
                 |e| match e {
                     MclError::BadParam {
-                        name: "baseline classes",
+                        name: CLASSES_PARAM,
                         ..
                     }
                     | MclError::DimMismatch { .. } => SessionError::ClassTable(e.to_string()),
@@ -477,34 +477,22 @@ mod tests {
         );
         // A class table without classes: the table's fault (the server
         // answers FAILED_PRECONDITION for it), not the filter's.
+        let refused = |b: Baseline, t: &EmbeddingTable, params: BaselineParams| {
+            BaselineSession::new(&scene, t, b, params, &config(), &start(camera(1.5, 1.0)))
+                .err()
+                .unwrap()
+        };
         let empty = EmbeddingTable::new(vec![], vec![], 3, vec![]).unwrap();
-        let e = BaselineSession::new(
-            &scene,
-            &empty,
-            Baseline::Sedar,
-            BaselineParams::default(),
-            &config(),
-            &start(camera(1.5, 1.0)),
-        )
-        .err()
-        .unwrap();
+        let e = refused(Baseline::Sedar, &empty, BaselineParams::default());
         assert!(matches!(e, SessionError::ClassTable(_)), "{e:?}");
         assert!(e.to_string().contains("has no classes"), "{e}");
         // A distance cap that is no distance: the start's parameters'
         // fault, named as such.
-        let e = BaselineSession::new(
-            &scene,
-            &table,
-            Baseline::Simp,
-            BaselineParams {
-                max_distance: f64::NAN,
-                ..BaselineParams::default()
-            },
-            &config(),
-            &start(camera(1.5, 1.0)),
-        )
-        .err()
-        .unwrap();
+        let nan = BaselineParams {
+            max_distance: f64::NAN,
+            ..BaselineParams::default()
+        };
+        let e = refused(Baseline::Simp, &table, nan);
         assert!(matches!(e, SessionError::Init(_)), "{e:?}");
         assert!(e.to_string().contains("baseline max distance"), "{e}");
     }
